@@ -1,0 +1,225 @@
+//! Height maps and the displacement convention.
+//!
+//! `D(u, v) = scale * (h(u, v) - midlevel)` (Blender's Displacement node; USD's UsdUVTexture
+//! with `bias = -midlevel * scale`). `h` is in [0, 1] for integer formats and the raw value
+//! for float formats. Sampling is bilinear with texel centres at `(i + 0.5) / N`; row 0 of
+//! `data` is the *top* row of the image and `v` points up, so `v = 1 - (row + 0.5) / height`
+//! at a texel centre.
+
+use glam::Vec2;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Wrap {
+    #[default]
+    Repeat,
+    Clamp,
+}
+
+impl std::str::FromStr for Wrap {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "repeat" => Ok(Wrap::Repeat),
+            "clamp" => Ok(Wrap::Clamp),
+            _ => Err(format!(
+                "unknown wrap mode '{s}' (expected repeat or clamp)"
+            )),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DisplaceParams {
+    pub scale: f32,
+    pub midlevel: f32,
+}
+
+impl Default for DisplaceParams {
+    fn default() -> Self {
+        DisplaceParams {
+            scale: 1.0,
+            midlevel: 0.5,
+        }
+    }
+}
+
+impl DisplaceParams {
+    #[inline]
+    pub fn displacement(&self, h: f32) -> f32 {
+        self.scale * (h - self.midlevel)
+    }
+    /// The displacement range spanned by map values in `[hmin, hmax]` (scale may be negative).
+    pub fn displacement_range(&self, hmin: f32, hmax: f32) -> (f32, f32) {
+        let (a, b) = (self.displacement(hmin), self.displacement(hmax));
+        (a.min(b), a.max(b))
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct HeightMap {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major, row 0 at the top of the image.
+    pub data: Vec<f32>,
+    pub wrap: Wrap,
+    pub source: PathBuf,
+    /// The channel that was read (`Y`, `R`, `L`, ...).
+    pub channel: String,
+}
+
+impl HeightMap {
+    pub fn new(width: u32, height: u32, data: Vec<f32>, wrap: Wrap) -> Self {
+        assert_eq!(data.len(), width as usize * height as usize);
+        HeightMap {
+            width,
+            height,
+            data,
+            wrap,
+            source: PathBuf::new(),
+            channel: String::new(),
+        }
+    }
+
+    /// Texel (x, y) with the wrap mode applied; x, y may be any integers.
+    #[inline]
+    pub fn texel(&self, x: i64, y: i64) -> f32 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let (x, y) = match self.wrap {
+            Wrap::Repeat => (x.rem_euclid(w), y.rem_euclid(h)),
+            Wrap::Clamp => (x.clamp(0, w - 1), y.clamp(0, h - 1)),
+        };
+        self.data[(y * w + x) as usize]
+    }
+
+    /// Continuous texel coordinates of a UV: texel (i, j) has its centre at (i + 0.5, j + 0.5).
+    #[inline]
+    pub fn texel_coords(&self, uv: Vec2) -> Vec2 {
+        Vec2::new(uv.x * self.width as f32, (1.0 - uv.y) * self.height as f32)
+    }
+
+    /// Bilinear sample of the raw map value at `uv`.
+    #[inline]
+    pub fn sample(&self, uv: Vec2) -> f32 {
+        let p = self.texel_coords(uv) - Vec2::splat(0.5);
+        let (fx, fy) = (p.x.floor(), p.y.floor());
+        let (tx, ty) = (p.x - fx, p.y - fy);
+        let (x, y) = (fx as i64, fy as i64);
+        let a = self.texel(x, y);
+        let b = self.texel(x + 1, y);
+        let c = self.texel(x, y + 1);
+        let d = self.texel(x + 1, y + 1);
+        let top = a + (b - a) * tx;
+        let bottom = c + (d - c) * tx;
+        top + (bottom - top) * ty
+    }
+
+    /// Bilinear sample and its gradient with respect to (u, v).
+    pub fn sample_grad(&self, uv: Vec2) -> (f32, Vec2) {
+        let p = self.texel_coords(uv) - Vec2::splat(0.5);
+        let (fx, fy) = (p.x.floor(), p.y.floor());
+        let (tx, ty) = (p.x - fx, p.y - fy);
+        let (x, y) = (fx as i64, fy as i64);
+        let a = self.texel(x, y);
+        let b = self.texel(x + 1, y);
+        let c = self.texel(x, y + 1);
+        let d = self.texel(x + 1, y + 1);
+        let top = a + (b - a) * tx;
+        let bottom = c + (d - c) * tx;
+        let value = top + (bottom - top) * ty;
+        let d_dx = (b - a) + ((d - c) - (b - a)) * ty;
+        let d_dy = bottom - top;
+        // x grows with u; y (rows) grows as v falls.
+        let grad = Vec2::new(d_dx * self.width as f32, -d_dy * self.height as f32);
+        (value, grad)
+    }
+
+    /// Min and max over every texel in the inclusive integer rectangle (wrap applied).
+    pub fn texel_range(&self, x0: i64, x1: i64, y0: i64, y1: i64) -> (f32, f32) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        // A rectangle wider than the map covers every column (likewise rows).
+        let (x0, x1) = if x1 - x0 + 1 >= w && self.wrap == Wrap::Repeat {
+            (0, w - 1)
+        } else {
+            (x0, x1)
+        };
+        let (y0, y1) = if y1 - y0 + 1 >= h && self.wrap == Wrap::Repeat {
+            (0, h - 1)
+        } else {
+            (y0, y1)
+        };
+        let mut lo = f32::INFINITY;
+        let mut hi = f32::NEG_INFINITY;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let v = self.texel(x, y);
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        (lo, hi)
+    }
+
+    pub fn value_range(&self) -> (f32, f32) {
+        self.data
+            .iter()
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                (lo.min(v), hi.max(v))
+            })
+    }
+
+    /// First texel that is NaN or infinite, as (x, y).
+    pub fn first_non_finite(&self) -> Option<(u32, u32)> {
+        self.data.iter().position(|v| !v.is_finite()).map(|i| {
+            (
+                (i % self.width as usize) as u32,
+                (i / self.width as usize) as u32,
+            )
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texel_centres_sample_exactly() {
+        // 2x2 map: top row 0, 1; bottom row 2, 3.
+        let m = HeightMap::new(2, 2, vec![0.0, 1.0, 2.0, 3.0], Wrap::Clamp);
+        assert_eq!(m.sample(Vec2::new(0.25, 0.75)), 0.0); // top-left texel centre
+        assert_eq!(m.sample(Vec2::new(0.75, 0.75)), 1.0);
+        assert_eq!(m.sample(Vec2::new(0.25, 0.25)), 2.0); // bottom-left: v up
+        assert_eq!(m.sample(Vec2::new(0.5, 0.5)), 1.5);
+    }
+
+    #[test]
+    fn repeat_wraps_between_edges() {
+        let m = HeightMap::new(2, 1, vec![0.0, 1.0], Wrap::Repeat);
+        // u = 0 sits halfway between the last and first texel centres.
+        assert!((m.sample(Vec2::new(0.0, 0.5)) - 0.5).abs() < 1e-6);
+        let c = HeightMap::new(2, 1, vec![0.0, 1.0], Wrap::Clamp);
+        assert_eq!(c.sample(Vec2::new(0.0, 0.5)), 0.0);
+    }
+
+    #[test]
+    fn gradient_matches_finite_differences() {
+        let data: Vec<f32> = (0..16).map(|i| ((i * 7) % 5) as f32).collect();
+        let m = HeightMap::new(4, 4, data, Wrap::Repeat);
+        let uv = Vec2::new(0.37, 0.61);
+        let (_, g) = m.sample_grad(uv);
+        let e = 1e-3;
+        let gx = (m.sample(uv + Vec2::new(e, 0.0)) - m.sample(uv - Vec2::new(e, 0.0))) / (2.0 * e);
+        let gy = (m.sample(uv + Vec2::new(0.0, e)) - m.sample(uv - Vec2::new(0.0, e))) / (2.0 * e);
+        assert!(
+            (g.x - gx).abs() < 1e-2 * gx.abs().max(1.0),
+            "{g} vs {gx},{gy}"
+        );
+        assert!(
+            (g.y - gy).abs() < 1e-2 * gy.abs().max(1.0),
+            "{g} vs {gx},{gy}"
+        );
+    }
+}

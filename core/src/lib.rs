@@ -1,0 +1,20 @@
+//! prismbake: displacement-mapped assets traced without tessellation.
+//!
+//! The pipeline is the module layout, one stage each, data flowing one way:
+//! `load` (mesh + height map) → `repair` → `bake` (prism table) → `accel` → `trace` → `render`
+//! → `report`. Each stage takes plain structs and returns plain structs.
+
+pub mod bake;
+pub mod canonical;
+pub mod error;
+pub mod heightmap;
+pub mod load;
+pub mod mesh;
+pub mod prism_file;
+pub mod repair;
+pub mod rng;
+pub mod trace;
+
+pub use error::{Error, Result};
+pub use heightmap::{DisplaceParams, HeightMap, Wrap};
+pub use mesh::BaseMesh;

@@ -1,0 +1,117 @@
+//! Stage 1: read a mesh file and a height map into `BaseMesh` + `HeightMap`.
+//!
+//! One UV convention for every loader (v up the image, see `mesh`); the glTF loader flips v.
+
+pub mod gltf;
+pub mod image;
+pub mod obj;
+
+use crate::error::{Error, Result};
+use crate::heightmap::{HeightMap, Wrap};
+use crate::mesh::BaseMesh;
+use std::path::Path;
+
+/// Options for mesh loading.
+#[derive(Clone, Debug, Default)]
+pub struct MeshOptions {
+    /// Which TEXCOORD_n set to read (glTF); OBJ has one.
+    pub uv_set: u32,
+}
+
+/// Options for height-map loading.
+#[derive(Clone, Debug, Default)]
+pub struct MapOptions {
+    /// Channel name to read from an EXR (default: Y, else R, else the first channel).
+    pub channel: Option<String>,
+    pub wrap: Wrap,
+}
+
+pub const MESH_EXTENSIONS: &str = ".gltf, .glb or .obj";
+
+/// Load a mesh by extension.
+pub fn load_mesh(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
+    check_readable_file(path)?;
+    let ext = extension(path);
+    let mesh = match ext.as_str() {
+        "gltf" | "glb" => gltf::load(path, opts)?,
+        "obj" => obj::load(path, opts)?,
+        _ => {
+            return Err(Error::UnsupportedFormat {
+                path: path.into(),
+                ext,
+                expected: MESH_EXTENSIONS,
+            })
+        }
+    };
+    check_mesh(&mesh)?;
+    Ok(mesh)
+}
+
+/// Load a height map by extension (.exr, .png, .tif/.tiff).
+pub fn load_height_map(path: &Path, opts: &MapOptions) -> Result<HeightMap> {
+    check_readable_file(path)?;
+    image::load(path, opts)
+}
+
+pub fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+fn check_readable_file(path: &Path) -> Result<()> {
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return Err(Error::invalid(
+            path,
+            "is a directory, expected a file (give the path of the file itself)",
+        ));
+    }
+    Ok(())
+}
+
+/// Checks every loader's result the same way: no triangles, indices out of range, NaN.
+pub fn check_mesh(mesh: &BaseMesh) -> Result<()> {
+    let path = &mesh.source;
+    if mesh.triangles.is_empty() {
+        return Err(Error::invalid(
+            path,
+            "contains zero triangles (export the mesh with its faces, triangulated or as polygons)",
+        ));
+    }
+    let n = mesh.positions.len();
+    if mesh.normals.len() != n || mesh.uvs.len() != n {
+        return Err(Error::invalid(
+            path,
+            "internal: attribute arrays differ in length",
+        ));
+    }
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if let Some(&i) = tri.iter().find(|&&i| i as usize >= n) {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "{} references vertex {i} but there are only {n} vertices (re-export the mesh)",
+                    mesh.face_name(t)
+                ),
+            ));
+        }
+    }
+    for (what, bad) in [
+        (
+            "position",
+            mesh.positions.iter().position(|p| !p.is_finite()),
+        ),
+        ("normal", mesh.normals.iter().position(|p| !p.is_finite())),
+        ("UV", mesh.uvs.iter().position(|p| !p.is_finite())),
+    ] {
+        if let Some(v) = bad {
+            return Err(Error::invalid(
+                path,
+                format!("vertex {v} has a NaN or infinite {what} (fix or delete that vertex)"),
+            ));
+        }
+    }
+    Ok(())
+}

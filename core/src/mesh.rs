@@ -1,0 +1,116 @@
+//! `BaseMesh`: the one in-memory form every loader produces and every later stage reads.
+//!
+//! Positions are world space (node transforms applied), normals are unit length, and UVs follow
+//! the single convention of the project: `v` points *up* the image (OBJ, Blender, USD). The glTF
+//! loader flips `v` on load. Triangles are counter-clockwise seen from outside.
+
+use glam::{Vec2, Vec3};
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Up axis of the asset's own frame; glTF is Y-up, OBJ is taken as Y-up, USD says so itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum UpAxis {
+    Y,
+    Z,
+}
+
+/// A camera found in the scene file (glTF perspective camera), in world space.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SceneCamera {
+    pub from: Vec3,
+    pub to: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub yfov_deg: f32,
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct BaseMesh {
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub uvs: Vec<Vec2>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per triangle: index into `groups` (the source node/primitive or OBJ group name).
+    pub face_group: Vec<u32>,
+    pub groups: Vec<String>,
+    /// Per triangle, flags from repair (see `FACE_*`).
+    pub face_flags: Vec<u8>,
+    pub source: PathBuf,
+    pub up_axis: Option<UpAxis>,
+    pub camera: Option<SceneCamera>,
+    /// True when the file carried no UVs at all (every UV is then zero).
+    pub missing_uvs: bool,
+    /// Base colour of the first material, linear RGBA, when the file has one.
+    pub base_color: Option<[f32; 4]>,
+}
+
+impl Default for UpAxis {
+    fn default() -> Self {
+        UpAxis::Y
+    }
+}
+
+/// A triangle inserted by crease repair to stitch a hard edge: zero base area by construction.
+pub const FACE_INSERTED: u8 = 1;
+/// A triangle whose UV area is (nearly) zero: the map is sampled along a line across it.
+pub const FACE_UV_DEGENERATE: u8 = 2;
+
+impl BaseMesh {
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+    pub fn triangle_count(&self) -> usize {
+        self.triangles.len()
+    }
+    pub fn corners(&self, t: usize) -> [Vec3; 3] {
+        self.triangles[t].map(|i| self.positions[i as usize])
+    }
+    pub fn corner_normals(&self, t: usize) -> [Vec3; 3] {
+        self.triangles[t].map(|i| self.normals[i as usize])
+    }
+    pub fn corner_uvs(&self, t: usize) -> [Vec2; 3] {
+        self.triangles[t].map(|i| self.uvs[i as usize])
+    }
+    /// Unnormalised geometric normal (twice the area vector).
+    pub fn face_cross(&self, t: usize) -> Vec3 {
+        let [a, b, c] = self.corners(t);
+        (b - a).cross(c - a)
+    }
+    /// Human name of a face for messages: `face 12 (group 'Sphere/0')`.
+    pub fn face_name(&self, t: usize) -> String {
+        match self
+            .face_group
+            .get(t)
+            .and_then(|&g| self.groups.get(g as usize))
+        {
+            Some(g) => format!("face {t} (group '{g}')"),
+            None => format!("face {t}"),
+        }
+    }
+    /// World-space bounds of the base positions.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.positions.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), &p| (lo.min(p), hi.max(p)),
+        )
+    }
+
+    /// Angle-weighted vertex normals from the faces (used where a file has none).
+    pub fn angle_weighted_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+        let mut acc = vec![Vec3::ZERO; positions.len()];
+        for tri in triangles {
+            let p = tri.map(|i| positions[i as usize]);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            for k in 0..3 {
+                let e1 = (p[(k + 1) % 3] - p[k]).normalize_or_zero();
+                let e2 = (p[(k + 2) % 3] - p[k]).normalize_or_zero();
+                let angle = e1.dot(e2).clamp(-1.0, 1.0).acos();
+                acc[tri[k] as usize] += n * angle;
+            }
+        }
+        acc.into_iter()
+            .map(|n| n.try_normalize().unwrap_or(Vec3::Z))
+            .collect()
+    }
+}

@@ -1,0 +1,1 @@
+//! The .prisms file.
