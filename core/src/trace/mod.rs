@@ -66,3 +66,17 @@ pub enum NormalMode {
     Smooth,
     Geometric,
 }
+
+/// One ray-tracing method over one scene. Implementations: `reference` (tessellated ground
+/// truth) and `pdm` (projective displacement mapping); `rmip` and `nonlinear` follow.
+pub trait Intersector: Sync {
+    fn name(&self) -> &'static str;
+    /// Closest hit with `t` in `[ray.t_min, ray.t_max]`, as a full record.
+    fn intersect(&self, ray: &Ray, ctx: &RayContext) -> Option<Hit>;
+    /// Any hit in the interval (shadow rays).
+    fn occluded(&self, ray: &Ray, ctx: &RayContext) -> bool {
+        self.intersect(ray, ctx).is_some()
+    }
+    /// Bytes this method holds beyond the base mesh and the height map (BVHs, tables).
+    fn memory_bytes(&self) -> usize;
+}
