@@ -1,1 +1,338 @@
-//! The .prisms file.
+//! The `.prisms` file: a versioned, checksummed little-endian binary of a `PrismTable`.
+//! The layout is documented in `docs/prism-format.md`; keep the two in step.
+//!
+//! The reader never trusts a count: the file length implied by the header is computed with
+//! checked arithmetic and compared to the real length before anything is allocated, and
+//! every index and float is checked after the checksum.
+
+use crate::bake::{Prism, PrismTable};
+use crate::error::{Error, Result};
+use crate::heightmap::{DisplaceParams, Wrap};
+use glam::{Vec2, Vec3};
+use std::io::Write;
+use std::path::Path;
+
+pub const MAGIC: [u8; 8] = *b"PRISMBK\0";
+pub const VERSION: u32 = 1;
+/// Bytes per vertex record: position, normal (3 f32 each), uv (2 f32).
+pub const VERTEX_BYTES: usize = 32;
+/// Bytes per prism record: 3 u32 indices, d_min, d_max, lambda_lo, lambda_hi, texel_world, flags.
+pub const PRISM_BYTES: usize = 36;
+const FIXED_HEADER: usize = 8 + 4 + 2 * 8 + 4 * 6 + 32 + 4;
+const CHECKSUM_BYTES: usize = 32;
+const MAX_MAP_PATH: usize = 4096;
+/// Refuse tables beyond this many prisms (far above any base mesh PDM is meant for).
+pub const MAX_PRISMS: u64 = 1 << 28;
+
+pub fn encode(table: &PrismTable) -> Vec<u8> {
+    let path = table.map_path.as_bytes();
+    let mut out = Vec::with_capacity(encoded_len(table.positions.len(), table.prisms.len(), path.len()));
+    out.extend_from_slice(&MAGIC);
+    put_u32(&mut out, VERSION);
+    put_u64(&mut out, table.positions.len() as u64);
+    put_u64(&mut out, table.prisms.len() as u64);
+    put_u32(&mut out, table.map_width);
+    put_u32(&mut out, table.map_height);
+    put_u32(&mut out, match table.wrap {
+        Wrap::Repeat => 0,
+        Wrap::Clamp => 1,
+    });
+    put_f32(&mut out, table.params.scale);
+    put_f32(&mut out, table.params.midlevel);
+    put_u32(&mut out, 0); // reserved flags
+    out.extend_from_slice(&table.input_hash);
+    put_u32(&mut out, path.len() as u32);
+    out.extend_from_slice(path);
+    for p in &table.positions {
+        put_vec3(&mut out, *p);
+    }
+    for n in &table.normals {
+        put_vec3(&mut out, *n);
+    }
+    for uv in &table.uvs {
+        put_f32(&mut out, uv.x);
+        put_f32(&mut out, uv.y);
+    }
+    for p in &table.prisms {
+        for i in p.tri {
+            put_u32(&mut out, i);
+        }
+        for f in [p.d_min, p.d_max, p.lambda_lo, p.lambda_hi, p.texel_world] {
+            put_f32(&mut out, f);
+        }
+        put_u32(&mut out, p.flags);
+    }
+    let sum = blake3::hash(&out);
+    out.extend_from_slice(sum.as_bytes());
+    out
+}
+
+pub fn encoded_len(vertices: usize, prisms: usize, path_len: usize) -> usize {
+    FIXED_HEADER + path_len + vertices * VERTEX_BYTES + prisms * PRISM_BYTES + CHECKSUM_BYTES
+}
+
+/// Write atomically: a temp file in the same folder, then rename.
+pub fn write(path: &Path, table: &PrismTable) -> Result<()> {
+    write_atomic(path, &encode(table))
+}
+
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(path, e)
+    })
+}
+
+pub fn read(path: &Path) -> Result<PrismTable> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    decode(&bytes).map_err(|what| Error::invalid(path, what))
+}
+
+/// Read only the input hash, for the skip-work check (None if the file is not a valid table).
+pub fn read_input_hash(path: &Path) -> Option<[u8; 32]> {
+    let table = read(path).ok()?;
+    Some(table.input_hash)
+}
+
+struct Reader<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl Reader<'_> {
+    fn take(&mut self, n: usize) -> std::result::Result<&[u8], String> {
+        let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or_else(|| {
+            format!("truncated prism table: needs {} more bytes at offset {} (re-bake the table)", n, self.pos)
+        })?;
+        let s = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+    fn u32(&mut self) -> std::result::Result<u32, String> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().unwrap()))
+    }
+    fn u64(&mut self) -> std::result::Result<u64, String> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().unwrap()))
+    }
+    fn f32(&mut self) -> std::result::Result<f32, String> {
+        Ok(f32::from_le_bytes(self.take(4)?.try_into().unwrap()))
+    }
+    fn vec3(&mut self) -> std::result::Result<Vec3, String> {
+        Ok(Vec3::new(self.f32()?, self.f32()?, self.f32()?))
+    }
+}
+
+/// Decode a table; the error says what is wrong and what to do.
+pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
+    let mut r = Reader { bytes, pos: 0 };
+    let magic = r.take(8).map_err(|_| "not a prism table: file is shorter than its 8-byte magic".to_string())?;
+    if magic != MAGIC {
+        return Err("not a prism table (bad magic; expected a file written by `prismbake bake`)".into());
+    }
+    let version = r.u32()?;
+    if version != VERSION {
+        return Err(format!(
+            "prism table format version {version} is not supported (this prismbake reads version {VERSION}); re-bake the table with this version"
+        ));
+    }
+    let nv = r.u64()?;
+    let np = r.u64()?;
+    if np > MAX_PRISMS || nv > 3 * MAX_PRISMS {
+        return Err(format!("prism table claims {np} prisms and {nv} vertices, more than the limit of {MAX_PRISMS}: the file is corrupt"));
+    }
+    let map_width = r.u32()?;
+    let map_height = r.u32()?;
+    let wrap = match r.u32()? {
+        0 => Wrap::Repeat,
+        1 => Wrap::Clamp,
+        w => return Err(format!("unknown wrap mode {w} in header (file is corrupt; re-bake)")),
+    };
+    let params = DisplaceParams {
+        scale: r.f32()?,
+        midlevel: r.f32()?,
+    };
+    let _flags = r.u32()?;
+    let mut input_hash = [0u8; 32];
+    input_hash.copy_from_slice(r.take(32)?);
+    let path_len = r.u32()? as usize;
+    if path_len > MAX_MAP_PATH {
+        return Err(format!("map path length {path_len} exceeds {MAX_MAP_PATH} bytes: the file is corrupt"));
+    }
+    let expected = (FIXED_HEADER as u64)
+        .checked_add(path_len as u64)
+        .and_then(|s| s.checked_add(nv.checked_mul(VERTEX_BYTES as u64)?))
+        .and_then(|s| s.checked_add(np.checked_mul(PRISM_BYTES as u64)?))
+        .and_then(|s| s.checked_add(CHECKSUM_BYTES as u64))
+        .ok_or("prism table counts overflow: the file is corrupt")?;
+    if expected != bytes.len() as u64 {
+        return Err(format!(
+            "prism table is {} bytes but its header ({nv} vertices, {np} prisms) implies {expected}: the file is truncated or corrupt (re-bake it)",
+            bytes.len()
+        ));
+    }
+    let body_end = bytes.len() - CHECKSUM_BYTES;
+    if blake3::hash(&bytes[..body_end]).as_bytes() != &bytes[body_end..] {
+        return Err("prism table checksum mismatch: the file is corrupt (re-bake it)".into());
+    }
+    let map_path = String::from_utf8(r.take(path_len)?.to_vec()).map_err(|_| "map path is not UTF-8 (file is corrupt)".to_string())?;
+    let (nv, np) = (nv as usize, np as usize);
+    let positions = (0..nv).map(|_| r.vec3()).collect::<std::result::Result<Vec<_>, _>>()?;
+    let normals = (0..nv).map(|_| r.vec3()).collect::<std::result::Result<Vec<_>, _>>()?;
+    let uvs = (0..nv)
+        .map(|_| Ok(Vec2::new(r.f32()?, r.f32()?)))
+        .collect::<std::result::Result<Vec<_>, String>>()?;
+    let mut prisms = Vec::with_capacity(np);
+    for i in 0..np {
+        let tri = [r.u32()?, r.u32()?, r.u32()?];
+        let p = Prism {
+            tri,
+            d_min: r.f32()?,
+            d_max: r.f32()?,
+            lambda_lo: r.f32()?,
+            lambda_hi: r.f32()?,
+            texel_world: r.f32()?,
+            flags: r.u32()?,
+        };
+        if let Some(&bad) = tri.iter().find(|&&v| v as usize >= nv) {
+            return Err(format!("prism {i} references vertex {bad} but the table has {nv} vertices (corrupt; re-bake)"));
+        }
+        let finite = [p.d_min, p.d_max, p.lambda_lo, p.lambda_hi, p.texel_world].iter().all(|f| f.is_finite());
+        if !finite || p.d_min > p.d_max || p.lambda_lo > p.lambda_hi {
+            return Err(format!("prism {i} has a non-finite or inverted extent (corrupt; re-bake)"));
+        }
+        prisms.push(p);
+    }
+    if let Some(v) = (0..nv).find(|&v| !(positions[v].is_finite() && normals[v].is_finite() && uvs[v].is_finite())) {
+        return Err(format!("vertex {v} has a NaN or infinite value (corrupt; re-bake)"));
+    }
+    Ok(PrismTable {
+        positions,
+        normals,
+        uvs,
+        prisms,
+        params,
+        map_width,
+        map_height,
+        input_hash,
+        map_path,
+        wrap,
+    })
+}
+
+fn put_u32(out: &mut Vec<u8>, v: u32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_u64(out: &mut Vec<u8>, v: u64) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_f32(out: &mut Vec<u8>, v: f32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+fn put_vec3(out: &mut Vec<u8>, v: Vec3) {
+    for c in v.to_array() {
+        put_f32(out, c);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::PRISM_FLAT;
+
+    fn small_table() -> PrismTable {
+        PrismTable {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: vec![Vec3::Z; 3],
+            uvs: vec![Vec2::ZERO, Vec2::X, Vec2::Y],
+            prisms: vec![Prism {
+                tri: [0, 1, 2],
+                d_min: -0.5,
+                d_max: 0.25,
+                lambda_lo: -0.5,
+                lambda_hi: 0.25,
+                texel_world: 0.01,
+                flags: PRISM_FLAT,
+            }],
+            params: DisplaceParams { scale: 0.1, midlevel: 0.5 },
+            map_width: 64,
+            map_height: 32,
+            input_hash: [7; 32],
+            map_path: "maps/h.png".into(),
+            wrap: Wrap::Clamp,
+        }
+    }
+
+    #[test]
+    fn round_trip() {
+        let t = small_table();
+        let bytes = encode(&t);
+        assert_eq!(bytes.len(), encoded_len(3, 1, 10));
+        let back = decode(&bytes).unwrap();
+        assert_eq!(back.prisms, t.prisms);
+        assert_eq!(back.positions, t.positions);
+        assert_eq!(back.uvs, t.uvs);
+        assert_eq!(back.map_path, t.map_path);
+        assert_eq!(back.wrap, Wrap::Clamp);
+        assert_eq!(back.input_hash, t.input_hash);
+    }
+
+    /// Frozen header bytes: a change to the layout must bump VERSION and the doc.
+    #[test]
+    fn frozen_header() {
+        let bytes = encode(&small_table());
+        assert_eq!(&bytes[..8], b"PRISMBK\0");
+        assert_eq!(&bytes[8..12], &[1, 0, 0, 0]); // version
+        assert_eq!(&bytes[12..28], &[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]); // counts
+        assert_eq!(&bytes[28..36], &[64, 0, 0, 0, 32, 0, 0, 0]); // map size
+        assert_eq!(&bytes[36..40], &[1, 0, 0, 0]); // clamp
+    }
+
+    #[test]
+    fn every_truncation_is_a_clean_error() {
+        let bytes = encode(&small_table());
+        for n in 0..bytes.len() {
+            assert!(decode(&bytes[..n]).is_err(), "prefix of {n} bytes decoded");
+        }
+    }
+
+    #[test]
+    fn rejects_other_version_bad_checksum_and_absurd_counts() {
+        let mut b = encode(&small_table());
+        b[8] = 2;
+        assert!(decode(&b).unwrap_err().contains("version 2"));
+        let mut b = encode(&small_table());
+        let n = b.len();
+        b[n - 40] ^= 1;
+        assert!(decode(&b).unwrap_err().contains("checksum"));
+        let mut b = encode(&small_table());
+        b[20..28].copy_from_slice(&(1_000_000_000_000u64).to_le_bytes());
+        assert!(decode(&b).unwrap_err().contains("limit"));
+        let mut b = encode(&small_table());
+        b[20..28].copy_from_slice(&(1000u64).to_le_bytes());
+        assert!(decode(&b).unwrap_err().contains("implies"));
+    }
+
+    #[test]
+    fn random_bytes_never_panic() {
+        let good = encode(&small_table());
+        let mut state = 12345u32;
+        for _ in 0..20_000 {
+            let mut b = good.clone();
+            for _ in 0..4 {
+                state = crate::rng::pcg_hash(state);
+                let i = state as usize % b.len();
+                b[i] = (state >> 8) as u8;
+            }
+            let _ = decode(&b);
+        }
+    }
+}
