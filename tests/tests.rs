@@ -1,0 +1,7 @@
+//! End-to-end tests of the `prismbake` binary on real files: one module per topic.
+
+mod util;
+
+mod bad_input;
+mod bake;
+mod validate;

@@ -1,0 +1,89 @@
+//! Test helpers: run the built binary in a temp dir and show everything on failure.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+pub fn repo_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+pub fn example(rel: &str) -> PathBuf {
+    repo_root().join("examples").join(rel)
+}
+
+/// A fresh, empty folder for one test.
+pub fn temp_dir(name: &str) -> PathBuf {
+    static N: AtomicU32 = AtomicU32::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "prismbake-it-{}-{}-{name}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+pub struct Output {
+    pub code: i32,
+    pub stdout: String,
+    pub stderr: String,
+    pub cmdline: String,
+}
+
+impl Output {
+    fn describe(&self) -> String {
+        format!("command: {}\nexit: {}\n--- stdout\n{}\n--- stderr\n{}", self.cmdline, self.code, self.stdout, self.stderr)
+    }
+    pub fn assert_code(&self, code: i32) -> &Self {
+        assert_eq!(self.code, code, "unexpected exit code\n{}", self.describe());
+        self
+    }
+    pub fn assert_success(&self) -> &Self {
+        self.assert_code(0)
+    }
+    /// An error: non-zero exit, one clear line on stderr containing every needle, no panic.
+    pub fn assert_error(&self, needles: &[&str]) -> &Self {
+        assert_ne!(self.code, 0, "expected failure\n{}", self.describe());
+        assert!(!self.stderr.contains("panicked"), "panicked\n{}", self.describe());
+        for n in needles {
+            assert!(self.stderr.contains(n), "stderr lacks {n:?}\n{}", self.describe());
+        }
+        self
+    }
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::from_str(&self.stdout).unwrap_or_else(|e| panic!("stdout is not JSON: {e}\n{}", self.describe()))
+    }
+}
+
+/// Run `prismbake ARGS` with `cwd` as working directory.
+pub fn run_in(cwd: &Path, args: &[&str]) -> Output {
+    let bin = env!("CARGO_BIN_EXE_prismbake");
+    let out = Command::new(bin).args(args).current_dir(cwd).output().expect("binary runs");
+    Output {
+        code: out.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+        cmdline: format!("prismbake {}", args.join(" ")),
+    }
+}
+
+pub fn run(args: &[&str]) -> Output {
+    run_in(&repo_root(), args)
+}
+
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Files in a folder (to check that nothing half-written was left).
+pub fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .map(|r| r.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).collect())
+        .unwrap_or_default();
+    v.sort();
+    v
+}
