@@ -4,6 +4,7 @@
 //! `load` (mesh + height map) → `repair` → `bake` (prism table) → `accel` → `trace` → `render`
 //! → `report`. Each stage takes plain structs and returns plain structs.
 
+pub mod asset;
 pub mod bake;
 pub mod canonical;
 pub mod error;
@@ -12,8 +13,10 @@ pub mod load;
 pub mod mesh;
 pub mod prism_file;
 pub mod repair;
+pub mod report;
 pub mod rng;
 pub mod trace;
+pub mod validate;
 
 pub use error::{Error, Result};
 pub use heightmap::{DisplaceParams, HeightMap, Wrap};

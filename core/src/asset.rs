@@ -1,0 +1,266 @@
+//! An asset = a mesh file + its height map and displacement parameters, given by a sidecar
+//! file next to the mesh (`rock.glb` → `rock.prismbake.toml`, documented in docs/sidecar.md)
+//! and/or command-line flags (flags win). `prepare` runs load → repair → bake, and skips the
+//! bake when an existing table was made from the same inputs (same input hash).
+
+use crate::bake::{self, BakeOptions, PrismTable};
+use crate::error::{Error, Result};
+use crate::heightmap::{DisplaceParams, HeightMap, Wrap};
+use crate::load::{self, MapOptions, MeshOptions};
+use crate::mesh::BaseMesh;
+use crate::prism_file;
+use crate::repair::{self, RepairOptions, RepairReport};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+pub const SIDECAR_SUFFIX: &str = ".prismbake.toml";
+
+/// The sidecar file, as written by people; paths relative to the sidecar's folder.
+#[derive(Clone, Debug, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sidecar {
+    pub disp: Option<PathBuf>,
+    pub scale: Option<f32>,
+    pub midlevel: Option<f32>,
+    pub wrap: Option<Wrap>,
+    pub channel: Option<String>,
+    pub uv_set: Option<u32>,
+    /// Largest |D| allowed by `validate` (world units).
+    pub max_disp: Option<f32>,
+}
+
+/// Settings given on the command line; `None` = take the sidecar's (or the default).
+pub type Overrides = Sidecar;
+
+/// Everything needed to load and bake one asset.
+#[derive(Clone, Debug, Serialize)]
+pub struct AssetSpec {
+    pub mesh: PathBuf,
+    pub disp: Option<PathBuf>,
+    pub params: DisplaceParams,
+    pub wrap: Wrap,
+    pub channel: Option<String>,
+    pub uv_set: u32,
+    pub max_disp: Option<f32>,
+    /// The sidecar that was read, if any.
+    pub sidecar: Option<PathBuf>,
+}
+
+impl AssetSpec {
+    pub fn mesh_options(&self) -> MeshOptions {
+        MeshOptions {
+            uv_set: self.uv_set,
+        }
+    }
+    pub fn map_options(&self) -> MapOptions {
+        MapOptions {
+            channel: self.channel.clone(),
+            wrap: self.wrap,
+        }
+    }
+    /// The height map path, or an error saying how to give one.
+    pub fn require_disp(&self) -> Result<&Path> {
+        self.disp.as_deref().ok_or_else(|| {
+            Error::invalid(
+                &self.mesh,
+                format!(
+                    "no height map given: pass --disp MAP or write `disp = \"map.png\"` in {}",
+                    sidecar_path(&self.mesh).display()
+                ),
+            )
+        })
+    }
+}
+
+pub fn sidecar_path(mesh: &Path) -> PathBuf {
+    let stem = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    mesh.with_file_name(format!("{stem}{SIDECAR_SUFFIX}"))
+}
+
+pub fn read_sidecar(path: &Path) -> Result<Sidecar> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut s: Sidecar = toml::from_str(&text).map_err(|e| {
+        Error::invalid(path, format!("{} (see docs/sidecar.md for the fields)", e.message()))
+    })?;
+    if let Some(d) = &s.disp {
+        if d.is_relative() {
+            s.disp = Some(path.parent().unwrap_or(Path::new("")).join(d));
+        }
+    }
+    Ok(s)
+}
+
+/// Combine the mesh's sidecar (if present) with the command-line overrides.
+pub fn resolve(mesh: &Path, flags: &Overrides) -> Result<AssetSpec> {
+    let side_path = sidecar_path(mesh);
+    let (side, sidecar) = if side_path.is_file() {
+        (read_sidecar(&side_path)?, Some(side_path))
+    } else {
+        (Sidecar::default(), None)
+    };
+    let defaults = DisplaceParams::default();
+    let spec = AssetSpec {
+        mesh: mesh.to_path_buf(),
+        disp: flags.disp.clone().or(side.disp),
+        params: DisplaceParams {
+            scale: flags.scale.or(side.scale).unwrap_or(defaults.scale),
+            midlevel: flags.midlevel.or(side.midlevel).unwrap_or(defaults.midlevel),
+        },
+        wrap: flags.wrap.or(side.wrap).unwrap_or_default(),
+        channel: flags.channel.clone().or(side.channel),
+        uv_set: flags.uv_set.or(side.uv_set).unwrap_or(0),
+        max_disp: flags.max_disp.or(side.max_disp),
+        sidecar,
+    };
+    if !spec.params.scale.is_finite() || !spec.params.midlevel.is_finite() {
+        return Err(Error::Param(format!(
+            "{}: scale and midlevel must be finite numbers",
+            mesh.display()
+        )));
+    }
+    Ok(spec)
+}
+
+/// Every mesh file under `root` (sorted, so batch output order is stable).
+pub fn find_meshes(root: &Path) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = walkdir::WalkDir::new(root)
+        .follow_links(true)
+        .into_iter()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_type().is_file())
+        .map(|e| e.into_path())
+        .filter(|p| matches!(load::extension(p).as_str(), "gltf" | "glb" | "obj"))
+        .collect();
+    found.sort();
+    found
+}
+
+/// Expand files and folders into mesh paths.
+pub fn expand_paths(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in paths {
+        let meta = std::fs::metadata(p).map_err(|e| Error::io(p, e))?;
+        if meta.is_dir() {
+            out.extend(find_meshes(p));
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// blake3 of everything the table depends on.
+pub fn input_hash(spec: &AssetSpec, repair: &RepairOptions) -> Result<[u8; 32]> {
+    let mut h = blake3::Hasher::new();
+    h.update(b"prismbake-table");
+    h.update(&prism_file::VERSION.to_le_bytes());
+    let mesh_bytes = std::fs::read(&spec.mesh).map_err(|e| Error::io(&spec.mesh, e))?;
+    h.update(&(mesh_bytes.len() as u64).to_le_bytes());
+    h.update(&mesh_bytes);
+    // External glTF buffers change the mesh too: hash every sibling file the glTF names.
+    if load::extension(&spec.mesh) == "gltf" {
+        if let Ok(doc) = gltf::Gltf::from_slice(&mesh_bytes) {
+            for b in doc.buffers() {
+                if let gltf::buffer::Source::Uri(uri) = b.source() {
+                    if !uri.starts_with("data:") {
+                        let p = spec.mesh.parent().unwrap_or(Path::new("")).join(uri);
+                        if let Ok(bytes) = std::fs::read(&p) {
+                            h.update(&bytes);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let disp = spec.require_disp()?;
+    let map_bytes = std::fs::read(disp).map_err(|e| Error::io(disp, e))?;
+    h.update(&(map_bytes.len() as u64).to_le_bytes());
+    h.update(&map_bytes);
+    h.update(&spec.params.scale.to_le_bytes());
+    h.update(&spec.params.midlevel.to_le_bytes());
+    h.update(&[spec.wrap as u8]);
+    h.update(spec.channel.as_deref().unwrap_or("").as_bytes());
+    h.update(&spec.uv_set.to_le_bytes());
+    h.update(format!("{repair:?}").as_bytes());
+    Ok(*h.finalize().as_bytes())
+}
+
+/// A loaded, repaired and baked asset.
+pub struct Prepared {
+    pub spec: AssetSpec,
+    pub mesh: BaseMesh,
+    pub map: HeightMap,
+    pub report: RepairReport,
+    pub table: PrismTable,
+}
+
+/// Load the mesh (refusing meshes without UVs) and the map.
+pub fn load(spec: &AssetSpec) -> Result<(BaseMesh, HeightMap)> {
+    let mesh = load::load_mesh(&spec.mesh, &spec.mesh_options())?;
+    if mesh.missing_uvs {
+        return Err(Error::invalid(
+            &spec.mesh,
+            format!(
+                "has no UV coordinates (TEXCOORD_{}); unwrap the mesh (e.g. Blender: UV ▸ Smart UV Project) and re-export",
+                spec.uv_set
+            ),
+        ));
+    }
+    let map = load::load_height_map(spec.require_disp()?, &spec.map_options())?;
+    if let Some((x, y)) = map.first_non_finite() {
+        return Err(Error::invalid(
+            &map.source,
+            format!("texel ({x}, {y}) is NaN or infinite; fix the map (e.g. clamp it in your paint tool)"),
+        ));
+    }
+    Ok((mesh, map))
+}
+
+/// load → repair → bake.
+pub fn prepare(spec: &AssetSpec, repair_opts: &RepairOptions) -> Result<Prepared> {
+    let (mesh, map) = load(spec)?;
+    let (mesh, report) = repair::repair(mesh, repair_opts);
+    let mut table = bake::bake(&mesh, &map, &BakeOptions { params: spec.params });
+    table.input_hash = input_hash(spec, repair_opts)?;
+    Ok(Prepared {
+        spec: spec.clone(),
+        mesh,
+        map,
+        report,
+        table,
+    })
+}
+
+/// Path of the map as stored in a table written to `table_path` (relative when possible).
+pub fn map_path_for_table(map: &Path, table_path: &Path) -> String {
+    let dir = table_path.parent().unwrap_or(Path::new(""));
+    let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    let (map_abs, dir_abs) = (abs(map), abs(if dir.as_os_str().is_empty() { Path::new(".") } else { dir }));
+    match map_abs.strip_prefix(&dir_abs) {
+        Ok(rel) => rel.to_string_lossy().into_owned(),
+        Err(_) => map_abs.to_string_lossy().into_owned(),
+    }
+}
+
+/// Load a baked table and its height map (found relative to the table, or `disp` if given).
+pub fn load_table(path: &Path, disp: Option<&Path>, channel: Option<String>) -> Result<(PrismTable, HeightMap)> {
+    let table = prism_file::read(path)?;
+    let map_path = match disp {
+        Some(d) => d.to_path_buf(),
+        None => {
+            let p = PathBuf::from(&table.map_path);
+            if p.is_absolute() { p } else { path.parent().unwrap_or(Path::new("")).join(p) }
+        }
+    };
+    let map = load::load_height_map(&map_path, &MapOptions { channel, wrap: table.wrap })?;
+    if (map.width, map.height) != (table.map_width, table.map_height) {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "was baked for a {}x{} map but {} is {}x{}; re-bake the table for this map",
+                table.map_width, table.map_height, map_path.display(), map.width, map.height
+            ),
+        ));
+    }
+    Ok((table, map))
+}

@@ -1,0 +1,387 @@
+//! The `validate` and `inspect` commands' logic: every check of an asset, as data.
+//!
+//! Checks (one JUnit test case each): `mesh` (readable, finite, in range), `uvs` (present),
+//! `uv-range` (inside [0, 1] when the map is clamped), `degenerate-faces`, `inverted-normals`,
+//! `sharp-creases`, `map` (readable), `finite-values` (no NaN/Inf texels), `max-displacement`.
+
+use crate::asset::{self, AssetSpec, Overrides};
+use crate::bake::PrismTable;
+use crate::error::Result;
+use crate::heightmap::{HeightMap, Wrap};
+use crate::load;
+use crate::mesh::BaseMesh;
+use crate::prism_file;
+use crate::repair::{self, RepairOptions, RepairReport};
+use crate::report::{AssetReport, Check};
+use glam::{Vec2, Vec3};
+use serde::Serialize;
+use std::path::Path;
+
+pub const CHECKS: [&str; 9] = [
+    "mesh",
+    "uvs",
+    "uv-range",
+    "degenerate-faces",
+    "inverted-normals",
+    "sharp-creases",
+    "map",
+    "finite-values",
+    "max-displacement",
+];
+
+fn skip_rest(checks: &mut Vec<Check>, why: &str) {
+    for name in CHECKS.iter().skip(checks.len()) {
+        checks.push(Check::skipped(name, why));
+    }
+}
+
+fn faces_of(corners: &[repair::CornerFinding]) -> Vec<u32> {
+    let mut f: Vec<u32> = corners.iter().map(|c| c.face).collect();
+    f.dedup();
+    f
+}
+
+/// Run every check on one asset; never fails (failures are checks).
+pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions) -> AssetReport {
+    let mut checks = Vec::new();
+    let name = mesh_path.display().to_string();
+    let spec = match asset::resolve(mesh_path, flags) {
+        Ok(s) => s,
+        Err(e) => {
+            checks.push(Check::fail("mesh", e.to_string()));
+            skip_rest(&mut checks, "the asset's settings could not be read");
+            return AssetReport { asset: name, checks };
+        }
+    };
+    let mesh = match load::load_mesh(&spec.mesh, &spec.mesh_options()) {
+        Ok(m) => m,
+        Err(e) => {
+            checks.push(Check::fail("mesh", e.to_string()));
+            skip_rest(&mut checks, "the mesh could not be read");
+            return AssetReport { asset: name, checks };
+        }
+    };
+    checks.push(Check::pass(
+        "mesh",
+        format!("{} triangles, {} vertices", mesh.triangle_count(), mesh.vertex_count()),
+    ));
+    checks.push(if mesh.missing_uvs {
+        Check::fail("uvs", format!("no UV coordinates (TEXCOORD_{}): unwrap the mesh and re-export", spec.uv_set))
+    } else {
+        Check::pass("uvs", "present")
+    });
+    checks.push(uv_range_check(&mesh, spec.wrap));
+    let (_, report) = repair::repair(mesh.clone(), ropts);
+    checks.extend(repair_checks(&report));
+    checks.extend(map_checks(&spec));
+    AssetReport { asset: name, checks }
+}
+
+fn uv_range_check(mesh: &BaseMesh, wrap: Wrap) -> Check {
+    if wrap == Wrap::Repeat || mesh.missing_uvs {
+        return Check::pass("uv-range", "map repeats: any UV is valid");
+    }
+    let eps = 1e-6;
+    let outside = |uv: Vec2| uv.x < -eps || uv.y < -eps || uv.x > 1.0 + eps || uv.y > 1.0 + eps;
+    let faces: Vec<u32> = (0..mesh.triangle_count())
+        .filter(|&t| mesh.corner_uvs(t).iter().any(|&uv| outside(uv)))
+        .map(|t| t as u32)
+        .collect();
+    if faces.is_empty() {
+        Check::pass("uv-range", "all UVs inside [0, 1]")
+    } else {
+        Check::fail(
+            "uv-range",
+            format!("{} faces have UVs outside [0, 1] while the map is clamped: use --wrap repeat or fix the UV layout", faces.len()),
+        )
+        .with_faces(faces)
+    }
+}
+
+fn repair_checks(r: &RepairReport) -> Vec<Check> {
+    let mut out = Vec::new();
+    let mut bad: Vec<u32> = r.zero_area_faces.iter().chain(&r.invalid_faces).cloned().collect();
+    bad.sort_unstable();
+    out.push(if !bad.is_empty() {
+        Check::fail(
+            "degenerate-faces",
+            format!("{} zero-area or invalid faces (dropped on bake; delete them or merge by distance)", bad.len()),
+        )
+        .with_faces(bad)
+    } else if !r.uv_degenerate_faces.is_empty() {
+        Check::warn(
+            "degenerate-faces",
+            format!("{} faces have zero UV area (the map is sampled along a line across them)", r.uv_degenerate_faces.len()),
+        )
+        .with_faces(r.uv_degenerate_faces.clone())
+    } else {
+        Check::pass("degenerate-faces", "none")
+    });
+    out.push(if r.inverted_corners.is_empty() {
+        Check::pass("inverted-normals", "every vertex normal faces the same side as its faces")
+    } else {
+        Check::fail(
+            "inverted-normals",
+            format!(
+                "{} face corners have a vertex normal facing away from the face (n·N_g ≤ 0): recalculate normals outside",
+                r.inverted_corners.len()
+            ),
+        )
+        .with_faces(faces_of(&r.inverted_corners))
+    });
+    out.push(if !r.unresolved_crease_corners.is_empty() {
+        Check::fail(
+            "sharp-creases",
+            format!(
+                "{} sharp corners cannot be repaired (a crease ends inside the mesh): mark the whole edge loop sharp or bevel it",
+                r.unresolved_crease_corners.len()
+            ),
+        )
+        .with_faces(faces_of(&r.unresolved_crease_corners))
+    } else if !r.sharp_corners.is_empty() {
+        Check::warn(
+            "sharp-creases",
+            format!(
+                "{} sharp corners on {} crease edges: bake splits {} vertices and inserts {} stitching triangles",
+                r.sharp_corners.len(),
+                r.crease_edges.len(),
+                r.split_vertices.len(),
+                r.inserted_triangles
+            ),
+        )
+        .with_faces(faces_of(&r.sharp_corners))
+    } else {
+        Check::pass("sharp-creases", "none")
+    });
+    out
+}
+
+fn map_checks(spec: &AssetSpec) -> Vec<Check> {
+    let disp = match spec.require_disp() {
+        Ok(d) => d.to_path_buf(),
+        Err(e) => {
+            return vec![
+                Check::fail("map", e.to_string()),
+                Check::skipped("finite-values", "no map"),
+                Check::skipped("max-displacement", "no map"),
+            ]
+        }
+    };
+    let map = match load::load_height_map(&disp, &spec.map_options()) {
+        Ok(m) => m,
+        Err(e) => {
+            return vec![
+                Check::fail("map", e.to_string()),
+                Check::skipped("finite-values", "the map could not be read"),
+                Check::skipped("max-displacement", "the map could not be read"),
+            ]
+        }
+    };
+    let mut out = vec![Check::pass("map", format!("{}x{} channel {}", map.width, map.height, map.channel))];
+    out.push(match map.first_non_finite() {
+        Some((x, y)) => {
+            let n = map.data.iter().filter(|v| !v.is_finite()).count();
+            Check::fail(
+                "finite-values",
+                format!("{}: {n} texels are NaN or infinite, the first at ({x}, {y}): fix the map", disp.display()),
+            )
+        }
+        None => Check::pass("finite-values", "all texels finite"),
+    });
+    out.push(max_disp_check(spec, &map));
+    out
+}
+
+fn max_disp_check(spec: &AssetSpec, map: &HeightMap) -> Check {
+    let (lo, hi) = finite_range(map);
+    let (dlo, dhi) = spec.params.displacement_range(lo, hi);
+    let peak = dlo.abs().max(dhi.abs());
+    match spec.max_disp {
+        Some(limit) if peak > limit => Check::fail(
+            "max-displacement",
+            format!("|D| reaches {peak:.6} (range {dlo:.6} .. {dhi:.6}), above the limit {limit}: lower --scale or raise max_disp"),
+        ),
+        Some(limit) => Check::pass("max-displacement", format!("|D| ≤ {peak:.6} ≤ {limit}")),
+        None => Check::pass("max-displacement", format!("D in {dlo:.6} .. {dhi:.6} (no limit set)")),
+    }
+}
+
+fn finite_range(map: &HeightMap) -> (f32, f32) {
+    map.data
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
+}
+
+#[derive(Debug, Serialize)]
+pub struct MapInfo {
+    pub path: String,
+    pub width: u32,
+    pub height: u32,
+    pub channel: String,
+    pub value_min: f32,
+    pub value_max: f32,
+    pub displacement_min: f32,
+    pub displacement_max: f32,
+}
+
+#[derive(Debug, Serialize)]
+pub struct InspectInfo {
+    pub mesh: String,
+    pub triangles: usize,
+    pub vertices: usize,
+    pub groups: Vec<String>,
+    pub uv_sets: Vec<u32>,
+    pub has_uvs: bool,
+    pub uv_min: [f32; 2],
+    pub uv_max: [f32; 2],
+    /// Fraction of UV area (sum over faces) inside the unit square's footprint of [0, 1]².
+    pub uv_faces_inside_unit_square: f32,
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+    pub camera: bool,
+    pub sharp_corners: usize,
+    pub crease_edges: usize,
+    pub inverted_corners: usize,
+    pub zero_area_faces: usize,
+    pub triangles_after_repair: usize,
+    pub vertices_after_repair: usize,
+    pub estimated_table_bytes: usize,
+    pub map: Option<MapInfo>,
+}
+
+impl InspectInfo {
+    pub fn to_text(&self) -> String {
+        let mut s = format!(
+            "mesh      {}\nfaces     {} triangles, {} vertices, {} groups\nUVs       {} (sets {:?}), range ({:.3}, {:.3}) .. ({:.3}, {:.3}), {:.1}% of faces inside [0,1]²\nbounds    ({:.4}, {:.4}, {:.4}) .. ({:.4}, {:.4}, {:.4})\ncamera    {}\ncreases   {} sharp corners on {} crease edges; {} inverted corners; {} zero-area faces\nrepaired  {} triangles, {} vertices\ntable     ~{} bytes ({:.1} bytes/triangle)\n",
+            self.mesh, self.triangles, self.vertices, self.groups.len(),
+            if self.has_uvs { "present" } else { "MISSING" }, self.uv_sets,
+            self.uv_min[0], self.uv_min[1], self.uv_max[0], self.uv_max[1], 100.0 * self.uv_faces_inside_unit_square,
+            self.bounds_min[0], self.bounds_min[1], self.bounds_min[2], self.bounds_max[0], self.bounds_max[1], self.bounds_max[2],
+            if self.camera { "yes (from the file)" } else { "none (framing from bounds)" },
+            self.sharp_corners, self.crease_edges, self.inverted_corners, self.zero_area_faces,
+            self.triangles_after_repair, self.vertices_after_repair,
+            self.estimated_table_bytes, self.estimated_table_bytes as f32 / self.triangles_after_repair.max(1) as f32,
+        );
+        if let Some(m) = &self.map {
+            s.push_str(&format!(
+                "map       {} {}x{} channel {}, values {:.4} .. {:.4}, displacement {:.5} .. {:.5}\n",
+                m.path, m.width, m.height, m.channel, m.value_min, m.value_max, m.displacement_min, m.displacement_max
+            ));
+        }
+        s
+    }
+}
+
+/// glTF TEXCOORD sets present on every triangle primitive (OBJ: [0] if it has vt).
+fn uv_sets(mesh: &BaseMesh) -> Vec<u32> {
+    if load::extension(&mesh.source) == "obj" {
+        return if mesh.missing_uvs { vec![] } else { vec![0] };
+    }
+    let Ok(doc) = gltf::Gltf::open(&mesh.source) else {
+        return vec![];
+    };
+    let mut sets: Vec<u32> = (0..8)
+        .filter(|&n| {
+            doc.meshes().flat_map(|m| m.primitives().collect::<Vec<_>>()).all(|p| {
+                p.attributes().any(|(s, _)| s == gltf::Semantic::TexCoords(n))
+            })
+        })
+        .collect();
+    sets.dedup();
+    sets
+}
+
+pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
+    let mesh = load::load_mesh(&spec.mesh, &spec.mesh_options())?;
+    let (lo, hi) = mesh.bounds();
+    let (uv_lo, uv_hi) = mesh.uvs.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(a, b), &u| (a.min(u), b.max(u)));
+    let inside = (0..mesh.triangle_count())
+        .filter(|&t| mesh.corner_uvs(t).iter().all(|u| u.x >= -1e-6 && u.y >= -1e-6 && u.x <= 1.0 + 1e-6 && u.y <= 1.0 + 1e-6))
+        .count();
+    let (repaired, report) = repair::repair(mesh.clone(), ropts);
+    let map = match &spec.disp {
+        Some(d) => {
+            let m = load::load_height_map(d, &spec.map_options())?;
+            let (vmin, vmax) = finite_range(&m);
+            let (dmin, dmax) = spec.params.displacement_range(vmin, vmax);
+            Some(MapInfo {
+                path: d.display().to_string(),
+                width: m.width,
+                height: m.height,
+                channel: m.channel.clone(),
+                value_min: vmin,
+                value_max: vmax,
+                displacement_min: dmin,
+                displacement_max: dmax,
+            })
+        }
+        None => None,
+    };
+    let path_len = spec.disp.as_ref().map_or(0, |d| d.to_string_lossy().len());
+    Ok(InspectInfo {
+        mesh: spec.mesh.display().to_string(),
+        triangles: mesh.triangle_count(),
+        vertices: mesh.vertex_count(),
+        groups: mesh.groups.clone(),
+        uv_sets: uv_sets(&mesh),
+        has_uvs: !mesh.missing_uvs,
+        uv_min: uv_lo.to_array(),
+        uv_max: uv_hi.to_array(),
+        uv_faces_inside_unit_square: inside as f32 / mesh.triangle_count().max(1) as f32,
+        bounds_min: lo.to_array(),
+        bounds_max: hi.to_array(),
+        camera: mesh.camera.is_some(),
+        sharp_corners: report.sharp_corners.len(),
+        crease_edges: report.crease_edges.len(),
+        inverted_corners: report.inverted_corners.len(),
+        zero_area_faces: report.zero_area_faces.len(),
+        triangles_after_repair: repaired.triangle_count(),
+        vertices_after_repair: repaired.vertex_count(),
+        estimated_table_bytes: prism_file::encoded_len(repaired.vertex_count(), repaired.triangle_count(), path_len),
+        map,
+    })
+}
+
+#[derive(Debug, Serialize)]
+pub struct TableSummary {
+    pub table: String,
+    pub reused: bool,
+    pub prisms: usize,
+    pub flat_prisms: usize,
+    pub inserted_prisms: usize,
+    pub vertices: usize,
+    pub bytes: usize,
+    pub bytes_per_prism: f32,
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+    pub displacement_min: f32,
+    pub displacement_max: f32,
+    pub map: String,
+    pub map_size: [u32; 2],
+    pub input_hash: String,
+}
+
+pub fn table_summary(t: &PrismTable, path: &Path, reused: bool) -> TableSummary {
+    let bytes = prism_file::encoded_len(t.positions.len(), t.prisms.len(), t.map_path.len());
+    let (lo, hi) = t.bounds();
+    let lo = if t.prisms.is_empty() { Vec3::ZERO } else { lo };
+    let hi = if t.prisms.is_empty() { Vec3::ZERO } else { hi };
+    TableSummary {
+        table: path.display().to_string(),
+        reused,
+        prisms: t.prisms.len(),
+        flat_prisms: t.flat_count(),
+        inserted_prisms: t.prisms.iter().filter(|p| p.flags & crate::bake::PRISM_INSERTED != 0).count(),
+        vertices: t.positions.len(),
+        bytes,
+        bytes_per_prism: bytes as f32 / t.prisms.len().max(1) as f32,
+        bounds_min: lo.to_array(),
+        bounds_max: hi.to_array(),
+        displacement_min: t.prisms.iter().map(|p| p.d_min).fold(f32::INFINITY, f32::min),
+        displacement_max: t.prisms.iter().map(|p| p.d_max).fold(f32::NEG_INFINITY, f32::max),
+        map: t.map_path.clone(),
+        map_size: [t.map_width, t.map_height],
+        input_hash: t.input_hash.iter().map(|b| format!("{b:02x}")).collect(),
+    }
+}
