@@ -686,6 +686,14 @@ def make_maps():
     grit = fbm(n, 64, 3, rng)
     h = 0.55 * base + 0.25 * domes * cracks + 0.15 * cracks + 0.05 * grit
     h = stretch(h)
+    # Fade to the midlevel at the top and bottom rows: on the sphere those rows collapse into
+    # the poles, where a varying height would tear the displaced surface open (every pole
+    # copy of the vertex would sample a different texel).
+    rows = np.arange(n) + 0.5
+    edge = np.minimum(rows, n - rows) / 24.0
+    fade = np.clip(edge - 0.5, 0.0, 1.0)
+    fade = (fade * fade * (3.0 - 2.0 * fade))[:, None]
+    h = 0.5 + (h - 0.5) * fade
     img16 = np.round(h * 65535).astype(np.uint16)
     p = out_path("maps", "rock_1024.png")
     write_png_gray(p, img16, 16)
