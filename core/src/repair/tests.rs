@@ -1,0 +1,541 @@
+//! Repair, specified by small procedural meshes. Each test says what would break.
+
+use super::*;
+use crate::mesh::{FACE_INSERTED, FACE_UV_DEGENERATE};
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+fn mesh(positions: Vec<Vec3>, normals: Vec<Vec3>, uvs: Vec<Vec2>, tris: Vec<[u32; 3]>) -> BaseMesh {
+    let n = tris.len();
+    BaseMesh {
+        positions,
+        normals,
+        uvs,
+        triangles: tris,
+        face_group: vec![0; n],
+        groups: vec!["fixture".into()],
+        face_flags: vec![0; n],
+        ..Default::default()
+    }
+}
+
+/// Unit quad in z = 0 as two triangles, normals +z, sharing vertices 0 and 2.
+fn quad() -> BaseMesh {
+    let p = vec![
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+    ];
+    let uv = p.iter().map(|q| q.truncate()).collect();
+    mesh(p, vec![Vec3::Z; 4], uv, vec![[0, 1, 2], [0, 2, 3]])
+}
+
+/// Cube [-1,1]³ with per-face normals and UVs: 24 vertices, every edge a hard edge in the file.
+fn split_normal_cube() -> BaseMesh {
+    let faces = [
+        (Vec3::X, Vec3::Y, Vec3::Z),
+        (Vec3::NEG_X, Vec3::Z, Vec3::Y),
+        (Vec3::Y, Vec3::Z, Vec3::X),
+        (Vec3::NEG_Y, Vec3::X, Vec3::Z),
+        (Vec3::Z, Vec3::X, Vec3::Y),
+        (Vec3::NEG_Z, Vec3::Y, Vec3::X),
+    ];
+    let (mut p, mut n, mut uv, mut tris) = (vec![], vec![], vec![], vec![]);
+    for (nf, u, v) in faces {
+        assert_eq!(u.cross(v), nf);
+        let base = p.len() as u32;
+        for (s, t) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+            p.push(nf + u * s + v * t);
+            n.push(nf);
+            uv.push(Vec2::new(0.5 + 0.5 * s, 0.5 + 0.5 * t));
+        }
+        tris.push([base, base + 1, base + 2]);
+        tris.push([base, base + 2, base + 3]);
+    }
+    mesh(p, n, uv, tris)
+}
+
+/// Double cone ("lens") around z: rim of `rim` vertices at radius 1, apexes at ±h, smooth
+/// angle-weighted normals shared across the rim. Interior angle at the rim ≈ 2 atan(h).
+fn lens(rim: u32, h: f32) -> BaseMesh {
+    let mut p: Vec<Vec3> = (0..rim)
+        .map(|i| {
+            let a = std::f32::consts::TAU * i as f32 / rim as f32;
+            Vec3::new(a.cos(), a.sin(), 0.0)
+        })
+        .collect();
+    p.push(Vec3::new(0.0, 0.0, h));
+    p.push(Vec3::new(0.0, 0.0, -h));
+    let (top, bot) = (rim, rim + 1);
+    let mut tris = vec![];
+    for i in 0..rim {
+        let j = (i + 1) % rim;
+        tris.push([top, i, j]);
+        tris.push([bot, j, i]);
+    }
+    let n = BaseMesh::angle_weighted_normals(&p, &tris);
+    let uv = p
+        .iter()
+        .map(|q| Vec2::new(0.5 + 0.4 * q.x, 0.5 + 0.4 * q.y + 0.1 * q.z))
+        .collect();
+    mesh(p, n, uv, tris)
+}
+
+/// Icosphere (unit radius, `levels` subdivisions), smooth normals, a generic linear UV
+/// projection (no face is edge-on to it). Vertices are shared: no seams.
+fn icosphere(levels: u32) -> BaseMesh {
+    let phi = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut p: Vec<Vec3> = [
+        (-1.0, phi, 0.0),
+        (1.0, phi, 0.0),
+        (-1.0, -phi, 0.0),
+        (1.0, -phi, 0.0),
+        (0.0, -1.0, phi),
+        (0.0, 1.0, phi),
+        (0.0, -1.0, -phi),
+        (0.0, 1.0, -phi),
+        (phi, 0.0, -1.0),
+        (phi, 0.0, 1.0),
+        (-phi, 0.0, -1.0),
+        (-phi, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    let mut tris: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut next = vec![];
+        for [a, b, c] in tris {
+            let mut m = |x: u32, y: u32| {
+                *mid.entry((x.min(y), x.max(y))).or_insert_with(|| {
+                    p.push(((p[x as usize] + p[y as usize]) * 0.5).normalize());
+                    (p.len() - 1) as u32
+                })
+            };
+            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        tris = next;
+    }
+    let uv = p
+        .iter()
+        .map(|q| {
+            Vec2::new(
+                0.5 + 0.31 * q.x + 0.13 * q.y + 0.07 * q.z,
+                0.5 - 0.05 * q.x + 0.29 * q.y + 0.17 * q.z,
+            )
+        })
+        .collect();
+    mesh(p.clone(), p, uv, tris)
+}
+
+/// UV sphere with the usual seam column (u = 0 and u = 1 duplicated) and one pole vertex per
+/// segment: UV seams, smooth normals, nothing to repair.
+fn uv_sphere(segments: u32, rings: u32) -> BaseMesh {
+    let (mut p, mut uv) = (vec![], vec![]);
+    let at = |r: u32, s: u32| {
+        let th = std::f32::consts::PI * r as f32 / rings as f32;
+        let ph = std::f32::consts::TAU * s as f32 / segments as f32;
+        Vec3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos())
+    };
+    for r in 1..rings {
+        for s in 0..=segments {
+            p.push(at(r, s % segments));
+            uv.push(Vec2::new(
+                s as f32 / segments as f32,
+                1.0 - r as f32 / rings as f32,
+            ));
+        }
+    }
+    let ring = |r: u32, s: u32| (r - 1) * (segments + 1) + s;
+    let mut tris = vec![];
+    for r in 1..rings - 1 {
+        for s in 0..segments {
+            let (a, b, c, d) = (
+                ring(r, s),
+                ring(r, s + 1),
+                ring(r + 1, s + 1),
+                ring(r + 1, s),
+            );
+            tris.push([a, d, c]);
+            tris.push([a, c, b]);
+        }
+    }
+    for s in 0..segments {
+        let u = (s as f32 + 0.5) / segments as f32;
+        let north = p.len() as u32;
+        p.push(Vec3::Z);
+        uv.push(Vec2::new(u, 1.0));
+        tris.push([north, ring(1, s), ring(1, s + 1)]);
+        let south = p.len() as u32;
+        p.push(Vec3::NEG_Z);
+        uv.push(Vec2::new(u, 0.0));
+        tris.push([south, ring(rings - 1, s + 1), ring(rings - 1, s)]);
+    }
+    mesh(p.clone(), p, uv, tris)
+}
+
+/// Every directed edge appears once and its reverse once: closed and consistently oriented.
+/// Returns the number of directed edges without a reverse partner (0 when closed).
+fn open_half_edges(m: &BaseMesh) -> usize {
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    for tri in &m.triangles {
+        for k in 0..3 {
+            *directed.entry((tri[k], tri[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    assert!(
+        directed.values().all(|&c| c == 1),
+        "an edge is used twice in the same direction"
+    );
+    directed
+        .keys()
+        .filter(|&&(a, b)| !directed.contains_key(&(b, a)))
+        .count()
+}
+
+/// Canonical displaced point on the edge a→b of a mesh at parameter s, constant displacement.
+fn displaced_on_edge(m: &BaseMesh, a: u32, b: u32, s: f32, d: f32) -> Vec3 {
+    let (a, b) = (a as usize, b as usize);
+    let p = m.positions[a].lerp(m.positions[b], s);
+    let n = m.normals[a].lerp(m.normals[b], s).normalize();
+    p + n * d
+}
+
+/// Largest gap of the displaced surface `V + d·n` across edges: each directed edge a→b is
+/// compared with the best reversed edge at the same positions (by index first, else by
+/// position); an edge without any partner counts as infinite.
+fn max_displaced_gap(m: &BaseMesh, d: f32) -> f32 {
+    let key = |v: u32| m.positions[v as usize].to_array().map(f32::to_bits);
+    let mut by_pos: HashMap<_, Vec<(u32, u32)>> = HashMap::new();
+    for tri in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            by_pos.entry((key(a), key(b))).or_default().push((a, b));
+        }
+    }
+    let mut worst = 0.0f32;
+    for tri in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            let best = by_pos
+                .get(&(key(b), key(a)))
+                .into_iter()
+                .flatten()
+                .map(|&(b2, a2)| {
+                    (0..=8)
+                        .map(|i| {
+                            let s = i as f32 / 8.0;
+                            (displaced_on_edge(m, a, b, s, d) - displaced_on_edge(m, a2, b2, s, d))
+                                .length()
+                        })
+                        .fold(0.0, f32::max)
+                })
+                .fold(f32::INFINITY, f32::min);
+            worst = worst.max(best);
+        }
+    }
+    worst
+}
+
+fn assert_sized(m: &BaseMesh) {
+    assert_eq!(m.normals.len(), m.positions.len());
+    assert_eq!(m.uvs.len(), m.positions.len());
+    assert_eq!(m.face_group.len(), m.triangles.len());
+    assert_eq!(m.face_flags.len(), m.triangles.len());
+    let used: std::collections::HashSet<u32> = m.triangles.iter().flatten().copied().collect();
+    assert_eq!(
+        used.len(),
+        m.positions.len(),
+        "vertex arrays are not compact"
+    );
+}
+
+// Would break if the weld key ignored an attribute or triangles were not remapped.
+#[test]
+fn weld_merges_duplicated_quad_vertices() {
+    let q = quad();
+    let p = vec![0, 1, 2, 0, 2, 3]
+        .into_iter()
+        .map(|i| q.positions[i])
+        .collect::<Vec<_>>();
+    let uv = p.iter().map(|v: &Vec3| v.truncate()).collect();
+    let dup = mesh(p, vec![Vec3::Z; 6], uv, vec![[0, 1, 2], [3, 4, 5]]);
+    let (out, rep) = repair(dup, &RepairOptions::default());
+    assert_eq!(rep.welded_vertices, 2);
+    assert_eq!(out.positions.len(), 4);
+    assert_eq!(out.triangles, vec![[0, 1, 2], [0, 2, 3]]);
+    assert!(rep.is_clean(), "{}", rep.to_text());
+    assert_sized(&out);
+
+    // A UV difference keeps vertices apart (weld must not eat UV seams).
+    let q2 = {
+        let mut m = mesh(
+            out.positions.clone(),
+            out.normals.clone(),
+            out.uvs.clone(),
+            out.triangles.clone(),
+        );
+        m.positions.push(m.positions[0]);
+        m.normals.push(Vec3::Z);
+        m.uvs.push(Vec2::new(0.5, 0.5));
+        m.triangles[1][0] = 4;
+        m
+    };
+    let (out2, rep2) = repair(q2, &RepairOptions::default());
+    assert_eq!((rep2.welded_vertices, out2.positions.len()), (0, 5));
+}
+
+// Would break if degenerate faces reached the bake (NaN face normals, zero texel sizes).
+#[test]
+fn zero_area_and_repeated_index_faces_are_dropped_and_listed() {
+    let mut m = quad();
+    m.positions
+        .extend([Vec3::new(2.0, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0)]);
+    m.normals.extend([Vec3::Z; 2]);
+    m.uvs.extend([Vec2::new(0.2, 0.7), Vec2::new(0.9, 0.1)]);
+    // Face 2: collinear corners; face 3: repeated index.
+    m.triangles.extend([[1, 4, 5], [0, 1, 1]]);
+    m.face_group.extend([0, 0]);
+    m.face_flags.extend([0, 0]);
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert_eq!(rep.zero_area_faces, vec![2, 3]);
+    assert_eq!(out.triangles.len(), 2);
+    assert_eq!(rep.unreferenced_vertices, 2);
+    assert!(!rep.is_clean());
+    assert_sized(&out);
+}
+
+// Would break if UV-degenerate faces were dropped (they are real geometry) or not flagged
+// (bake divides by their UV area).
+#[test]
+fn uv_degenerate_face_is_flagged_and_kept() {
+    let mut m = quad();
+    m.uvs[3] = m.uvs[0].lerp(m.uvs[2], 0.25); // face 1's UVs become collinear
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert_eq!(rep.uv_degenerate_faces, vec![1]);
+    assert_eq!(out.face_flags, vec![0, FACE_UV_DEGENERATE]);
+    assert_eq!(out.triangles.len(), 2);
+}
+
+// Would break if a flipped normal went unreported: its prism extrudes into the surface.
+#[test]
+fn inverted_corner_is_reported_and_left_unresolved() {
+    let mut m = quad();
+    m.normals[3] = Vec3::NEG_Z;
+    let (out, rep) = repair(m, &RepairOptions::default());
+    let c = CornerFinding {
+        face: 1,
+        corner: 2,
+        vertex: 3,
+        dot: -1.0,
+    };
+    assert_eq!(rep.inverted_corners, vec![c]);
+    assert_eq!(rep.sharp_corners, vec![c]);
+    // No crease edge ends there (a flat quad), so there is nothing to split: unresolved.
+    assert!(rep.crease_edges.is_empty());
+    assert_eq!(rep.unresolved_crease_corners, vec![c]);
+    assert_eq!(out.normals[3], Vec3::NEG_Z);
+    assert!(rep.to_text().contains("face 1 corner 2 (vertex 3)"));
+}
+
+// Would break if repair changed clean meshes (every asset would be rewritten and re-baked).
+#[test]
+fn smooth_spheres_need_no_changes() {
+    for m in [icosphere(2), uv_sphere(16, 8)] {
+        let before = m.clone();
+        let (out, rep) = repair(m, &RepairOptions::default());
+        assert!(rep.is_clean(), "{}", rep.to_text());
+        assert_eq!(rep.welded_vertices, 0);
+        assert_eq!(out.positions, before.positions);
+        assert_eq!(out.normals, before.normals);
+        assert_eq!(out.uvs, before.uvs);
+        assert_eq!(out.triangles, before.triangles);
+        assert_eq!(out.face_flags, before.face_flags);
+    }
+    let (ico, _) = repair(icosphere(2), &RepairOptions::default());
+    assert_eq!(open_half_edges(&ico), 0);
+    // The UV sphere's seam column and pole fans are UV seams: counted, left open.
+    let (_, rep) = repair(uv_sphere(16, 8), &RepairOptions::default());
+    assert_eq!(rep.uv_seam_edges, (8 - 2) + 16 * 2);
+    assert_eq!(rep.open_boundary_edges, 2 * rep.uv_seam_edges);
+}
+
+// Would break if stitching were dropped or mis-oriented: the displaced cube tears open along
+// every edge by D·√2 and at every corner.
+#[test]
+fn split_normal_cube_is_closed_by_stitching() {
+    const D: f32 = 0.1;
+    let cube = split_normal_cube();
+    assert!(
+        max_displaced_gap(&cube, D) > 0.05,
+        "the input's hard edges tear when displaced"
+    );
+    let (out, rep) = repair(cube, &RepairOptions::default());
+    assert_sized(&out);
+    assert!(rep.sharp_corners.is_empty() && rep.split_vertices.is_empty());
+    assert_eq!(rep.stitched_edges.len(), 12);
+    assert_eq!(rep.corner_fans.len(), 8);
+    assert!(rep
+        .corner_fans
+        .iter()
+        .all(|f| f.vertices.len() == 3 && !f.against_normals));
+    assert_eq!(rep.inserted_triangles, 12 * 2 + 8);
+    assert_eq!(out.triangles.len(), 12 + 32);
+    assert_eq!(
+        out.face_flags
+            .iter()
+            .filter(|&&f| f == FACE_INSERTED)
+            .count(),
+        32
+    );
+    assert_eq!(rep.open_boundary_edges, 0);
+    assert_eq!(
+        open_half_edges(&out),
+        0,
+        "every edge shared by exactly two faces"
+    );
+    assert_eq!(max_displaced_gap(&out, D), 0.0);
+    // Each corner fan, displaced, faces the way its copies' normals point.
+    for fan in &rep.corner_fans {
+        let t = out.triangles[fan.inserted[0] as usize];
+        let q = t.map(|i| out.positions[i as usize] + out.normals[i as usize] * D);
+        let n: Vec3 = t.iter().map(|&i| out.normals[i as usize]).sum();
+        assert!((q[1] - q[0]).cross(q[2] - q[0]).dot(n) > 0.0);
+    }
+    // Idempotent: the repaired cube needs nothing more.
+    let (again, rep2) = repair(out.clone(), &RepairOptions::default());
+    assert!(rep2.is_clean(), "{}", rep2.to_text());
+    assert_eq!(again.triangles, out.triangles);
+}
+
+// Would break if knife edges were not split (PDM's 1/(n·N_g) blows up) or the split left the
+// two sides of the rim apart.
+#[test]
+fn knife_edge_lens_is_split_and_stitched_closed() {
+    const D: f32 = 0.1;
+    let rim = 12;
+    let m = lens(rim, 0.02); // interior rim angle ≈ 2.3° < 5°
+    assert_eq!(
+        open_half_edges(&m),
+        0,
+        "the input itself is closed (smooth normals)"
+    );
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert_sized(&out);
+    assert_eq!(
+        rep.sharp_corners.len(),
+        4 * rim as usize,
+        "both rim corners of every face"
+    );
+    assert_eq!(rep.crease_edges.len(), rim as usize);
+    assert_eq!(rep.split_vertices.len(), rim as usize);
+    assert!(rep.split_vertices.iter().all(|s| s.copies.len() == 2));
+    assert!(
+        rep.unresolved_crease_corners.is_empty(),
+        "{}",
+        rep.to_text()
+    );
+    assert_eq!(rep.stitched_edges.len(), rim as usize);
+    assert!(
+        rep.corner_fans.is_empty(),
+        "only two copies meet at each rim point"
+    );
+    assert_eq!(out.positions.len(), 2 * rim as usize + 2);
+    assert_eq!(open_half_edges(&out), 0);
+    assert_eq!(max_displaced_gap(&out, D), 0.0);
+    // Every original corner now sees its own side's normal.
+    for t in 0..out.triangles.len() {
+        if out.face_flags[t] & FACE_INSERTED == 0 {
+            let ng = out.face_cross(t).normalize();
+            assert!(out.corner_normals(t).iter().all(|n| n.dot(ng) > 0.9));
+        }
+    }
+}
+
+// Would break if someone "simplified" repair to split-only: the lens opens along its rim.
+#[test]
+fn edge_split_without_stitching_leaves_the_surface_open() {
+    const D: f32 = 0.1;
+    let opts = RepairOptions {
+        stitch_hard_edges: false,
+        ..Default::default()
+    };
+    let (out, rep) = repair(lens(12, 0.02), &opts);
+    assert_eq!(rep.split_vertices.len(), 12);
+    assert_eq!(rep.unstitched_hard_edges, 12);
+    assert_eq!(rep.open_boundary_edges, 24);
+    assert!(open_half_edges(&out) > 0);
+    assert!(
+        max_displaced_gap(&out, D) > 0.05,
+        "rim copies separate by ≈ 2D"
+    );
+    assert!(!rep.is_clean());
+}
+
+// Would break without the 60° rule: a rim of 20° (not a crease by angle) whose smooth normal
+// lies in the top face's plane is just as singular for PDM.
+#[test]
+fn bad_smooth_normal_on_a_moderate_rim_is_split() {
+    let h = 10f32.to_radians().tan();
+    let (_, clean) = repair(lens(12, h), &RepairOptions::default());
+    assert!(
+        clean.is_clean(),
+        "good normals on a 20° rim are fine: {}",
+        clean.to_text()
+    );
+    let mut m = lens(12, h);
+    for i in 0..12 {
+        let radial = m.positions[i].normalize();
+        m.normals[i] = (radial - Vec3::Z * (1.3 * h)).normalize(); // below the top face's plane
+    }
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert!(!rep.inverted_corners.is_empty());
+    assert_eq!(rep.crease_edges.len(), 12);
+    assert!(
+        rep.unresolved_crease_corners.is_empty(),
+        "{}",
+        rep.to_text()
+    );
+    assert_eq!(open_half_edges(&out), 0);
+}
+
+// Would break if the report stopped being valid JSON for the CLI and the Blender add-on.
+#[test]
+fn report_serialises_to_json() {
+    let mut cube = split_normal_cube();
+    cube.normals[0] = -cube.normals[0];
+    let (_, rep) = repair(cube, &RepairOptions::default());
+    let text = serde_json::to_string(&rep).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        v["stitched_edges"].as_array().unwrap().len(),
+        rep.stitched_edges.len()
+    );
+    assert_eq!(v["inverted_corners"][0]["vertex"], 0);
+    assert_eq!(v, serde_json::to_value(&rep).unwrap());
+    assert!(rep.to_text().contains("hard edges stitched"));
+}
