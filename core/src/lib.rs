@@ -4,6 +4,7 @@
 //! `load` (mesh + height map) → `repair` → `bake` (prism table) → `accel` → `trace` → `render`
 //! → `report`. Each stage takes plain structs and returns plain structs.
 
+pub mod accel;
 pub mod asset;
 pub mod bake;
 pub mod canonical;

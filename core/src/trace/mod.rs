@@ -7,6 +7,9 @@
 
 use glam::{Vec2, Vec3};
 
+pub mod pdm;
+pub mod prism_hit;
+
 /// Miss / no-prism sentinels (mirrored in WGSL).
 pub const NO_PRISM: u32 = u32::MAX;
 

@@ -1,0 +1,557 @@
+//! Projective displacement mapping (Hoetzlein 2025, Algorithm 1, §4–5) over the prism BVH.
+//!
+//! Per candidate prism: the ray's inside interval from `prism_hit` (bilinear walls, §4.1),
+//! then a march with step `dt` from the entry, the first step jittered by `R·dt` (§5.3). Each
+//! sample's barycentrics come from the *scanning triangle* `c_i = V_i + h n_i/(n_i·N_g)` at the
+//! sample's height `h` along `N_g` (§4.2), advanced by `δh` per step and solved by Ericson's
+//! five dot products (Appendix C); `uv → D(uv)` is compared with the sample's height along the
+//! scanning direction, and a sign change in either direction is a crossing.
+//!
+//! Departures from the paper, each for a stated reason:
+//! * The default prism is DESIGN.md's shared-wall prism (`V_i + λ n_i`, one `λ` range per
+//!   prism), not the paper's per-triangle scaled corners: neighbours then share their walls
+//!   exactly. `Construction::ParallelOffset` keeps the paper's prism for the before/after
+//!   watertightness measurement (docs/watertightness.md).
+//! * The crossing is refined on the canonical surface (`refine`): regula falsi (Illinois) on
+//!   `g(t) = λ|m| − D(uv(b))` where `(b, λ)` projects the ray point onto the lines
+//!   `P(b) + λ m(b)` (`canonical::project_to_prism`, warm-started from the scanning
+//!   barycentrics). The hit then lies on the surface every method is measured against, and two
+//!   prisms agree at their shared wall. A hit is accepted only if the refined `b` is in the
+//!   triangle (within `EDGE_TOL`, so neighbours overlap instead of leaving a crack).
+//! * The entry and the exit are samples too (the paper starts at `t_min + R dt` and stops
+//!   before `t_max`), and the shared-wall interval is widened by a hair on both ends: a
+//!   crossing right at a wall is then seen by at least one of the two prisms.
+//! * Samples whose scanning barycentrics fall outside the triangle (curved walls make the
+//!   interval a hull) are skipped for crossing detection.
+//! * Flat prisms (one displacement value) are not marched: the ray meets the triangle
+//!   `V_i + D n_i`, then Newton moves the hit onto `P(b) + D m̂(b)`.
+//! * Normals come from the analytic derivative of the canonical surface
+//!   (`canonical::surface_point`), not the paper's finite differences; the smoothed normal is
+//!   the paper's `N's = N_s − N_g + N'` (§5.1).
+
+use crate::accel::Scene;
+use crate::bake::Prism;
+use crate::canonical::{project_to_prism, surface_point, PrismGeom};
+use crate::rng::{self, Purpose};
+use crate::trace::prism_hit::ray_prism_interval;
+use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
+use glam::{Mat3, Vec2, Vec3};
+
+/// A refined hit may lie this far outside its triangle (barycentric units): adjacent prisms
+/// overlap by a hair rather than leaving a crack for rays through their common wall.
+const EDGE_TOL: f32 = 1e-5;
+/// Scanning barycentrics only approximate the canonical ones (different direction field);
+/// samples this far outside still take part in crossing detection in shared-wall prisms.
+const DETECT_TOL: f32 = 0.05;
+/// Shared-wall interval widening, relative to the prism's longest edge.
+const INTERVAL_PAD: f32 = 1e-4;
+/// Upper bound on samples per prism (a guard against `dt` far below the prism size).
+const MAX_STEPS: u32 = 1 << 14;
+/// Regula falsi iterations for the canonical refinement.
+const REFINE_ITERS: u32 = 12;
+
+/// March step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StepSize {
+    /// World units along the (unit) ray direction.
+    World(f32),
+    /// Fraction of the prism's world-space texel size (`Prism::texel_world`).
+    Auto(f32),
+}
+
+impl Default for StepSize {
+    fn default() -> Self {
+        StepSize::Auto(0.5)
+    }
+}
+
+/// Which prism the march runs in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Construction {
+    /// DESIGN.md's watertight prism with canonical refinement.
+    #[default]
+    SharedWall,
+    /// The paper's parallel-offset prism, hits on the paper's surface (no canonical
+    /// refinement): only for measuring what the shared-wall construction fixes.
+    ParallelOffset,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PdmOptions {
+    pub dt: StepSize,
+    /// Stochastic thin-feature sampling (paper §5.3).
+    pub jitter: bool,
+    pub normal_mode: NormalMode,
+    pub construction: Construction,
+    /// Refine the crossing onto the canonical surface (shared-wall only).
+    pub refine: bool,
+}
+
+impl Default for PdmOptions {
+    fn default() -> Self {
+        PdmOptions {
+            dt: StepSize::default(),
+            jitter: true,
+            normal_mode: NormalMode::Smooth,
+            construction: Construction::SharedWall,
+            refine: true,
+        }
+    }
+}
+
+pub struct Pdm<'a> {
+    scene: &'a Scene,
+    opts: PdmOptions,
+}
+
+/// One prism in a local frame (origin at `V_0`), so that f32 keeps its precision at any
+/// distance from the world origin.
+struct Local {
+    origin: Vec3,
+    /// Base triangle relative to `origin`, normals and UVs (for `project_to_prism`).
+    geom: PrismGeom,
+    /// Scanning directions `n_i / (n_i·N_g)`: the level-`h` triangle is `v_i + h a_i`.
+    a: [Vec3; 3],
+    ng: Vec3,
+    /// Longest base edge: the length scale of tolerances.
+    scale: f32,
+}
+
+impl Local {
+    #[inline]
+    fn new(scene: &Scene, p: &Prism) -> Self {
+        let t = &scene.table;
+        let [i0, i1, i2] = p.tri.map(|i| i as usize);
+        let origin = t.positions[i0];
+        let v = [Vec3::ZERO, t.positions[i1] - origin, t.positions[i2] - origin];
+        let n = [t.normals[i0], t.normals[i1], t.normals[i2]];
+        let uv = [t.uvs[i0], t.uvs[i1], t.uvs[i2]];
+        let ng = v[1].cross(v[2]).normalize_or_zero();
+        // The same floor as the baker's `parallel_offset_corners`.
+        let a = n.map(|ni| ni / ni.dot(ng).max(crate::bake::M_LO_FLOOR));
+        let scale = v[1]
+            .length()
+            .max(v[2].length())
+            .max((v[2] - v[1]).length())
+            .max(f32::MIN_POSITIVE);
+        Local {
+            origin,
+            geom: PrismGeom { v, n, uv },
+            a,
+            ng,
+            scale,
+        }
+    }
+}
+
+/// Barycentrics of `s` in triangle `c` by five dot products (Ericson 2004; paper App. C).
+#[inline]
+fn triangle_barycentric(s: Vec3, c: &[Vec3; 3]) -> Vec3 {
+    let x0 = c[1] - c[0];
+    let x1 = c[2] - c[0];
+    let x2 = s - c[0];
+    let d00 = x0.dot(x0);
+    let d01 = x0.dot(x1);
+    let d11 = x1.dot(x1);
+    let d20 = x2.dot(x0);
+    let d21 = x2.dot(x1);
+    let inv = 1.0 / (d00 * d11 - d01 * d01);
+    let b1 = (d11 * d20 - d01 * d21) * inv;
+    let b2 = (d00 * d21 - d01 * d20) * inv;
+    Vec3::new(1.0 - b1 - b2, b1, b2)
+}
+
+/// A march sample: height difference (ray minus surface, along the scanning direction) and
+/// the scanning barycentrics.
+#[derive(Clone, Copy)]
+struct Sample {
+    t: f32,
+    g: f32,
+    b: Vec3,
+}
+
+impl<'a> Pdm<'a> {
+    pub fn new(scene: &'a Scene, opts: PdmOptions) -> Self {
+        Pdm { scene, opts }
+    }
+
+    pub fn options(&self) -> &PdmOptions {
+        &self.opts
+    }
+
+    #[inline]
+    fn displacement(&self, uv: Vec2) -> f32 {
+        self.scene
+            .table
+            .params
+            .displacement(self.scene.map.sample(uv))
+    }
+
+    /// The cheap hit record for one prism (t, prism, barycentrics, steps; surface data not
+    /// filled). `steps` accumulates the samples taken, hit or miss.
+    pub fn intersect_prism(
+        &self,
+        ray: &Ray,
+        ctx: &RayContext,
+        prism: u32,
+        steps: &mut u32,
+    ) -> Option<Hit> {
+        let p = &self.scene.table.prisms[prism as usize];
+        let local = Local::new(self.scene, p);
+        let ro = ray.origin - local.origin;
+        let (t, b) = if p.is_flat() {
+            self.flat_hit(&local, p.d_min, ro, ray)?
+        } else {
+            self.march(&local, p, prism, ro, ray, ctx, steps)?
+        };
+        Some(Hit {
+            t,
+            prism,
+            bary: b,
+            uv: Vec2::ZERO,
+            position: ray.at(t),
+            geometric_normal: Vec3::ZERO,
+            shading_normal: Vec3::ZERO,
+            steps: 0,
+        })
+    }
+
+    /// Fill uv, position and normals of a cheap record from the canonical surface.
+    pub fn fill_surface(&self, hit: &mut Hit) {
+        let table = &self.scene.table;
+        let g = PrismGeom::new(table, &table.prisms[hit.prism as usize]);
+        let sp = surface_point(&g, &self.scene.map, &table.params, hit.bary);
+        hit.uv = sp.uv;
+        if self.opts.construction == Construction::SharedWall {
+            // The paper-exact mode keeps the ray point: its hit is on the paper's surface.
+            hit.position = sp.position;
+        }
+        hit.geometric_normal = sp.geometric_normal;
+        hit.shading_normal = match self.opts.normal_mode {
+            NormalMode::Smooth => sp.smooth_normal,
+            NormalMode::Geometric => sp.geometric_normal,
+        };
+    }
+
+    fn step_size(&self, p: &Prism, local: &Local) -> f32 {
+        let dt = match self.opts.dt {
+            StepSize::World(w) => w,
+            StepSize::Auto(f) => f * p.texel_world,
+        };
+        if dt.is_finite() && dt > 0.0 {
+            dt
+        } else {
+            // No texel size (UV-degenerate face): a sixteenth of the prism's thickness.
+            ((p.lambda_hi - p.lambda_lo).abs().max(local.scale * 1e-3)) / 16.0
+        }
+    }
+
+    /// Scanning sample at point `s` (local) with scanning triangle `c` at height `h`.
+    #[inline]
+    fn scan(&self, local: &Local, t: f32, s: Vec3, c: &[Vec3; 3], h: f32) -> Sample {
+        let b = triangle_barycentric(s, c);
+        let a = local.a[0] * b.x + local.a[1] * b.y + local.a[2] * b.z;
+        let uv = local.geom.uv(b);
+        Sample {
+            t,
+            g: h * a.length() - self.displacement(uv),
+            b,
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn march(
+        &self,
+        local: &Local,
+        p: &Prism,
+        prism: u32,
+        ro: Vec3,
+        ray: &Ray,
+        ctx: &RayContext,
+        steps: &mut u32,
+    ) -> Option<(f32, Vec3)> {
+        let d = ray.dir;
+        let shared = self.opts.construction == Construction::SharedWall;
+        let (lo, hi) = if shared {
+            let g = &local.geom;
+            (
+                std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_lo),
+                std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_hi),
+            )
+        } else {
+            let (lo, hi) = self.scene.table.parallel_offset_corners(p);
+            (lo.map(|c| c - local.origin), hi.map(|c| c - local.origin))
+        };
+        let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, &lo, &hi)?;
+        let (te, tx) = if shared {
+            let pad = INTERVAL_PAD * local.scale;
+            (
+                (iv.t_enter - pad).max(ray.t_min),
+                (iv.t_exit + pad).min(ray.t_max),
+            )
+        } else {
+            (iv.t_enter, iv.t_exit)
+        };
+        let dt = self
+            .step_size(p, local)
+            .max((tx - te) / MAX_STEPS as f32);
+        let detect_tol = if shared { DETECT_TOL } else { EDGE_TOL };
+        let inside = |b: Vec3| b.min_element() >= -detect_tol;
+
+        // Entry sample and the scanning triangle at its height.
+        let mut s = ro + d * te;
+        let mut h = s.dot(local.ng);
+        let mut c: [Vec3; 3] = std::array::from_fn(|i| local.geom.v[i] + local.a[i] * h);
+        let first = self.scan(local, te, s, &c, h);
+        let mut prev = inside(first.b).then_some(first);
+        let r = if self.opts.jitter {
+            rng::random(
+                ctx.pixel,
+                ctx.sample,
+                ctx.bounce,
+                Purpose::MarchJitter,
+                ctx.seed ^ prism,
+            )
+        } else {
+            0.0
+        };
+        let mut t;
+        let mut t_next = te + if r > 0.0 { r * dt } else { dt };
+        let mut n = 0;
+        loop {
+            t_next = t_next.min(tx);
+            s = ro + d * t_next;
+            let h_next = s.dot(local.ng);
+            let dh = h_next - h;
+            for i in 0..3 {
+                c[i] += local.a[i] * dh;
+            }
+            h = h_next;
+            t = t_next;
+            n += 1;
+            let cur = self.scan(local, t, s, &c, h);
+            if inside(cur.b) {
+                if let Some(pv) = prev {
+                    if (pv.g > 0.0) != (cur.g > 0.0) {
+                        if let Some(hit) = self.crossing(local, ro, ray, pv, cur, te, tx, dt) {
+                            *steps += n;
+                            return Some(hit);
+                        }
+                    }
+                }
+                prev = Some(cur);
+            }
+            if t >= tx || n >= MAX_STEPS {
+                break;
+            }
+            t_next = t + dt;
+        }
+        *steps += n;
+        None
+    }
+
+    /// Resolve a sign change between samples `a` and `b` into a hit (or reject it).
+    #[allow(clippy::too_many_arguments)]
+    fn crossing(
+        &self,
+        local: &Local,
+        ro: Vec3,
+        ray: &Ray,
+        a: Sample,
+        b: Sample,
+        te: f32,
+        tx: f32,
+        dt: f32,
+    ) -> Option<(f32, Vec3)> {
+        let shared = self.opts.construction == Construction::SharedWall;
+        if !(shared && self.opts.refine) {
+            // The paper's interpolateCrossing, barycentrics from a fresh scanning triangle.
+            let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
+            let s = ro + ray.dir * t;
+            let h = s.dot(local.ng);
+            let c = std::array::from_fn(|i| local.geom.v[i] + local.a[i] * h);
+            let bary = triangle_barycentric(s, &c);
+            let ok = bary.min_element() >= -EDGE_TOL && t >= te && t <= tx;
+            return ok.then_some((t, bary));
+        }
+        self.refine_canonical(local, ro, ray, a, b, te, tx, dt)
+    }
+
+    /// Canonical height difference at ray parameter `t`: `λ|m| − D(uv(b))` with `(b, λ)` the
+    /// projection of the ray point onto the lines `P(b) + λ m(b)`.
+    fn canonical_g(&self, local: &Local, x: Vec3, guess: (Vec3, f32)) -> Option<(f32, Vec3, f32)> {
+        let g = &local.geom;
+        let (b, lambda) = project_to_prism(g, x, guess.0, guess.1)
+            .or_else(|| project_to_prism(g, x, Vec3::splat(1.0 / 3.0), guess.1))?;
+        let m = g.normal_dir(b).length();
+        Some((lambda * m - self.displacement(g.uv(b)), b, lambda))
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn refine_canonical(
+        &self,
+        local: &Local,
+        ro: Vec3,
+        ray: &Ray,
+        a: Sample,
+        b: Sample,
+        te: f32,
+        tx: f32,
+        dt: f32,
+    ) -> Option<(f32, Vec3)> {
+        let d = ray.dir;
+        let lambda_guess = |s: &Sample| {
+            let x = ro + d * s.t;
+            let m = local.geom.normal_dir(s.b);
+            (x - local.geom.position(s.b)).dot(m) / m.length_squared().max(1e-12)
+        };
+        let eval = |t: f32, guess: (Vec3, f32)| self.canonical_g(local, ro + d * t, guess);
+        let (mut t0, mut t1) = (a.t, b.t);
+        let (mut g0, mut b0, mut l0) = eval(t0, (a.b, lambda_guess(&a)))?;
+        let (mut g1, mut b1, mut l1) = eval(t1, (b.b, lambda_guess(&b)))?;
+        if (g0 > 0.0) == (g1 > 0.0) {
+            // The scanning and canonical surfaces disagree about this bracket: widen it once.
+            t0 = (t0 - dt).max(te);
+            t1 = (t1 + dt).min(tx);
+            (g0, b0, l0) = eval(t0, (b0, l0))?;
+            (g1, b1, l1) = eval(t1, (b1, l1))?;
+            if (g0 > 0.0) == (g1 > 0.0) {
+                return None;
+            }
+        }
+        let tol_g = 1e-6 * local.scale;
+        let tol_t = 1e-7 * (t0.abs() + t1.abs() + local.scale);
+        // Illinois: regula falsi that halves the stale end's value when one end sticks.
+        let mut side = 0;
+        for _ in 0..REFINE_ITERS {
+            if g0.abs() <= tol_g || g1.abs() <= tol_g || (t1 - t0).abs() <= tol_t {
+                break;
+            }
+            let t = (t0 * g1 - t1 * g0) / (g1 - g0);
+            let near = if (t - t0).abs() < (t - t1).abs() {
+                (b0, l0)
+            } else {
+                (b1, l1)
+            };
+            let Some((g, bb, l)) = eval(t, near) else {
+                break;
+            };
+            if (g > 0.0) == (g1 > 0.0) {
+                (t1, g1, b1, l1) = (t, g, bb, l);
+                if side == -1 {
+                    g0 *= 0.5;
+                }
+                side = -1;
+            } else {
+                (t0, g0, b0, l0) = (t, g, bb, l);
+                if side == 1 {
+                    g1 *= 0.5;
+                }
+                side = 1;
+            }
+        }
+        let _ = (l0, l1);
+        let (t, bary) = if g0.abs() <= g1.abs() {
+            (t0, b0)
+        } else {
+            (t1, b1)
+        };
+        let ok = bary.min_element() >= -EDGE_TOL
+            && t >= te
+            && t <= tx
+            && t >= ray.t_min
+            && t <= ray.t_max;
+        ok.then_some((t, bary))
+    }
+
+    /// Constant displacement `D`: meet the triangle `V_i + D n_i`, then Newton on
+    /// `P(b) + D m̂(b) = o + t d` for `(b1, b2, t)`.
+    fn flat_hit(&self, local: &Local, dval: f32, ro: Vec3, ray: &Ray) -> Option<(f32, Vec3)> {
+        let g = &local.geom;
+        let d = ray.dir;
+        let q: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + g.n[i] * dval);
+        let (e1, e2) = (q[1] - q[0], q[2] - q[0]);
+        let pv = d.cross(e2);
+        let det = e1.dot(pv);
+        if det == 0.0 {
+            return None;
+        }
+        let tv = ro - q[0];
+        let qv = tv.cross(e1);
+        let mut b1 = tv.dot(pv) / det;
+        let mut b2 = d.dot(qv) / det;
+        let mut t = e2.dot(qv) / det;
+        // The surface bulges past the flat triangle by D(1/|m| − 1): allow a margin, then
+        // let Newton decide.
+        if b1 < -0.25 || b2 < -0.25 || b1 + b2 > 1.25 || !t.is_finite() {
+            return None;
+        }
+        let dp = [g.v[1] - g.v[0], g.v[2] - g.v[0]];
+        let dm = [g.n[1] - g.n[0], g.n[2] - g.n[0]];
+        let tol = 1e-6 * local.scale;
+        let mut converged = false;
+        for _ in 0..8 {
+            let b = Vec3::new(1.0 - b1 - b2, b1, b2);
+            let m = g.normal_dir(b);
+            let len = m.length().max(1e-12);
+            let mh = m / len;
+            let f = g.position(b) + mh * dval - (ro + d * t);
+            if f.length() <= tol {
+                converged = true;
+                break;
+            }
+            let ds = |k: usize| dp[k] + (dm[k] - mh * mh.dot(dm[k])) * (dval / len);
+            let jac = Mat3::from_cols(ds(0), ds(1), -d);
+            if jac.determinant().abs() < 1e-30 {
+                return None;
+            }
+            let delta = jac.inverse() * f;
+            b1 -= delta.x;
+            b2 -= delta.y;
+            t -= delta.z;
+            if !(b1.is_finite() && b2.is_finite() && t.is_finite()) {
+                return None;
+            }
+        }
+        let b = Vec3::new(1.0 - b1 - b2, b1, b2);
+        let ok = (converged || {
+            let m = g.normal_dir(b);
+            let f = g.position(b) + m.normalize_or_zero() * dval - (ro + d * t);
+            f.length() <= 1e-4 * local.scale
+        }) && b.min_element() >= -EDGE_TOL
+            && t >= ray.t_min
+            && t <= ray.t_max;
+        ok.then_some((t, b))
+    }
+}
+
+impl Intersector for Pdm<'_> {
+    fn name(&self) -> &'static str {
+        "pdm"
+    }
+
+    fn intersect(&self, ray: &Ray, ctx: &RayContext) -> Option<Hit> {
+        let mut steps = 0;
+        let mut hit = self
+            .scene
+            .closest_hit(ray, |r, prism| self.intersect_prism(r, ctx, prism, &mut steps))?;
+        hit.steps = steps;
+        self.fill_surface(&mut hit);
+        Some(hit)
+    }
+
+    fn occluded(&self, ray: &Ray, ctx: &RayContext) -> bool {
+        let mut steps = 0;
+        self.scene
+            .any_hit(ray, |r, prism| self.intersect_prism(r, ctx, prism, &mut steps).is_some())
+    }
+
+    /// BVH nodes and leaf indices, plus the prism records the march reads (base mesh and
+    /// height map excluded; corners and scanning directions are derived per ray).
+    fn memory_bytes(&self) -> usize {
+        self.scene.bvh_bytes() + self.scene.table.prisms.len() * std::mem::size_of::<Prism>()
+    }
+}
+
+#[cfg(test)]
+mod tests {}
