@@ -16,8 +16,12 @@ pub mod prism_file;
 pub mod repair;
 pub mod report;
 pub mod rng;
+pub mod tessellate;
 pub mod trace;
 pub mod validate;
+
+#[cfg(test)]
+pub(crate) mod test_util;
 
 pub use error::{Error, Result};
 pub use heightmap::{DisplaceParams, HeightMap, Wrap};

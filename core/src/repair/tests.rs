@@ -539,3 +539,82 @@ fn report_serialises_to_json() {
     assert_eq!(v, serde_json::to_value(&rep).unwrap());
     assert!(rep.to_text().contains("hard edges stitched"));
 }
+
+/// Closed cylinder: smooth shared side normals, flat caps with their own rim copies (hard
+/// edges in the file), `seg` segments, radius 1, z in [−1, 1].
+fn capped_cylinder(seg: u32) -> BaseMesh {
+    let (mut p, mut n, mut uv, mut tris) = (vec![], vec![], vec![], vec![]);
+    let ring = |i: u32, z: f32| {
+        let a = std::f32::consts::TAU * i as f32 / seg as f32;
+        Vec3::new(a.cos(), a.sin(), z)
+    };
+    for z in [-1.0, 1.0] {
+        for i in 0..seg {
+            let q = ring(i, z);
+            p.push(q);
+            n.push(Vec3::new(q.x, q.y, 0.0));
+            uv.push(Vec2::new(0.5 + 0.2 * q.x, 0.3 + 0.2 * q.y + 0.1 * z));
+        }
+    }
+    for i in 0..seg {
+        let j = (i + 1) % seg;
+        tris.push([i, j, seg + j]);
+        tris.push([i, seg + j, seg + i]);
+    }
+    for (z, flip) in [(-1.0f32, true), (1.0, false)] {
+        let c = p.len() as u32;
+        p.push(Vec3::new(0.0, 0.0, z));
+        n.push(Vec3::Z * z);
+        uv.push(Vec2::new(0.5, 0.5 + 0.4 * z));
+        for i in 0..seg {
+            let q = ring(i, z);
+            p.push(q);
+            n.push(Vec3::Z * z);
+            uv.push(Vec2::new(0.5 + 0.2 * q.x, 0.5 + 0.4 * z + 0.1 * q.y));
+        }
+        for i in 0..seg {
+            let (a, b) = (c + 1 + i, c + 1 + (i + 1) % seg);
+            tris.push(if flip { [c, b, a] } else { [c, a, b] });
+        }
+    }
+    mesh(p, n, uv, tris)
+}
+
+// Would break if stitching only handled all-hard meshes: a cylinder mixes smooth sides with
+// hard cap rims, the usual case in real assets.
+#[test]
+fn cylinder_cap_rims_are_stitched_closed() {
+    let seg = 10;
+    let m = capped_cylinder(seg);
+    assert!(max_displaced_gap(&m, 0.1) > 0.05);
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert!(rep.sharp_corners.is_empty() && rep.split_vertices.is_empty());
+    assert_eq!(rep.stitched_edges.len(), 2 * seg as usize);
+    assert!(rep.corner_fans.is_empty() && rep.unclosed_corners == 0);
+    assert_eq!(open_half_edges(&out), 0);
+    assert_eq!(max_displaced_gap(&out, 0.1), 0.0);
+}
+
+// Would break if a crease that ends inside the mesh (its end vertex keeps one copy) left a
+// crack: the edge next to the end is closed by a single triangle (the quad's other half would
+// repeat the shared end vertex).
+#[test]
+fn crease_ending_inside_the_mesh_is_closed_with_single_triangles() {
+    let mut m = lens(24, 0.05);
+    let (top, bot) = (24, 25);
+    // Move both apexes next to the rim at x = −1: the rim is blunt there and a knife edge
+    // (≈ 3° interior angle) on the far side, so the crease runs along part of the rim only.
+    m.positions[top] = Vec3::new(-0.9, 0.0, 0.05);
+    m.positions[bot] = Vec3::new(-0.9, 0.0, -0.05);
+    m.normals = BaseMesh::angle_weighted_normals(&m.positions, &m.triangles);
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert!(!rep.crease_edges.is_empty() && rep.crease_edges.len() < 24);
+    assert!(!rep.split_vertices.is_empty());
+    assert!(
+        rep.stitched_edges.iter().any(|e| e.inserted.len() == 1),
+        "{}",
+        rep.to_text()
+    );
+    assert_eq!(open_half_edges(&out), 0, "{}", rep.to_text());
+    assert_eq!(max_displaced_gap(&out, 0.1), 0.0);
+}

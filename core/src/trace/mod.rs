@@ -5,6 +5,8 @@
 //! pbrt, `intersect` is the cheap test (t, prism, barycentrics, steps); `Hit::surface` then
 //! builds the full surface data on the canonical surface (`canonical::surface_point`).
 
+pub mod reference;
+
 use glam::{Vec2, Vec3};
 
 pub mod pdm;

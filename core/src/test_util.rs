@@ -1,0 +1,116 @@
+//! Procedural fixtures shared by the unit tests: a closed, seam-free displaced icosphere.
+//!
+//! The sphere has shared vertices everywhere (no UV seam: UVs are a linear projection of the
+//! position, so they are a continuous function on the sphere), unit smooth normals and a small
+//! repeat-wrapped height map with both smooth relief and texel-scale noise. That makes it the
+//! one fixture where "closed" is exact: every displaced edge is shared by two faces.
+
+use crate::bake::{bake, BakeOptions, PrismTable};
+use crate::heightmap::{DisplaceParams, HeightMap, Wrap};
+use crate::mesh::BaseMesh;
+use crate::rng::pcg_hash;
+use glam::{Vec2, Vec3};
+use std::collections::HashMap;
+
+/// Icosphere of radius `radius` after `subdiv` 4-to-1 subdivisions: shared vertices,
+/// counter-clockwise seen from outside.
+pub(crate) fn icosphere(subdiv: u32, radius: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let phi = (1.0 + 5.0_f32.sqrt()) / 2.0;
+    let mut pos: Vec<Vec3> = [
+        (-1.0, phi, 0.0),
+        (1.0, phi, 0.0),
+        (-1.0, -phi, 0.0),
+        (1.0, -phi, 0.0),
+        (0.0, -1.0, phi),
+        (0.0, 1.0, phi),
+        (0.0, -1.0, -phi),
+        (0.0, 1.0, -phi),
+        (phi, 0.0, -1.0),
+        (phi, 0.0, 1.0),
+        (-phi, 0.0, -1.0),
+        (-phi, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    #[rustfmt::skip]
+    let mut tris: Vec<[u32; 3]> = vec![
+        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
+        [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
+        [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+    ];
+    for _ in 0..subdiv {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut midpoint = |a: u32, b: u32, pos: &mut Vec<Vec3>| -> u32 {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                pos.push(((pos[a as usize] + pos[b as usize]) * 0.5).normalize());
+                pos.len() as u32 - 1
+            })
+        };
+        let mut next = Vec::with_capacity(tris.len() * 4);
+        for [a, b, c] in tris {
+            let ab = midpoint(a, b, &mut pos);
+            let bc = midpoint(b, c, &mut pos);
+            let ca = midpoint(c, a, &mut pos);
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        tris = next;
+    }
+    // Orient every face outwards (the table above is not consistently wound).
+    for t in &mut tris {
+        let p = t.map(|i| pos[i as usize]);
+        if (p[1] - p[0]).cross(p[2] - p[0]).dot(p[0] + p[1] + p[2]) < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    (pos.into_iter().map(|p| p * radius).collect(), tris)
+}
+
+/// `res`×`res` repeat-wrapped map: a smooth two-lobe relief plus hashed texel noise, in [0, 1].
+pub(crate) fn test_height_map(res: u32) -> HeightMap {
+    let tau = std::f32::consts::TAU;
+    let data = (0..res * res)
+        .map(|i| {
+            let (x, y) = ((i % res) as f32 / res as f32, (i / res) as f32 / res as f32);
+            let smooth = (tau * (3.0 * x + y)).sin() * (tau * 2.0 * y).cos();
+            let noise = (pcg_hash(i ^ 0x5eed) >> 8) as f32 / 16_777_216.0 - 0.5;
+            (0.5 + 0.3 * smooth + 0.25 * noise).clamp(0.0, 1.0)
+        })
+        .collect();
+    HeightMap::new(res, res, data, Wrap::Repeat)
+}
+
+/// A baked, closed, displaced unit-radius icosphere (`subdiv` subdivisions, `map_res`² map,
+/// displacement scale `scale` around midlevel 0.5). UVs span about 0.8 of the map across the
+/// sphere's diameter, so a texel is about `2.5 / map_res` world units.
+pub(crate) fn test_sphere_table(subdiv: u32, map_res: u32, scale: f32) -> (PrismTable, HeightMap) {
+    let (positions, triangles) = icosphere(subdiv, 1.0);
+    let normals: Vec<Vec3> = positions.iter().map(|p| p.normalize()).collect();
+    // A slightly oblique projection so no face is exactly edge-on in UV.
+    let uvs = positions
+        .iter()
+        .map(|p| {
+            Vec2::new(
+                0.5 + 0.4 * p.x + 0.07 * p.z,
+                0.5 + 0.4 * p.y - 0.05 * p.z,
+            )
+        })
+        .collect();
+    let n = triangles.len();
+    let mesh = BaseMesh {
+        positions,
+        normals,
+        uvs,
+        triangles,
+        face_group: vec![0; n],
+        groups: vec!["sphere".into()],
+        face_flags: vec![0; n],
+        ..Default::default()
+    };
+    let map = test_height_map(map_res);
+    let params = DisplaceParams {
+        scale,
+        midlevel: 0.5,
+    };
+    (bake(&mesh, &map, &BakeOptions { params }), map)
+}
