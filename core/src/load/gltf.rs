@@ -1,6 +1,529 @@
-//! stub
+//! glTF 2.0 (`.gltf` with external or `data:` buffers, and `.glb`) into a `BaseMesh`.
+//!
+//! Every triangle primitive of every mesh node under the default scene (else every scene's
+//! roots) is appended with its node's world transform applied; v is flipped (`1 - v`) to the
+//! project's v-up convention. The `gltf` crate parses and validates the JSON; accessors and
+//! buffers are read here with checked arithmetic, because the crate's own readers panic on
+//! `count: 0`, and its GLB header and URI code panic on some corrupt inputs.
+
 use super::MeshOptions;
-use crate::{mesh::BaseMesh, Result};
-pub fn load(_path: &std::path::Path, _opts: &MeshOptions) -> Result<BaseMesh> {
-    todo!()
+use crate::error::{Error, Result};
+use crate::mesh::{BaseMesh, SceneCamera, UpAxis};
+use ::gltf::accessor::{DataType, Dimensions};
+use ::gltf::mesh::{Mode, Semantic};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use std::path::Path;
+
+pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let is_glb = super::extension(path) == "glb" || bytes.starts_with(b"glTF");
+    if is_glb {
+        check_glb_header(path, &bytes)?;
+    }
+    let doc = ::gltf::Gltf::from_slice(&bytes).map_err(|e| {
+        Error::invalid(
+            path,
+            format!("is not valid glTF 2.0: {e} (the file is truncated or corrupt; re-export it)"),
+        )
+    })?;
+    let buffers = load_buffers(path, &doc)?;
+    let mut loader = Loader {
+        path,
+        opts,
+        buffers,
+        mesh: BaseMesh {
+            source: path.into(),
+            up_axis: Some(UpAxis::Y),
+            ..Default::default()
+        },
+        visited: vec![false; doc.nodes().len()],
+        camera: None,
+        any_uv_missing: false,
+    };
+    for root in scene_roots(&doc) {
+        loader.visit(root, Mat4::IDENTITY)?;
+    }
+    let mut mesh = loader.mesh;
+    mesh.missing_uvs = loader.any_uv_missing;
+    mesh.face_flags = vec![0; mesh.triangles.len()];
+    mesh.base_color = doc
+        .materials()
+        .next()
+        .map(|m| m.pbr_metallic_roughness().base_color_factor());
+    if let Some((world, yfov)) = loader.camera {
+        mesh.camera = Some(scene_camera(&mesh, world, yfov));
+    }
+    Ok(mesh)
+}
+
+/// The default scene's roots, else the roots of every scene, else every parentless node.
+fn scene_roots(doc: &::gltf::Document) -> Vec<::gltf::Node<'_>> {
+    if let Some(scene) = doc.default_scene() {
+        return scene.nodes().collect();
+    }
+    let mut roots: Vec<::gltf::Node> = Vec::new();
+    if doc.scenes().len() > 0 {
+        for node in doc.scenes().flat_map(|s| s.nodes()) {
+            if !roots.iter().any(|r| r.index() == node.index()) {
+                roots.push(node);
+            }
+        }
+    } else {
+        let mut is_child = vec![false; doc.nodes().len()];
+        for node in doc.nodes() {
+            for c in node.children() {
+                is_child[c.index()] = true;
+            }
+        }
+        roots = doc.nodes().filter(|n| !is_child[n.index()]).collect();
+    }
+    roots
+}
+
+/// The crate subtracts the header size from the declared length unchecked: check first.
+fn check_glb_header(path: &Path, bytes: &[u8]) -> Result<()> {
+    let bad = |what: String| Error::invalid(path, format!("{what} (re-export the .glb)"));
+    if bytes.len() < 12 || !bytes.starts_with(b"glTF") {
+        return Err(bad(format!(
+            "is not binary glTF: {} bytes without the 12-byte 'glTF' header",
+            bytes.len()
+        )));
+    }
+    let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    let (version, length) = (word(4), word(8) as usize);
+    if version != 2 {
+        return Err(bad(format!("is binary glTF version {version}, only 2 is supported")));
+    }
+    if length < 20 || length > bytes.len() {
+        return Err(bad(format!(
+            "is truncated or corrupt: its header declares {length} bytes, the file has {}",
+            bytes.len()
+        )));
+    }
+    Ok(())
+}
+
+fn load_buffers(path: &Path, doc: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {
+    let mut out = Vec::new();
+    for buffer in doc.buffers() {
+        let i = buffer.index();
+        let data = match buffer.source() {
+            ::gltf::buffer::Source::Bin => doc.blob.clone().ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    format!("buffer #{i} refers to the GLB binary chunk, which is missing (re-export)"),
+                )
+            })?,
+            ::gltf::buffer::Source::Uri(uri) => read_uri(path, i, uri)?,
+        };
+        if data.len() < buffer.length() {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "buffer #{i} declares {} bytes but only {} are present (the file or its .bin \
+                     is truncated; re-export it)",
+                    buffer.length(),
+                    data.len()
+                ),
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
+fn read_uri(path: &Path, i: usize, uri: &str) -> Result<Vec<u8>> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let payload = rest.split_once(";base64,").map(|(_, p)| p).ok_or_else(|| {
+            Error::invalid(path, format!("buffer #{i}: only base64 data: URIs are supported"))
+        })?;
+        return decode_base64(payload).ok_or_else(|| {
+            Error::invalid(path, format!("buffer #{i}: its data: URI is not valid base64 (re-export)"))
+        });
+    }
+    if uri.contains(':') {
+        return Err(Error::invalid(
+            path,
+            format!("buffer #{i} has URI '{uri}': only relative file paths and data: URIs are supported"),
+        ));
+    }
+    let rel = percent_decode(uri).ok_or_else(|| {
+        Error::invalid(path, format!("buffer #{i} has a malformed URI '{uri}'"))
+    })?;
+    let file = path.parent().unwrap_or(Path::new(".")).join(rel);
+    std::fs::read(&file).map_err(|e| {
+        Error::invalid(
+            path,
+            format!("buffer #{i}: cannot read '{}': {e} (keep the .bin next to the .gltf)", file.display()),
+        )
+    })
+}
+
+fn percent_decode(s: &str) -> Option<String> {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut k = 0;
+    while k < b.len() {
+        if b[k] == b'%' {
+            let hex = std::str::from_utf8(b.get(k + 1..k + 3)?).ok()?;
+            out.push(u8::from_str_radix(hex, 16).ok()?);
+            k += 3;
+        } else {
+            out.push(b[k]);
+            k += 1;
+        }
+    }
+    String::from_utf8(out).ok()
+}
+
+/// Standard or URL-safe base64, padding optional; `None` on any other character.
+fn decode_base64(s: &str) -> Option<Vec<u8>> {
+    let mut out = Vec::with_capacity(s.len() / 4 * 3);
+    let (mut acc, mut bits) = (0u32, 0u32);
+    for c in s.bytes().take_while(|&c| c != b'=') {
+        let v = match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' | b'-' => 62,
+            b'/' | b'_' => 63,
+            b' ' | b'\n' | b'\r' | b'\t' => continue,
+            _ => return None,
+        };
+        acc = (acc << 6) | v as u32;
+        bits += 6;
+        if bits >= 8 {
+            bits -= 8;
+            out.push((acc >> bits) as u8);
+            acc &= (1 << bits) - 1;
+        }
+    }
+    Some(out)
+}
+
+struct Loader<'p> {
+    path: &'p Path,
+    opts: &'p MeshOptions,
+    buffers: Vec<Vec<u8>>,
+    mesh: BaseMesh,
+    visited: Vec<bool>,
+    /// World transform and vertical FOV (radians) of the first perspective camera.
+    camera: Option<(Mat4, f32)>,
+    any_uv_missing: bool,
+}
+
+impl Loader<'_> {
+    fn visit(&mut self, node: ::gltf::Node, parent: Mat4) -> Result<()> {
+        let i = node.index();
+        if std::mem::replace(&mut self.visited[i], true) {
+            return Err(Error::invalid(
+                self.path,
+                format!(
+                    "node #{i} is reached twice: the node hierarchy has a cycle or a node with two \
+                     parents (glTF requires a tree; re-export)"
+                ),
+            ));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if let Some(cam) = node.camera() {
+            if let ::gltf::camera::Projection::Perspective(p) = cam.projection() {
+                self.camera.get_or_insert((world, p.yfov()));
+            }
+        }
+        if let Some(mesh) = node.mesh() {
+            let node_name = node.name().map_or_else(|| format!("node #{i}"), str::to_string);
+            let mesh_name = mesh
+                .name()
+                .map_or_else(|| format!("mesh #{}", mesh.index()), str::to_string);
+            for prim in mesh.primitives() {
+                let group = format!("{node_name}/{mesh_name}/{}", prim.index());
+                self.primitive(&prim, world, group)?;
+            }
+        }
+        for child in node.children() {
+            self.visit(child, world)?;
+        }
+        Ok(())
+    }
+
+    fn warn(&self, what: &str) {
+        eprintln!("warning: {}: {what}", self.path.display());
+    }
+
+    fn primitive(&mut self, prim: &::gltf::Primitive, world: Mat4, group: String) -> Result<()> {
+        let path = self.path;
+        let mode = prim.mode();
+        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+            self.warn(&format!("primitive '{group}' is {mode:?}, not triangles; skipped"));
+            return Ok(());
+        }
+        let linear = Mat3::from_mat4(world);
+        let det = linear.determinant();
+        if det == 0.0 || !det.is_finite() {
+            self.warn(&format!("primitive '{group}' has a singular node transform; skipped"));
+            return Ok(());
+        }
+        let acc_pos = prim.get(&Semantic::Positions).ok_or_else(|| {
+            Error::invalid(path, format!("primitive '{group}' has no POSITION attribute (re-export)"))
+        })?;
+        let positions: Vec<Vec3> = self
+            .read_floats::<3>(&acc_pos, &group, "POSITION")?
+            .into_iter()
+            .map(|p| world.transform_point3(Vec3::from(p)))
+            .collect();
+        let n = positions.len();
+
+        let indices: Vec<u32> = match prim.indices() {
+            Some(acc) => self.read_indices(&acc, &group)?,
+            None => (0..n as u32).collect(),
+        };
+        if let Some((k, &bad)) = indices.iter().enumerate().find(|(_, &i)| i as usize >= n) {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "primitive '{group}': index {k} is {bad} but there are only {n} vertices \
+                     (re-export the mesh)"
+                ),
+            ));
+        }
+        let mut tris = assemble_triangles(mode, &indices);
+        if mode == Mode::Triangles && indices.len() % 3 != 0 {
+            self.warn(&format!(
+                "primitive '{group}' has {} indices, not a multiple of 3; the last {} ignored",
+                indices.len(),
+                indices.len() % 3
+            ));
+        }
+        // A mirroring transform turns counter-clockwise into clockwise: swap to restore it.
+        if det < 0.0 {
+            for t in &mut tris {
+                t.swap(1, 2);
+            }
+        }
+
+        let uvs = self.read_uvs(prim, &group, n)?;
+        let normals = match prim.get(&Semantic::Normals) {
+            Some(acc) => {
+                let file = self.read_floats::<3>(&acc, &group, "NORMAL")?;
+                if file.len() != n {
+                    return Err(count_mismatch(path, &group, "NORMAL", file.len(), n));
+                }
+                let to_world = linear.inverse().transpose();
+                let derived = BaseMesh::angle_weighted_normals(&positions, &tris);
+                file.into_iter()
+                    .zip(derived)
+                    .map(|(v, d)| (to_world * Vec3::from(v)).try_normalize().unwrap_or(d))
+                    .collect()
+            }
+            None => BaseMesh::angle_weighted_normals(&positions, &tris),
+        };
+
+        let base = self.mesh.positions.len() as u32;
+        let g = self.mesh.groups.len() as u32;
+        self.mesh.groups.push(group);
+        self.mesh.positions.extend(positions);
+        self.mesh.normals.extend(normals);
+        self.mesh.uvs.extend(uvs);
+        for t in tris {
+            self.mesh.triangles.push(t.map(|i| i + base));
+            self.mesh.face_group.push(g);
+        }
+        Ok(())
+    }
+
+    /// TEXCOORD_<uv_set> with v flipped to point up; zeros (and `missing_uvs`) when the
+    /// primitive has no TEXCOORD at all.
+    fn read_uvs(&mut self, prim: &::gltf::Primitive, group: &str, n: usize) -> Result<Vec<Vec2>> {
+        let set = self.opts.uv_set;
+        let Some(acc) = prim.get(&Semantic::TexCoords(set)) else {
+            let mut present: Vec<u32> = prim
+                .attributes()
+                .filter_map(|(s, _)| match s {
+                    Semantic::TexCoords(k) => Some(k),
+                    _ => None,
+                })
+                .collect();
+            if present.is_empty() {
+                self.any_uv_missing = true;
+                return Ok(vec![Vec2::ZERO; n]);
+            }
+            present.sort();
+            let names: Vec<String> = present.iter().map(|k| format!("TEXCOORD_{k}")).collect();
+            return Err(Error::invalid(
+                self.path,
+                format!(
+                    "primitive '{group}' has no TEXCOORD_{set}; it has {} (choose one with --uv-set)",
+                    names.join(", ")
+                ),
+            ));
+        };
+        let attr = format!("TEXCOORD_{set}");
+        let uvs = self.read_floats::<2>(&acc, group, &attr)?;
+        if uvs.len() != n {
+            return Err(count_mismatch(self.path, group, &attr, uvs.len(), n));
+        }
+        Ok(uvs.into_iter().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect())
+    }
+
+    /// The bytes of an accessor's elements, with every offset checked against its buffer.
+    fn accessor_layout(
+        &self,
+        acc: &::gltf::Accessor,
+        group: &str,
+        attr: &str,
+    ) -> Result<(&[u8], usize, usize)> {
+        let path = self.path;
+        let fail = |what: String| {
+            Error::invalid(
+                path,
+                format!("primitive '{group}', {attr} (accessor #{}): {what}", acc.index()),
+            )
+        };
+        if acc.sparse().is_some() {
+            return Err(fail("sparse accessors are not supported (re-export without sparse data)".into()));
+        }
+        let view = acc
+            .view()
+            .ok_or_else(|| fail("has no bufferView (compressed meshes are not supported; re-export uncompressed)".into()))?;
+        let buffer = &self.buffers[view.buffer().index()];
+        let view_bytes = view
+            .offset()
+            .checked_add(view.length())
+            .and_then(|end| buffer.get(view.offset()..end))
+            .ok_or_else(|| fail(format!("bufferView #{} lies outside its buffer (truncated file?)", view.index())))?;
+        let elem = acc.size();
+        let stride = view.stride().unwrap_or(elem);
+        if stride < elem {
+            return Err(fail(format!("byteStride {stride} is smaller than an element ({elem} bytes)")));
+        }
+        let count = acc.count();
+        let needed = match count {
+            0 => Some(0),
+            _ => (count - 1)
+                .checked_mul(stride)
+                .and_then(|x| x.checked_add(elem))
+                .and_then(|x| x.checked_add(acc.offset())),
+        };
+        let data = needed
+            .and_then(|end| view_bytes.get(acc.offset().min(end)..end))
+            .ok_or_else(|| fail(format!("{count} elements do not fit in bufferView #{} (truncated file?)", view.index())))?;
+        Ok((data, stride, count))
+    }
+
+    /// N components per element, converted to f32 (normalised integers mapped to [0,1] / [-1,1]).
+    fn read_floats<const N: usize>(
+        &self,
+        acc: &::gltf::Accessor,
+        group: &str,
+        attr: &str,
+    ) -> Result<Vec<[f32; N]>> {
+        let want = match N {
+            2 => Dimensions::Vec2,
+            3 => Dimensions::Vec3,
+            _ => Dimensions::Scalar,
+        };
+        if acc.dimensions() != want {
+            return Err(Error::invalid(
+                self.path,
+                format!(
+                    "primitive '{group}', {attr} is {:?}, expected {want:?} (re-export)",
+                    acc.dimensions()
+                ),
+            ));
+        }
+        let (data, stride, count) = self.accessor_layout(acc, group, attr)?;
+        let (ty, norm) = (acc.data_type(), acc.normalized());
+        let size = ty.size();
+        Ok((0..count)
+            .map(|e| std::array::from_fn(|c| component(&data[e * stride + c * size..], ty, norm)))
+            .collect())
+    }
+
+    fn read_indices(&self, acc: &::gltf::Accessor, group: &str) -> Result<Vec<u32>> {
+        let ty = acc.data_type();
+        if acc.dimensions() != Dimensions::Scalar
+            || !matches!(ty, DataType::U8 | DataType::U16 | DataType::U32)
+        {
+            return Err(Error::invalid(
+                self.path,
+                format!(
+                    "primitive '{group}': indices are {:?} {ty:?}, expected unsigned integer scalars (re-export)",
+                    acc.dimensions()
+                ),
+            ));
+        }
+        let (data, stride, count) = self.accessor_layout(acc, group, "indices")?;
+        Ok((0..count)
+            .map(|e| {
+                let b = &data[e * stride..];
+                match ty {
+                    DataType::U8 => b[0] as u32,
+                    DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as u32,
+                    _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                }
+            })
+            .collect())
+    }
+}
+
+/// One component at the start of `b` (the caller guarantees its bytes are there).
+fn component(b: &[u8], ty: DataType, normalized: bool) -> f32 {
+    let (raw, scale) = match ty {
+        DataType::I8 => (b[0] as i8 as f32, 127.0),
+        DataType::U8 => (b[0] as f32, 255.0),
+        DataType::I16 => (i16::from_le_bytes([b[0], b[1]]) as f32, 32767.0),
+        DataType::U16 => (u16::from_le_bytes([b[0], b[1]]) as f32, 65535.0),
+        DataType::U32 => (u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32, 1.0),
+        DataType::F32 => return f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+    };
+    if normalized {
+        (raw / scale).max(-1.0)
+    } else {
+        raw
+    }
+}
+
+/// Triangles of a list, strip or fan (glTF 2.0 §3.7.2.1 orders the corners of each).
+fn assemble_triangles(mode: Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    match mode {
+        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
+            .map(|i| match i % 2 {
+                0 => [idx[i], idx[i + 1], idx[i + 2]],
+                _ => [idx[i + 1], idx[i], idx[i + 2]],
+            })
+            .collect(),
+        Mode::TriangleFan => (1..idx.len().saturating_sub(1))
+            .map(|i| [idx[0], idx[i], idx[i + 1]])
+            .collect(),
+        _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    }
+}
+
+fn count_mismatch(path: &Path, group: &str, attr: &str, got: usize, n: usize) -> Error {
+    Error::invalid(
+        path,
+        format!("primitive '{group}': {attr} has {got} elements but POSITION has {n} (re-export)"),
+    )
+}
+
+/// Camera looking down its local -Z with local +Y up; the target is the mesh centre projected
+/// on the view axis, at least one unit ahead.
+fn scene_camera(mesh: &BaseMesh, world: Mat4, yfov: f32) -> SceneCamera {
+    let from = world.transform_point3(Vec3::ZERO);
+    let forward = world
+        .transform_vector3(Vec3::NEG_Z)
+        .try_normalize()
+        .unwrap_or(Vec3::NEG_Z);
+    let up = world
+        .transform_vector3(Vec3::Y)
+        .try_normalize()
+        .unwrap_or(Vec3::Y);
+    let (lo, hi) = mesh.bounds();
+    let distance = ((lo + hi) * 0.5 - from).dot(forward).max(1.0);
+    SceneCamera {
+        from,
+        to: from + forward * distance,
+        up,
+        yfov_deg: yfov.to_degrees(),
+    }
 }

@@ -1,6 +1,211 @@
-//! stub
+//! Height maps from EXR (half, float or uint channels, read raw) and PNG / TIFF (8/16-bit
+//! normalised to [0, 1], 32-bit float raw), into a `HeightMap` with row 0 at the top.
+//!
+//! Colour images give their first channel (R), grey ones L. NaN texels are kept: the validate
+//! command reports them (`HeightMap::first_non_finite`). Dimensions are checked from the header
+//! before any pixel is decoded, so a hostile header cannot make us allocate gigabytes.
+
 use super::MapOptions;
-use crate::{heightmap::HeightMap, Result};
-pub fn load(_path: &std::path::Path, _opts: &MapOptions) -> Result<HeightMap> {
-    todo!()
+use crate::error::{Error, Result};
+use crate::heightmap::HeightMap;
+use std::path::Path;
+
+/// Largest accepted width or height. 32768² f32 texels is already 4 GiB; anything larger in a
+/// header is far more likely a corrupt or hostile file than a real height map.
+pub const MAX_MAP_DIMENSION: u32 = 32768;
+
+pub const MAP_EXTENSIONS: &str = ".exr, .png, .tif or .tiff";
+
+pub fn load(path: &Path, opts: &MapOptions) -> Result<HeightMap> {
+    let ext = super::extension(path);
+    let (width, height, data, channel) = match ext.as_str() {
+        "exr" => load_exr(path, opts.channel.as_deref())?,
+        "png" => load_raster(path, ::image::ImageFormat::Png, opts.channel.as_deref())?,
+        "tif" | "tiff" => load_raster(path, ::image::ImageFormat::Tiff, opts.channel.as_deref())?,
+        _ => {
+            return Err(Error::UnsupportedFormat {
+                path: path.into(),
+                ext,
+                expected: MAP_EXTENSIONS,
+            })
+        }
+    };
+    let mut map = HeightMap::new(width, height, data, opts.wrap);
+    map.source = path.into();
+    map.channel = channel;
+    Ok(map)
+}
+
+fn check_dimensions(path: &Path, width: usize, height: usize) -> Result<(u32, u32)> {
+    if width == 0 || height == 0 {
+        return Err(Error::invalid(
+            path,
+            format!("image is {width}x{height} texels, nothing to sample (re-export the map)"),
+        ));
+    }
+    let max = MAX_MAP_DIMENSION as usize;
+    if width > max || height > max {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "image is {width}x{height} texels, over the limit of {max} in either dimension \
+                 (downsample the map, or check that the file is not corrupt)"
+            ),
+        ));
+    }
+    Ok((width as u32, height as u32))
+}
+
+type Decoded = (u32, u32, Vec<f32>, String);
+
+/// EXR: the first layer, every channel read, then one picked by name.
+fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
+    use exr::prelude::{read, FlatSamples, ReadChannels, ReadLayers};
+    let corrupt = |e: exr::error::Error| {
+        Error::invalid(
+            path,
+            format!("cannot read as OpenEXR: {e} (the file is truncated or corrupt; re-export it)"),
+        )
+    };
+    // Header first: refuse absurd sizes before the reader allocates pixel storage.
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(corrupt)?;
+    let header = meta
+        .headers
+        .iter()
+        .find(|h| !h.deep)
+        .ok_or_else(|| Error::invalid(path, "has only deep-data layers (write a flat image)"))?;
+    check_dimensions(path, header.layer_size.width(), header.layer_size.height())?;
+    let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    let name = pick_exr_channel(path, &names, requested)?;
+
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(corrupt)?;
+    let layer = image.layer_data;
+    let (w, h) = check_dimensions(path, layer.size.width(), layer.size.height())?;
+    let channel = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == name)
+        .ok_or_else(|| {
+            Error::invalid(path, format!("channel '{name}' vanished between header and pixels"))
+        })?;
+    let data: Vec<f32> = match &channel.sample_data {
+        FlatSamples::F16(s) => s.iter().map(|v| v.to_f32()).collect(),
+        FlatSamples::F32(s) => s.clone(),
+        FlatSamples::U32(s) => s.iter().map(|&v| v as f32).collect(),
+    };
+    if data.len() != w as usize * h as usize {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "channel '{name}' has {} samples for {w}x{h} texels (subsampled channels are not \
+                 supported; write the height at full resolution)",
+                data.len()
+            ),
+        ));
+    }
+    Ok((w, h, data, name))
+}
+
+/// The requested channel, else `Y`, else `R`, else the first alphabetically.
+fn pick_exr_channel(path: &Path, names: &[String], requested: Option<&str>) -> Result<String> {
+    let mut sorted = names.to_vec();
+    sorted.sort();
+    if let Some(want) = requested {
+        return if names.iter().any(|n| n == want) {
+            Ok(want.to_string())
+        } else {
+            Err(Error::invalid(
+                path,
+                format!(
+                    "has no channel '{want}'; its channels are {} (pick one with --channel)",
+                    sorted.join(", ")
+                ),
+            ))
+        };
+    }
+    ["Y", "R"]
+        .iter()
+        .find(|c| names.iter().any(|n| n == *c))
+        .map(|c| c.to_string())
+        .or_else(|| sorted.first().cloned())
+        .ok_or_else(|| Error::invalid(path, "has no channels (re-export the map)"))
+}
+
+/// PNG / TIFF through the `image` crate.
+fn load_raster(
+    path: &Path,
+    format: ::image::ImageFormat,
+    requested: Option<&str>,
+) -> Result<Decoded> {
+    use ::image::{DynamicImage, ImageReader, Limits};
+    let open = || -> Result<ImageReader<std::io::BufReader<std::fs::File>>> {
+        let mut reader = ImageReader::open(path).map_err(|e| Error::io(path, e))?;
+        reader.set_format(format);
+        let mut limits = Limits::no_limits();
+        limits.max_image_width = Some(MAX_MAP_DIMENSION);
+        limits.max_image_height = Some(MAX_MAP_DIMENSION);
+        reader.limits(limits);
+        Ok(reader)
+    };
+    let corrupt = |e: ::image::ImageError| match e {
+        ::image::ImageError::Limits(_) => Error::invalid(
+            path,
+            format!(
+                "image is larger than {MAX_MAP_DIMENSION} texels in a dimension (downsample the \
+                 map, or check that the file is not corrupt)"
+            ),
+        ),
+        e => Error::invalid(
+            path,
+            format!("cannot decode as {format:?}: {e} (the file is truncated or corrupt; re-export it)"),
+        ),
+    };
+    let (w, h) = open()?.into_dimensions().map_err(corrupt)?;
+    check_dimensions(path, w as usize, h as usize)?;
+    let image = open()?.decode().map_err(corrupt)?;
+    let (w, h) = check_dimensions(path, image.width() as usize, image.height() as usize)?;
+
+    let grey = matches!(
+        image,
+        DynamicImage::ImageLuma8(_)
+            | DynamicImage::ImageLumaA8(_)
+            | DynamicImage::ImageLuma16(_)
+            | DynamicImage::ImageLumaA16(_)
+    );
+    let name = if grey { "L" } else { "R" };
+    if let Some(want) = requested {
+        if want != name {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "has no channel '{want}': PNG and TIFF maps are read from their first channel \
+                     ('{name}' here); drop --channel or convert the map to EXR"
+                ),
+            ));
+        }
+    }
+    // First channel of every texel; integer formats normalised by their full range.
+    let data: Vec<f32> = match &image {
+        DynamicImage::ImageLuma8(b) => b.pixels().map(|p| p.0[0] as f32 / 255.0).collect(),
+        DynamicImage::ImageLumaA8(b) => b.pixels().map(|p| p.0[0] as f32 / 255.0).collect(),
+        DynamicImage::ImageRgb8(b) => b.pixels().map(|p| p.0[0] as f32 / 255.0).collect(),
+        DynamicImage::ImageRgba8(b) => b.pixels().map(|p| p.0[0] as f32 / 255.0).collect(),
+        DynamicImage::ImageLuma16(b) => b.pixels().map(|p| p.0[0] as f32 / 65535.0).collect(),
+        DynamicImage::ImageLumaA16(b) => b.pixels().map(|p| p.0[0] as f32 / 65535.0).collect(),
+        DynamicImage::ImageRgb16(b) => b.pixels().map(|p| p.0[0] as f32 / 65535.0).collect(),
+        DynamicImage::ImageRgba16(b) => b.pixels().map(|p| p.0[0] as f32 / 65535.0).collect(),
+        DynamicImage::ImageRgb32F(b) => b.pixels().map(|p| p.0[0]).collect(),
+        DynamicImage::ImageRgba32F(b) => b.pixels().map(|p| p.0[0]).collect(),
+        // A layout added to `image` after this was written: read through its f32 RGB view.
+        other => other.to_rgb32f().pixels().map(|p| p.0[0]).collect(),
+    };
+    Ok((w, h, data, name.to_string()))
 }

@@ -5,6 +5,8 @@
 pub mod gltf;
 pub mod image;
 pub mod obj;
+#[cfg(test)]
+mod tests;
 
 use crate::error::{Error, Result};
 use crate::heightmap::{HeightMap, Wrap};

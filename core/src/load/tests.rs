@@ -1,0 +1,722 @@
+//! Loader specifications. Every fixture is written in code to its own temp folder, so the
+//! tests say exactly which bytes they feed in. Bad input must come back as `Err` naming the
+//! file, never as a panic.
+
+use super::{load_height_map, load_mesh, MapOptions, MeshOptions};
+use crate::mesh::BaseMesh;
+use glam::{Vec2, Vec3};
+use serde_json::{json, Value};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+// ---------------------------------------------------------------------------------------------
+// Fixture helpers
+
+fn temp_dir(name: &str) -> PathBuf {
+    static N: AtomicUsize = AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "prismbake-load-{name}-{}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The error text of a load that must fail, checked to name the file.
+fn err_naming_file<T: std::fmt::Debug>(result: crate::Result<T>, path: &Path) -> String {
+    let msg = result.expect_err("loading must fail").to_string();
+    let name = path.file_name().unwrap().to_str().unwrap();
+    assert!(msg.contains(name), "error does not name '{name}': {msg}");
+    msg
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let b = [c[0], *c.get(1).unwrap_or(&0), *c.get(2).unwrap_or(&0)];
+        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
+        for k in 0..4 {
+            if k <= c.len() {
+                s.push(A[(n >> (18 - 6 * k) & 63) as usize] as char);
+            } else {
+                s.push('=');
+            }
+        }
+    }
+    s
+}
+
+/// A glTF document under construction: one buffer, a view per accessor.
+#[derive(Default)]
+struct GltfDoc {
+    bin: Vec<u8>,
+    views: Vec<Value>,
+    accessors: Vec<Value>,
+}
+
+impl GltfDoc {
+    fn view(&mut self, bytes: &[u8]) -> usize {
+        while self.bin.len() % 4 != 0 {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        self.views
+            .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}));
+        self.views.len() - 1
+    }
+
+    /// Float accessor of `n` components (min/max over finite values, as POSITION requires).
+    fn floats(&mut self, data: &[f32], n: usize) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|f| f.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        let (mut lo, mut hi) = (vec![0.0f32; n], vec![0.0f32; n]);
+        for c in 0..n {
+            let finite = data.iter().skip(c).step_by(n).filter(|v| v.is_finite());
+            lo[c] = finite.clone().fold(f32::INFINITY, |a, &b| a.min(b));
+            hi[c] = finite.fold(f32::NEG_INFINITY, |a, &b| a.max(b));
+        }
+        let ty = ["SCALAR", "VEC2", "VEC3", "VEC4"][n - 1];
+        self.accessors.push(json!({
+            "bufferView": view, "componentType": 5126, "count": data.len() / n,
+            "type": ty, "min": lo, "max": hi
+        }));
+        self.accessors.len() - 1
+    }
+
+    fn indices(&mut self, data: &[u16]) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|i| i.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        self.accessors.push(json!({
+            "bufferView": view, "componentType": 5123, "count": data.len(), "type": "SCALAR"
+        }));
+        self.accessors.len() - 1
+    }
+
+    /// The JSON with `rest` (nodes, meshes, scenes, ...) merged in; `uri` None for GLB.
+    fn json(&self, rest: &Value, uri: Option<String>) -> Value {
+        let mut buffer = json!({"byteLength": self.bin.len()});
+        if let Some(uri) = uri {
+            buffer["uri"] = json!(uri);
+        }
+        let mut doc = json!({
+            "asset": {"version": "2.0"},
+            "buffers": [buffer],
+            "bufferViews": self.views,
+            "accessors": self.accessors,
+        });
+        for (k, v) in rest.as_object().unwrap() {
+            doc[k] = v.clone();
+        }
+        doc
+    }
+
+    fn write_gltf(&self, path: &Path, rest: &Value) {
+        let uri = format!("data:application/octet-stream;base64,{}", base64(&self.bin));
+        std::fs::write(path, self.json(rest, Some(uri)).to_string()).unwrap();
+    }
+
+    fn glb(&self, rest: &Value) -> Vec<u8> {
+        let mut json = self.json(rest, None).to_string().into_bytes();
+        while json.len() % 4 != 0 {
+            json.push(b' ');
+        }
+        let mut bin = self.bin.clone();
+        while bin.len() % 4 != 0 {
+            bin.push(0);
+        }
+        let total = 12 + 8 + json.len() + 8 + bin.len();
+        let mut out = Vec::new();
+        out.extend_from_slice(b"glTF");
+        out.extend_from_slice(&2u32.to_le_bytes());
+        out.extend_from_slice(&(total as u32).to_le_bytes());
+        out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"JSON");
+        out.extend_from_slice(&json);
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin);
+        out
+    }
+}
+
+/// One mesh with one primitive, on one node, in one default scene.
+fn single_node_scene(node: Value, primitive: Value) -> Value {
+    let mut node = node;
+    node["mesh"] = json!(0);
+    json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [node],
+        "meshes": [{"name": "Tri", "primitives": [primitive]}],
+    })
+}
+
+/// The triangle (0,0,0) (1,0,0) (0,1,0): counter-clockwise seen from +Z.
+const TRI: [f32; 9] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+fn load_gltf_doc(dir: &Path, name: &str, doc: &GltfDoc, rest: &Value, opts: &MeshOptions) -> crate::Result<BaseMesh> {
+    let path = dir.join(name);
+    doc.write_gltf(&path, rest);
+    load_mesh(&path, opts)
+}
+
+fn approx(a: Vec3, b: Vec3) -> bool {
+    (a - b).length() < 1e-5
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. UV origin: the same image pixel under the same (u, v) from glTF and from OBJ.
+
+/// 2x2 grey PNG, every texel different: top row 10, 20; bottom row 30, 40.
+fn write_asymmetric_png(path: &Path) -> [[f32; 2]; 2] {
+    let pixels = [[10u8, 20], [30, 40]];
+    let raw: Vec<u8> = pixels.iter().flatten().copied().collect();
+    image::GrayImage::from_raw(2, 2, raw).unwrap().save(path).unwrap();
+    pixels.map(|row| row.map(|p| p as f32 / 255.0))
+}
+
+/// A unit quad in the XY plane as a 4x4 vertex grid at x, y in {0, 1/4, 3/4, 1}: the corners
+/// are the image corners, the inner vertices sit on the 2x2 texel centres. In the project's
+/// convention (v up) the UV of each vertex equals its (x, y).
+fn uv_grid() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let xs = [0.0, 0.25, 0.75, 1.0];
+    let mut p = Vec::new();
+    for y in xs {
+        for x in xs {
+            p.push(Vec3::new(x, y, 0.0));
+        }
+    }
+    let mut t = Vec::new();
+    for j in 0..3u32 {
+        for i in 0..3u32 {
+            let a = j * 4 + i;
+            t.push([a, a + 1, a + 5]);
+            t.push([a, a + 5, a + 4]);
+        }
+    }
+    (p, t)
+}
+
+#[test]
+fn uv_origin_is_the_same_image_pixel_for_gltf_and_obj() {
+    let dir = temp_dir("uv-origin");
+    let map_path = dir.join("asym.png");
+    let texels = write_asymmetric_png(&map_path);
+    let map = load_height_map(&map_path, &MapOptions::default()).unwrap();
+    assert_eq!(map.data[0], texels[0][0], "row 0 of the map is the image's top row");
+
+    let (positions, tris) = uv_grid();
+    // OBJ: vt = (x, y), v up.
+    let mut obj = String::new();
+    for p in &positions {
+        obj += &format!("v {} {} 0\nvt {} {}\n", p.x, p.y, p.x, p.y);
+    }
+    for t in &tris {
+        let [a, b, c] = t.map(|i| i + 1);
+        obj += &format!("f {a}/{a} {b}/{b} {c}/{c}\n");
+    }
+    let obj_path = dir.join("quad.obj");
+    std::fs::write(&obj_path, obj).unwrap();
+    let from_obj = load_mesh(&obj_path, &MeshOptions::default()).unwrap();
+
+    // glTF: the exporter writes v down the image, v_gltf = 1 - y.
+    let mut doc = GltfDoc::default();
+    let pos: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
+    let uv: Vec<f32> = positions.iter().flat_map(|p| [p.x, 1.0 - p.y]).collect();
+    let idx: Vec<u16> = tris.iter().flatten().map(|&i| i as u16).collect();
+    let (a_pos, a_uv, a_idx) = (doc.floats(&pos, 3), doc.floats(&uv, 2), doc.indices(&idx));
+    let rest = single_node_scene(
+        json!({}),
+        json!({"attributes": {"POSITION": a_pos, "TEXCOORD_0": a_uv}, "indices": a_idx}),
+    );
+    let from_gltf = load_gltf_doc(&dir, "quad.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+
+    for mesh in [&from_obj, &from_gltf] {
+        assert!(!mesh.missing_uvs);
+        let mut checked = 0;
+        for (i, p) in mesh.positions.iter().enumerate() {
+            let on_centre = |c: f32| c == 0.25 || c == 0.75;
+            if !(on_centre(p.x) && on_centre(p.y)) {
+                continue;
+            }
+            // v up: y = 3/4 is the top image row.
+            let (col, row) = ((p.x * 2.0) as usize, ((1.0 - p.y) * 2.0) as usize);
+            assert_eq!(
+                map.sample(mesh.uvs[i]),
+                texels[row][col],
+                "{}: vertex at {p} must sample texel ({col}, {row})",
+                mesh.source.display()
+            );
+            checked += 1;
+        }
+        assert_eq!(checked, 4);
+        // The literal that pins the convention: upper-left quarter of the quad = top-left texel.
+        let i = mesh.positions.iter().position(|p| *p == Vec3::new(0.25, 0.75, 0.0)).unwrap();
+        assert_eq!(mesh.uvs[i], Vec2::new(0.25, 0.75));
+        assert_eq!(map.sample(mesh.uvs[i]), 10.0 / 255.0);
+    }
+    // Same pixel, same (u, v): vertex by vertex, matched by position.
+    for (p, uv) in from_gltf.positions.iter().zip(&from_gltf.uvs) {
+        let j = from_obj.positions.iter().position(|q| q == p).unwrap();
+        assert!((from_obj.uvs[j] - *uv).length() < 1e-6, "at {p}: {uv} vs {}", from_obj.uvs[j]);
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. glTF scene graph, winding, attributes
+
+#[test]
+fn gltf_parent_translation_and_child_scale_are_applied() {
+    let dir = temp_dir("gltf-hierarchy");
+    let mut doc = GltfDoc::default();
+    let normals = [0.0, 0.0, 1.0].repeat(3);
+    let (a_pos, a_n, a_idx) = (doc.floats(&TRI, 3), doc.floats(&normals, 3), doc.indices(&[0, 1, 2]));
+    let rest = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [
+            {"name": "parent", "translation": [10.0, 0.0, 0.0], "children": [1]},
+            {"scale": [2.0, 2.0, 2.0], "mesh": 0},
+        ],
+        "meshes": [{"name": "Tri", "primitives": [
+            {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.25, 1.0, 1.0]}}],
+    });
+    let m = load_gltf_doc(&dir, "tree.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    assert_eq!(m.positions, vec![Vec3::new(10., 0., 0.), Vec3::new(12., 0., 0.), Vec3::new(10., 2., 0.)]);
+    assert!(m.normals.iter().all(|&n| approx(n, Vec3::Z)), "{:?}", m.normals);
+    assert_eq!(m.triangles, vec![[0, 1, 2]]);
+    assert_eq!(m.groups, vec!["node #1/Tri/0".to_string()]);
+    assert_eq!((m.face_group.clone(), m.face_flags.clone()), (vec![0], vec![0]));
+    assert_eq!(m.base_color, Some([0.5, 0.25, 1.0, 1.0]));
+    assert_eq!(m.up_axis, Some(crate::mesh::UpAxis::Y));
+    assert!(m.missing_uvs, "no TEXCOORD at all: flagged, not an error");
+    assert!(m.uvs.iter().all(|&uv| uv == Vec2::ZERO));
+}
+
+#[test]
+fn gltf_mirroring_scale_flips_winding_to_keep_normals_outward() {
+    let dir = temp_dir("gltf-mirror");
+    let mut doc = GltfDoc::default();
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    // Tilted normals show the inverse-transpose: x is mirrored with the geometry.
+    let normals = [s, 0.0, s].repeat(3);
+    let (a_pos, a_n) = (doc.floats(&TRI, 3), doc.floats(&normals, 3));
+    let rest = single_node_scene(
+        json!({"name": "mirror", "scale": [-1.0, 1.0, 1.0]}),
+        json!({"attributes": {"POSITION": a_pos, "NORMAL": a_n}}), // non-indexed
+    );
+    let m = load_gltf_doc(&dir, "mirror.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    assert_eq!(m.triangle_count(), 1);
+    assert!(m.face_cross(0).dot(Vec3::Z) > 0.0, "winding flipped back to face +Z");
+    for n in &m.normals {
+        assert!(approx(*n, Vec3::new(-s, 0.0, s)), "{n}");
+        assert!(m.face_cross(0).dot(*n) > 0.0, "geometric and vertex normals agree");
+    }
+    assert_eq!(m.groups, vec!["mirror/Tri/0".to_string()]);
+}
+
+#[test]
+fn gltf_without_normals_gets_angle_weighted_ones() {
+    let dir = temp_dir("gltf-normals");
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}}));
+    let m = load_gltf_doc(&dir, "bare.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    assert!(m.normals.iter().all(|&n| approx(n, Vec3::Z)), "{:?}", m.normals);
+}
+
+#[test]
+fn gltf_uv_set_selects_texcoord_n_and_names_the_sets_when_missing() {
+    let dir = temp_dir("gltf-uvset");
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let a_uv0 = doc.floats(&[0.0; 6], 2);
+    let a_uv1 = doc.floats(&[0.0, 0.0, 1.0, 0.0, 0.0, 0.25], 2);
+    let rest = single_node_scene(
+        json!({}),
+        json!({"attributes": {"POSITION": a_pos, "TEXCOORD_0": a_uv0, "TEXCOORD_1": a_uv1}}),
+    );
+    let m = load_gltf_doc(&dir, "two-sets.gltf", &doc, &rest, &MeshOptions { uv_set: 1 }).unwrap();
+    // v flipped: v = 1 - v_gltf.
+    assert_eq!(m.uvs, vec![Vec2::new(0., 1.), Vec2::new(1., 1.), Vec2::new(0., 0.75)]);
+    assert!(!m.missing_uvs);
+    let path = dir.join("two-sets.gltf");
+    let msg = err_naming_file(load_mesh(&path, &MeshOptions { uv_set: 2 }), &path);
+    assert!(msg.contains("TEXCOORD_2") && msg.contains("TEXCOORD_0, TEXCOORD_1"), "{msg}");
+}
+
+#[test]
+fn gltf_glb_and_external_bin_load_like_the_embedded_form() {
+    let dir = temp_dir("gltf-forms");
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let rest = single_node_scene(json!({"name": "n"}), json!({"attributes": {"POSITION": a_pos}}));
+    let embedded = load_gltf_doc(&dir, "a.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+
+    let glb_path = dir.join("a.glb");
+    std::fs::write(&glb_path, doc.glb(&rest)).unwrap();
+    let glb = load_mesh(&glb_path, &MeshOptions::default()).unwrap();
+
+    let ext_path = dir.join("ext.gltf");
+    std::fs::write(dir.join("ext data.bin"), &doc.bin).unwrap();
+    let json = doc.json(&rest, Some("ext%20data.bin".into()));
+    std::fs::write(&ext_path, json.to_string()).unwrap();
+    let external = load_mesh(&ext_path, &MeshOptions::default()).unwrap();
+
+    for m in [&glb, &external] {
+        assert_eq!(m.positions, embedded.positions);
+        assert_eq!(m.triangles, embedded.triangles);
+        assert_eq!(m.groups, embedded.groups);
+    }
+    std::fs::remove_file(dir.join("ext data.bin")).unwrap();
+    let msg = err_naming_file(load_mesh(&ext_path, &MeshOptions::default()), &ext_path);
+    assert!(msg.contains("ext data.bin"), "{msg}");
+}
+
+#[test]
+fn gltf_skips_points_and_converts_strips_and_fans() {
+    let dir = temp_dir("gltf-modes");
+    let mut doc = GltfDoc::default();
+    // Four vertices of the unit square, counter-clockwise from +Z in strip order.
+    let strip = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0];
+    let fan = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+    let (a_strip, a_fan, a_pts) = (doc.floats(&strip, 3), doc.floats(&fan, 3), doc.floats(&TRI, 3));
+    let rest = json!({
+        "scenes": [{"nodes": [0]}], // no default scene: every scene's roots
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [
+            {"attributes": {"POSITION": a_strip}, "mode": 5},
+            {"attributes": {"POSITION": a_fan}, "mode": 6},
+            {"attributes": {"POSITION": a_pts}, "mode": 0},
+        ]}],
+    });
+    let m = load_gltf_doc(&dir, "modes.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    assert_eq!(m.triangle_count(), 4);
+    assert_eq!(m.groups, vec!["node #0/mesh #0/0".to_string(), "node #0/mesh #0/1".to_string()]);
+    for t in 0..4 {
+        assert!(m.face_cross(t).dot(Vec3::Z) > 0.0, "triangle {t} keeps its winding");
+    }
+}
+
+#[test]
+fn gltf_perspective_camera_becomes_the_scene_camera() {
+    let dir = temp_dir("gltf-camera");
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let rest = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 5.0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}],
+    });
+    let m = load_gltf_doc(&dir, "cam.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    let cam = m.camera.expect("camera");
+    assert!(approx(cam.from, Vec3::new(0.0, 0.0, 5.0)));
+    // Bounds centre (0.5, 0.5, 0) projected on the -Z view axis: 5 units ahead.
+    assert!(approx(cam.to, Vec3::ZERO), "{}", cam.to);
+    assert!(approx(cam.up, Vec3::Y));
+    assert!((cam.yfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 3. OBJ
+
+#[test]
+fn obj_quads_are_triangulated_and_groups_kept() {
+    let dir = temp_dir("obj-groups");
+    let path = dir.join("two.obj");
+    let obj = "# two groups\n\
+        v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+        v 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+        g first\nf 1 2 3 4\n\
+        g second\nf 5 6 7 8\nf -3 -2 -1\n";
+    std::fs::write(&path, obj).unwrap();
+    let m = load_mesh(&path, &MeshOptions::default()).unwrap();
+    assert_eq!(m.triangle_count(), 5);
+    assert_eq!(m.groups, vec!["first".to_string(), "second".to_string()]);
+    assert_eq!(m.face_group, vec![0, 0, 1, 1, 1]);
+    assert_eq!(m.face_flags, vec![0; 5]);
+    assert!(m.missing_uvs, "no vt: flagged, not an error");
+    assert!(m.normals.iter().all(|&n| approx(n, Vec3::Z)), "generated from CCW faces");
+    assert_eq!(m.up_axis, Some(crate::mesh::UpAxis::Y));
+}
+
+#[test]
+fn obj_file_normals_are_read_and_normalised() {
+    let dir = temp_dir("obj-normals");
+    let path = dir.join("n.obj");
+    std::fs::write(&path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 2\nf 1/1/1 2/1/1 3/1/1\n").unwrap();
+    let m = load_mesh(&path, &MeshOptions::default()).unwrap();
+    assert!(!m.missing_uvs);
+    assert_eq!(m.normals, vec![Vec3::Z; 3]);
+    assert_eq!(m.groups, vec!["default".to_string()]);
+}
+
+// ---------------------------------------------------------------------------------------------
+// 4. Height maps
+
+fn write_exr(path: &Path, w: usize, h: usize, channels: Vec<(&str, exr::prelude::FlatSamples)>) {
+    use exr::prelude::*;
+    let list: Vec<AnyChannel<FlatSamples>> =
+        channels.into_iter().map(|(n, s)| AnyChannel::new(n, s)).collect();
+    Image::from_channels((w, h), AnyChannels::sort(list.into()))
+        .write()
+        .to_file(path)
+        .unwrap();
+}
+
+#[test]
+fn exr_half_and_float_channels_are_picked_by_name() {
+    use exr::prelude::{f16, FlatSamples};
+    let dir = temp_dir("exr");
+    // 3x2, row-major from the top: value = 10 * row + column.
+    let values: Vec<f32> = (0..6).map(|i| (10 * (i / 3) + i % 3) as f32).collect();
+    let half = |k: f32| FlatSamples::F16(values.iter().map(|v| f16::from_f32(v + k)).collect());
+    let rgb = dir.join("rgb.exr");
+    write_exr(&rgb, 3, 2, vec![("R", half(0.0)), ("G", half(100.0)), ("B", half(200.0))]);
+    let m = load_height_map(&rgb, &MapOptions::default()).unwrap();
+    assert_eq!((m.width, m.height, m.channel.as_str()), (3, 2, "R"), "no Y: falls back to R");
+    assert_eq!(m.data, values);
+    assert_eq!(m.source, rgb);
+    let g = load_height_map(&rgb, &MapOptions { channel: Some("G".into()), ..Default::default() }).unwrap();
+    assert_eq!(g.data[4], 111.0);
+    let msg = err_naming_file(
+        load_height_map(&rgb, &MapOptions { channel: Some("Z".into()), ..Default::default() }),
+        &rgb,
+    );
+    assert!(msg.contains("'Z'") && msg.contains("B, G, R"), "{msg}");
+
+    let float = dir.join("float.exr");
+    let f32s = |k: f32| FlatSamples::F32(values.iter().map(|v| v + k).collect());
+    write_exr(&float, 3, 2, vec![("height", f32s(0.5)), ("Y", f32s(0.0))]);
+    let opts = MapOptions { wrap: crate::Wrap::Clamp, ..Default::default() };
+    let y = load_height_map(&float, &opts).unwrap();
+    assert_eq!((y.channel.as_str(), y.wrap), ("Y", crate::Wrap::Clamp), "Y preferred");
+    assert_eq!(y.data, values);
+    let named = load_height_map(&float, &MapOptions { channel: Some("height".into()), ..Default::default() });
+    assert_eq!(named.unwrap().data[5], 12.5);
+
+    let other = dir.join("other.exr");
+    write_exr(&other, 3, 2, vec![("zeta", f32s(1.0)), ("alpha", f32s(2.0))]);
+    let first = load_height_map(&other, &MapOptions::default()).unwrap();
+    assert_eq!((first.channel.as_str(), first.data[0]), ("alpha", 2.0), "first alphabetically");
+}
+
+#[test]
+fn png_and_tiff_integers_are_normalised() {
+    let dir = temp_dir("png16");
+    let raw16 = vec![0u16, 65535, 32768, 1];
+    let img16 = image::ImageBuffer::<image::Luma<u16>, _>::from_raw(2, 2, raw16).unwrap();
+    for name in ["h16.png", "h16.tif"] {
+        let path = dir.join(name);
+        img16.save(&path).unwrap();
+        let m = load_height_map(&path, &MapOptions::default()).unwrap();
+        assert_eq!((m.channel.as_str(), m.data[0], m.data[1]), ("L", 0.0, 1.0), "{name}");
+        assert!((m.data[2] - 32768.0 / 65535.0).abs() < 1e-7);
+    }
+    let rgb = dir.join("rgb8.png");
+    image::RgbImage::from_raw(2, 1, vec![255, 0, 0, 51, 255, 255]).unwrap().save(&rgb).unwrap();
+    let m = load_height_map(&rgb, &MapOptions::default()).unwrap();
+    assert_eq!((m.channel.as_str(), m.data.clone()), ("R", vec![1.0, 0.2]), "red channel of RGB");
+}
+
+#[test]
+fn nan_texels_load_for_validate_to_report() {
+    use exr::prelude::FlatSamples;
+    let dir = temp_dir("exr-nan");
+    let path = dir.join("nan.exr");
+    write_exr(&path, 2, 1, vec![("Y", FlatSamples::F32(vec![0.0, f32::NAN]))]);
+    let m = load_height_map(&path, &MapOptions::default()).unwrap();
+    assert_eq!(m.first_non_finite(), Some((1, 0)));
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Bad input: an error naming the file, never a panic.
+
+#[test]
+fn every_truncated_prefix_of_a_glb_is_an_error() {
+    let dir = temp_dir("glb-truncated");
+    let mut doc = GltfDoc::default();
+    let (a_pos, a_idx) = (doc.floats(&TRI, 3), doc.indices(&[0, 1, 2]));
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}, "indices": a_idx}));
+    let glb = doc.glb(&rest);
+    let path = dir.join("cut.glb");
+    std::fs::write(&path, &glb).unwrap();
+    load_mesh(&path, &MeshOptions::default()).expect("the whole file loads");
+    for len in 0..glb.len() {
+        std::fs::write(&path, &glb[..len]).unwrap();
+        err_naming_file(load_mesh(&path, &MeshOptions::default()), &path);
+    }
+    // Any single corrupted byte: a result either way, never a panic.
+    for k in 0..glb.len() {
+        let mut bad = glb.clone();
+        bad[k] ^= 0xff;
+        std::fs::write(&path, &bad).unwrap();
+        let _ = load_mesh(&path, &MeshOptions::default());
+    }
+}
+
+#[test]
+fn gltf_bad_contents_are_errors() {
+    let dir = temp_dir("gltf-bad");
+    let opts = MeshOptions::default();
+    let check = |name: &str, doc: &GltfDoc, rest: &Value, expect: &str| {
+        let path = dir.join(name);
+        doc.write_gltf(&path, rest);
+        let msg = err_naming_file(load_mesh(&path, &opts), &path);
+        assert!(msg.contains(expect), "{name}: {msg}");
+    };
+
+    let mut doc = GltfDoc::default();
+    let (a_pos, a_idx) = (doc.floats(&TRI, 3), doc.indices(&[0, 1, 5]));
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}, "indices": a_idx}));
+    check("index.gltf", &doc, &rest, "5");
+
+    let mut doc = GltfDoc::default();
+    let mut nan = TRI;
+    nan[4] = f32::NAN;
+    let a_pos = doc.floats(&nan, 3);
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}}));
+    check("nan.gltf", &doc, &rest, "NaN");
+
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}, "mode": 1}));
+    check("lines-only.gltf", &doc, &rest, "zero triangles");
+
+    // count 0 panics inside the gltf crate's own reader; ours must not.
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    doc.accessors[a_pos]["count"] = json!(0);
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}}));
+    check("empty.gltf", &doc, &rest, "zero triangles");
+
+    // An accessor claiming more elements than its view holds.
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    doc.accessors[a_pos]["count"] = json!(1_000_000_000u64);
+    let rest = single_node_scene(json!({}), json!({"attributes": {"POSITION": a_pos}}));
+    check("huge.gltf", &doc, &rest, "do not fit");
+
+    let path = dir.join("garbage.gltf");
+    std::fs::write(&path, "{ not json").unwrap();
+    err_naming_file(load_mesh(&path, &opts), &path);
+
+    // A node that is its own child.
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let rest = json!({
+        "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "children": [0]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
+    });
+    let path = dir.join("cycle.gltf");
+    doc.write_gltf(&path, &rest);
+    err_naming_file(load_mesh(&path, &opts), &path);
+}
+
+#[test]
+fn obj_bad_contents_are_errors() {
+    let dir = temp_dir("obj-bad");
+    let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    for (name, text, expect) in [
+        ("range.obj", format!("{tri}f 1 2 9\n"), "line 4"),
+        ("zero.obj", format!("{tri}vt 0 0\nf 1/0 2/1 3/1\n"), "texture coordinate 0"),
+        ("relative.obj", format!("{tri}f -5 1 2\n"), "vertex -5"),
+        ("nan.obj", format!("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), "NaN"),
+        ("faceless.obj", tri.to_string(), "zero triangles"),
+        ("word.obj", format!("{tri}v 1 x 0\n"), "'x' is not a number"),
+        ("twocorner.obj", format!("{tri}f 1 2\n"), "at least 3"),
+    ] {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        let msg = err_naming_file(load_mesh(&path, &MeshOptions::default()), &path);
+        assert!(msg.contains(expect), "{name}: {msg}");
+    }
+}
+
+/// CRC-32 (PNG's) to hand-craft a header that the encoder refuses to write.
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut c = !0u32;
+    for &b in bytes {
+        c ^= b as u32;
+        for _ in 0..8 {
+            c = if c & 1 != 0 { 0xEDB8_8320 ^ (c >> 1) } else { c >> 1 };
+        }
+    }
+    !c
+}
+
+#[test]
+fn bad_maps_are_errors() {
+    let dir = temp_dir("map-bad");
+    let opts = MapOptions::default();
+    let good = dir.join("good.png");
+    write_asymmetric_png(&good);
+    let png = std::fs::read(&good).unwrap();
+
+    // Every truncated prefix of a valid PNG fails, except those that lose only (part of) the
+    // 12-byte IEND trailer: the png decoder accepts them, and every pixel is then intact.
+    let cut = dir.join("cut.png");
+    let iend = png.len() - 12;
+    assert_eq!(&png[iend + 4..iend + 8], b"IEND");
+    for len in 0..png.len() {
+        std::fs::write(&cut, &png[..len]).unwrap();
+        if len < iend {
+            err_naming_file(load_height_map(&cut, &opts), &cut);
+        } else if let Ok(m) = load_height_map(&cut, &opts) {
+            assert_eq!(m.data, load_height_map(&good, &opts).unwrap().data, "prefix {len}");
+        }
+    }
+
+    // 0x0: IHDR (bytes 8..33: length, type, 13 data bytes, CRC) patched to width = height = 0.
+    let mut zero = png.clone();
+    zero[16..24].fill(0);
+    let crc = crc32(&zero[12..29]);
+    zero[29..33].copy_from_slice(&crc.to_be_bytes());
+    let path = dir.join("zero.png");
+    std::fs::write(&path, &zero).unwrap();
+    err_naming_file(load_height_map(&path, &opts), &path);
+
+    // 40000 x 1 declared: refused from the header, before decoding.
+    let mut wide = png.clone();
+    wide[16..20].copy_from_slice(&40000u32.to_be_bytes());
+    let crc = crc32(&wide[12..29]);
+    wide[29..33].copy_from_slice(&crc.to_be_bytes());
+    let path = dir.join("wide.png");
+    std::fs::write(&path, &wide).unwrap();
+    let msg = err_naming_file(load_height_map(&path, &opts), &path);
+    assert!(msg.contains("32768"), "{msg}");
+
+    let path = dir.join("noise.png");
+    std::fs::write(&path, b"definitely not a png").unwrap();
+    err_naming_file(load_height_map(&path, &opts), &path);
+
+    let path = dir.join("folder.png");
+    std::fs::create_dir_all(&path).unwrap();
+    err_naming_file(load_height_map(&path, &opts), &path);
+
+    let path = dir.join("map.jpg");
+    std::fs::write(&path, &png).unwrap();
+    let msg = err_naming_file(load_height_map(&path, &opts), &path);
+    assert!(msg.contains(".exr, .png, .tif or .tiff"), "{msg}");
+
+    let path = dir.join("mesh.fbx");
+    std::fs::write(&path, b"x").unwrap();
+    err_naming_file(load_mesh(&path, &MeshOptions::default()), &path);
+
+    // Every truncated prefix of a valid EXR.
+    let exr_path = dir.join("good.exr");
+    write_exr(&exr_path, 2, 2, vec![("Y", exr::prelude::FlatSamples::F32(vec![1.0, 2.0, 3.0, 4.0]))]);
+    let exr_bytes = std::fs::read(&exr_path).unwrap();
+    let cut = dir.join("cut.exr");
+    for len in 0..exr_bytes.len() {
+        std::fs::write(&cut, &exr_bytes[..len]).unwrap();
+        err_naming_file(load_height_map(&cut, &opts), &cut);
+    }
+}
