@@ -19,6 +19,99 @@ pub enum Command {
     Bake(BakeArgs),
     /// Check assets (files or folders) for everything that breaks displacement.
     Validate(ValidateArgs),
+    /// Ray trace AOV images (depth, normal, mask, uv, steps) of an asset or a baked table.
+    Render(RenderArgs),
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Device {
+    Cpu,
+    Gpu,
+    Auto,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NormalArg {
+    Smooth,
+    Geometric,
+}
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// A mesh (.gltf, .glb, .obj; with --disp or a sidecar) or a baked table (.prisms).
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub disp: DispArgs,
+    #[command(flatten)]
+    pub repair: RepairArgs,
+    /// Intersection method: pdm or reference.
+    #[arg(long, default_value = "pdm")]
+    pub method: String,
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: Device,
+    /// Image size WIDTHxHEIGHT.
+    #[arg(long, default_value = "512x512", value_parser = parse_res)]
+    pub res: (u32, u32),
+    /// Samples per pixel (jittered inside the pixel when > 1).
+    #[arg(long, default_value_t = 1)]
+    pub spp: u32,
+    /// Comma-separated AOVs: depth, normal, mask, uv, steps, prism.
+    #[arg(long, default_value = "depth,normal,mask", value_delimiter = ',')]
+    pub aov: Vec<String>,
+    /// Render an N-frame turntable around the up axis.
+    #[arg(long, value_name = "N")]
+    pub turntable: Option<u32>,
+    /// Only frames A-B (inclusive) of the turntable; identical to the same frames of a full run.
+    #[arg(long, value_name = "A-B", value_parser = parse_range)]
+    pub frames: Option<(u32, u32)>,
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub camera_from: Option<[f32; 3]>,
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub camera_to: Option<[f32; 3]>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    pub fov: Option<f32>,
+    /// PDM step: `auto` (half a texel), `auto:F` (F texels) or a world-space length.
+    #[arg(long, default_value = "auto")]
+    pub dt: String,
+    /// Turn off PDM's stochastic thin-feature jitter.
+    #[arg(long)]
+    pub no_jitter: bool,
+    #[arg(long, value_enum, default_value = "smooth")]
+    pub normal: NormalArg,
+    /// Reference tessellation density, in micro-edges per texel.
+    #[arg(long, default_value_t = 2.0)]
+    pub ref_density: f32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Print a JSON summary (timings, rays/s, files) on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_res(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}': expected WIDTHxHEIGHT, e.g. 512x512"))?;
+    let p = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("'{s}': expected WIDTHxHEIGHT, e.g. 512x512"));
+    Ok((p(w)?, p(h)?))
+}
+
+fn parse_range(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("'{s}': expected A-B, e.g. 0-11");
+    match s.split_once('-') {
+        Some((a, b)) => Ok((a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?)),
+        None => s.trim().parse().map(|a| (a, a)).map_err(|_| bad()),
+    }
+}
+
+fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s.split(',').map(|c| c.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| format!("'{s}': expected X,Y,Z"))?;
+    <[f32; 3]>::try_from(v).map_err(|_| format!("'{s}': expected three numbers X,Y,Z"))
 }
 
 /// Where the height map comes from and how it displaces; each flag overrides the sidecar.

@@ -1,10 +1,15 @@
 //! One function per command: build the core config from the flags, call core, print.
 
-use crate::args::{BakeArgs, Cli, Command, DispArgs, InspectArgs, RepairArgs, ReportFormat, ValidateArgs};
+use crate::args::{BakeArgs, Cli, Command, Device, DispArgs, InspectArgs, NormalArg, RenderArgs, RepairArgs, ReportFormat, ValidateArgs};
 use crate::progress;
 use prismbake::asset::{self, AssetSpec, Overrides};
 use prismbake::repair::RepairOptions;
 use prismbake::{prism_file, report, validate, Error, Result};
+use glam::Vec3;
+use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, RenderJob};
+use prismbake::render::{Aov, RenderSettings};
+use prismbake::trace::pdm::{PdmOptions, StepSize};
+use prismbake::trace::NormalMode;
 use std::path::Path;
 use std::process::ExitCode;
 
@@ -13,6 +18,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Inspect(a) => inspect(a),
         Command::Bake(a) => bake(a),
         Command::Validate(a) => validate(a),
+        Command::Render(a) => render(a),
     }
 }
 
@@ -141,4 +147,84 @@ fn validate(a: ValidateArgs) -> Result<ExitCode> {
     };
     print_or_write(&text, a.output.as_deref())?;
     Ok(if reports.iter().any(|r| r.failed()) { ExitCode::from(1) } else { ExitCode::SUCCESS })
+}
+
+fn parse_dt(s: &str) -> Result<StepSize> {
+    let bad = || Error::Param(format!("--dt {s}: expected auto, auto:F (F texels) or a positive world length"));
+    let dt = if s == "auto" {
+        StepSize::default()
+    } else if let Some(f) = s.strip_prefix("auto:") {
+        StepSize::Auto(f.parse().map_err(|_| bad())?)
+    } else {
+        StepSize::World(s.parse().map_err(|_| bad())?)
+    };
+    match dt {
+        StepSize::Auto(v) | StepSize::World(v) if v > 0.0 && v.is_finite() => Ok(dt),
+        _ => Err(bad()),
+    }
+}
+
+fn render(a: RenderArgs) -> Result<ExitCode> {
+    let method: Method = a.method.parse().map_err(Error::Param)?;
+    match a.device {
+        Device::Gpu => {
+            return Err(Error::Param("--device gpu: the GPU renderer is not built yet; use --device cpu".into()));
+        }
+        Device::Auto => eprintln!("device: cpu (no GPU renderer in this build)"),
+        Device::Cpu => {}
+    }
+    let aovs = a.aov.iter().map(|s| s.parse::<Aov>()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Param)?;
+    let input = if prismbake::load::extension(&a.input) == "prisms" {
+        Input::Table { path: a.input.clone(), disp: a.disp.disp.clone(), channel: a.disp.channel.clone() }
+    } else {
+        Input::Asset(asset::resolve(&a.input, &overrides(&a.disp, None))?)
+    };
+    let normal_mode = match a.normal {
+        NormalArg::Smooth => NormalMode::Smooth,
+        NormalArg::Geometric => NormalMode::Geometric,
+    };
+    let job = RenderJob {
+        input,
+        method,
+        pdm: PdmOptions { dt: parse_dt(&a.dt)?, jitter: !a.no_jitter, ..PdmOptions::default() },
+        ref_density: a.ref_density,
+        normal_mode,
+        settings: RenderSettings { width: a.res.0, height: a.res.1, spp: a.spp, seed: a.seed },
+        aovs,
+        turntable: a.turntable,
+        frames: a.frames,
+        camera: CameraOverride {
+            from: a.camera_from.map(Vec3::from),
+            to: a.camera_to.map(Vec3::from),
+            fov_deg: a.fov,
+        },
+        out_dir: a.output.clone(),
+        repair: repair_options(&a.repair)?,
+    };
+    job.validate()?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| Error::Param(format!("--threads: {e}")))?;
+    let frames = job.turntable.map_or(1, |n| job.frames.map_or(n, |(x, y)| y - x + 1));
+    let pb = progress::bar(frames as u64 * job.settings.height as u64, "rendering");
+    let rows = job.settings.height as u64;
+    let summary = pool.install(|| render_job::run(&job, &|frame, done| pb.set_position(frame as u64 * rows + done as u64)))?;
+    pb.finish_and_clear();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary).expect("serialises"));
+    } else {
+        for f in &summary.frames {
+            eprintln!(
+                "{}frame: {:.3} s, {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
+                f.frame.map(|i| format!("[{i:04}] ")).unwrap_or_default(),
+                f.seconds,
+                f.mrays_per_s,
+                f.steps_per_ray,
+                100.0 * f.coverage
+            );
+        }
+        eprintln!("wrote {} files to {}", summary.files.len(), a.output.display());
+    }
+    Ok(ExitCode::SUCCESS)
 }

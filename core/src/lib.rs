@@ -13,6 +13,7 @@ pub mod heightmap;
 pub mod load;
 pub mod mesh;
 pub mod prism_file;
+pub mod render;
 pub mod repair;
 pub mod report;
 pub mod rng;

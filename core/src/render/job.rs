@@ -1,0 +1,264 @@
+//! A render job: input (mesh + map, or a baked table), method, camera, frames, AOVs, output
+//! folder — validated up front, then run frame by frame.
+
+use super::camera::Camera;
+use super::{output, render_aovs, Aov, RenderSettings};
+use crate::accel::Scene;
+use crate::asset::{self, AssetSpec};
+use crate::bake::PrismTable;
+use crate::error::{Error, Result};
+use crate::heightmap::HeightMap;
+use crate::mesh::{SceneCamera, UpAxis};
+use crate::repair::RepairOptions;
+use crate::trace::pdm::{Pdm, PdmOptions};
+use crate::trace::reference::Reference;
+use crate::trace::{Intersector, NormalMode};
+use glam::Vec3;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    Pdm,
+    Reference,
+}
+
+impl std::str::FromStr for Method {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "pdm" => Ok(Method::Pdm),
+            "reference" => Ok(Method::Reference),
+            "rmip" | "nonlinear" => Err(format!("method '{s}' is not built yet (expected pdm or reference)")),
+            _ => Err(format!("unknown method '{s}' (expected pdm or reference)")),
+        }
+    }
+}
+
+/// Where the scene comes from.
+#[derive(Clone, Debug)]
+pub enum Input {
+    Asset(AssetSpec),
+    Table { path: PathBuf, disp: Option<PathBuf>, channel: Option<String> },
+}
+
+/// Camera overrides from the command line.
+#[derive(Clone, Debug, Default)]
+pub struct CameraOverride {
+    pub from: Option<Vec3>,
+    pub to: Option<Vec3>,
+    pub fov_deg: Option<f32>,
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderJob {
+    pub input: Input,
+    pub method: Method,
+    pub pdm: PdmOptions,
+    pub ref_density: f32,
+    pub normal_mode: NormalMode,
+    pub settings: RenderSettings,
+    pub aovs: Vec<Aov>,
+    /// `Some(n)`: an n-frame turntable; frames `frames` of it are rendered.
+    pub turntable: Option<u32>,
+    pub frames: Option<(u32, u32)>,
+    pub camera: CameraOverride,
+    pub out_dir: PathBuf,
+    pub repair: RepairOptions,
+}
+
+pub const MAX_RES: u32 = 16384;
+pub const MAX_SPP: u32 = 65536;
+
+impl RenderJob {
+    /// Check everything that can be checked before loading anything.
+    pub fn validate(&self) -> Result<()> {
+        let s = &self.settings;
+        if s.width == 0 || s.height == 0 || s.width > MAX_RES || s.height > MAX_RES {
+            return Err(Error::Param(format!("--res {}x{}: each side must be 1..={MAX_RES}", s.width, s.height)));
+        }
+        if s.spp == 0 || s.spp > MAX_SPP {
+            return Err(Error::Param(format!("--spp {}: must be 1..={MAX_SPP}", s.spp)));
+        }
+        if self.aovs.is_empty() {
+            return Err(Error::Param("--aov: name at least one AOV".into()));
+        }
+        if let Some(n) = self.turntable {
+            if n == 0 || n > 100_000 {
+                return Err(Error::Param(format!("--turntable {n}: must be 1..=100000 frames")));
+            }
+            if let Some((a, b)) = self.frames {
+                if a > b || b >= n {
+                    return Err(Error::Param(format!("--frames {a}-{b}: must lie within 0-{} of the turntable", n - 1)));
+                }
+            }
+        } else if self.frames.is_some() {
+            return Err(Error::Param("--frames needs --turntable N".into()));
+        }
+        if let Some(f) = self.camera.fov_deg {
+            if !(f > 0.0 && f < 179.0) {
+                return Err(Error::Param(format!("--fov {f}: must be between 0 and 179 degrees")));
+            }
+        }
+        for v in [self.camera.from, self.camera.to].into_iter().flatten() {
+            if !v.is_finite() {
+                return Err(Error::Param("--camera-from/--camera-to must be finite".into()));
+            }
+        }
+        if let (Some(a), Some(b)) = (self.camera.from, self.camera.to) {
+            if (a - b).length() == 0.0 {
+                return Err(Error::Param("--camera-from and --camera-to are the same point".into()));
+            }
+        }
+        if !(self.ref_density > 0.0 && self.ref_density <= 64.0) {
+            return Err(Error::Param(format!("--ref-density {}: must be in (0, 64]", self.ref_density)));
+        }
+        Ok(())
+    }
+}
+
+/// Create the output folder and prove it writable before any work is done.
+pub fn prepare_out_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let probe = dir.join(format!(".prismbake-write-test{}", std::process::id()));
+    std::fs::write(&probe, b"").map_err(|e| Error::io(dir, e))?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
+pub struct Loaded {
+    pub table: PrismTable,
+    pub map: HeightMap,
+    pub scene_camera: Option<SceneCamera>,
+    pub up_axis: UpAxis,
+}
+
+pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
+    match input {
+        Input::Asset(spec) => {
+            let p = asset::prepare(spec, repair)?;
+            Ok(Loaded {
+                scene_camera: p.mesh.camera,
+                up_axis: p.mesh.up_axis.unwrap_or_default(),
+                table: p.table,
+                map: p.map,
+            })
+        }
+        Input::Table { path, disp, channel } => {
+            let (table, map) = asset::load_table(path, disp.as_deref(), channel.clone())?;
+            Ok(Loaded { table, map, scene_camera: None, up_axis: UpAxis::Y })
+        }
+    }
+}
+
+/// The camera of frame 0: the scene's, else framed from bounds; flags override.
+pub fn base_camera(loaded: &Loaded, o: &CameraOverride) -> Camera {
+    let fov = o.fov_deg;
+    let mut cam = match &loaded.scene_camera {
+        Some(c) => Camera::from_scene(c),
+        None => {
+            let (lo, hi) = loaded.table.bounds();
+            Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0))
+        }
+    };
+    if let Some(f) = o.from {
+        cam.from = f;
+    }
+    if let Some(t) = o.to {
+        cam.to = t;
+    }
+    if let Some(f) = fov {
+        cam.yfov_deg = f;
+    }
+    cam
+}
+
+#[derive(Debug, Serialize)]
+pub struct FrameStats {
+    pub frame: Option<u32>,
+    pub seconds: f64,
+    pub rays: u64,
+    pub mrays_per_s: f64,
+    pub steps_per_ray: f64,
+    pub coverage: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct RenderSummary {
+    pub method: Method,
+    pub device: String,
+    pub prisms: usize,
+    pub setup_seconds: f64,
+    pub method_memory_bytes: usize,
+    pub frames: Vec<FrameStats>,
+    pub files: Vec<PathBuf>,
+}
+
+/// Build the intersector for `method` and call `f` with it.
+pub fn with_intersector<R>(
+    method: Method,
+    scene: &Scene,
+    pdm: PdmOptions,
+    ref_density: f32,
+    normal_mode: NormalMode,
+    f: impl FnOnce(&dyn Intersector) -> R,
+) -> R {
+    match method {
+        Method::Pdm => f(&Pdm::new(scene, PdmOptions { normal_mode, ..pdm })),
+        Method::Reference => {
+            let mut r = Reference::new(&scene.table, &scene.map, ref_density);
+            r.normal_mode = normal_mode;
+            f(&r)
+        }
+    }
+}
+
+/// Run the job; `progress(frame_index, rows_done)` reports progress.
+pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<RenderSummary> {
+    job.validate()?;
+    prepare_out_dir(&job.out_dir)?;
+    let t0 = Instant::now();
+    let loaded = load_input(&job.input, &job.repair)?;
+    let cam0 = base_camera(&loaded, &job.camera);
+    let scene = Scene::new(loaded.table, loaded.map);
+    let frames: Vec<Option<u32>> = match job.turntable {
+        None => vec![None],
+        Some(n) => {
+            let (a, b) = job.frames.unwrap_or((0, n - 1));
+            (a..=b).map(Some).collect()
+        }
+    };
+    with_intersector(job.method, &scene, job.pdm, job.ref_density, job.normal_mode, |isect| {
+        let setup_seconds = t0.elapsed().as_secs_f64();
+        let mut summary = RenderSummary {
+            method: job.method,
+            device: format!("cpu ({} threads)", rayon::current_num_threads()),
+            prisms: scene.table.prisms.len(),
+            setup_seconds,
+            method_memory_bytes: isect.memory_bytes(),
+            frames: vec![],
+            files: vec![],
+        };
+        for (i, frame) in frames.iter().enumerate() {
+            let cam = match (frame, job.turntable) {
+                (Some(f), Some(n)) => cam0.turntable(*f, n),
+                _ => cam0,
+            };
+            let t = Instant::now();
+            let img = render_aovs(isect, &cam, &job.settings, &|rows| progress(i, rows));
+            let seconds = t.elapsed().as_secs_f64();
+            summary.files.extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
+            summary.frames.push(FrameStats {
+                frame: *frame,
+                seconds,
+                rays: img.rays,
+                mrays_per_s: img.rays as f64 / seconds / 1e6,
+                steps_per_ray: img.total_steps as f64 / img.rays.max(1) as f64,
+                coverage: img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64,
+            });
+        }
+        Ok(summary)
+    })
+}

@@ -1,0 +1,169 @@
+//! Writing AOV frames: linear EXR (for compositing and comparison) and a PNG preview of each
+//! (normals mapped to colour, depth normalised, steps as a heat map). Every file is written
+//! to a temporary name in the same folder and renamed, so a crash never leaves half a file.
+
+use super::{Aov, AovImage};
+use crate::error::{Error, Result};
+use crate::prism_file::write_atomic;
+use exr::prelude::*;
+use std::path::{Path, PathBuf};
+
+fn tmp_path(path: &Path) -> PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
+}
+
+/// Write float channels as a single-layer EXR (ZIP compressed) atomically.
+pub fn write_exr(path: &Path, width: u32, height: u32, names: &[&str], data: &[f32]) -> Result<()> {
+    let n = (width * height) as usize;
+    let k = names.len();
+    assert_eq!(data.len(), n * k);
+    let channels: Vec<AnyChannel<FlatSamples>> = names
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let plane: Vec<f32> = (0..n).map(|i| data[i * k + c]).collect();
+            AnyChannel::new(*name, FlatSamples::F32(plane))
+        })
+        .collect();
+    let layer = Layer::new(
+        (width as usize, height as usize),
+        LayerAttributes::default(),
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    let tmp = tmp_path(path);
+    let result = Image::from_layer(layer).write().to_file(&tmp);
+    match result {
+        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| Error::io(path, e)),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(Error::invalid(path, format!("could not write EXR: {e}")))
+        }
+    }
+}
+
+/// Write 8-bit RGB pixels as PNG atomically.
+pub fn write_png_rgb(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<()> {
+    let mut bytes = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut bytes)
+        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(|e| Error::invalid(path, format!("could not encode PNG: {e}")))?;
+    write_atomic(path, &bytes)
+}
+
+use image::ImageEncoder;
+
+/// EXR channel names of an AOV.
+pub fn exr_channels(aov: Aov) -> &'static [&'static str] {
+    match aov {
+        Aov::Normal => &["R", "G", "B"],
+        Aov::Uv => &["R", "G"],
+        _ => &["Y"],
+    }
+}
+
+/// A perceptual heat map (black → blue → magenta → orange → yellow-white) for `t` in [0, 1].
+pub fn heat(t: f32) -> [u8; 3] {
+    const STOPS: [[f32; 3]; 5] =
+        [[0.0, 0.0, 0.0], [0.1, 0.1, 0.6], [0.7, 0.1, 0.6], [1.0, 0.55, 0.1], [1.0, 1.0, 0.75]];
+    let x = t.clamp(0.0, 1.0) * 4.0;
+    let i = (x.floor() as usize).min(3);
+    let f = x - i as f32;
+    let c = |k: usize| STOPS[i][k] + (STOPS[i + 1][k] - STOPS[i][k]) * f;
+    [0, 1, 2].map(|k| (c(k) * 255.0).round() as u8)
+}
+
+fn to_u8(v: f32) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+}
+
+/// The preview picture of an AOV (RGB8).
+pub fn preview(img: &AovImage, aov: Aov) -> Vec<u8> {
+    let n = img.mask.len();
+    let mut rgb = Vec::with_capacity(n * 3);
+    match aov {
+        Aov::Normal => {
+            for (i, nrm) in img.normal.iter().enumerate() {
+                let c = if img.mask[i] > 0.0 { *nrm * 0.5 + 0.5 } else { glam::Vec3::ZERO };
+                rgb.extend(c.to_array().map(to_u8));
+            }
+        }
+        Aov::Depth => {
+            let hits = || img.depth.iter().zip(&img.mask).filter(|(_, m)| **m > 0.0).map(|(d, _)| *d);
+            let lo = hits().fold(f32::INFINITY, f32::min);
+            let hi = hits().fold(f32::NEG_INFINITY, f32::max);
+            let span = (hi - lo).max(1e-12);
+            for (d, m) in img.depth.iter().zip(&img.mask) {
+                let v = if *m > 0.0 { 1.0 - 0.85 * (d - lo) / span } else { 0.0 };
+                rgb.extend([to_u8(v); 3]);
+            }
+        }
+        Aov::Mask => rgb.extend(img.mask.iter().flat_map(|m| [to_u8(*m); 3])),
+        Aov::Uv => {
+            for (uv, m) in img.uv.iter().zip(&img.mask) {
+                let c = if *m > 0.0 { [uv.x.rem_euclid(1.0), uv.y.rem_euclid(1.0), 0.0] } else { [0.0; 3] };
+                rgb.extend(c.map(to_u8));
+            }
+        }
+        Aov::Steps => {
+            let mut sorted: Vec<f32> = img.steps.clone();
+            sorted.sort_by(|a, b| a.total_cmp(b));
+            let p99 = sorted.get((sorted.len() * 99) / 100).copied().unwrap_or(1.0).max(1.0);
+            rgb.extend(img.steps.iter().flat_map(|s| heat(s / p99)));
+        }
+        Aov::Prism => {
+            for p in &img.prism {
+                let c = if *p > 0.0 {
+                    let h = crate::rng::pcg_hash(*p as u32);
+                    [(h & 0xff) as u8 / 2 + 64, ((h >> 8) & 0xff) as u8 / 2 + 64, ((h >> 16) & 0xff) as u8 / 2 + 64]
+                } else {
+                    [0, 0, 0]
+                };
+                rgb.extend(c);
+            }
+        }
+    }
+    rgb
+}
+
+/// File stem of an AOV in a frame: `depth` for a still, `depth_0003` in a turntable.
+pub fn stem(aov: Aov, frame: Option<u32>) -> String {
+    match frame {
+        Some(f) => format!("{}_{f:04}", aov.name()),
+        None => aov.name().to_string(),
+    }
+}
+
+/// Write `DIR/<stem>.exr` and `DIR/<stem>.png` for every requested AOV; returns the paths.
+pub fn write_frame(dir: &Path, img: &AovImage, aovs: &[Aov], frame: Option<u32>) -> Result<Vec<PathBuf>> {
+    let mut written = Vec::new();
+    for &aov in aovs {
+        let stem = stem(aov, frame);
+        let exr_path = dir.join(format!("{stem}.exr"));
+        write_exr(&exr_path, img.width, img.height, exr_channels(aov), &img.channel_data(aov))?;
+        let png_path = dir.join(format!("{stem}.png"));
+        write_png_rgb(&png_path, img.width, img.height, &preview(img, aov))?;
+        written.push(exr_path);
+        written.push(png_path);
+    }
+    Ok(written)
+}
+
+/// Read the first channels of an EXR back (tests, comparisons): (width, height, names, data
+/// interleaved in the order of `names`).
+pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<String>, Vec<f32>)> {
+    let image = read_all_flat_layers_from_file(path).map_err(|e| Error::invalid(path, format!("could not read EXR: {e}")))?;
+    let layer = image.layer_data.first().ok_or_else(|| Error::invalid(path, "EXR has no layers"))?;
+    let size = layer.size;
+    let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    let n = size.0 * size.1;
+    let k = names.len();
+    let mut data = vec![0f32; n * k];
+    for (c, ch) in layer.channel_data.list.iter().enumerate() {
+        for i in 0..n {
+            data[i * k + c] = ch.sample_data.value_by_flat_index(i).to_f32();
+        }
+    }
+    Ok((size.0 as u32, size.1 as u32, names, data))
+}
