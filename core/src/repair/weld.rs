@@ -141,14 +141,15 @@ pub(super) fn drop_degenerate_faces(w: &mut Work, quant: &Quantizer, report: &mu
         let [a, b, c] = tri.map(|i| w.positions[i as usize]);
         let repeated = tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2];
         let area = 0.5 * (b - a).cross(c - a).length();
-        if repeated || !(area >= min_area) {
+        // NaN areas (non-finite input) count as zero area.
+        if repeated || area.is_nan() || area < min_area {
             keep[t] = false;
             report.zero_area_faces.push(w.face_origin[t]);
             continue;
         }
         let [ua, ub, uc] = tri.map(|i| w.uvs[i as usize]);
         let uv_area = 0.5 * (ub - ua).perp_dot(uc - ua).abs();
-        if !(uv_area >= ZERO_UV_AREA) {
+        if uv_area.is_nan() || uv_area < ZERO_UV_AREA {
             w.face_flags[t] |= FACE_UV_DEGENERATE;
             report.uv_degenerate_faces.push(w.face_origin[t]);
         }
@@ -158,8 +159,8 @@ pub(super) fn drop_degenerate_faces(w: &mut Work, quant: &Quantizer, report: &mu
 
 fn retain_faces(w: &mut Work, keep: &[bool]) {
     let mut k = 0;
-    for t in 0..keep.len() {
-        if keep[t] {
+    for (t, &kept) in keep.iter().enumerate() {
+        if kept {
             w.triangles[k] = w.triangles[t];
             w.face_origin[k] = w.face_origin[t];
             w.face_group[k] = w.face_group[t];
