@@ -72,7 +72,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub fov: Option<f32>,
     /// PDM step: `auto` (half a texel), `auto:F` (F texels) or a world-space length.
-    #[arg(long, default_value = "auto")]
+    #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub dt: String,
     /// Turn off PDM's stochastic thin-feature jitter.
     #[arg(long)]

@@ -129,15 +129,18 @@ fn repair_checks(r: &RepairReport) -> Vec<Check> {
         )
         .with_faces(faces_of(&r.inverted_corners))
     });
-    out.push(if !r.unresolved_crease_corners.is_empty() {
+    // Corners whose normal faces away are the inverted-normals check's; don't report them twice.
+    let unresolved: Vec<repair::CornerFinding> =
+        r.unresolved_crease_corners.iter().filter(|c| c.dot > 0.0).cloned().collect();
+    out.push(if !unresolved.is_empty() {
         Check::fail(
             "sharp-creases",
             format!(
                 "{} sharp corners cannot be repaired (a crease ends inside the mesh): mark the whole edge loop sharp or bevel it",
-                r.unresolved_crease_corners.len()
+                unresolved.len()
             ),
         )
-        .with_faces(faces_of(&r.unresolved_crease_corners))
+        .with_faces(faces_of(&unresolved))
     } else if !r.sharp_corners.is_empty() {
         Check::warn(
             "sharp-creases",

@@ -19,19 +19,31 @@ impl Camera {
         Camera { from: c.from, to: c.to, up: c.up, yfov_deg: c.yfov_deg }
     }
 
-    /// Look at the centre of the bounds from the front, a little above, so that the bounding
-    /// sphere fills the vertical field of view with a margin.
-    pub fn frame_bounds(lo: Vec3, hi: Vec3, up_axis: UpAxis, yfov_deg: f32) -> Self {
+    /// Look at the centre of the bounds from the front, a little above, just far enough that
+    /// all eight box corners are inside the view (with a 10% margin) for this aspect ratio.
+    pub fn frame_bounds(lo: Vec3, hi: Vec3, up_axis: UpAxis, yfov_deg: f32, aspect: f32) -> Self {
         let centre = (lo + hi) * 0.5;
-        let radius = ((hi - lo).length() * 0.5).max(1e-6);
         let (up, front) = match up_axis {
             UpAxis::Y => (Vec3::Y, Vec3::Z),
             UpAxis::Z => (Vec3::Z, -Vec3::Y),
         };
         let dir = (front + up * 0.35).normalize();
-        let half = (yfov_deg.to_radians() * 0.5).max(1e-3);
-        let dist = radius * 1.1 / half.sin();
-        Camera { from: centre + dir * dist, to: centre, up, yfov_deg }
+        let mut cam = Camera { from: centre + dir, to: centre, up, yfov_deg };
+        let (right, cam_up, back) = cam.basis();
+        let tan_y = (yfov_deg.to_radians() * 0.5).tan() / 1.1;
+        let tan_x = tan_y * aspect;
+        let mut dist = 1e-6f32;
+        for i in 0..8 {
+            let corner = Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            ) - centre;
+            let z = corner.dot(back);
+            dist = dist.max(z + corner.dot(right).abs() / tan_x).max(z + corner.dot(cam_up).abs() / tan_y);
+        }
+        cam.from = centre + dir * dist;
+        cam
     }
 
     /// Frame `frame` of an `n`-frame turntable: the camera orbits the up axis through `to`.
@@ -83,7 +95,7 @@ mod tests {
 
     #[test]
     fn framing_contains_the_bounds() {
-        let c = Camera::frame_bounds(Vec3::splat(-1.0), Vec3::splat(1.0), UpAxis::Y, 40.0);
+        let c = Camera::frame_bounds(Vec3::splat(-1.0), Vec3::splat(1.0), UpAxis::Y, 40.0, 1.0);
         let to_corner = (Vec3::ONE - c.from).normalize();
         let axis = (c.to - c.from).normalize();
         assert!(to_corner.dot(axis) > (20f32).to_radians().cos());

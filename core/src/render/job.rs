@@ -154,13 +154,13 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
 }
 
 /// The camera of frame 0: the scene's, else framed from bounds; flags override.
-pub fn base_camera(loaded: &Loaded, o: &CameraOverride) -> Camera {
+pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     let fov = o.fov_deg;
     let mut cam = match &loaded.scene_camera {
         Some(c) => Camera::from_scene(c),
         None => {
             let (lo, hi) = loaded.table.bounds();
-            Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0))
+            Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect)
         }
     };
     if let Some(f) = o.from {
@@ -221,7 +221,7 @@ pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
     let loaded = load_input(&job.input, &job.repair)?;
-    let cam0 = base_camera(&loaded, &job.camera);
+    let cam0 = base_camera(&loaded, &job.camera, job.settings.width as f32 / job.settings.height as f32);
     let scene = Scene::new(loaded.table, loaded.map);
     let frames: Vec<Option<u32>> = match job.turntable {
         None => vec![None],
