@@ -92,7 +92,9 @@ fn check_glb_header(path: &Path, bytes: &[u8]) -> Result<()> {
     let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
     let (version, length) = (word(4), word(8) as usize);
     if version != 2 {
-        return Err(bad(format!("is binary glTF version {version}, only 2 is supported")));
+        return Err(bad(format!(
+            "is binary glTF version {version}, only 2 is supported"
+        )));
     }
     if length < 20 || length > bytes.len() {
         return Err(bad(format!(
@@ -111,7 +113,9 @@ fn load_buffers(path: &Path, doc: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {
             ::gltf::buffer::Source::Bin => doc.blob.clone().ok_or_else(|| {
                 Error::invalid(
                     path,
-                    format!("buffer #{i} refers to the GLB binary chunk, which is missing (re-export)"),
+                    format!(
+                        "buffer #{i} refers to the GLB binary chunk, which is missing (re-export)"
+                    ),
                 )
             })?,
             ::gltf::buffer::Source::Uri(uri) => read_uri(path, i, uri)?,
@@ -135,10 +139,16 @@ fn load_buffers(path: &Path, doc: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {
 fn read_uri(path: &Path, i: usize, uri: &str) -> Result<Vec<u8>> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let payload = rest.split_once(";base64,").map(|(_, p)| p).ok_or_else(|| {
-            Error::invalid(path, format!("buffer #{i}: only base64 data: URIs are supported"))
+            Error::invalid(
+                path,
+                format!("buffer #{i}: only base64 data: URIs are supported"),
+            )
         })?;
         return decode_base64(payload).ok_or_else(|| {
-            Error::invalid(path, format!("buffer #{i}: its data: URI is not valid base64 (re-export)"))
+            Error::invalid(
+                path,
+                format!("buffer #{i}: its data: URI is not valid base64 (re-export)"),
+            )
         });
     }
     if uri.contains(':') {
@@ -147,14 +157,16 @@ fn read_uri(path: &Path, i: usize, uri: &str) -> Result<Vec<u8>> {
             format!("buffer #{i} has URI '{uri}': only relative file paths and data: URIs are supported"),
         ));
     }
-    let rel = percent_decode(uri).ok_or_else(|| {
-        Error::invalid(path, format!("buffer #{i} has a malformed URI '{uri}'"))
-    })?;
+    let rel = percent_decode(uri)
+        .ok_or_else(|| Error::invalid(path, format!("buffer #{i} has a malformed URI '{uri}'")))?;
     let file = path.parent().unwrap_or(Path::new(".")).join(rel);
     std::fs::read(&file).map_err(|e| {
         Error::invalid(
             path,
-            format!("buffer #{i}: cannot read '{}': {e} (keep the .bin next to the .gltf)", file.display()),
+            format!(
+                "buffer #{i}: cannot read '{}': {e} (keep the .bin next to the .gltf)",
+                file.display()
+            ),
         )
     })
 }
@@ -231,7 +243,9 @@ impl Loader<'_> {
             }
         }
         if let Some(mesh) = node.mesh() {
-            let node_name = node.name().map_or_else(|| format!("node #{i}"), str::to_string);
+            let node_name = node
+                .name()
+                .map_or_else(|| format!("node #{i}"), str::to_string);
             let mesh_name = mesh
                 .name()
                 .map_or_else(|| format!("mesh #{}", mesh.index()), str::to_string);
@@ -253,18 +267,28 @@ impl Loader<'_> {
     fn primitive(&mut self, prim: &::gltf::Primitive, world: Mat4, group: String) -> Result<()> {
         let path = self.path;
         let mode = prim.mode();
-        if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
-            self.warn(&format!("primitive '{group}' is {mode:?}, not triangles; skipped"));
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            self.warn(&format!(
+                "primitive '{group}' is {mode:?}, not triangles; skipped"
+            ));
             return Ok(());
         }
         let linear = Mat3::from_mat4(world);
         let det = linear.determinant();
         if det == 0.0 || !det.is_finite() {
-            self.warn(&format!("primitive '{group}' has a singular node transform; skipped"));
+            self.warn(&format!(
+                "primitive '{group}' has a singular node transform; skipped"
+            ));
             return Ok(());
         }
         let acc_pos = prim.get(&Semantic::Positions).ok_or_else(|| {
-            Error::invalid(path, format!("primitive '{group}' has no POSITION attribute (re-export)"))
+            Error::invalid(
+                path,
+                format!("primitive '{group}' has no POSITION attribute (re-export)"),
+            )
         })?;
         let positions: Vec<Vec3> = self
             .read_floats::<3>(&acc_pos, &group, "POSITION")?
@@ -287,7 +311,7 @@ impl Loader<'_> {
             ));
         }
         let mut tris = assemble_triangles(mode, &indices);
-        if mode == Mode::Triangles && indices.len() % 3 != 0 {
+        if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
             self.warn(&format!(
                 "primitive '{group}' has {} indices, not a multiple of 3; the last {} ignored",
                 indices.len(),
@@ -362,7 +386,10 @@ impl Loader<'_> {
         if uvs.len() != n {
             return Err(count_mismatch(self.path, group, &attr, uvs.len(), n));
         }
-        Ok(uvs.into_iter().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect())
+        Ok(uvs
+            .into_iter()
+            .map(|[u, v]| Vec2::new(u, 1.0 - v))
+            .collect())
     }
 
     /// The bytes of an accessor's elements, with every offset checked against its buffer.
@@ -376,25 +403,40 @@ impl Loader<'_> {
         let fail = |what: String| {
             Error::invalid(
                 path,
-                format!("primitive '{group}', {attr} (accessor #{}): {what}", acc.index()),
+                format!(
+                    "primitive '{group}', {attr} (accessor #{}): {what}",
+                    acc.index()
+                ),
             )
         };
         if acc.sparse().is_some() {
-            return Err(fail("sparse accessors are not supported (re-export without sparse data)".into()));
+            return Err(fail(
+                "sparse accessors are not supported (re-export without sparse data)".into(),
+            ));
         }
-        let view = acc
-            .view()
-            .ok_or_else(|| fail("has no bufferView (compressed meshes are not supported; re-export uncompressed)".into()))?;
+        let view = acc.view().ok_or_else(|| {
+            fail(
+                "has no bufferView (compressed meshes are not supported; re-export uncompressed)"
+                    .into(),
+            )
+        })?;
         let buffer = &self.buffers[view.buffer().index()];
         let view_bytes = view
             .offset()
             .checked_add(view.length())
             .and_then(|end| buffer.get(view.offset()..end))
-            .ok_or_else(|| fail(format!("bufferView #{} lies outside its buffer (truncated file?)", view.index())))?;
+            .ok_or_else(|| {
+                fail(format!(
+                    "bufferView #{} lies outside its buffer (truncated file?)",
+                    view.index()
+                ))
+            })?;
         let elem = acc.size();
         let stride = view.stride().unwrap_or(elem);
         if stride < elem {
-            return Err(fail(format!("byteStride {stride} is smaller than an element ({elem} bytes)")));
+            return Err(fail(format!(
+                "byteStride {stride} is smaller than an element ({elem} bytes)"
+            )));
         }
         let count = acc.count();
         let needed = match count {
@@ -406,7 +448,12 @@ impl Loader<'_> {
         };
         let data = needed
             .and_then(|end| view_bytes.get(acc.offset().min(end)..end))
-            .ok_or_else(|| fail(format!("{count} elements do not fit in bufferView #{} (truncated file?)", view.index())))?;
+            .ok_or_else(|| {
+                fail(format!(
+                    "{count} elements do not fit in bufferView #{} (truncated file?)",
+                    view.index()
+                ))
+            })?;
         Ok((data, stride, count))
     }
 

@@ -69,13 +69,17 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
     };
     // Header first: refuse absurd sizes before the reader allocates pixel storage.
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(corrupt)?;
-    let header = meta
-        .headers
-        .iter()
-        .find(|h| !h.deep)
-        .ok_or_else(|| Error::invalid(path, "has only deep-data layers (write a flat image)"))?;
+    let header =
+        meta.headers.iter().find(|h| !h.deep).ok_or_else(|| {
+            Error::invalid(path, "has only deep-data layers (write a flat image)")
+        })?;
     check_dimensions(path, header.layer_size.width(), header.layer_size.height())?;
-    let names: Vec<String> = header.channels.list.iter().map(|c| c.name.to_string()).collect();
+    let names: Vec<String> = header
+        .channels
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
     let name = pick_exr_channel(path, &names, requested)?;
 
     let image = read()
@@ -94,7 +98,10 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         .iter()
         .find(|c| c.name.to_string() == name)
         .ok_or_else(|| {
-            Error::invalid(path, format!("channel '{name}' vanished between header and pixels"))
+            Error::invalid(
+                path,
+                format!("channel '{name}' vanished between header and pixels"),
+            )
         })?;
     let data: Vec<f32> = match &channel.sample_data {
         FlatSamples::F16(s) => s.iter().map(|v| v.to_f32()).collect(),
@@ -165,7 +172,9 @@ fn load_raster(
         ),
         e => Error::invalid(
             path,
-            format!("cannot decode as {format:?}: {e} (the file is truncated or corrupt; re-export it)"),
+            format!(
+                "cannot decode as {format:?}: {e} (the file is truncated or corrupt; re-export it)"
+            ),
         ),
     };
     let (w, h) = open()?.into_dimensions().map_err(corrupt)?;

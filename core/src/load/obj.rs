@@ -1,11 +1,12 @@
 //! Wavefront OBJ into a `BaseMesh`: `v`/`vt`/`vn`, polygons fan-triangulated, each distinct
 //! `v/vt/vn` corner a vertex, `g`/`o` names kept as groups. OBJ's v already points up.
 //!
-//! A small parser of our own rather than `tobj`: tobj 4.0.5 overflows (a panic in debug
-//! builds) on a face index of 0 or a relative index reaching before the first element
-//! (`f 1/0 2/0 3/0`), silently misaligns UVs when only some corners carry `vt`, and its errors
-//! carry no line number. Here every error names the line. Materials, smoothing groups,
-//! points, lines and free-form geometry are ignored.
+//! A small parser of our own rather than `tobj`: with `single_index`, tobj 4.0.5 panics
+//! (multiply overflow) on a relative index reaching before the first element
+//! (`f 1/-5 2/1 3/1`), takes a zero index (`f 1/0 ...`) as "absent", and then, like any face
+//! where only some corners carry `vt`, returns fewer UVs than positions, silently misaligned.
+//! Its errors carry no line number; here every error names the line. Materials, smoothing
+//! groups, points, lines and free-form geometry are ignored.
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
@@ -58,7 +59,9 @@ fn parse(path: &Path, text: &str) -> Result<Parsed> {
         let line = std::mem::take(&mut joined);
         let line = line.split('#').next().unwrap_or("");
         let mut words = line.split_whitespace();
-        let Some(keyword) = words.next() else { continue };
+        let Some(keyword) = words.next() else {
+            continue;
+        };
         let at = |what: String| Error::invalid(path, format!("line {start_line}: {what}"));
         match keyword {
             "v" => p.v.push(Vec3::from(floats::<3>(&mut words).map_err(at)?)),
@@ -66,7 +69,11 @@ fn parse(path: &Path, text: &str) -> Result<Parsed> {
             "vt" => p.vt.push(Vec2::from(floats::<2>(&mut words).map_err(at)?)),
             "g" | "o" => {
                 let name = words.collect::<Vec<_>>().join(" ");
-                let name = if name.is_empty() { "default".to_string() } else { name };
+                let name = if name.is_empty() {
+                    "default".to_string()
+                } else {
+                    name
+                };
                 group = Some(group_index(&mut p.groups, name));
             }
             "f" => {
