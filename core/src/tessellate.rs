@@ -69,7 +69,14 @@ fn edge_key(a: u32, b: u32) -> (u32, u32) {
 
 /// `k ·` the length of edge a–b in texels, unclamped. UV-degenerate edges (zero length in UV)
 /// fall back to world length over the prism's world texel size.
-fn edge_segments_wanted(table: &PrismTable, map: &HeightMap, p: &Prism, a: u32, b: u32, k: f32) -> f32 {
+fn edge_segments_wanted(
+    table: &PrismTable,
+    map: &HeightMap,
+    p: &Prism,
+    a: u32,
+    b: u32,
+    k: f32,
+) -> f32 {
     let texel_scale = Vec2::new(map.width as f32, map.height as f32);
     let texels = ((table.uvs[b as usize] - table.uvs[a as usize]) * texel_scale).length();
     // Below a millionth of a texel the UV edge is a point: its length says nothing.
@@ -86,7 +93,11 @@ fn edge_segments_wanted(table: &PrismTable, map: &HeightMap, p: &Prism, a: u32, 
 /// Segment count per base edge: the max over the edge's faces (they differ only on the
 /// UV-degenerate fallback), clamped to `[1, MAX_SEGMENTS]`. Returns the map and how many
 /// edges were clamped from above.
-fn edge_segment_counts(table: &PrismTable, map: &HeightMap, k: f32) -> (BTreeMap<(u32, u32), u32>, usize) {
+fn edge_segment_counts(
+    table: &PrismTable,
+    map: &HeightMap,
+    k: f32,
+) -> (BTreeMap<(u32, u32), u32>, usize) {
     let mut wanted: BTreeMap<(u32, u32), f32> = BTreeMap::new();
     for p in &table.prisms {
         for e in 0..3 {
@@ -247,9 +258,14 @@ impl FaceGrid<'_> {
         while i < ne || j < m {
             // Position along the edge: outer point i at i/ne, inner point j at (j + 1.5)/n.
             // Compare the next points in integers: (i+1)/ne <= (j+2.5)/n.
-            let outer_next = j == m || (i < ne && 2 * (i as u64 + 1) * n as u64 <= (2 * j as u64 + 5) * ne as u64);
+            let outer_next = j == m
+                || (i < ne && 2 * (i as u64 + 1) * n as u64 <= (2 * j as u64 + 5) * ne as u64);
             if outer_next {
-                emit([self.edge_point(e, i), self.edge_point(e, i + 1), inner(j + 1)]);
+                emit([
+                    self.edge_point(e, i),
+                    self.edge_point(e, i + 1),
+                    inner(j + 1),
+                ]);
                 i += 1;
             } else {
                 emit([self.edge_point(e, i), inner(j + 2), inner(j + 1)]);
@@ -404,7 +420,7 @@ pub fn tessellate(table: &PrismTable, map: &HeightMap, k: f32) -> TessMesh {
     for (p, face) in faces.into_iter().enumerate() {
         mesh.positions.extend(face.interior);
         mesh.tri_prism
-            .extend(std::iter::repeat(p as u32).take(face.triangles.len()));
+            .extend(std::iter::repeat_n(p as u32, face.triangles.len()));
         mesh.triangles.extend(face.triangles);
         mesh.tri_bary.extend(face.bary);
     }
@@ -439,10 +455,17 @@ mod tests {
             let mesh = tessellate(&table, &map, k);
             let (undirected, consistent) = edge_use(&mesh);
             let open: Vec<_> = undirected.iter().filter(|(_, &c)| c != 2).take(5).collect();
-            assert!(open.is_empty(), "k = {k}: edges not shared by exactly two faces: {open:?}");
-            assert!(consistent, "k = {k}: some directed edge is used twice (flipped face)");
+            assert!(
+                open.is_empty(),
+                "k = {k}: edges not shared by exactly two faces: {open:?}"
+            );
+            assert!(
+                consistent,
+                "k = {k}: some directed edge is used twice (flipped face)"
+            );
             // Euler characteristic of a sphere, over the vertices the triangles use.
-            let used: std::collections::HashSet<u32> = mesh.triangles.iter().flatten().copied().collect();
+            let used: std::collections::HashSet<u32> =
+                mesh.triangles.iter().flatten().copied().collect();
             let chi = used.len() as i64 - undirected.len() as i64 + mesh.triangles.len() as i64;
             assert_eq!(chi, 2, "k = {k}");
             assert_eq!(used.len(), mesh.positions.len(), "k = {k}: unused vertices");
@@ -465,7 +488,10 @@ mod tests {
                 area[mesh.tri_prism[t] as usize] += a;
             }
             for (p, a) in area.iter().enumerate() {
-                assert!((a - 0.5).abs() < 1e-5, "k = {k}: prism {p} covered {a} of 0.5");
+                assert!(
+                    (a - 0.5).abs() < 1e-5,
+                    "k = {k}: prism {p} covered {a} of 0.5"
+                );
             }
         }
     }
@@ -478,12 +504,14 @@ mod tests {
         for (t, tri) in mesh.triangles.iter().enumerate() {
             let prism = &table.prisms[mesh.tri_prism[t] as usize];
             let geom = PrismGeom::new(&table, prism);
-            for c in 0..3 {
-                let b = mesh.tri_bary[t][c];
+            for (c, (&b, &v)) in mesh.tri_bary[t].iter().zip(tri).enumerate() {
                 assert!((b.x + b.y + b.z - 1.0).abs() < 1e-6 && b.min_element() >= 0.0);
                 let want = surface_point(&geom, &map, &table.params, b).position;
-                let got = mesh.positions[tri[c] as usize];
-                assert!((want - got).length() < 1e-5, "tri {t} corner {c}: {want} vs {got}");
+                let got = mesh.positions[v as usize];
+                assert!(
+                    (want - got).length() < 1e-5,
+                    "tri {t} corner {c}: {want} vs {got}"
+                );
             }
         }
     }
@@ -497,7 +525,10 @@ mod tests {
             assert_eq!(capped, 0);
             for (&(a, b), &n) in &counts {
                 let texels = ((table.uvs[b as usize] - table.uvs[a as usize]) * 16.0).length();
-                assert!(n as f32 >= k * texels && (n as f32) < k * texels + 1.0, "{n} {texels}");
+                assert!(
+                    n as f32 >= k * texels && (n as f32) < k * texels + 1.0,
+                    "{n} {texels}"
+                );
             }
         }
         let (_, capped) = edge_segment_counts(&table, &map, 1e6);

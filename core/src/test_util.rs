@@ -89,12 +89,7 @@ pub(crate) fn test_sphere_table(subdiv: u32, map_res: u32, scale: f32) -> (Prism
     // A slightly oblique projection so no face is exactly edge-on in UV.
     let uvs = positions
         .iter()
-        .map(|p| {
-            Vec2::new(
-                0.5 + 0.4 * p.x + 0.07 * p.z,
-                0.5 + 0.4 * p.y - 0.05 * p.z,
-            )
-        })
+        .map(|p| Vec2::new(0.5 + 0.4 * p.x + 0.07 * p.z, 0.5 + 0.4 * p.y - 0.05 * p.z))
         .collect();
     let n = triangles.len();
     let mesh = BaseMesh {

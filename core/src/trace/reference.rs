@@ -103,7 +103,9 @@ impl<'a> Reference<'a> {
         let (lo, hi) = mesh
             .positions
             .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+                (a.min(p), b.max(p))
+            });
         let pad = Vec3A::splat(BOX_PAD * (hi - lo).length().max(f32::MIN_POSITIVE));
         let boxes: Vec<Aabb> = tris
             .iter()
@@ -293,7 +295,9 @@ impl WatertightRay {
         // An edge function that rounds to zero decides which side the ray passes; redo it in
         // double, where products of floats are exact, so both faces of the edge agree.
         if u == 0.0 || v == 0.0 || w == 0.0 {
-            let (ax, ay, bx, by, cx, cy) = (ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64);
+            let (ax, ay, bx, by, cx, cy) = (
+                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+            );
             u = (cx * by - cy * bx) as f32;
             v = (ax * cy - ay * cx) as f32;
             w = (bx * ay - by * ax) as f32;
@@ -352,11 +356,17 @@ mod tests {
         let ring: Vec<Vec3A> = (0..6)
             .map(|i| {
                 let a = i as f32 * std::f32::consts::TAU / 6.0 + 0.1;
-                Vec3A::new(a.cos() * 0.7 + 0.31, a.sin() * 0.7 - 0.17, 0.05 * a.sin() + 0.4)
+                Vec3A::new(
+                    a.cos() * 0.7 + 0.31,
+                    a.sin() * 0.7 - 0.17,
+                    0.05 * a.sin() + 0.4,
+                )
             })
             .collect();
         let centre = Vec3A::new(0.31, -0.17, 0.4);
-        let fan: Vec<[Vec3A; 3]> = (0..6).map(|i| [centre, ring[i], ring[(i + 1) % 6]]).collect();
+        let fan: Vec<[Vec3A; 3]> = (0..6)
+            .map(|i| [centre, ring[i], ring[(i + 1) % 6]])
+            .collect();
         let mut misses = 0;
         for i in 0..20_000u32 {
             let spoke = ring[(i % 6) as usize];
@@ -419,13 +429,21 @@ mod tests {
         let mut targets: Vec<Vec3> = mesh.positions.clone();
         for t in &mesh.triangles {
             let p = t.map(|i| mesh.positions[i as usize]);
-            targets.extend([(p[0] + p[1]) * 0.5, (p[1] + p[2]) * 0.5, (p[2] + p[0]) * 0.5]);
+            targets.extend([
+                (p[0] + p[1]) * 0.5,
+                (p[1] + p[2]) * 0.5,
+                (p[2] + p[0]) * 0.5,
+            ]);
         }
         let (mut leaks, mut obvhs_misses, mut rays) = (0, 0, 0);
         let obvhs_tris: Vec<obvhs::triangle::Triangle> = reference
             .tris
             .iter()
-            .map(|t| obvhs::triangle::Triangle { v0: t[0], v1: t[1], v2: t[2] })
+            .map(|t| obvhs::triangle::Triangle {
+                v0: t[0],
+                v1: t[1],
+                v2: t[2],
+            })
             .collect();
         for (i, &target) in targets.iter().enumerate() {
             // From inside (the centre), and from outside within 60° of the outward normal:
@@ -445,8 +463,12 @@ mod tests {
                 let oray = obvhs::ray::Ray::new_inf(origin.into(), ray.dir.into());
                 let mut hit = RayHit::none();
                 let found = match &reference.accel {
-                    Accel::Bvh2(b) => b.ray_traverse(oray, &mut hit, |r, id| obvhs_tris[id].intersect(r)),
-                    Accel::CwBvh(b) => b.ray_traverse(oray, &mut hit, |r, id| obvhs_tris[id].intersect(r)),
+                    Accel::Bvh2(b) => {
+                        b.ray_traverse(oray, &mut hit, |r, id| obvhs_tris[id].intersect(r))
+                    }
+                    Accel::CwBvh(b) => {
+                        b.ray_traverse(oray, &mut hit, |r, id| obvhs_tris[id].intersect(r))
+                    }
                 };
                 if !found {
                     obvhs_misses += 1;
@@ -486,7 +508,10 @@ mod tests {
             .iter()
             .map(|&k| median_depth_error(&Reference::new(&table, &map, k), &fine, &rays))
             .collect();
-        eprintln!("median |Δt| / texel vs k = 8 (and hit/miss mismatches): k=1 {:?}, k=2 {:?}, k=4 {:?}", errs[0], errs[1], errs[2]);
+        eprintln!(
+            "median |Δt| / texel vs k = 8 (and hit/miss mismatches): k=1 {:?}, k=2 {:?}, k=4 {:?}",
+            errs[0], errs[1], errs[2]
+        );
         assert!(errs[0].0 > errs[1].0 && errs[1].0 > errs[2].0, "{errs:?}");
         assert!(errs[2].1 <= 5, "{errs:?}");
     }
@@ -502,7 +527,9 @@ mod tests {
             let r = Reference::new(&table, &map, k);
             let mut max_err = 0.0f32;
             for ray in &rays {
-                let Some(h) = r.intersect(ray, &ctx()) else { continue };
+                let Some(h) = r.intersect(ray, &ctx()) else {
+                    continue;
+                };
                 let p = &table.prisms[h.prism as usize];
                 let sp = surface_point(&PrismGeom::new(&table, p), &map, &table.params, h.bary);
                 assert!(h.bary.min_element() > -1e-5, "{:?}", h.bary);
@@ -512,7 +539,10 @@ mod tests {
             }
             worst.push(max_err);
         }
-        eprintln!("max |S(bary) − hit| / texel: k=1 {}, k=2 {}, k=4 {}", worst[0], worst[1], worst[2]);
+        eprintln!(
+            "max |S(bary) − hit| / texel: k=1 {}, k=2 {}, k=4 {}",
+            worst[0], worst[1], worst[2]
+        );
         // Height within a micro-triangle varies by at most (map slope) × (its size, 1/k texel).
         for (i, k) in [1.0f32, 2.0, 4.0].iter().enumerate() {
             assert!(worst[i] < 1.0 / k, "k = {k}: {}", worst[i]);
