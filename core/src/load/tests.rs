@@ -905,3 +905,20 @@ fn bad_maps_are_errors() {
         err_naming_file(load_height_map(&cut, &opts), &cut);
     }
 }
+
+#[test]
+fn float_tiff_is_read_raw() {
+    let dir = temp_dir("tiff-float");
+    let path = dir.join("f.tif");
+    let raw = vec![0.5f32, 9.0, 9.0, -2.0, 9.0, 9.0];
+    image::Rgb32FImage::from_raw(2, 1, raw)
+        .unwrap()
+        .save(&path)
+        .unwrap();
+    let m = load_height_map(&path, &MapOptions::default()).unwrap();
+    assert_eq!(
+        (m.channel.as_str(), m.data.clone()),
+        ("R", vec![0.5, -2.0]),
+        "not normalised"
+    );
+}
