@@ -6,7 +6,7 @@ use prismbake::asset::{self, AssetSpec, Overrides};
 use prismbake::repair::RepairOptions;
 use prismbake::{prism_file, report, validate, Error, Result};
 use glam::Vec3;
-use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, RenderJob};
+use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob};
 use prismbake::render::{Aov, RenderSettings};
 use prismbake::trace::pdm::{PdmOptions, StepSize};
 use prismbake::trace::NormalMode;
@@ -185,10 +185,12 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
     };
     let job = RenderJob {
         input,
-        method,
-        pdm: PdmOptions { dt: parse_dt(&a.dt)?, jitter: !a.no_jitter, ..PdmOptions::default() },
-        ref_density: a.ref_density,
-        normal_mode,
+        method: MethodConfig {
+            method,
+            normal_mode,
+            pdm: PdmOptions { dt: parse_dt(&a.dt)?, jitter: !a.no_jitter, ..PdmOptions::default() },
+            ref_density: a.ref_density,
+        },
         settings: RenderSettings { width: a.res.0, height: a.res.1, spp: a.spp, seed: a.seed },
         aovs,
         turntable: a.turntable,

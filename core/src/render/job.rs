@@ -52,13 +52,26 @@ pub struct CameraOverride {
     pub fov_deg: Option<f32>,
 }
 
+/// A method and every method's knobs (each method reads its own).
+#[derive(Clone, Copy, Debug)]
+pub struct MethodConfig {
+    pub method: Method,
+    pub normal_mode: NormalMode,
+    pub pdm: PdmOptions,
+    /// Reference tessellation density (micro-edges per texel).
+    pub ref_density: f32,
+}
+
+impl Default for MethodConfig {
+    fn default() -> Self {
+        MethodConfig { method: Method::Pdm, normal_mode: NormalMode::Smooth, pdm: PdmOptions::default(), ref_density: 2.0 }
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct RenderJob {
     pub input: Input,
-    pub method: Method,
-    pub pdm: PdmOptions,
-    pub ref_density: f32,
-    pub normal_mode: NormalMode,
+    pub method: MethodConfig,
     pub settings: RenderSettings,
     pub aovs: Vec<Aov>,
     /// `Some(n)`: an n-frame turntable; frames `frames` of it are rendered.
@@ -112,8 +125,8 @@ impl RenderJob {
                 return Err(Error::Param("--camera-from and --camera-to are the same point".into()));
             }
         }
-        if !(self.ref_density > 0.0 && self.ref_density <= 64.0) {
-            return Err(Error::Param(format!("--ref-density {}: must be in (0, 64]", self.ref_density)));
+        if !(self.method.ref_density > 0.0 && self.method.ref_density <= 64.0) {
+            return Err(Error::Param(format!("--ref-density {}: must be in (0, 64]", self.method.ref_density)));
         }
         Ok(())
     }
@@ -196,20 +209,13 @@ pub struct RenderSummary {
     pub files: Vec<PathBuf>,
 }
 
-/// Build the intersector for `method` and call `f` with it.
-pub fn with_intersector<R>(
-    method: Method,
-    scene: &Scene,
-    pdm: PdmOptions,
-    ref_density: f32,
-    normal_mode: NormalMode,
-    f: impl FnOnce(&dyn Intersector) -> R,
-) -> R {
-    match method {
-        Method::Pdm => f(&Pdm::new(scene, PdmOptions { normal_mode, ..pdm })),
+/// Build the intersector a config names and call `f` with it.
+pub fn with_intersector<R>(cfg: &MethodConfig, scene: &Scene, f: impl FnOnce(&dyn Intersector) -> R) -> R {
+    match cfg.method {
+        Method::Pdm => f(&Pdm::new(scene, PdmOptions { normal_mode: cfg.normal_mode, ..cfg.pdm })),
         Method::Reference => {
-            let mut r = Reference::new(&scene.table, &scene.map, ref_density);
-            r.normal_mode = normal_mode;
+            let mut r = Reference::new(&scene.table, &scene.map, cfg.ref_density);
+            r.normal_mode = cfg.normal_mode;
             f(&r)
         }
     }
@@ -230,10 +236,10 @@ pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<
             (a..=b).map(Some).collect()
         }
     };
-    with_intersector(job.method, &scene, job.pdm, job.ref_density, job.normal_mode, |isect| {
+    with_intersector(&job.method, &scene, |isect| {
         let setup_seconds = t0.elapsed().as_secs_f64();
         let mut summary = RenderSummary {
-            method: job.method,
+            method: job.method.method,
             device: format!("cpu ({} threads)", rayon::current_num_threads()),
             prisms: scene.table.prisms.len(),
             setup_seconds,
