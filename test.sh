@@ -8,7 +8,8 @@ SUDO=""
 if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null; then SUDO=sudo; fi
 if command -v apt-get >/dev/null; then
   need=()
-  for p in build-essential pkg-config mesa-vulkan-drivers libvulkan1; do
+  for p in build-essential pkg-config mesa-vulkan-drivers libvulkan1 python3-venv \
+           libx11-6 libxrender1 libxfixes3 libxi6 libxkbcommon0 libxext6 libsm6 libice6 libgl1; do
     dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
   done
   if [ ${#need[@]} -gt 0 ]; then
@@ -20,3 +21,11 @@ if ! command -v cargo >/dev/null && [ -f "$HOME/.cargo/env" ]; then . "$HOME/.ca
 
 # One profile (dev, dependencies optimised) for unit tests, integration tests and the binary.
 cargo test --workspace --locked
+
+# Python side: the Blender add-on against the real bpy wheel, USD output against Pixar's
+# usd-core, JUnit output against a JUnit consumer. They drive the binary built above.
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
+.venv/bin/python -m pip install -q -r tests/python/requirements.txt
+export PRISMBAKE_BIN="$PWD/target/debug/prismbake"
+HOME="$(mktemp -d)" .venv/bin/python -m pytest -q tests/python blender_addon/tests
