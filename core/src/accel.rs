@@ -182,11 +182,14 @@ impl Scene {
     }
 }
 
+/// `-0.0` components become `+0.0`: obvhs takes the ray octant from `d < 0` but the inverse
+/// from `signum(d)`, which disagree for `-0.0`; CWBVH then tests the wrong box planes and an
+/// axis-aligned ray such as `-Vec3::Z` (= `(-0, -0, -1)`) misses everything.
 #[inline]
 fn to_obvhs(ray: &Ray) -> obvhs::ray::Ray {
     obvhs::ray::Ray::new(
         Vec3A::from(ray.origin),
-        Vec3A::from(ray.dir),
+        Vec3A::from(ray.dir + Vec3::ZERO),
         ray.t_min,
         ray.t_max,
     )
@@ -399,6 +402,23 @@ mod tests {
                     s.any_hit(&ray, |ray, p| tri_hit(&s, ray, p).is_some()),
                     want.is_some()
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn axis_aligned_rays_with_negative_zero_components_traverse() {
+        // Regression: `-Vec3::Z` is (-0, -0, -1); CWBVH missed every box for it.
+        for kind in [BvhKind::Binary, BvhKind::Wide] {
+            let s = scene(kind);
+            for d in [-Vec3::Z, -Vec3::X, -Vec3::Y, Vec3::Z, Vec3::X, Vec3::Y] {
+                let ray = Ray::new(d * -3.0 + Vec3::splat(0.05), d);
+                let mut visited = 0;
+                s.closest_hit(&ray, |_, _| {
+                    visited += 1;
+                    None
+                });
+                assert!(visited > 0, "{kind:?} {d}");
             }
         }
     }
