@@ -15,8 +15,8 @@
 //! Walls may be curved, so a ray can enter and leave more than once: we return the hull
 //! `[first entry, last exit]` and leave samples outside the triangle to the marcher.
 //! Departures from the paper: the hull replaces the paper's single min/max, a ray starting
-//! inside (first crossing an exit) gets `t_enter = t_min`, and a ray with no crossing at all
-//! (short ray wholly inside) is settled by a point-in-prism Newton test.
+//! inside (first crossing an exit) gets `t_enter = t_min`, and crossings are searched on the
+//! whole half-line so that a short ray wholly inside is recognised without a point test.
 
 use glam::Vec3;
 
@@ -185,7 +185,7 @@ fn wall(
 }
 
 /// Is `x` inside the prism? Newton on `Σ b_i (lo_i + s (hi_i − lo_i)) = x` for `(b1, b2, s)`.
-/// Only used when a ray crosses no face at all, so it favours robustness over speed.
+/// A slow, robust point test for callers and tests (the interval itself does not need it).
 pub fn point_in_prism(x: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> bool {
     let e = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
     let scale = (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length() + e[0].length();
@@ -223,7 +223,7 @@ fn box_exit(o: Vec3, d: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> f32 {
     let t0 = (mn - o) * inv;
     let t1 = (mx - o) * inv;
     let far = t0.max(t1);
-    // NaN (o on a slab plane with d parallel to it) is dropped by min_element's fold semantics.
+    // f32::min ignores a NaN operand (o on a slab plane with d parallel to it).
     far.x.min(far.y).min(far.z)
 }
 
@@ -237,21 +237,20 @@ pub fn ray_prism_interval(
     lo: &[Vec3; 3],
     hi: &[Vec3; 3],
 ) -> Option<Interval> {
+    // Crossings are gathered over [t_min, ∞) and clipped afterwards: a crossing past t_max
+    // still tells whether the ray starts inside, so no point-in-prism test is needed when a
+    // closer hit has already shortened the ray (the common case in a closest-hit traversal).
+    let far = f32::INFINITY;
     let mut acc = Crossings::new();
-    cap(o, d, t_min, t_max, lo, -1.0, &mut acc);
-    cap(o, d, t_min, t_max, hi, 1.0, &mut acc);
+    cap(o, d, t_min, far, lo, -1.0, &mut acc);
+    cap(o, d, t_min, far, hi, 1.0, &mut acc);
     for i in 0..3 {
         let j = (i + 1) % 3;
-        wall(o, d, t_min, t_max, lo[i], lo[j], hi[i], hi[j], &mut acc);
+        wall(o, d, t_min, far, lo[i], lo[j], hi[i], hi[j], &mut acc);
     }
     if !acc.any() {
-        if !t_max.is_finite() || !point_in_prism(o + d * t_min, lo, hi) {
-            return None;
-        }
-        return Some(Interval {
-            t_enter: t_min,
-            t_exit: t_max,
-        });
+        // A bounded solid is always left again: no crossing on a half-line is a miss.
+        return None;
     }
     // First crossing an exit (or no entry): the ray starts inside.
     let t_enter = if acc.first_exit < acc.first_entry {
@@ -259,12 +258,14 @@ pub fn ray_prism_interval(
     } else {
         acc.first_entry
     };
-    // Last crossing an entry (or no exit): the ray ends inside, or an exit was lost.
+    // Last crossing an entry (no exit after it): an exit was lost to rounding; bound it by
+    // the corners' box.
     let t_exit = if acc.last_entry > acc.last_exit {
-        t_max.min(box_exit(o, d, lo, hi).max(acc.last_entry))
+        box_exit(o, d, lo, hi).max(acc.last_entry)
     } else {
         acc.last_exit
-    };
+    }
+    .min(t_max);
     (t_enter <= t_exit).then_some(Interval { t_enter, t_exit })
 }
 
