@@ -90,6 +90,7 @@ class JobOperator:
     def _begin(self, context) -> bool:
         """Gather everything and start the process; False (and an ERROR report) if it cannot."""
         self._t0 = time.perf_counter()
+        context.view_layer.update()  # matrix_world of objects a script just moved
         binary, why = cli_bridge.find_binary(prefs.get(context).binary_path)
         obj = context.active_object
         if binary is None:
@@ -141,8 +142,11 @@ class JobOperator:
         return self._end(context, result)
 
     def invoke(self, context, event):
-        if context.window is None:  # no window (background): nothing to poll from
+        if bpy.app.background or context.window is None:  # no event loop to poll from
             return self.execute(context)
+        return self.invoke_modal(context)
+
+    def invoke_modal(self, context):
         if not self._begin(context):
             return {"CANCELLED"}
         wm = context.window_manager

@@ -90,6 +90,8 @@ def load_preview(path: str, name: str):
 
 def show_in_image_editors(context, image) -> int:
     shown = 0
+    if bpy.app.background:
+        return shown
     for window in context.window_manager.windows:
         for area in window.screen.areas:
             if area.type == "IMAGE_EDITOR":
@@ -256,7 +258,7 @@ def select_polygons(context, obj, polygons) -> None:
 
 
 def popup_problems(context, name, report, selected: int) -> None:
-    if context.window is None:
+    if bpy.app.background or context.window is None:  # bpy-as-a-module has a window, no screen
         return
 
     def draw(menu, _context):

@@ -14,13 +14,9 @@ import tempfile
 
 import pytest
 
-ADDON = pathlib.Path(__file__).resolve().parents[1]
-ROOT = ADDON.parent
-sys.path.insert(0, str(pathlib.Path(__file__).parent))  # glb.py
+sys.path.insert(0, str(pathlib.Path(__file__).parent))  # pbtest.py, glb.py
 
-REPO_MODULE = "prismbake_tests"
-PACKAGE = f"bl_ext.{REPO_MODULE}.prismbake"
-MAP = ROOT / "examples" / "maps" / "scales_256.png"
+from pbtest import ADDON, MAP, PACKAGE, REPO_MODULE, ROOT  # noqa: E402
 
 
 @pytest.fixture(scope="session")
