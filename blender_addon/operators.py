@@ -55,9 +55,9 @@ class PRISMBAKE_OT_preview(jobs.JobOperator, bpy.types.Operator):
         png = summary.first("normal")
         if png is None or not os.path.isfile(png):
             raise cli_bridge.BridgeError(f"prismbake render wrote no normal image in {self._folder}")
-        image = load_preview(png, f"prismbake preview: {self._object_name}")
-        show_in_image_editors(context, image)
         old = jobs.RESULTS.get(self._object_name, {}).get("preview")
+        image = load_preview(png, f"prismbake preview: {self._object_name}", old.image if old else None)
+        show_in_image_editors(context, image)
         if old is not None and old.folder != self._folder:
             shutil.rmtree(old.folder, ignore_errors=True)
         total = time.perf_counter() - self._t0
@@ -75,12 +75,13 @@ class PRISMBAKE_OT_preview(jobs.JobOperator, bpy.types.Operator):
             shutil.rmtree(folder, ignore_errors=True)
 
 
-def load_preview(path: str, name: str):
+def load_preview(path: str, name: str, previous: str = None):
     """Load `path` as the Image `name` (packed, so it outlives the temporary file); editors that
-    showed the previous one show the new one."""
+    showed the previous one (`previous`: its name, which Blender may have shortened) show the
+    new one."""
     new = bpy.data.images.load(path, check_existing=False)
     new.pack()
-    old = bpy.data.images.get(name)
+    old = bpy.data.images.get(previous or name)
     if old is not None:
         old.user_remap(new)
         bpy.data.images.remove(old)

@@ -1,8 +1,7 @@
 """cli_bridge without Blender: argument lists, JSON parsing, error lines, the background job.
 
-The module is loaded from its file, not through the add-on package, so these tests prove it
-needs no bpy (importing bpy would fail the `bpy not in sys.modules` check only if it were the
-first import; the AST check below is the real guard)."""
+The module is loaded from its file, outside the add-on package; that it imports nothing from
+Blender is checked on its source (bpy may already be imported by other tests in the run)."""
 import ast
 import importlib.util
 import json
@@ -53,6 +52,18 @@ def test_other_commands_args(cb):
     assert cb.validate_args("p", "m.glb", disp, max_disp=0.2)[-4:] == ["--format", "json", "--max-disp", "0.2"]
     assert cb.validate_args("p", "m.glb", disp)[-2:] == ["--format", "json"]
     assert cb.export_usd_args("p", "m.glb", disp, "o.usda")[-2:] == ["--usd", "o.usda"]
+
+
+def test_gpu_is_passed_through_and_its_refusal_reported(cb, prismbake_bin, tmp_path):
+    disp = cb.Displacement(str(tmp_path / "h.png"), 0.1, 0.5)
+    argv = cb.render_args(prismbake_bin, str(tmp_path / "m.glb"), disp, cb.RenderSettings(device="gpu"),
+                          str(tmp_path))
+    assert argv[argv.index("--device") + 1] == "gpu"
+    result = cb.CliJob(argv).start().wait(timeout=30)
+    if result.returncode == 0:
+        pytest.skip("this build renders on the GPU")
+    msg = result.error_message()
+    assert msg.startswith("prismbake render failed (input or I/O error, exit 2): ") and "\n" not in msg
 
 
 def test_bad_settings_are_refused_before_running(cb):

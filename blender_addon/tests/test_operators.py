@@ -97,6 +97,18 @@ def test_preview_of_a_displace_modifier(bpy_module, addon, scene, prismbake_bin,
     assert mod.show_viewport  # the user's modifier is left as it was
 
 
+def test_preview_from_edit_mode_sees_the_edits_and_stays_in_edit_mode(bpy_module, addon, scene):
+    bpy = bpy_module
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.select_all(action="SELECT")
+    bpy.ops.transform.resize(value=(0.5, 0.5, 0.5))  # not yet in obj.data until Edit Mode is left
+    assert bpy.ops.prismbake.preview() == {"FINISHED"}
+    assert bpy.context.mode == "EDIT_MESH"
+    import glb
+    pos, _, _ = glb.triangles(addon.jobs.RESULTS["Sphere"]["preview"].glb)
+    assert np.linalg.norm(pos, axis=1).max() == pytest.approx(0.5, abs=1e-4)
+
+
 def test_turntable_writes_every_frame(bpy_module, addon, scene, tmp_path):
     out = tmp_path / "tt"
     assert bpy_module.ops.prismbake.turntable(frames=4, directory=str(out)) == {"FINISHED"}
