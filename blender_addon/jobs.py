@@ -109,6 +109,11 @@ class JobOperator:
             self.cleanup()
             self.report({"ERROR"}, str(e))
             return False
+        except OSError as e:  # an output folder that cannot be made, a full temp disk
+            self.cleanup()
+            where = f" ({e.filename})" if e.filename else ""
+            self.report({"ERROR"}, f"{self.bl_label}: {e.strerror or e}{where}")
+            return False
         RUNNING["job"] = self._job
         return True
 

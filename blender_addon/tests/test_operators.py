@@ -258,6 +258,14 @@ def test_garbage_output_is_reported(bpy_module, scene, prefs, tmp_path):
         bpy_module.ops.prismbake.bake()
 
 
+def test_unwritable_output_is_a_readable_error(bpy_module, scene, tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    bpy_module.context.scene.prismbake.prisms_path = str(blocker / "sub" / "x.prisms")
+    with pytest.raises(RuntimeError, match=r"Bake Prism Table: Not a directory \(.*file/sub\)"):
+        bpy_module.ops.prismbake.bake()
+
+
 def test_object_without_uvs(bpy_module, scene):
     for uv in list(scene.data.uv_layers):
         scene.data.uv_layers.remove(uv)
