@@ -11,6 +11,7 @@ use glam::{Vec2, Vec3};
 
 pub mod pdm;
 pub mod prism_hit;
+pub mod rmip;
 
 /// Miss / no-prism sentinels (mirrored in WGSL).
 pub const NO_PRISM: u32 = u32::MAX;

@@ -1,0 +1,194 @@
+//! RMIP against the ground truth and the canonical surface.
+
+use super::*;
+use crate::accel::fixtures::*;
+use crate::canonical::project_to_prism;
+use crate::heightmap::HeightMap;
+use crate::rng::{pcg_hash, to_unit_float};
+use crate::trace::pdm::{Pdm, PdmOptions};
+use crate::trace::reference::Reference;
+
+struct Rng(u32);
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 = pcg_hash(self.0);
+        to_unit_float(self.0)
+    }
+    fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE;
+            if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+}
+
+fn ctx() -> RayContext {
+    RayContext::default()
+}
+
+/// Distance of a hit's ray point from the canonical surface, in texels of its prism.
+fn canonical_error_texels(scene: &Scene, ray: &Ray, hit: &Hit) -> f32 {
+    let p = &scene.table.prisms[hit.prism as usize];
+    let g = PrismGeom::new(&scene.table, p);
+    let (b, lambda) = project_to_prism(&g, ray.at(hit.t), hit.bary, 0.0).expect("hit projects");
+    let m = g.normal_dir(b).length();
+    let d = scene.table.params.displacement(scene.map.sample(g.uv(b)));
+    (lambda * m - d).abs() / p.texel_world
+}
+
+fn sphere_scene(subdiv: u32, map: HeightMap, scale: f32, size: f32) -> Scene {
+    let mesh = scaled(sphere_mesh(subdiv, 0.25), size);
+    let table = table(&mesh, &map, scale * size);
+    Scene::new(table, map)
+}
+
+/// Rays from a sphere of radius `3 size` to points within `0.35 size` of the centre (inside
+/// every test sphere's displaced surface), with the distance to that point.
+fn rays_to_inner_points(n: usize, size: f32, seed: u32) -> Vec<(Ray, f32)> {
+    let mut rng = Rng(seed);
+    (0..n)
+        .map(|_| {
+            let o = rng.unit() * 3.0 * size;
+            let target = rng.unit() * 0.35 * size * rng.next();
+            (Ray::new(o, (target - o).normalize()), (target - o).length())
+        })
+        .collect()
+}
+
+#[test]
+fn flat_map_hits_the_analytic_sphere() {
+    // Constant D over an icosphere with normals = unit positions: the canonical surface is
+    // x = P̂ (|P| + D). Breaks if the box bounds, the march or the refinement are off.
+    let scene = sphere_scene(2, constant_map(0.8), 0.1, 1.0);
+    let rmip = Rmip::new(&scene, RmipOptions::default());
+    let dval = 0.1 * (0.8 - 0.5);
+    for (ray, _) in rays_to_inner_points(2000, 1.0, 11) {
+        let hit = rmip.intersect(&ray, &ctx()).expect("closed sphere");
+        let g = PrismGeom::new(&scene.table, &scene.table.prisms[hit.prism as usize]);
+        let base = g.position(hit.bary);
+        let want = base.normalize() * (base.length() + dval);
+        assert!((ray.at(hit.t) - want).length() < 1e-4, "{} vs {want}", ray.at(hit.t));
+        assert!(hit.shading_normal.dot(want.normalize()) > 0.999);
+    }
+}
+
+/// Rays that pass their inner point without a hit.
+fn leaks(rmip: &Rmip, rays: &[(Ray, f32)]) -> usize {
+    rays.iter()
+        .filter(|(ray, t_inner)| rmip.intersect(ray, &ctx()).is_none_or(|h| h.t > *t_inner))
+        .count()
+}
+
+#[test]
+fn closed_displaced_sphere_does_not_leak() {
+    // Rays from outside aimed at points inside a closed displaced sphere must all hit before
+    // reaching them; two assets (fine mesh / mild relief, coarse mesh / strong relief), at two
+    // marching scales (mostly subdivision vs mostly marching) and without inversion.
+    let rays = rays_to_inner_points(30_000, 1.0, 1);
+    for (subdiv, scale, jitter) in [(2, 0.15, 0.25), (1, 0.6, 0.4)] {
+        let mesh = sphere_mesh(subdiv, jitter);
+        let map = relief_map(64);
+        let scene = Scene::new(table(&mesh, &map, scale), map);
+        for opts in [
+            RmipOptions::default(),
+            RmipOptions { marching_scale: 1.0, ..Default::default() },
+            RmipOptions { inversion: false, resolution: Some(64), ..Default::default() },
+        ] {
+            let n = leaks(&Rmip::new(&scene, opts), &rays);
+            eprintln!("{} faces, {opts:?}: {n} leaks / {}", scene.table.prisms.len(), rays.len());
+            assert_eq!(n, 0);
+        }
+    }
+}
+
+#[test]
+fn grazing_rays_keep_their_relative_error_across_scales() {
+    // Rays within 1° of the base tangent plane aimed at a surface point, on one asset at sizes
+    // 1, 1e-3 and 1e4: finite records on the surface (error in texels, scale-free) and the
+    // same share of rays reaching their target at every size.
+    let mut stats = vec![];
+    for size in [1.0_f32, 1e-3, 1e4] {
+        let scene = sphere_scene(2, relief_map(64), 0.15, size);
+        let rmip = Rmip::new(&scene, RmipOptions::default());
+        let mut rng = Rng(21);
+        let (mut worst, mut reached, mut total) = (0.0_f32, 0, 0);
+        for _ in 0..3000u32 {
+            let prism = (rng.next() * scene.table.prisms.len() as f32) as usize % scene.table.prisms.len();
+            let g = PrismGeom::new(&scene.table, &scene.table.prisms[prism]);
+            let b = Vec3::new(rng.next() + 0.05, rng.next() + 0.05, rng.next() + 0.05);
+            let b = b / (b.x + b.y + b.z);
+            let sp = surface_point(&g, &scene.map, &scene.table.params, b);
+            let up = sp.base_normal;
+            let tangent = up.cross(rng.unit()).normalize();
+            let elev = (rng.next() * 2.0 - 1.0).to_radians();
+            let d = (tangent * elev.cos() + up * elev.sin()).normalize();
+            let dist = 0.2 * size;
+            let ray = Ray::new(sp.position - d * dist, d);
+            total += 1;
+            if let Some(hit) = rmip.intersect(&ray, &ctx()) {
+                assert!(hit.t.is_finite() && hit.position.is_finite() && hit.shading_normal.is_finite());
+                worst = worst.max(canonical_error_texels(&scene, &ray, &hit));
+                if hit.t <= dist * (1.0 + 1e-3) {
+                    reached += 1;
+                }
+            }
+        }
+        eprintln!("size {size}: worst {worst:.2e} texels, {reached}/{total} reached");
+        assert!(worst < 1e-2, "size {size}: {worst}");
+        stats.push(reached as f32 / total as f32);
+    }
+    assert!(stats.iter().all(|&r| (r - stats[0]).abs() < 0.02 && r > 0.9), "{stats:?}");
+}
+
+#[test]
+fn hit_record_is_complete_and_memory_is_counted() {
+    let scene = sphere_scene(2, relief_map(64), 0.15, 1.0);
+    let rmip = Rmip::new(&scene, RmipOptions::default());
+    assert_eq!(rmip.name(), "rmip");
+    assert!(rmip.memory_bytes() >= rmip.pyramid().memory_bytes() + scene.table.prisms.len() * 36);
+    assert!(rmip.build_seconds() >= 0.0);
+    let ray = Ray::new(Vec3::new(0.1, 0.2, 3.0), -Vec3::Z);
+    let hit = rmip.intersect(&ray, &ctx()).unwrap();
+    assert!(rmip.occluded(&ray, &ctx()));
+    assert!(hit.steps > 0);
+    assert!((hit.shading_normal.length() - 1.0).abs() < 1e-4);
+    assert!((hit.geometric_normal.length() - 1.0).abs() < 1e-4);
+    assert!((hit.bary.element_sum() - 1.0).abs() < 1e-5);
+    assert!((hit.position - ray.at(hit.t)).length() < 1e-5);
+    assert!(canonical_error_texels(&scene, &ray, &hit) < 1e-3);
+    let away = Ray::new(Vec3::new(0.0, 0.0, 3.0), Vec3::Z);
+    assert!(rmip.intersect(&away, &ctx()).is_none() && !rmip.occluded(&away, &ctx()));
+}
+
+#[test]
+fn every_setting_finds_the_same_hits_as_pdm() {
+    // Marching scale, pyramid resolution and inversion change the work, never the surface:
+    // every setting hits where PDM (refined on the same canonical surface) does.
+    let scene = sphere_scene(3, relief_map(128), 0.12, 1.0);
+    let rays = rays_to_inner_points(3000, 1.0, 5);
+    let pdm = Pdm::new(&scene, PdmOptions { jitter: false, ..Default::default() });
+    let want: Vec<Option<f32>> = rays.iter().map(|(r, _)| pdm.intersect(r, &ctx()).map(|h| h.t)).collect();
+    for opts in [
+        RmipOptions::default(),
+        RmipOptions { marching_scale: 0.5, ..Default::default() },
+        RmipOptions { marching_scale: 64.0, ..Default::default() },
+        RmipOptions { resolution: Some(128), ..Default::default() },
+        RmipOptions { inversion: false, ..Default::default() },
+    ] {
+        let rmip = Rmip::new(&scene, opts);
+        let mut differ = 0;
+        for ((ray, _), w) in rays.iter().zip(&want) {
+            let got = rmip.intersect(ray, &ctx()).map(|h| h.t);
+            match (got, w) {
+                (Some(a), Some(b)) if (a - b).abs() < 1e-3 => {}
+                (None, None) => {}
+                _ => differ += 1,
+            }
+        }
+        eprintln!("{opts:?}: {differ} / {} differ from PDM", rays.len());
+        assert!(differ <= rays.len() / 500, "{opts:?}: {differ}");
+    }
+}
+
