@@ -21,6 +21,10 @@ pub enum Command {
     Validate(ValidateArgs),
     /// Ray trace AOV images (depth, normal, mask, uv, steps) of an asset or a baked table.
     Render(RenderArgs),
+    /// Repair and bake an asset, then write it as USD: mesh, displacement material, per-face bounds.
+    Export(ExportArgs),
+    /// Time and error of every method on the same rays; table, CSV, JSON and a PNG plot.
+    Bench(BenchArgs),
 }
 
 #[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -203,4 +207,55 @@ pub struct ValidateArgs {
     /// Write the report here instead of stdout.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Assets (meshes with sidecars or --disp flags, or folders of them).
+    #[arg(required = true)]
+    pub assets: Vec<PathBuf>,
+    #[command(flatten)]
+    pub disp: DispArgs,
+    /// Methods to run (reference is always traced as the ground truth).
+    #[arg(long, default_value = "pdm,reference", value_delimiter = ',')]
+    pub methods: Vec<String>,
+    /// PDM step sizes to sweep: auto, auto:F (F texels) or world lengths.
+    #[arg(long, default_value = "auto:1,auto:0.5,auto:0.25", value_delimiter = ',', allow_hyphen_values = true)]
+    pub dt: Vec<String>,
+    /// Also run the paper-exact parallel-offset PDM (the before-fix watertightness numbers).
+    #[arg(long)]
+    pub paper_pdm: bool,
+    #[arg(long, default_value = "512x512", value_parser = parse_res)]
+    pub res: (u32, u32),
+    /// Random secondary rays leaving the reference's primary hits.
+    #[arg(long, default_value_t = 0)]
+    pub secondary: usize,
+    /// Rays aimed from outside at points inside the object (leak test).
+    #[arg(long, default_value_t = 100_000)]
+    pub leak_rays: usize,
+    #[arg(long, default_value_t = 2.0)]
+    pub ref_density: f32,
+    /// Timed repetitions per setting (the fastest counts).
+    #[arg(long, default_value_t = 2)]
+    pub repeats: u32,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Output folder for bench.csv, bench.json and <asset>.png plots.
+    #[arg(short, long, default_value = "bench-out")]
+    pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// A mesh (.gltf, .glb, .obj, .usda, .usdc; with --disp, a sidecar or a USD material).
+    pub mesh: PathBuf,
+    #[command(flatten)]
+    pub disp: DispArgs,
+    #[command(flatten)]
+    pub repair: RepairArgs,
+    /// Output USD text layer; the height map is referenced by a path relative to it.
+    #[arg(long, value_name = "OUT.usda")]
+    pub usd: PathBuf,
 }

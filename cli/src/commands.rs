@@ -1,6 +1,6 @@
 //! One function per command: build the core config from the flags, call core, print.
 
-use crate::args::{BakeArgs, Cli, Command, Device, DispArgs, InspectArgs, NormalArg, RenderArgs, RepairArgs, ReportFormat, ValidateArgs};
+use crate::args::{BakeArgs, ExportArgs, BenchArgs, Cli, Command, Device, DispArgs, InspectArgs, NormalArg, RenderArgs, RepairArgs, ReportFormat, ValidateArgs};
 use crate::progress;
 use prismbake::asset::{self, AssetSpec, Overrides};
 use prismbake::repair::RepairOptions;
@@ -8,7 +8,8 @@ use prismbake::{prism_file, report, validate, Error, Result};
 use glam::Vec3;
 use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob};
 use prismbake::render::{Aov, RenderSettings};
-use prismbake::trace::pdm::{PdmOptions, StepSize};
+use prismbake::bench::BenchConfig;
+use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
 use prismbake::trace::NormalMode;
 use std::path::Path;
 use std::process::ExitCode;
@@ -19,6 +20,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Bake(a) => bake(a),
         Command::Validate(a) => validate(a),
         Command::Render(a) => render(a),
+        Command::Export(a) => export(a),
+        Command::Bench(a) => bench(a),
     }
 }
 
@@ -228,5 +231,79 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         }
         eprintln!("wrote {} files to {}", summary.files.len(), a.output.display());
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench(a: BenchArgs) -> Result<ExitCode> {
+    let mut settings = Vec::new();
+    for m in &a.methods {
+        let method: Method = m.parse().map_err(Error::Param)?;
+        match method {
+            Method::Pdm => {
+                for dt in &a.dt {
+                    let pdm = PdmOptions { dt: parse_dt(dt)?, ..PdmOptions::default() };
+                    settings.push((format!("dt={dt}"), MethodConfig { method, pdm, ..MethodConfig::default() }));
+                }
+            }
+            _ => settings.push((m.clone(), MethodConfig { method, ..MethodConfig::default() })),
+        }
+    }
+    if a.paper_pdm {
+        let pdm = PdmOptions { construction: Construction::ParallelOffset, refine: false, ..PdmOptions::default() };
+        settings.push(("paper".to_string(), MethodConfig { method: Method::Pdm, pdm, ..MethodConfig::default() }));
+    }
+    let cfg = BenchConfig {
+        width: a.res.0,
+        height: a.res.1,
+        settings,
+        ref_density: a.ref_density,
+        secondary_rays: a.secondary,
+        leak_rays: a.leak_rays,
+        seed: a.seed,
+        repeats: a.repeats,
+    };
+    if cfg.width == 0 || cfg.height == 0 || cfg.width > 8192 || cfg.height > 8192 {
+        return Err(Error::Param(format!("--res {}x{}: each side must be 1..=8192", cfg.width, cfg.height)));
+    }
+    let meshes = asset::expand_paths(&a.assets)?;
+    render_job::prepare_out_dir(&a.output)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| Error::Param(format!("--threads: {e}")))?;
+    let mut rows = Vec::new();
+    for mesh in &meshes {
+        let spec = asset::resolve(mesh, &overrides(&a.disp, None))?;
+        let input = Input::Asset(spec);
+        let loaded = render_job::load_input(&input, &RepairOptions::default())?;
+        let cam = render_job::base_camera(&loaded, &CameraOverride::default(), cfg.width as f32 / cfg.height as f32);
+        let scene = prismbake::accel::Scene::new(loaded.table, loaded.map);
+        let name = mesh.display().to_string();
+        let asset_rows = pool.install(|| prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}")));
+        let stem = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        prismbake::bench::plot::write_plot(&a.output.join(format!("{stem}.png")), &format!("{stem}: time vs depth error"), &asset_rows)?;
+        rows.extend(asset_rows);
+    }
+    print!("{}", prismbake::bench::to_table(&rows));
+    prism_file::write_atomic(&a.output.join("bench.csv"), prismbake::bench::to_csv(&rows).as_bytes())?;
+    let json = serde_json::to_string_pretty(&rows).expect("serialises");
+    prism_file::write_atomic(&a.output.join("bench.json"), json.as_bytes())?;
+    eprintln!("wrote bench.csv, bench.json and plots to {}", a.output.display());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn export(a: ExportArgs) -> Result<ExitCode> {
+    if prismbake::load::extension(&a.usd) != "usda" {
+        return Err(Error::Param(format!("--usd {}: only .usda (USD text) is written; name the output OUT.usda", a.usd.display())));
+    }
+    let spec = asset::resolve(&a.mesh, &overrides(&a.disp, None))?;
+    let pb = progress::spinner("baking");
+    let prepared = asset::prepare(&spec, &repair_options(&a.repair)?)?;
+    pb.finish_and_clear();
+    if !prepared.report.is_clean() {
+        eprint!("{}", prepared.report.to_text());
+    }
+    prismbake::usd_export::write_usda(&prepared, &a.usd)?;
+    eprintln!("{}: {} faces, {} points", a.usd.display(), prepared.table.prisms.len(), prepared.table.positions.len());
     Ok(ExitCode::SUCCESS)
 }

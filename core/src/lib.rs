@@ -7,6 +7,7 @@
 pub mod accel;
 pub mod asset;
 pub mod bake;
+pub mod bench;
 pub mod canonical;
 pub mod error;
 pub mod heightmap;
@@ -19,6 +20,7 @@ pub mod report;
 pub mod rng;
 pub mod tessellate;
 pub mod trace;
+pub mod usd_export;
 pub mod validate;
 
 #[cfg(test)]

@@ -1,0 +1,287 @@
+//! `prismbake bench`: every method and setting on the SAME rays, time and error side by side.
+//!
+//! Rays: the camera's primary rays (pixel centres), optional random secondary rays leaving the
+//! reference's primary hits, and "leak" rays from outside aimed at points just below the
+//! displaced surface (inside a closed object), each clipped at its target so that a method
+//! that misses where the reference hits has let the ray through a hole.
+//! Errors are measured against `reference` (tessellated at `ref_density`): hit/miss mismatch
+//! rate, depth error in world texel sizes of the reference's prism, shading-normal angle.
+
+pub mod plot;
+
+use crate::accel::Scene;
+use crate::render::camera::Camera;
+use crate::render::job::{with_intersector, Method, MethodConfig};
+use crate::rng::{self, Purpose};
+use crate::trace::reference::Reference;
+use crate::trace::{Hit, Intersector, Ray, RayContext};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::time::Instant;
+
+#[derive(Clone, Debug)]
+pub struct BenchConfig {
+    pub width: u32,
+    pub height: u32,
+    /// (label of the setting, config); several settings per method make its curve.
+    pub settings: Vec<(String, MethodConfig)>,
+    pub ref_density: f32,
+    pub secondary_rays: usize,
+    pub leak_rays: usize,
+    pub seed: u32,
+    /// Timed repetitions per setting (the fastest counts).
+    pub repeats: u32,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct BenchRow {
+    pub asset: String,
+    pub method: Method,
+    pub setting: String,
+    pub rays: usize,
+    pub seconds: f64,
+    pub rays_per_s: f64,
+    pub rays_per_s_per_core: f64,
+    pub ns_per_ray: f64,
+    pub steps_per_ray: f64,
+    pub mismatch_rate: f64,
+    pub depth_err_median_texels: f64,
+    pub depth_err_p99_texels: f64,
+    pub normal_err_median_deg: f64,
+    pub normal_err_p99_deg: f64,
+    pub leak_rays: usize,
+    pub leaks: usize,
+    pub memory_bytes: usize,
+    pub bytes_per_triangle: f64,
+}
+
+/// The rays every method traces; `limit[i]` clips ray i (leak rays end at their target).
+pub struct RaySet {
+    pub rays: Vec<Ray>,
+    pub primary: usize,
+    pub leak_start: usize,
+}
+
+fn trace_all(isect: &dyn Intersector, rays: &[Ray], seed: u32) -> Vec<Option<Hit>> {
+    rays.par_iter()
+        .enumerate()
+        .map(|(i, r)| isect.intersect(r, &RayContext { pixel: i as u32, sample: 0, bounce: 0, seed }))
+        .collect()
+}
+
+/// Primary rays, then secondary rays from the reference's hits, then leak rays.
+pub fn make_rays(scene: &Scene, cam: &Camera, reference: &Reference, cfg: &BenchConfig) -> RaySet {
+    let (w, h) = (cfg.width, cfg.height);
+    let mut rays: Vec<Ray> = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h))
+        .collect();
+    let primary = rays.len();
+    if cfg.secondary_rays > 0 {
+        let hits: Vec<Hit> = trace_all(reference, &rays, cfg.seed).into_iter().flatten().collect();
+        if !hits.is_empty() {
+            let scale = scene_scale(scene);
+            for i in 0..cfg.secondary_rays {
+                let hit = &hits[rng::pcg_hash(i as u32 ^ cfg.seed) as usize % hits.len()];
+                let n = hit.geometric_normal;
+                let d = random_hemisphere(n, i as u32, cfg.seed);
+                let mut r = Ray::new(hit.position + n * (1e-4 * scale), d);
+                r.t_min = 0.0;
+                rays.push(r);
+            }
+        }
+    }
+    let leak_start = rays.len();
+    rays.extend(leak_rays(scene, cfg.leak_rays, cfg.seed));
+    RaySet { rays, primary, leak_start }
+}
+
+fn scene_scale(scene: &Scene) -> f32 {
+    let (lo, hi) = scene.table.bounds();
+    (hi - lo).length().max(1e-20)
+}
+
+fn random_hemisphere(n: Vec3, i: u32, seed: u32) -> Vec3 {
+    let u1 = rng::random(i, 0, 0, Purpose::Bench, seed);
+    let u2 = rng::random(i, 1, 0, Purpose::Bench, seed);
+    let z = u1;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = std::f32::consts::TAU * u2;
+    let (t, b) = n.any_orthonormal_pair();
+    (t * (r * phi.cos()) + b * (r * phi.sin()) + n * z).normalize()
+}
+
+/// Rays from a sphere around the object aimed at points just below the displaced surface
+/// (`λ_lo` minus half a texel along the interpolated normal of a random point of a random
+/// prism), ending there: for a closed surface each must cross it.
+pub fn leak_rays(scene: &Scene, n: usize, seed: u32) -> Vec<Ray> {
+    let t = &scene.table;
+    let candidates: Vec<usize> = (0..t.prisms.len())
+        .filter(|&i| t.prisms[i].flags & crate::bake::PRISM_INSERTED == 0)
+        .collect();
+    if candidates.is_empty() || n == 0 {
+        return vec![];
+    }
+    let (lo, hi) = t.bounds();
+    let centre = (lo + hi) * 0.5;
+    let radius = (hi - lo).length() * 0.75 + 1e-20;
+    (0..n as u32)
+        .map(|i| {
+            let r = |k: u32| rng::random(i, k, 1, Purpose::Bench, seed);
+            let p = &t.prisms[candidates[(rng::pcg_hash(i ^ seed.rotate_left(7)) as usize) % candidates.len()]];
+            let (v, nrm) = t.prism_corners(p);
+            let (mut a, mut b) = (r(0), r(1));
+            if a + b > 1.0 {
+                a = 1.0 - a;
+                b = 1.0 - b;
+            }
+            let bary = Vec3::new(1.0 - a - b, a, b);
+            let base = v[0] * bary.x + v[1] * bary.y + v[2] * bary.z;
+            let m = nrm[0] * bary.x + nrm[1] * bary.y + nrm[2] * bary.z;
+            let target = base + m * (p.lambda_lo - 0.5 * p.texel_world);
+            // Origin: a random point on the outer sphere, on the side the surface faces.
+            let mut dir = random_hemisphere(m.normalize_or_zero(), i, seed ^ 0x5bd1);
+            if dir == Vec3::ZERO {
+                dir = Vec3::Y;
+            }
+            let origin = centre + (target - centre) + dir * radius;
+            let d = target - origin;
+            let len = d.length();
+            Ray { origin, dir: d / len, t_min: 0.0, t_max: len }
+        })
+        .collect()
+}
+
+fn percentile(v: &mut [f64], q: f64) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let i = ((v.len() - 1) as f64 * q).round() as usize;
+    v[i]
+}
+
+fn angle_deg(a: Vec3, b: Vec3) -> f64 {
+    (a.dot(b).clamp(-1.0, 1.0) as f64).acos().to_degrees()
+}
+
+/// Compare `hits` with the reference's on the same rays.
+fn compare(scene: &Scene, set: &RaySet, hits: &[Option<Hit>], truth: &[Option<Hit>]) -> (f64, f64, f64, f64, f64, usize) {
+    let mut mismatches = 0usize;
+    let mut depth = Vec::new();
+    let mut normal = Vec::new();
+    for (h, r) in hits[..set.leak_start].iter().zip(&truth[..set.leak_start]) {
+        match (h, r) {
+            (Some(h), Some(r)) => {
+                let texel = scene.table.prisms[r.prism as usize].texel_world.max(1e-30);
+                depth.push(((h.t - r.t).abs() / texel) as f64);
+                normal.push(angle_deg(h.shading_normal, r.shading_normal));
+            }
+            (None, None) => {}
+            _ => mismatches += 1,
+        }
+    }
+    let leaks = hits[set.leak_start..]
+        .iter()
+        .zip(&truth[set.leak_start..])
+        .filter(|(h, r)| h.is_none() && r.is_some())
+        .count();
+    let n = set.leak_start.max(1) as f64;
+    (
+        mismatches as f64 / n,
+        percentile(&mut depth.clone(), 0.5),
+        percentile(&mut depth, 0.99),
+        percentile(&mut normal.clone(), 0.5),
+        percentile(&mut normal, 0.99),
+        leaks,
+    )
+}
+
+/// Run every setting on the same rays; the reference is traced first (and reported too).
+pub fn run_bench(asset: &str, scene: &Scene, cam: &Camera, cfg: &BenchConfig, log: &dyn Fn(&str)) -> Vec<BenchRow> {
+    let reference = Reference::new(&scene.table, &scene.map, cfg.ref_density);
+    let set = make_rays(scene, cam, &reference, cfg);
+    let truth = trace_all(&reference, &set.rays, cfg.seed);
+    let triangles = scene.table.prisms.len().max(1) as f64;
+    let base_bytes = scene.table.positions.len() * 32 + scene.table.prisms.len() * 12;
+    let threads = rayon::current_num_threads() as f64;
+    let mut rows = Vec::new();
+    let mut time_it = |label: &str, method: Method, isect: &dyn Intersector| {
+        let mut best = f64::INFINITY;
+        let mut hits = Vec::new();
+        for _ in 0..cfg.repeats.max(1) {
+            let t = Instant::now();
+            hits = trace_all(isect, &set.rays, cfg.seed);
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        let steps: u64 = hits.iter().flatten().map(|h| h.steps as u64).sum();
+        let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, &set, &hits, &truth);
+        let rays = set.rays.len();
+        let memory = isect.memory_bytes() + if method == Method::Reference { 0 } else { base_bytes };
+        let row = BenchRow {
+            asset: asset.to_string(),
+            method,
+            setting: label.to_string(),
+            rays,
+            seconds: best,
+            rays_per_s: rays as f64 / best,
+            rays_per_s_per_core: rays as f64 / best / threads,
+            ns_per_ray: best * 1e9 / rays as f64 * threads,
+            steps_per_ray: steps as f64 / rays as f64,
+            mismatch_rate: mismatch,
+            depth_err_median_texels: dmed,
+            depth_err_p99_texels: dp99,
+            normal_err_median_deg: nmed,
+            normal_err_p99_deg: np99,
+            leak_rays: set.rays.len() - set.leak_start,
+            leaks,
+            memory_bytes: memory,
+            bytes_per_triangle: memory as f64 / triangles,
+        };
+        log(&format!("{asset}: {} {label}: {:.2} Mrays/s, depth err median {:.4} texels", method_name(method), row.rays_per_s / 1e6, dmed));
+        rows.push(row);
+    };
+    time_it(&format!("k={}", cfg.ref_density), Method::Reference, &reference);
+    for (label, mc) in &cfg.settings {
+        if mc.method == Method::Reference {
+            continue;
+        }
+        with_intersector(mc, scene, |isect| time_it(label, mc.method, isect));
+    }
+    rows
+}
+
+pub fn method_name(m: Method) -> String {
+    serde_json::to_value(m).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()
+}
+
+pub fn to_csv(rows: &[BenchRow]) -> String {
+    let mut s = String::from("asset,method,setting,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,memory_bytes,bytes_per_triangle\n");
+    for r in rows {
+        s.push_str(&format!(
+            "{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{:.1}\n",
+            r.asset, method_name(r.method), r.setting, r.rays, r.seconds, r.rays_per_s, r.rays_per_s_per_core, r.ns_per_ray,
+            r.steps_per_ray, r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
+            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.memory_bytes, r.bytes_per_triangle
+        ));
+    }
+    s
+}
+
+pub fn to_table(rows: &[BenchRow]) -> String {
+    let mut s = format!(
+        "{:<10} {:<10} {:<12} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>9}\n",
+        "asset", "method", "setting", "Mray/s", "Mray/s/c", "steps", "mismatch", "d_med_tx", "d_p99_tx", "n_med°", "n_p99°", "leaks", "B/tri"
+    );
+    for r in rows {
+        let name = std::path::Path::new(&r.asset).file_stem().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        s.push_str(&format!(
+            "{:<10} {:<10} {:<12} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>9.0}\n",
+            name, method_name(r.method), r.setting, r.rays_per_s / 1e6, r.rays_per_s_per_core / 1e6, r.steps_per_ray,
+            100.0 * r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
+            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.bytes_per_triangle
+        ));
+    }
+    s
+}
