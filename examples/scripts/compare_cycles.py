@@ -43,6 +43,7 @@ def main():
     ap.add_argument("--res", type=int, default=512)
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--prismbake", default=os.environ.get("PRISMBAKE_BIN", str(ROOT / "target/release/prismbake")))
+    ap.add_argument("--extra", default="", help="more prismbake render flags in one string, e.g. \"--normal geometric\"")
     ap.add_argument("--cycles-tool", default=str(ROOT.parent / "shared/tools/cycles_reference.py"))
     a = ap.parse_args()
     out = pathlib.Path(tempfile.mkdtemp(prefix="pb-cycles-"))
@@ -53,15 +54,18 @@ def main():
     if cyc.returncode != 0:
         sys.exit(f"cycles failed:\n{cyc.stderr[-2000:]}")
     cinfo = json.loads((out / "cycles" / "timing.json").read_text())
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    # Run prismbake under a fresh Python parent so its peak RSS is its own, not Cycles'.
+    wrapper = ("import resource, subprocess, sys; p = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+               "sys.stdout.write(p.stdout); sys.stderr.write(p.stderr); "
+               "sys.stderr.write('\\nPEAK_RSS_KB %d\\n' % resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); sys.exit(p.returncode)")
     t = time.perf_counter()
-    pb = subprocess.run([a.prismbake, "render", a.asset, "--disp", a.disp, "--scale", str(a.scale),
+    pb = subprocess.run([sys.executable, "-c", wrapper, a.prismbake, "render", a.asset, "--disp", a.disp, "--scale", str(a.scale),
                          "--midlevel", str(a.midlevel), "--res", f"{a.res}x{a.res}", "--aov", "mask,normal",
-                         "--threads", str(a.threads), "-o", str(out / "pb"), "--json"], capture_output=True, text=True)
+                         "--threads", str(a.threads), "-o", str(out / "pb"), "--json", *a.extra.split()], capture_output=True, text=True)
     wall = time.perf_counter() - t
     if pb.returncode != 0:
         sys.exit(f"prismbake failed:\n{pb.stderr}")
-    rss_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024
+    rss_mb = int(pb.stderr.rsplit("PEAK_RSS_KB", 1)[1].split()[0]) // 1024
     summary = json.loads(pb.stdout)
     frame_s = summary["frames"][0]["seconds"]
     cm = read_exr(out / "cycles" / "mask.exr") > 0.5
