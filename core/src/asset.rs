@@ -98,6 +98,7 @@ pub fn resolve(mesh: &Path, flags: &Overrides) -> Result<AssetSpec> {
     } else {
         (Sidecar::default(), None)
     };
+    let side = with_usd_material(mesh, side)?;
     let defaults = DisplaceParams::default();
     let spec = AssetSpec {
         mesh: mesh.to_path_buf(),
@@ -121,6 +122,23 @@ pub fn resolve(mesh: &Path, flags: &Overrides) -> Result<AssetSpec> {
     Ok(spec)
 }
 
+/// A USD mesh's own material is the weakest source of the displacement: it fills only what
+/// the sidecar left unset (and the flags override both).
+fn with_usd_material(mesh: &Path, mut side: Sidecar) -> Result<Sidecar> {
+    if !matches!(load::extension(mesh).as_str(), "usda" | "usdc" | "usd") || !mesh.is_file() {
+        return Ok(side);
+    }
+    let Some(usd) = load::usd::displacement(mesh)? else { return Ok(side) };
+    if side.channel.is_none() && usd.channel != "R" && load::extension(&usd.file) == "exr" {
+        side.channel = Some(usd.channel.clone());
+    }
+    side.disp = side.disp.or(Some(usd.file));
+    side.scale = side.scale.or(Some(usd.scale));
+    side.midlevel = side.midlevel.or(Some(usd.midlevel));
+    side.wrap = side.wrap.or(Some(usd.wrap));
+    Ok(side)
+}
+
 /// Every mesh file under `root` (sorted, so batch output order is stable).
 pub fn find_meshes(root: &Path) -> Vec<PathBuf> {
     let mut found: Vec<PathBuf> = walkdir::WalkDir::new(root)
@@ -129,7 +147,7 @@ pub fn find_meshes(root: &Path) -> Vec<PathBuf> {
         .filter_map(|e| e.ok())
         .filter(|e| e.file_type().is_file())
         .map(|e| e.into_path())
-        .filter(|p| matches!(load::extension(p).as_str(), "gltf" | "glb" | "obj"))
+        .filter(|p| matches!(load::extension(p).as_str(), "gltf" | "glb" | "obj" | "usda" | "usdc" | "usd"))
         .collect();
     found.sort();
     found

@@ -5,6 +5,7 @@
 pub mod gltf;
 pub mod image;
 pub mod obj;
+pub mod usd;
 #[cfg(test)]
 mod tests;
 
@@ -28,7 +29,7 @@ pub struct MapOptions {
     pub wrap: Wrap,
 }
 
-pub const MESH_EXTENSIONS: &str = ".gltf, .glb or .obj";
+pub const MESH_EXTENSIONS: &str = ".gltf, .glb, .obj, .usda, .usdc or .usd";
 
 /// Load a mesh by extension.
 pub fn load_mesh(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
@@ -37,6 +38,7 @@ pub fn load_mesh(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     let mesh = match ext.as_str() {
         "gltf" | "glb" => gltf::load(path, opts)?,
         "obj" => obj::load(path, opts)?,
+        "usda" | "usdc" | "usd" => usd::load(path, opts)?,
         _ => {
             return Err(Error::UnsupportedFormat {
                 path: path.into(),

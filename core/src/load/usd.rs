@@ -1,0 +1,797 @@
+//! USD (`.usda` text, `.usdc` binary, `.usd` either) into a `BaseMesh`, read with the `openusd`
+//! crate (0.6, pure Rust; it composes sublayers and references into a stage).
+//!
+//! Every defined, active `Mesh` prim (purpose not `guide`) is appended with its world transform
+//! (every `xformOp` of the prim and its ancestors, `!resetXformStack!` and `!invert!` honoured):
+//! polygons fan-triangulated, `leftHanded` orientation flipped to counter-clockwise, normals
+//! (`primvars:normals` over `normals`) and the UV primvar expanded from any interpolation and
+//! optional `:indices` to one value per face corner, then corners with equal (point, normal, UV)
+//! shared. USD's `st` has v pointing up like the project: no flip. Stage `upAxis` becomes
+//! `mesh.up_axis`.
+//!
+//! `displacement` reads the bound `UsdPreviewSurface`'s `inputs:displacement` ← `UsdUVTexture`
+//! and turns USD's `D = scale·h + bias` into the project's `D = S·(h − M)`: `S = scale`,
+//! `M = −bias / scale` (per DESIGN.md, `bias = −M·S`).
+//!
+//! Departures from USD, on purpose: subdivision schemes are ignored (the cage is the mesh),
+//! instancing and GeomSubset material bindings are not expanded, time-sampled values are read
+//! at their first sample, `elementSize` > 1 is refused.
+
+use super::MeshOptions;
+use crate::error::{Error, Result};
+use crate::heightmap::Wrap;
+use crate::mesh::{BaseMesh, UpAxis};
+use glam::{DMat4, DQuat, DVec3, Mat3, Vec2, Vec3};
+use openusd::sdf::{self, Value};
+use openusd::usd::{Prim, Stage};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// The displacement a USD material carries, in the project's convention.
+#[derive(Clone, Debug, PartialEq)]
+pub struct UsdDisplacement {
+    /// The texture (`inputs:file`), resolved against the layer that authored it.
+    pub file: PathBuf,
+    /// `S` in `D = S·(h − M)`: the texture's `inputs:scale` of the channel used.
+    pub scale: f32,
+    /// `M = −bias / scale`.
+    pub midlevel: f32,
+    pub wrap: Wrap,
+    /// The texture output the displacement reads: `R`, `G`, `B` or `A`.
+    pub channel: String,
+    /// The primvar the texture's `st` reader names (`inputs:varname`), usually `st`.
+    pub uv_primvar: Option<String>,
+}
+
+/// Load every mesh of the stage.
+pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
+    guarded(path, || {
+        let stage = open(path)?;
+        let mut loader = Loader {
+            path,
+            opts,
+            stage: &stage,
+            mesh: BaseMesh {
+                source: path.into(),
+                up_axis: Some(up_axis(&stage)),
+                ..Default::default()
+            },
+            any_uv_missing: false,
+        };
+        let root = stage.prim(sdf::Path::abs_root());
+        for child in children(path, &root)? {
+            loader.visit(&child, DMat4::IDENTITY)?;
+        }
+        let mut mesh = loader.mesh;
+        mesh.missing_uvs = loader.any_uv_missing;
+        mesh.face_flags = vec![0; mesh.triangles.len()];
+        Ok(mesh)
+    })
+}
+
+/// The displacement of the first mesh whose bound material has one (a warning when later
+/// meshes disagree); `None` when no mesh has a texture-driven displacement.
+pub fn displacement(path: &Path) -> Result<Option<UsdDisplacement>> {
+    guarded(path, || {
+        let stage = open(path)?;
+        let mut meshes = Vec::new();
+        collect_meshes(path, &stage.prim(sdf::Path::abs_root()), &mut meshes)?;
+        let mut found: Option<UsdDisplacement> = None;
+        for prim in &meshes {
+            let Some(d) = mesh_displacement(path, &stage, prim)? else { continue };
+            match &found {
+                None => found = Some(d),
+                Some(first) if *first != d => warn(
+                    path,
+                    &format!("{} has a different displacement than the first mesh; the first is used", prim.path()),
+                ),
+                Some(_) => {}
+            }
+        }
+        Ok(found)
+    })
+}
+
+/// openusd may panic on some corrupt inputs: turn that into an error naming the file.
+fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
+        Err(Error::invalid(
+            path,
+            "the USD reader (openusd 0.6) crashed on this file: it is corrupt or uses a feature \
+             the reader lacks (re-export it, or convert it with `usdcat -o file.usda`)",
+        ))
+    })
+}
+
+fn open(path: &Path) -> Result<Stage> {
+    let s = path.to_str().ok_or_else(|| Error::invalid(path, "the path is not UTF-8 (rename the file)"))?;
+    Stage::open(s).map_err(|e| {
+        Error::invalid(
+            path,
+            format!(
+                "cannot be read as USD: {e:#} (the file is truncated or corrupt, or uses a feature \
+                 openusd 0.6 lacks; re-export it, or convert it with `usdcat -o file.usda`)"
+            ),
+        )
+    })
+}
+
+fn warn(path: &Path, what: &str) {
+    eprintln!("warning: {}: {what}", path.display());
+}
+
+/// An error about one prim (or property) of the file, with what to do.
+fn prim_err(path: &Path, at: &sdf::Path, what: impl std::fmt::Display) -> Error {
+    Error::invalid(path, format!("{at}: {what}"))
+}
+
+fn usd_err(path: &Path, at: &sdf::Path, e: impl std::fmt::Display) -> Error {
+    prim_err(path, at, format!("cannot be read: {e:#} (re-export the file)"))
+}
+
+fn up_axis(stage: &Stage) -> UpAxis {
+    match stage.stage_metadata("upAxis").ok().flatten() {
+        Some(v) if v.as_str() == Some("Z") => UpAxis::Z,
+        _ => UpAxis::Y,
+    }
+}
+
+fn children(path: &Path, prim: &Prim) -> Result<Vec<Prim>> {
+    prim.children().map_err(|e| usd_err(path, prim.path(), e))
+}
+
+fn type_name(prim: &Prim) -> String {
+    prim.type_name().ok().flatten().map(|t| t.as_str().to_string()).unwrap_or_default()
+}
+
+/// Defined, active, not a class, and not a guide: a prim that renders.
+fn is_renderable(path: &Path, prim: &Prim) -> Result<bool> {
+    let e = |e| usd_err(path, prim.path(), e);
+    if !prim.is_active().map_err(e)? || !prim.is_defined().map_err(e)? || prim.is_abstract().map_err(e)? {
+        return Ok(false);
+    }
+    let purpose = value(path, prim, "purpose")?;
+    Ok(purpose.as_ref().and_then(|v| v.as_str()) != Some("guide"))
+}
+
+fn collect_meshes(path: &Path, prim: &Prim, out: &mut Vec<Prim>) -> Result<()> {
+    for child in children(path, prim)? {
+        if !is_renderable(path, &child)? {
+            continue;
+        }
+        if type_name(&child) == "Mesh" {
+            out.push(child.clone());
+        }
+        collect_meshes(path, &child, out)?;
+    }
+    Ok(())
+}
+
+/// The composed value of an attribute: its default, else its first time sample.
+fn attr_value(path: &Path, stage: &Stage, attr_path: &sdf::Path) -> Result<Option<Value>> {
+    let attr = stage.attribute(attr_path.clone());
+    let e = |e| usd_err(path, attr_path, e);
+    match attr.get::<Value>().map_err(e)? {
+        Some(Value::ValueBlock) => return Ok(None),
+        Some(v) => return Ok(Some(v)),
+        None => {}
+    }
+    let times = attr.time_sample_times().map_err(e)?;
+    match times.first() {
+        Some(&t) => Ok(attr.get_at::<Value>(openusd::usd::TimeCode::from(t)).map_err(e)?),
+        None => Ok(None),
+    }
+}
+
+fn value(path: &Path, prim: &Prim, name: &str) -> Result<Option<Value>> {
+    let p = property_path(path, prim.path(), name)?;
+    attr_value(path, prim.stage(), &p)
+}
+
+fn property_path(path: &Path, prim: &sdf::Path, name: &str) -> Result<sdf::Path> {
+    prim.append_property(name)
+        .map_err(|e| prim_err(path, prim, format!("invalid property name '{name}': {e:#}")))
+}
+
+fn metadata_token(stage: &Stage, attr: &sdf::Path, key: &str) -> Option<String> {
+    let v: Value = stage.attribute(attr.clone()).get_metadata(key).ok().flatten()?;
+    v.as_str().map(str::to_string)
+}
+
+// ---- value conversion: USD authors the same data as float, double or half ----
+
+fn scalar(v: &Value) -> Option<f64> {
+    Some(match v {
+        Value::Float(x) => *x as f64,
+        Value::Double(x) => *x,
+        Value::Half(x) => x.to_f64(),
+        Value::Int(x) => *x as f64,
+        _ => return None,
+    })
+}
+
+fn vec3(v: &Value) -> Option<DVec3> {
+    Some(match v {
+        Value::Vec3f(a) => DVec3::new(a.x as f64, a.y as f64, a.z as f64),
+        Value::Vec3d(a) => DVec3::new(a.x, a.y, a.z),
+        Value::Vec3h(a) => DVec3::new(a.x.to_f64(), a.y.to_f64(), a.z.to_f64()),
+        _ => return None,
+    })
+}
+
+fn vec4(v: &Value) -> Option<[f64; 4]> {
+    Some(match v {
+        Value::Vec4f(a) => [a.x as f64, a.y as f64, a.z as f64, a.w as f64],
+        Value::Vec4d(a) => [a.x, a.y, a.z, a.w],
+        Value::Vec4h(a) => [a.x.to_f64(), a.y.to_f64(), a.z.to_f64(), a.w.to_f64()],
+        _ => return None,
+    })
+}
+
+fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
+    Some(match v {
+        Value::Vec3fVec(a) => a.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect(),
+        Value::Vec3dVec(a) => a.iter().map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32)).collect(),
+        Value::Vec3hVec(a) => a.iter().map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32())).collect(),
+        _ => return None,
+    })
+}
+
+fn vec2_array(v: &Value) -> Option<Vec<Vec2>> {
+    Some(match v {
+        Value::Vec2fVec(a) => a.iter().map(|p| Vec2::new(p.x, p.y)).collect(),
+        Value::Vec2dVec(a) => a.iter().map(|p| Vec2::new(p.x as f32, p.y as f32)).collect(),
+        Value::Vec2hVec(a) => a.iter().map(|p| Vec2::new(p.x.to_f32(), p.y.to_f32())).collect(),
+        _ => return None,
+    })
+}
+
+fn int_array(v: &Value) -> Option<Vec<i64>> {
+    Some(match v {
+        Value::IntVec(a) => a.iter().map(|&x| x as i64).collect(),
+        Value::Int64Vec(a) => a.clone(),
+        Value::UintVec(a) => a.iter().map(|&x| x as i64).collect(),
+        _ => return None,
+    })
+}
+
+fn kind(v: &Value) -> String {
+    let s = format!("{v:?}");
+    s.split(['(', ' ', '{']).next().unwrap_or("?").to_string()
+}
+
+// ---- transforms ----
+
+/// The prim's local transform and whether it resets the parent's (`!resetXformStack!`).
+fn local_transform(path: &Path, prim: &Prim) -> Result<(DMat4, bool)> {
+    let Some(order) = value(path, prim, "xformOpOrder")? else { return Ok((DMat4::IDENTITY, false)) };
+    let ops: Vec<String> = match order {
+        Value::TokenVec(t) => t.iter().map(|t| t.as_str().to_string()).collect(),
+        other => return Err(prim_err(path, prim.path(), format!("xformOpOrder is {}, expected token[]", kind(&other)))),
+    };
+    let mut m = DMat4::IDENTITY;
+    let mut reset = false;
+    for op in &ops {
+        if op == "!resetXformStack!" {
+            m = DMat4::IDENTITY;
+            reset = true;
+            continue;
+        }
+        let (name, invert) = match op.strip_prefix("!invert!") {
+            Some(n) => (n, true),
+            None => (op.as_str(), false),
+        };
+        let op_m = xform_op(path, prim, name)?;
+        m *= if invert { op_m.inverse() } else { op_m };
+    }
+    Ok((m, reset))
+}
+
+/// One `xformOp:<type>[:suffix]` as a column-vector matrix.
+fn xform_op(path: &Path, prim: &Prim, name: &str) -> Result<DMat4> {
+    let at = property_path(path, prim.path(), name)?;
+    let bad = |what: String| prim_err(path, &at, what);
+    let ty = name
+        .strip_prefix("xformOp:")
+        .map(|r| r.split(':').next().unwrap_or(""))
+        .ok_or_else(|| bad("is listed in xformOpOrder but is not an xformOp (re-export)".into()))?;
+    let v = attr_value(path, prim.stage(), &at)?
+        .ok_or_else(|| bad("is listed in xformOpOrder but has no value (re-export)".into()))?;
+    let want3 = || vec3(&v).ok_or_else(|| bad(format!("is {}, expected a 3-vector", kind(&v))));
+    let want1 = || scalar(&v).ok_or_else(|| bad(format!("is {}, expected a number", kind(&v))));
+    let axis_rot = |axis: char, deg: f64| match axis {
+        'X' => DMat4::from_rotation_x(deg.to_radians()),
+        'Y' => DMat4::from_rotation_y(deg.to_radians()),
+        _ => DMat4::from_rotation_z(deg.to_radians()),
+    };
+    Ok(match ty {
+        "translate" => DMat4::from_translation(want3()?),
+        "scale" => match scalar(&v) {
+            Some(s) => DMat4::from_scale(DVec3::splat(s)),
+            None => DMat4::from_scale(want3()?),
+        },
+        "rotateX" | "rotateY" | "rotateZ" => axis_rot(ty.chars().last().unwrap_or('X'), want1()?),
+        "orient" => {
+            let q = match &v {
+                Value::Quatf(q) => DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64),
+                Value::Quatd(q) => DQuat::from_xyzw(q.x, q.y, q.z, q.w),
+                Value::Quath(q) => DQuat::from_xyzw(q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64()),
+                _ => return Err(bad(format!("is {}, expected a quaternion", kind(&v)))),
+            };
+            DMat4::from_quat(q.normalize())
+        }
+        "transform" => match &v {
+            // USD matrices are row-major with row vectors: its rows are glam's columns.
+            Value::Matrix4d(m) => DMat4::from_cols_array(&m.0),
+            _ => return Err(bad(format!("is {}, expected matrix4d", kind(&v)))),
+        },
+        t if t.len() == 9 && t.starts_with("rotate") => {
+            // rotateABC: about A first, then B, then C; the value is always (x, y, z) degrees.
+            let angles = want3()?;
+            let deg = |c: char| match c {
+                'X' => angles.x,
+                'Y' => angles.y,
+                _ => angles.z,
+            };
+            let mut r = DMat4::IDENTITY;
+            for c in t[6..].chars() {
+                if !matches!(c, 'X' | 'Y' | 'Z') {
+                    return Err(bad(format!("unknown rotation order '{t}'")));
+                }
+                r = axis_rot(c, deg(c)) * r;
+            }
+            r
+        }
+        other => return Err(bad(format!("unknown xformOp type '{other}' (re-export with translate/rotate/scale ops)"))),
+    })
+}
+
+// ---- meshes ----
+
+struct Loader<'a> {
+    path: &'a Path,
+    opts: &'a MeshOptions,
+    stage: &'a Stage,
+    mesh: BaseMesh,
+    any_uv_missing: bool,
+}
+
+/// A primvar expanded to one value per face corner.
+enum Interp {
+    Constant,
+    Uniform,
+    Vertex,
+    FaceVarying,
+}
+
+impl Loader<'_> {
+    fn visit(&mut self, prim: &Prim, parent: DMat4) -> Result<()> {
+        if !is_renderable(self.path, prim)? {
+            return Ok(());
+        }
+        let (local, reset) = local_transform(self.path, prim)?;
+        let world = if reset { local } else { parent * local };
+        if type_name(prim) == "Mesh" {
+            self.mesh_prim(prim, world)?;
+        }
+        for child in children(self.path, prim)? {
+            self.visit(&child, world)?;
+        }
+        Ok(())
+    }
+
+    fn array<T>(&self, prim: &Prim, name: &str, conv: fn(&Value) -> Option<Vec<T>>, want: &str) -> Result<Option<Vec<T>>> {
+        match value(self.path, prim, name)? {
+            None => Ok(None),
+            Some(v) => conv(&v).map(Some).ok_or_else(|| {
+                prim_err(self.path, prim.path(), format!("{name} is {}, expected {want} (re-export)", kind(&v)))
+            }),
+        }
+    }
+
+    fn mesh_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
+        let (path, at) = (self.path, prim.path().clone());
+        let points = self.array(prim, "points", vec3_array, "point3f[]")?.unwrap_or_default();
+        let counts = self.array(prim, "faceVertexCounts", int_array, "int[]")?.unwrap_or_default();
+        let indices = self.array(prim, "faceVertexIndices", int_array, "int[]")?.unwrap_or_default();
+        if points.is_empty() || counts.is_empty() {
+            warn(path, &format!("{at}: mesh has no points or faces; skipped"));
+            return Ok(());
+        }
+        let world32 = world.as_mat4();
+        let linear = Mat3::from_mat4(world32);
+        let det = linear.determinant();
+        if det == 0.0 || !det.is_finite() {
+            warn(path, &format!("{at}: singular transform; skipped"));
+            return Ok(());
+        }
+        let n_points = points.len();
+        // Faces: (first corner, corner count), checked against the index and point arrays.
+        let mut faces = Vec::with_capacity(counts.len());
+        let mut corner = 0usize;
+        let mut skipped = 0usize;
+        for (f, &c) in counts.iter().enumerate() {
+            if c < 0 {
+                return Err(prim_err(path, &at, format!("faceVertexCounts[{f}] is {c}, negative (re-export)")));
+            }
+            let c = c as usize;
+            if corner + c > indices.len() {
+                return Err(prim_err(
+                    path,
+                    &at,
+                    format!(
+                        "faceVertexCounts need more than the {} faceVertexIndices (face {f}; the mesh is truncated, re-export)",
+                        indices.len()
+                    ),
+                ));
+            }
+            if c < 3 {
+                skipped += 1;
+            }
+            faces.push((corner, c));
+            corner += c;
+        }
+        let n_corners = corner;
+        if let Some((k, &i)) = indices[..n_corners].iter().enumerate().find(|(_, &i)| i < 0 || i as usize >= n_points) {
+            return Err(prim_err(
+                path,
+                &at,
+                format!("faceVertexIndices[{k}] is {i} but the mesh has {n_points} points (re-export)"),
+            ));
+        }
+        if skipped > 0 {
+            warn(path, &format!("{at}: {skipped} faces with fewer than 3 corners skipped"));
+        }
+        let point_of = |k: usize| indices[k] as usize;
+
+        let flip = (det < 0.0) != (value(path, prim, "orientation")?.as_ref().and_then(|v| v.as_str()) == Some("leftHanded"));
+        let mut tris: Vec<[usize; 3]> = Vec::new(); // corner indices
+        let mut tri_face: Vec<usize> = Vec::new();
+        for (f, &(first, c)) in faces.iter().enumerate() {
+            for i in 1..c.saturating_sub(1) {
+                let t = [first, first + i, first + i + 1];
+                tris.push(if flip { [t[0], t[2], t[1]] } else { t });
+                tri_face.push(f);
+            }
+        }
+
+        let positions: Vec<Vec3> = points.iter().map(|&p| world32.transform_point3(p)).collect();
+        let point_tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|k| point_of(k) as u32)).collect();
+        let derived = BaseMesh::angle_weighted_normals(&positions, &point_tris);
+        let normal_name = if value(path, prim, "primvars:normals")?.is_some() { "primvars:normals" } else { "normals" };
+        let to_world = linear.inverse().transpose();
+        let file_normals = self.corner_values(prim, normal_name, vec3_array, "normal3f[]", &faces, &indices, n_points, "vertex")?;
+        let uvs = self.corner_uvs(prim, &faces, &indices, n_points)?;
+
+        // One vertex per distinct (point, normal, UV) corner.
+        let mut key_to_vertex: HashMap<(usize, [u32; 3], [u32; 2]), u32> = HashMap::new();
+        let mut corner_vertex = vec![0u32; n_corners];
+        let base = self.mesh.positions.len() as u32;
+        let mut new_pos = Vec::new();
+        let mut new_nrm = Vec::new();
+        let mut new_uv = Vec::new();
+        for &(first, c) in &faces {
+            for k in first..first + c {
+                let p = point_of(k);
+                let n = match &file_normals {
+                    Some(fv) => (to_world * fv[k]).try_normalize().unwrap_or(derived[p]),
+                    None => derived[p],
+                };
+                let uv = uvs.as_ref().map_or(Vec2::ZERO, |u| u[k]);
+                let key = (p, n.to_array().map(f32::to_bits), uv.to_array().map(f32::to_bits));
+                corner_vertex[k] = *key_to_vertex.entry(key).or_insert_with(|| {
+                    new_pos.push(positions[p]);
+                    new_nrm.push(n);
+                    new_uv.push(uv);
+                    base + new_pos.len() as u32 - 1
+                });
+            }
+        }
+        let g = self.mesh.groups.len() as u32;
+        self.mesh.groups.push(at.to_string());
+        self.mesh.positions.extend(new_pos);
+        self.mesh.normals.extend(new_nrm);
+        self.mesh.uvs.extend(new_uv);
+        for t in &tris {
+            self.mesh.triangles.push(t.map(|k| corner_vertex[k]));
+            self.mesh.face_group.push(g);
+        }
+        Ok(())
+    }
+
+    /// The UV primvar: `uv_set` 0 is the one the displacement texture reads (else `st`, else
+    /// the first texCoord2 primvar by name), N > 0 the N-th of the others by name.
+    fn corner_uvs(&mut self, prim: &Prim, faces: &[(usize, usize)], indices: &[i64], n_points: usize) -> Result<Option<Vec<Vec2>>> {
+        let path = self.path;
+        let mut names: Vec<String> = Vec::new();
+        for attr in prim.attributes().map_err(|e| usd_err(path, prim.path(), e))? {
+            let Some((_, name)) = attr.path().split_property() else { continue };
+            let Some(short) = name.strip_prefix("primvars:") else { continue };
+            if short.contains(':') {
+                continue;
+            }
+            let ty = attr.type_name().ok().flatten().map(|t| t.as_str().to_string()).unwrap_or_default();
+            if ty.starts_with("texCoord2") || (ty.starts_with("float2[") && matches!(short, "st" | "uv" | "UVMap")) {
+                names.push(short.to_string());
+            }
+        }
+        names.sort();
+        let preferred = mesh_displacement(path, self.stage, prim)
+            .ok()
+            .flatten()
+            .and_then(|d| d.uv_primvar)
+            .unwrap_or_else(|| "st".to_string());
+        if let Some(i) = names.iter().position(|n| *n == preferred) {
+            let p = names.remove(i);
+            names.insert(0, p);
+        }
+        if names.is_empty() {
+            self.any_uv_missing = true;
+            return Ok(None);
+        }
+        let set = self.opts.uv_set as usize;
+        let Some(name) = names.get(set) else {
+            return Err(prim_err(
+                path,
+                prim.path(),
+                format!(
+                    "has no UV set {set}; its UV primvars are {} (choose one with --uv-set 0..{})",
+                    names.join(", "),
+                    names.len() - 1
+                ),
+            ));
+        };
+        let full = format!("primvars:{name}");
+        self.corner_values(prim, &full, vec2_array, "texCoord2f[]", faces, indices, n_points, "constant")
+    }
+
+    /// An attribute or primvar expanded to one value per face corner (`None` when absent).
+    #[allow(clippy::too_many_arguments)]
+    fn corner_values<T: Copy>(
+        &self,
+        prim: &Prim,
+        name: &str,
+        conv: fn(&Value) -> Option<Vec<T>>,
+        want: &str,
+        faces: &[(usize, usize)],
+        indices: &[i64],
+        n_points: usize,
+        default_interp: &str,
+    ) -> Result<Option<Vec<T>>> {
+        let path = self.path;
+        let Some(mut vals) = self.array(prim, name, conv, want)? else { return Ok(None) };
+        let at = property_path(path, prim.path(), name)?;
+        let interp_tok = metadata_token(self.stage, &at, "interpolation").unwrap_or_else(|| default_interp.to_string());
+        let interp = match interp_tok.as_str() {
+            "constant" => Interp::Constant,
+            "uniform" => Interp::Uniform,
+            "vertex" | "varying" => Interp::Vertex,
+            "faceVarying" => Interp::FaceVarying,
+            other => return Err(prim_err(path, &at, format!("unknown interpolation '{other}' (re-export)"))),
+        };
+        if let Some(v) = self.stage.attribute(at.clone()).get_metadata::<Value>("elementSize").ok().flatten() {
+            if scalar(&v).is_some_and(|s| s != 1.0) {
+                return Err(prim_err(path, &at, "elementSize other than 1 is not supported (re-export with one value per element)"));
+            }
+        }
+        if name.starts_with("primvars:") {
+            if let Some(idx) = self.array(prim, &format!("{name}:indices"), int_array, "int[]")? {
+                let n = vals.len();
+                if let Some((k, &i)) = idx.iter().enumerate().find(|(_, &i)| i < 0 || i as usize >= n) {
+                    return Err(prim_err(path, &at, format!("{name}:indices[{k}] is {i} but there are {n} values (re-export)")));
+                }
+                vals = idx.iter().map(|&i| vals[i as usize]).collect();
+            }
+        }
+        let n_corners: usize = faces.last().map_or(0, |&(f, c)| f + c);
+        let (expected, what) = match interp {
+            Interp::Constant => (1, "1 (constant)"),
+            Interp::Uniform => (faces.len(), "one per face (uniform)"),
+            Interp::Vertex => (n_points, "one per point (vertex)"),
+            Interp::FaceVarying => (n_corners, "one per face corner (faceVarying)"),
+        };
+        if vals.len() < expected {
+            return Err(prim_err(
+                path,
+                &at,
+                format!("has {} values, expected {what}: {expected} (re-export)", vals.len()),
+            ));
+        }
+        let mut out = Vec::with_capacity(n_corners);
+        for (f, &(first, c)) in faces.iter().enumerate() {
+            for k in first..first + c {
+                out.push(match interp {
+                    Interp::Constant => vals[0],
+                    Interp::Uniform => vals[f],
+                    Interp::Vertex => vals[indices[k] as usize],
+                    Interp::FaceVarying => vals[k],
+                });
+            }
+        }
+        Ok(Some(out))
+    }
+}
+
+// ---- materials ----
+
+/// The material bound to the prim or its nearest ancestor (`material:binding`, then the
+/// `full` and `preview` purposes).
+fn bound_material(path: &Path, stage: &Stage, prim: &sdf::Path) -> Result<Option<sdf::Path>> {
+    let mut p = Some(prim.clone());
+    while let Some(cur) = p {
+        if cur.is_abs_root() {
+            break;
+        }
+        for rel in ["material:binding", "material:binding:full", "material:binding:preview"] {
+            let rp = property_path(path, &cur, rel)?;
+            let targets = stage.relationship(rp.clone()).targets().map_err(|e| usd_err(path, &rp, e))?;
+            if let Some(t) = targets.into_iter().next() {
+                return Ok(Some(t));
+            }
+        }
+        p = cur.parent();
+    }
+    Ok(None)
+}
+
+fn info_id(path: &Path, stage: &Stage, shader: &sdf::Path) -> Result<Option<String>> {
+    let p = property_path(path, shader, "info:id")?;
+    Ok(attr_value(path, stage, &p)?.and_then(|v| v.as_str().map(str::to_string)))
+}
+
+/// Follow connections from an input or output attribute through node graphs to the shader
+/// output that feeds it: `(shader prim, output name)`; `None` if it ends in a plain value.
+fn connected_output(path: &Path, stage: &Stage, attr: &sdf::Path) -> Result<Option<(sdf::Path, String)>> {
+    let mut cur = attr.clone();
+    for _ in 0..32 {
+        let conns = stage.attribute(cur.clone()).connections().map_err(|e| usd_err(path, &cur, e))?;
+        let Some(target) = conns.into_iter().next() else { return Ok(None) };
+        let Some((prim, prop)) = target.split_property() else {
+            return Err(prim_err(path, &cur, format!("connects to {target}, which is not a property (re-export)")));
+        };
+        if let Some(out) = prop.strip_prefix("outputs:") {
+            if info_id(path, stage, &prim)?.is_some() {
+                return Ok(Some((prim, out.to_string())));
+            }
+        }
+        cur = target.clone();
+    }
+    Err(prim_err(path, attr, "connection chain is longer than 32 links or cyclic (re-export)"))
+}
+
+/// A shader input's value, following connections to node-graph interface inputs.
+fn input_value(path: &Path, stage: &Stage, shader: &sdf::Path, name: &str) -> Result<Option<Value>> {
+    let mut cur = property_path(path, shader, &format!("inputs:{name}"))?;
+    for _ in 0..32 {
+        let conns = stage.attribute(cur.clone()).connections().map_err(|e| usd_err(path, &cur, e))?;
+        match conns.into_iter().next() {
+            Some(t) => cur = t,
+            None => return attr_value(path, stage, &cur),
+        }
+    }
+    Err(prim_err(path, &cur, "connection chain is longer than 32 links or cyclic (re-export)"))
+}
+
+fn token_input(path: &Path, stage: &Stage, shader: &sdf::Path, name: &str) -> Result<Option<String>> {
+    Ok(input_value(path, stage, shader, name)?.and_then(|v| v.as_str().map(str::to_string)))
+}
+
+/// The texture-driven displacement of one mesh prim, if its material has one.
+fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<UsdDisplacement>> {
+    let Some(material) = bound_material(path, stage, prim.path())? else { return Ok(None) };
+    // The material's displacement output leads to the surface shader; a material that only
+    // wires `outputs:surface` still gets its preview surface's displacement read.
+    let mut surface = None;
+    for out in ["outputs:displacement", "outputs:surface"] {
+        let p = property_path(path, &material, out)?;
+        if let Some((shader, _)) = connected_output(path, stage, &p)? {
+            surface = Some(shader);
+            break;
+        }
+    }
+    let Some(surface) = surface else { return Ok(None) };
+    if info_id(path, stage, &surface)?.as_deref() != Some("UsdPreviewSurface") {
+        return Ok(None);
+    }
+    let disp_in = property_path(path, &surface, "inputs:displacement")?;
+    let Some((tex, output)) = connected_output(path, stage, &disp_in)? else { return Ok(None) };
+    let id = info_id(path, stage, &tex)?.unwrap_or_default();
+    if id != "UsdUVTexture" {
+        return Err(prim_err(
+            path,
+            &disp_in,
+            format!("is driven by a {id} shader ({tex}); only a UsdUVTexture is supported (connect the height texture directly)"),
+        ));
+    }
+    let channel = match output.as_str() {
+        "r" | "rgb" | "rgba" => 0,
+        "g" => 1,
+        "b" => 2,
+        "a" => 3,
+        other => return Err(prim_err(path, &disp_in, format!("reads output '{other}' of {tex}; expected r, g, b or a"))),
+    };
+    let file = match input_value(path, stage, &tex, "file")? {
+        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => resolve_asset(path, stage, &tex, &a),
+        Some(Value::String(s)) if !s.is_empty() => resolve_asset(path, stage, &tex, &sdf::AssetPath::new(s)),
+        _ => {
+            return Err(prim_err(path, &tex, "the displacement texture has no inputs:file (set the height map's path)"));
+        }
+    };
+    let four = |name: &str, default: [f64; 4]| -> Result<[f64; 4]> {
+        Ok(match input_value(path, stage, &tex, name)? {
+            None => default,
+            Some(v) => vec4(&v).ok_or_else(|| prim_err(path, &tex, format!("inputs:{name} is {}, expected float4", kind(&v))))?,
+        })
+    };
+    let scale = four("scale", [1.0; 4])?[channel];
+    let bias = four("bias", [0.0; 4])?[channel];
+    if scale == 0.0 || !scale.is_finite() || !bias.is_finite() {
+        return Err(prim_err(
+            path,
+            &tex,
+            format!("inputs:scale is {scale} for the displacement channel: D = scale·h + bias needs a finite, non-zero scale (fix the material, or pass --scale/--midlevel)"),
+        ));
+    }
+    let wrap_s = token_input(path, stage, &tex, "wrapS")?;
+    let wrap_t = token_input(path, stage, &tex, "wrapT")?;
+    if wrap_s != wrap_t {
+        warn(path, &format!("{tex}: wrapS {wrap_s:?} and wrapT {wrap_t:?} differ; wrapS is used for both"));
+    }
+    let wrap = match wrap_s.as_deref() {
+        None | Some("useMetadata") | Some("repeat") => Wrap::Repeat,
+        Some("clamp") => Wrap::Clamp,
+        Some(other) => {
+            warn(path, &format!("{tex}: wrap mode '{other}' is not supported; repeat is used"));
+            Wrap::Repeat
+        }
+    };
+    if token_input(path, stage, &tex, "sourceColorSpace")?.as_deref() == Some("sRGB") {
+        warn(path, &format!("{tex}: sourceColorSpace is sRGB; height maps are read raw (set it to raw)"));
+    }
+    let st_in = property_path(path, &tex, "inputs:st")?;
+    let uv_primvar = match connected_output(path, stage, &st_in)? {
+        None => None,
+        Some((reader, _)) => {
+            let id = info_id(path, stage, &reader)?.unwrap_or_default();
+            if !id.starts_with("UsdPrimvarReader") {
+                return Err(prim_err(
+                    path,
+                    &st_in,
+                    format!("comes from a {id} shader ({reader}); only a UsdPrimvarReader_float2 is supported (bake UV transforms into the primvar)"),
+                ));
+            }
+            token_input(path, stage, &reader, "varname")?
+        }
+    };
+    Ok(Some(UsdDisplacement {
+        file,
+        scale: scale as f32,
+        midlevel: (-bias / scale) as f32,
+        wrap,
+        channel: ["R", "G", "B", "A"][channel].to_string(),
+        uv_primvar,
+    }))
+}
+
+/// An asset path, resolved by openusd if it did, else relative to the layer that authored it.
+fn resolve_asset(path: &Path, stage: &Stage, tex: &sdf::Path, a: &sdf::AssetPath) -> PathBuf {
+    if let Some(r) = a.resolved_path().filter(|r| !r.is_empty()) {
+        return PathBuf::from(r);
+    }
+    let rel = PathBuf::from(a.asset_path());
+    if rel.is_absolute() {
+        return rel;
+    }
+    let layer_dir = property_path(path, tex, "inputs:file")
+        .ok()
+        .and_then(|p| stage.attribute(p).property_stack().ok())
+        .and_then(|s| s.into_iter().next())
+        .map(|(layer, _)| PathBuf::from(layer))
+        .filter(|l| l.is_file())
+        .unwrap_or_else(|| path.to_path_buf());
+    layer_dir.parent().unwrap_or(Path::new("")).join(rel)
+}
+
+#[cfg(test)]
+#[path = "usd_tests.rs"]
+mod tests;

@@ -1,0 +1,426 @@
+//! USD loader tests on small layers written here: what each one pins is in its name and its
+//! assertion messages. Files from Blender and Pixar's usd-core are checked in tests/python.
+
+use super::*;
+use crate::load::{load_mesh, MeshOptions};
+
+/// A fresh folder per test (tests run in parallel).
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pb_usd_{}_{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(d: &Path, name: &str, text: &str) -> PathBuf {
+    let p = d.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn layer(up: &str, body: &str) -> String {
+    format!("#usda 1.0\n(\n    upAxis = \"{up}\"\n    metersPerUnit = 1\n)\n\n{body}\n")
+}
+
+/// A unit quad (z = 0, counter-clockwise seen from +z) plus a pentagon, with `st` given as
+/// `st_decl` (type, name, value and metadata lines).
+fn quad_and_pentagon(st_decl: &str) -> String {
+    layer(
+        "Y",
+        &format!(
+            r#"def Mesh "M"
+{{
+    int[] faceVertexCounts = [4, 5]
+    int[] faceVertexIndices = [0, 1, 2, 3, 1, 4, 5, 6, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0, 0), (2.5, 0.5, 0), (2, 1, 0)]
+    {st_decl}
+}}"#
+        ),
+    )
+}
+
+fn area_sign_z(m: &BaseMesh, t: usize) -> f32 {
+    m.face_cross(t).z
+}
+
+#[test]
+fn polygons_are_fan_triangulated_counter_clockwise() {
+    let d = dir("poly");
+    let p = write(&d, "a.usda", &quad_and_pentagon(""));
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    assert_eq!(m.triangle_count(), 2 + 3, "a quad gives 2 triangles, a pentagon 3");
+    for t in 0..m.triangle_count() {
+        assert!(area_sign_z(&m, t) > 0.0, "triangle {t} must keep the polygon's winding");
+    }
+    assert!(m.missing_uvs, "no st primvar: the mesh is flagged as having no UVs");
+    assert_eq!(m.up_axis, Some(UpAxis::Y));
+    assert_eq!(m.groups, vec!["/M".to_string()]);
+    for n in &m.normals {
+        assert!((n.z - 1.0).abs() < 1e-5, "derived normals of a flat +z mesh point up, got {n}");
+    }
+}
+
+#[test]
+fn indexed_face_varying_st_is_expanded_per_corner() {
+    let d = dir("fv");
+    // Corner k of the quad reads value indices[k]; the pentagon's corners all read value 0.
+    let st = r#"texCoord2f[] primvars:st = [(0.5, 0.5), (0, 0), (1, 0), (1, 1), (0, 1)] (
+        interpolation = "faceVarying"
+    )
+    int[] primvars:st:indices = [1, 2, 3, 4, 0, 0, 0, 0, 0]"#;
+    let p = write(&d, "a.usda", &quad_and_pentagon(st));
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    assert!(!m.missing_uvs);
+    // The quad's UV at a position (the pentagon's corners all read (0.5, 0.5)).
+    let uv_at = |pos: Vec3| {
+        (0..m.vertex_count())
+            .find(|&v| m.positions[v] == pos && m.uvs[v] != Vec2::splat(0.5))
+            .map(|v| m.uvs[v])
+            .unwrap()
+    };
+    assert_eq!(uv_at(Vec3::new(0.0, 0.0, 0.0)), Vec2::new(0.0, 0.0));
+    assert_eq!(uv_at(Vec3::new(1.0, 1.0, 0.0)), Vec2::new(1.0, 1.0));
+    assert_eq!(uv_at(Vec3::new(0.0, 1.0, 0.0)), Vec2::new(0.0, 1.0), "v points up: no flip");
+    // Point 1 and 2 carry different UVs in the two faces: they are split, so 4 + 5 vertices.
+    assert_eq!(m.vertex_count(), 9, "corners are shared only where point, normal and UV agree");
+}
+
+#[test]
+fn vertex_uniform_and_constant_st_interpolations() {
+    let d = dir("interp");
+    let cases = [
+        (
+            "vertex",
+            r#"texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1), (0.2, 0), (0.3, 0.5), (0.2, 1)] (
+        interpolation = "vertex"
+    )"#,
+            7,
+        ),
+        (
+            "uniform",
+            r#"texCoord2f[] primvars:st = [(0.25, 0.25), (0.75, 0.75)] (
+        interpolation = "uniform"
+    )"#,
+            4 + 5,
+        ),
+        (
+            "constant",
+            r#"texCoord2f[] primvars:st = [(0.5, 0.25)] (
+        interpolation = "constant"
+    )"#,
+            7,
+        ),
+    ];
+    for (name, st, verts) in cases {
+        let p = write(&d, &format!("{name}.usda"), &quad_and_pentagon(st));
+        let m = load_mesh(&p, &MeshOptions::default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(m.vertex_count(), verts, "{name}: vertex count");
+        match name {
+            "vertex" => {
+                let v = m.positions.iter().position(|p| *p == Vec3::new(2.5, 0.5, 0.0)).unwrap();
+                assert_eq!(m.uvs[v], Vec2::new(0.3, 0.5));
+            }
+            "uniform" => {
+                let t_last = m.triangle_count() - 1;
+                assert_eq!(m.corner_uvs(0), [Vec2::splat(0.25); 3]);
+                assert_eq!(m.corner_uvs(t_last), [Vec2::splat(0.75); 3]);
+            }
+            _ => assert!(m.uvs.iter().all(|&u| u == Vec2::new(0.5, 0.25))),
+        }
+    }
+}
+
+#[test]
+fn xform_ops_and_hierarchy_are_applied() {
+    let d = dir("xform");
+    let text = layer(
+        "Z",
+        r#"def Xform "Root"
+{
+    double3 xformOp:translate = (10, 0, 0)
+    float xformOp:rotateZ = 90
+    uniform token[] xformOpOrder = ["xformOp:translate", "xformOp:rotateZ"]
+
+    def Xform "Child"
+    {
+        float3 xformOp:scale = (2, 2, 2)
+        double3 xformOp:translate:pivot = (1, 0, 0)
+        uniform token[] xformOpOrder = ["xformOp:translate:pivot", "xformOp:scale", "!invert!xformOp:translate:pivot"]
+
+        def Mesh "Tri"
+        {
+            int[] faceVertexCounts = [3]
+            int[] faceVertexIndices = [0, 1, 2]
+            point3f[] points = [(1, 0, 0), (2, 0, 0), (1, 1, 0)]
+        }
+    }
+    def Mesh "Moved"
+    {
+        matrix4d xformOp:transform = ( (1, 0, 0, 0), (0, 1, 0, 0), (0, 0, 1, 0), (0, 0, 5, 1) )
+        uniform token[] xformOpOrder = ["!resetXformStack!", "xformOp:transform"]
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    }
+}"#,
+    );
+    let p = write(&d, "a.usda", &text);
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    assert_eq!(m.up_axis, Some(UpAxis::Z));
+    let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+    // Child: scale 2 about the pivot (1,0,0): (1,0,0)→(1,0,0), (2,0,0)→(3,0,0), (1,1,0)→(1,2,0);
+    // then Root: rotate 90° about z, then translate by 10 in x.
+    let tri = m.corners(0);
+    assert!(close(tri[0], Vec3::new(10.0, 1.0, 0.0)), "got {tri:?}");
+    assert!(close(tri[1], Vec3::new(10.0, 3.0, 0.0)), "got {tri:?}");
+    assert!(close(tri[2], Vec3::new(8.0, 1.0, 0.0)), "got {tri:?}");
+    // Moved resets the stack: only its own matrix (row-vector translation (0,0,5)) applies.
+    let moved = m.corners(1);
+    assert!(close(moved[1], Vec3::new(1.0, 0.0, 5.0)), "got {moved:?}");
+}
+
+#[test]
+fn rotate_xyz_applies_x_first() {
+    let d = dir("rotxyz");
+    let text = layer(
+        "Y",
+        r#"def Mesh "M"
+{
+    float3 xformOp:rotateXYZ = (90, 0, 90)
+    uniform token[] xformOpOrder = ["xformOp:rotateXYZ"]
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 1, 0), (0, 0, 0), (1, 0, 0)]
+}"#,
+    );
+    let m = load_mesh(&write(&d, "a.usda", &text), &MeshOptions::default()).unwrap();
+    // (0,1,0): about x by 90° → (0,0,1); then about z → (0,0,1).
+    // (1,0,0): about x → (1,0,0); then about z by 90° → (0,1,0).
+    let c = m.corners(0);
+    assert!((c[0] - Vec3::Z).length() < 1e-5, "got {c:?}");
+    assert!((c[2] - Vec3::Y).length() < 1e-5, "got {c:?}");
+}
+
+#[test]
+fn left_handed_and_mirrored_meshes_come_out_counter_clockwise() {
+    let d = dir("orient");
+    let tri = |extra: &str| {
+        layer(
+            "Y",
+            &format!(
+                r#"def Mesh "M"
+{{
+    {extra}
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    normal3f[] normals = [(0, 0, 1), (0, 0, 1), (0, 0, 1)] (
+        interpolation = "vertex"
+    )
+}}"#
+            ),
+        )
+    };
+    for (name, extra, nz) in [
+        ("plain", "", 1.0),
+        ("left", r#"uniform token orientation = "leftHanded""#, 1.0),
+        ("mirror", "float3 xformOp:scale = (1, 1, -1)\n    uniform token[] xformOpOrder = [\"xformOp:scale\"]", -1.0),
+    ] {
+        let m = load_mesh(&write(&d, &format!("{name}.usda"), &tri(extra)), &MeshOptions::default()).unwrap();
+        let ng = m.face_cross(0).normalize();
+        let n = m.normals[0];
+        assert!((n.z - nz).abs() < 1e-5, "{name}: file normal transformed to world, got {n}");
+        // The winding agrees with the normals whenever the file's winding did (plain,
+        // mirror); a leftHanded mesh with +z normals is clockwise in USD terms, so flipped.
+        let expect = if name == "left" { -nz } else { nz };
+        assert!((ng.z - expect).abs() < 1e-5, "{name}: geometric normal {ng}");
+    }
+}
+
+#[test]
+fn face_varying_normals_and_primvars_normals_win() {
+    let d = dir("normals");
+    let text = layer(
+        "Y",
+        r#"def Mesh "M"
+{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    normal3f[] normals = [(1, 0, 0), (1, 0, 0), (1, 0, 0)] (
+        interpolation = "vertex"
+    )
+    normal3f[] primvars:normals = [(0, 0, 2), (0, 0.6, 0.8)] (
+        interpolation = "faceVarying"
+    )
+    int[] primvars:normals:indices = [0, 1, 0]
+}"#,
+    );
+    let m = load_mesh(&write(&d, "a.usda", &text), &MeshOptions::default()).unwrap();
+    let n = m.corner_normals(0);
+    assert!((n[0] - Vec3::Z).length() < 1e-6, "primvars:normals over normals, renormalised: {n:?}");
+    assert!((n[1] - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-6, "indexed: {n:?}");
+}
+
+#[test]
+fn displacement_material_gives_scale_and_midlevel() {
+    let d = dir("disp");
+    std::fs::create_dir_all(d.join("tex")).unwrap();
+    let text = layer(
+        "Z",
+        r#"def Xform "Asset"
+{
+    def Mesh "M" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+        texCoord2f[] uvA = [(0, 0), (1, 0), (0, 1)]
+        texCoord2f[] primvars:aaa = [(9, 9), (9, 9), (9, 9)] (
+            interpolation = "vertex"
+        )
+        texCoord2f[] primvars:heightUV = [(0, 0), (1, 0), (0, 1)] (
+            interpolation = "vertex"
+        )
+        rel material:binding = </Asset/Looks/Rock>
+    }
+    def Scope "Looks"
+    {
+        def Material "Rock"
+        {
+            token outputs:surface.connect = </Asset/Looks/Rock/Surf.outputs:surface>
+            token outputs:displacement.connect = </Asset/Looks/Rock/Surf.outputs:displacement>
+            def Shader "Surf"
+            {
+                uniform token info:id = "UsdPreviewSurface"
+                float inputs:displacement.connect = </Asset/Looks/Rock/Height.outputs:g>
+                token outputs:surface
+                token outputs:displacement
+            }
+            def Shader "Height"
+            {
+                uniform token info:id = "UsdUVTexture"
+                asset inputs:file = @./tex/h.exr@
+                float4 inputs:scale = (1, 0.2, 1, 1)
+                float4 inputs:bias = (0, -0.06, 0, 0)
+                token inputs:wrapS = "clamp"
+                token inputs:wrapT = "clamp"
+                float2 inputs:st.connect = </Asset/Looks/Rock/Reader.outputs:result>
+                float outputs:g
+            }
+            def Shader "Reader"
+            {
+                uniform token info:id = "UsdPrimvarReader_float2"
+                string inputs:varname = "heightUV"
+                float2 outputs:result
+            }
+        }
+    }
+}"#,
+    );
+    let p = write(&d, "a.usda", &text);
+    let disp = displacement(&p).unwrap().expect("the bound material displaces");
+    assert_eq!(disp.file, d.join("./tex/h.exr"), "relative to the authoring layer");
+    assert!((disp.scale - 0.2).abs() < 1e-6, "scale of channel g");
+    assert!((disp.midlevel - 0.3).abs() < 1e-6, "M = -bias/scale = 0.06/0.2");
+    assert_eq!(disp.wrap, Wrap::Clamp);
+    assert_eq!(disp.channel, "G");
+    assert_eq!(disp.uv_primvar.as_deref(), Some("heightUV"));
+    // The mesh's UV set 0 is the primvar the texture reads, not the first by name.
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    assert_eq!(m.corner_uvs(0)[1], Vec2::new(1.0, 0.0));
+    let m1 = load_mesh(&p, &MeshOptions { uv_set: 1 }).unwrap();
+    assert_eq!(m1.corner_uvs(0)[1], Vec2::splat(9.0), "uv_set 1 = the next primvar by name");
+    let e = load_mesh(&p, &MeshOptions { uv_set: 2 }).unwrap_err().to_string();
+    assert!(e.contains("/Asset/M") && e.contains("heightUV, aaa"), "{e}");
+}
+
+#[test]
+fn meshes_without_materials_have_no_displacement() {
+    let d = dir("nodisp");
+    let p = write(&d, "a.usda", &quad_and_pentagon(""));
+    assert_eq!(displacement(&p).unwrap(), None);
+}
+
+/// Every error names the file and the prim (or property) and what to do; none panics.
+#[test]
+fn bad_files_are_errors_not_panics() {
+    let d = dir("bad");
+    let cases: Vec<(&str, String, &str)> = vec![
+        ("garbage.usda", "this is not usd at all {{{".into(), "cannot be read as USD"),
+        ("empty.usda", String::new(), "cannot be read as USD"),
+        ("binary.usdc", "PXR-USDC\0\0\0\0garbage garbage".into(), "cannot be read as USD"),
+        ("nomesh.usda", layer("Y", "def Xform \"X\"\n{\n}"), "zero triangles"),
+        (
+            "range.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 7]\n    point3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\n}"),
+            "/M: faceVertexIndices[2] is 7",
+        ),
+        (
+            "short.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3, 3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\n}"),
+            "face 1",
+        ),
+        (
+            "negative.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [-3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\n}"),
+            "negative",
+        ),
+        (
+            "stcount.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\n    texCoord2f[] primvars:st = [(0,0)] (\n        interpolation = \"faceVarying\"\n    )\n}"),
+            "/M.primvars:st: has 1 values, expected one per face corner",
+        ),
+        (
+            "stindex.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\n    texCoord2f[] primvars:st = [(0,0)] (\n        interpolation = \"faceVarying\"\n    )\n    int[] primvars:st:indices = [0, 0, 5]\n}"),
+            "primvars:st:indices[2] is 5",
+        ),
+        (
+            "points.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    float[] points = [0, 1, 2]\n}"),
+            "points is FloatVec",
+        ),
+        (
+            "op.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(0,0,0), (1,0,0), (0,1,0)]\n}"),
+            "/M.xformOp:translate: is listed in xformOpOrder but has no value",
+        ),
+        (
+            "nan.usda",
+            layer("Y", "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    point3f[] points = [(nan,0,0), (1,0,0), (0,1,0)]\n}"),
+            "NaN",
+        ),
+    ];
+    for (name, text, want) in cases {
+        let p = write(&d, name, &text);
+        let r = std::panic::catch_unwind(|| load_mesh(&p, &MeshOptions::default()));
+        let e = r.unwrap_or_else(|_| panic!("{name}: panicked")).expect_err(name).to_string();
+        assert!(e.contains(name), "{name}: the error names the file: {e}");
+        assert!(e.contains(want), "{name}: expected '{want}' in: {e}");
+    }
+}
+
+/// Every truncated prefix of a valid binary layer fails cleanly (or loads), never panics.
+#[test]
+fn truncated_usdc_prefixes_fail_cleanly() {
+    let d = dir("trunc");
+    let text = quad_and_pentagon(
+        "texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1), (0.2, 0), (0.3, 0.5), (0.2, 1)] (\n        interpolation = \"vertex\"\n    )",
+    );
+    let data = openusd::usda::parse(&text).unwrap();
+    let full = d.join("full.usdc");
+    openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();
+    let m = load_mesh(&full, &MeshOptions::default()).expect("the whole binary layer loads");
+    assert_eq!(m.triangle_count(), 5);
+    let bytes = std::fs::read(&full).unwrap();
+    let step = (bytes.len() / 97).max(1);
+    for len in (0..bytes.len()).step_by(step) {
+        let p = d.join(format!("cut{len}.usdc"));
+        std::fs::write(&p, &bytes[..len]).unwrap();
+        let r = std::panic::catch_unwind(|| load_mesh(&p, &MeshOptions::default()));
+        assert!(r.is_ok(), "prefix of {len} bytes panicked");
+    }
+}
