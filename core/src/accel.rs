@@ -29,15 +29,20 @@ const AABB_PAD: f32 = 1e-4;
 
 /// Which obvhs hierarchy traverses the prisms.
 ///
-/// Measured with PDM (dt = auto 0.5 texel, jitter on, refine on) on a displaced icosphere
-/// (5120 prisms, 512² map, amplitude 0.08), 512² primary rays, one thread, release build,
-/// this machine's CPU:
+/// Measured with PDM (defaults: dt = auto 0.5 texel, jitter, refine) on a displaced icosphere
+/// (5120 prisms, 512² relief map, amplitude ±0.07), 512² primary rays from one thread, release
+/// build, on a 2-core machine shared with other builds (load ~3.8, so absolute rates are
+/// roughly half of an idle core; the ratio is what counts), two runs each:
 ///
-/// | kind   | Mray/s | nodes × bytes        |
-/// |--------|--------|----------------------|
-/// | Wide   |  see `Scene::new` doc (filled in from the measurement) |
+/// | kind   | Mray/s      | march steps / hit ray | hierarchy bytes |
+/// |--------|-------------|-----------------------|-----------------|
+/// | Binary | 0.29, 0.27  | 10.4                  | 119 696         |
+/// | Wide   | 0.33, 0.27  | 14.1                  |  62 240         |
 ///
-/// The default (`Scene::new`) is the faster of the two.
+/// Wide is as fast or slightly faster and half the memory, so it is the default. (Before the
+/// `prism_hit` half-line fix the same comparison read 0.19/0.20 vs 0.25/0.26.) Reproduce with
+/// a release binary that times `Pdm::intersect` over `Scene::with_bvh(.., kind)`; it belongs
+/// in `prismbake bench`, not in the tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BvhKind {
     /// obvhs `Bvh2`: binary, 48-byte nodes.
@@ -317,6 +322,22 @@ pub(crate) mod fixtures {
             midlevel: 0.5,
         };
         bake(mesh, map, &BakeOptions { params })
+    }
+
+    /// Tilt every vertex normal by up to `amount` (radians, roughly), deterministically. On a
+    /// mesh inscribed in a sphere with radial normals `n_i·N_g` is the same at the three
+    /// corners of a face, which makes the paper's prisms coincide with the shared-wall ones;
+    /// tilted normals break that coincidence, as real assets do.
+    pub fn tilt_normals(mut mesh: BaseMesh, amount: f32) -> BaseMesh {
+        let mut h = 0x9e37_79b9u32;
+        let mut rnd = || {
+            h = pcg_hash(h);
+            to_unit_float(h) * 2.0 - 1.0
+        };
+        for n in mesh.normals.iter_mut() {
+            *n = (*n + Vec3::new(rnd(), rnd(), rnd()) * amount).normalize();
+        }
+        mesh
     }
 
     /// Scale every position of a mesh (normals and UVs unchanged).
