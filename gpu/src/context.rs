@@ -1,0 +1,238 @@
+//! The GPU context, built once: instance → adapter → device, the bind-group layouts, the
+//! compute pipelines and the persistent per-dispatch buffers (frame uniform, one tile of
+//! output, its read-back copy). Dispatches only write the uniform, dispatch and read back.
+//!
+//! Bind groups: group 0 is the scene (`GpuScene`, shared by every kernel), group 1 the
+//! dispatch (frame uniform + the kernel's output). A beauty kernel adds its own pipeline
+//! built from `shaders::LIBRARY` plus its entry file, reusing group 0 and the frame uniform.
+
+use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
+use crate::{shaders, GpuError};
+use std::sync::Mutex;
+
+/// Largest tile of one dispatch, in pixels per side: bounds the output buffer (512² × 48 B =
+/// 12 MiB, far under the 128 MiB binding cap) and the length of one submission on GPUs with
+/// a watchdog.
+pub const MAX_TILE: u32 = 512;
+
+pub struct GpuContext {
+    pub(crate) adapter_info: wgpu::AdapterInfo,
+    pub(crate) device: wgpu::Device,
+    pub(crate) queue: wgpu::Queue,
+    pub(crate) scene_layout: wgpu::BindGroupLayout,
+    pub(crate) aov_pipeline: wgpu::ComputePipeline,
+    pub(crate) frame_buffer: wgpu::Buffer,
+    pub(crate) aov_buffer: wgpu::Buffer,
+    pub(crate) aov_readback: wgpu::Buffer,
+    pub(crate) aov_group: wgpu::BindGroup,
+    /// The persistent buffers serve one dispatch at a time.
+    pub(crate) busy: Mutex<()>,
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl GpuContext {
+    /// Pick an adapter (any wgpu adapter, software ones such as lavapipe included; the usual
+    /// `WGPU_BACKEND` / `WGPU_ADAPTER_NAME` environment variables apply), open a device with
+    /// WebGPU's default limits and build the pipelines.
+    pub fn new() -> Result<GpuContext, GpuError> {
+        pollster::block_on(Self::new_async())
+    }
+
+    async fn new_async() -> Result<GpuContext, GpuError> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let options = wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            force_fallback_adapter: false,
+            compatible_surface: None,
+            apply_limit_buckets: false,
+        };
+        let adapter = instance
+            .request_adapter(&options)
+            .await
+            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
+        let adapter_info = adapter.get_info();
+        let supported = adapter.limits();
+        let required_limits = wgpu::Limits {
+            // Use what the adapter has for the one limit a large scene meets first.
+            max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
+            max_buffer_size: supported.max_buffer_size,
+            ..wgpu::Limits::defaults()
+        };
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("prismbake"),
+                required_features: wgpu::Features::empty(),
+                required_limits,
+                ..Default::default()
+            })
+            .await
+            .map_err(|e| GpuError::Device(format!("{} ({:?}): {e}", adapter_info.name, adapter_info.backend)))?;
+
+        let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene"),
+            entries: &[
+                uniform_entry(0),          // scene: SceneParams
+                storage_entry(1, true),    // prisms: array<Prism>
+                storage_entry(2, true),    // vertices: array<Vertex>
+                storage_entry(3, true),    // nodes: array<BvhNode>
+                storage_entry(4, true),    // prim_indices: array<u32>
+                storage_entry(5, true),    // height_map: array<f32>
+            ],
+        });
+        let aov_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("aov dispatch"),
+            entries: &[
+                uniform_entry(0),          // frame: Frame
+                storage_entry(1, false),   // aov_out: array<AovPixel>
+            ],
+        });
+
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("aov.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shaders::aov_module_source().into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("aov"),
+            bind_group_layouts: &[Some(&scene_layout), Some(&aov_layout)],
+            immediate_size: 0,
+        });
+        let aov_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("render_aovs"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("render_aovs"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        if let Some(e) = scope.pop().await {
+            return Err(GpuError::Shader(e.to_string()));
+        }
+
+        let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<GpuFrame>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let tile_bytes = (MAX_TILE * MAX_TILE) as u64 * std::mem::size_of::<GpuAovPixel>() as u64;
+        let aov_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("aov tile"),
+            size: tile_bytes,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let aov_readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("aov readback"),
+            size: tile_bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let aov_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("aov dispatch"),
+            layout: &aov_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }, // frame
+                wgpu::BindGroupEntry { binding: 1, resource: aov_buffer.as_entire_binding() },   // aov_out
+            ],
+        });
+        debug_assert_eq!(MAX_TILE % WORKGROUP, 0);
+        Ok(GpuContext {
+            adapter_info,
+            device,
+            queue,
+            scene_layout,
+            aov_pipeline,
+            frame_buffer,
+            aov_buffer,
+            aov_readback,
+            aov_group,
+            busy: Mutex::new(()),
+        })
+    }
+
+    /// The adapter's name, as the driver reports it (e.g. "llvmpipe (LLVM 15.0.6, 256 bits)").
+    pub fn adapter_name(&self) -> &str {
+        &self.adapter_info.name
+    }
+
+    /// "name (backend, device type)", for logs.
+    pub fn adapter_description(&self) -> String {
+        format!("{} ({:?}, {:?})", self.adapter_info.name, self.adapter_info.backend, self.adapter_info.device_type)
+    }
+
+    /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).
+    pub fn is_software(&self) -> bool {
+        self.adapter_info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    pub fn queue(&self) -> &wgpu::Queue {
+        &self.queue
+    }
+
+    /// Largest storage-buffer binding this device accepts.
+    pub fn max_binding_bytes(&self) -> u64 {
+        self.device.limits().max_storage_buffer_binding_size
+    }
+
+    /// Copy `size` bytes of `src` to the read-back buffer, submit, wait, and hand the bytes to
+    /// `f`. Shared by every kernel's read-back.
+    pub(crate) fn read_back<R>(
+        &self,
+        encoder: wgpu::CommandEncoder,
+        size: u64,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R, GpuError> {
+        let mut encoder = encoder;
+        encoder.copy_buffer_to_buffer(&self.aov_buffer, 0, &self.aov_readback, 0, size);
+        self.queue.submit([encoder.finish()]);
+        let slice = self.aov_readback.slice(0..size);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Device(format!("waiting for the GPU: {e}")))?;
+        rx.recv()
+            .map_err(|e| GpuError::Device(format!("read-back: {e}")))?
+            .map_err(|e| GpuError::Device(format!("read-back: {e}")))?;
+        let out = {
+            let view = slice
+                .get_mapped_range()
+                .map_err(|e| GpuError::Device(format!("read-back: {e}")))?;
+            f(&view)
+        };
+        self.aov_readback.unmap();
+        Ok(out)
+    }
+}

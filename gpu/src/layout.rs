@@ -1,0 +1,166 @@
+//! Host mirrors of the structs the shaders read and write (`shaders/common.wgsl`).
+//!
+//! Every struct is `#[repr(C)]` + bytemuck, its byte size is in its doc comment and asserted
+//! at compile time, and `tests/layout.rs` parses the WGSL with naga (wgpu's own copy,
+//! `wgpu::naga`) and compares every member offset and struct size with `offset_of!` here.
+//! Sentinels are defined once here and mirrored as WGSL constants (also tested).
+
+use bytemuck::{Pod, Zeroable};
+
+/// "No prism" in the `prism` member of `GpuAovPixel` (= `prismbake::trace::NO_PRISM`).
+pub const NO_PRISM: u32 = prismbake::trace::NO_PRISM;
+/// The shaders' stand-in for `f32::INFINITY` (WGSL lets an implementation assume that no
+/// infinities occur at run time, so `t_max = ∞` is this large finite value on the GPU).
+pub const T_FAR: f32 = 3.0e38;
+/// Compute workgroup edge: the AOV kernel runs `@workgroup_size(8, 8)`; the host dispatches
+/// `div_ceil(tile, WORKGROUP)` groups per axis.
+pub const WORKGROUP: u32 = 8;
+
+/// One prism record, 36 bytes: `prismbake::bake::Prism` as the shader reads it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPrism {
+    pub tri: [u32; 3],
+    pub flags: u32,
+    pub d_min: f32,
+    pub d_max: f32,
+    pub lambda_lo: f32,
+    pub lambda_hi: f32,
+    pub texel_world: f32,
+}
+
+/// One base vertex, 32 bytes: position, unit normal and UV (u and v fill the vec3 padding).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertex {
+    pub position: [f32; 3],
+    pub u: f32,
+    pub normal: [f32; 3],
+    pub v: f32,
+}
+
+/// One BVH2 node, 32 bytes: obvhs's `Bvh2Node` layout with feature `small_bvh2_node`
+/// (`prim_count == 0`: inner node, children at `first_index` and `first_index + 1`; else a
+/// leaf whose prisms are `prim_indices[first_index .. first_index + prim_count]`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBvhNode {
+    pub min: [f32; 3],
+    pub prim_count: u32,
+    pub max: [f32; 3],
+    pub first_index: u32,
+}
+
+/// Scene-wide constants, 32 bytes (uniform).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSceneParams {
+    pub map_width: u32,
+    pub map_height: u32,
+    /// 0 = repeat, 1 = clamp (`prismbake::Wrap`).
+    pub wrap: u32,
+    pub node_count: u32,
+    pub disp_scale: f32,
+    pub disp_midlevel: f32,
+    pub prism_count: u32,
+    pub _pad: u32,
+}
+
+/// Per-dispatch constants, 112 bytes (uniform): the camera basis (computed on the host,
+/// exactly as `Camera::ray` does), the tile, sampling and PDM options.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuFrame {
+    pub cam_from: [f32; 3],
+    pub tan_half_fov: f32,
+    pub cam_right: [f32; 3],
+    pub aspect: f32,
+    pub cam_up: [f32; 3],
+    pub width: u32,
+    pub cam_back: [f32; 3],
+    pub height: u32,
+    pub tile_origin: [u32; 2],
+    pub tile_size: [u32; 2],
+    pub spp: u32,
+    pub seed: u32,
+    /// 1: `dt_value` is a fraction of the prism's texel size (`StepSize::Auto`); 0: world.
+    pub dt_auto: u32,
+    pub dt_value: f32,
+    pub jitter: u32,
+    pub refine: u32,
+    /// 0 = smooth, 1 = geometric (`NormalMode`).
+    pub normal_mode: u32,
+    pub _pad: u32,
+}
+
+/// One pixel of AOVs as the kernel writes it, 48 bytes. `steps_sum` is the sum over samples
+/// (the CPU's accumulator); the host divides by spp.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuAovPixel {
+    pub normal: [f32; 3],
+    pub depth: f32,
+    pub uv: [f32; 2],
+    pub mask: f32,
+    pub steps_sum: f32,
+    /// Prism id + 1 of the first sample that hit, 0 = miss (the `prism` AOV's convention).
+    pub prism: u32,
+    pub _pad: [u32; 3],
+}
+
+const _: () = {
+    assert!(std::mem::size_of::<GpuPrism>() == 36);
+    assert!(std::mem::size_of::<GpuVertex>() == 32);
+    assert!(std::mem::size_of::<GpuBvhNode>() == 32);
+    assert!(std::mem::size_of::<GpuSceneParams>() == 32);
+    assert!(std::mem::size_of::<GpuFrame>() == 112);
+    assert!(std::mem::size_of::<GpuAovPixel>() == 48);
+};
+
+/// `(WGSL struct name, Rust size, [(member, Rust offset)])` for every shared struct, in the
+/// form the layout test compares against naga's view of the WGSL.
+pub fn shared_layouts() -> Vec<(&'static str, usize, Vec<(&'static str, usize)>)> {
+    macro_rules! layout {
+        ($wgsl:literal, $ty:ty { $($field:ident),* $(,)? }) => {
+            ($wgsl, std::mem::size_of::<$ty>(), vec![$((stringify!($field), std::mem::offset_of!($ty, $field))),*])
+        };
+    }
+    vec![
+        layout!("Prism", GpuPrism { tri, flags, d_min, d_max, lambda_lo, lambda_hi, texel_world }),
+        layout!("Vertex", GpuVertex { position, u, normal, v }),
+        layout!("BvhNode", GpuBvhNode { min, prim_count, max, first_index }),
+        layout!(
+            "SceneParams",
+            GpuSceneParams { map_width, map_height, wrap, node_count, disp_scale, disp_midlevel, prism_count, _pad }
+        ),
+        layout!(
+            "Frame",
+            GpuFrame {
+                cam_from, tan_half_fov, cam_right, aspect, cam_up, width, cam_back, height, tile_origin,
+                tile_size, spp, seed, dt_auto, dt_value, jitter, refine, normal_mode, _pad
+            }
+        ),
+        layout!("AovPixel", GpuAovPixel { normal, depth, uv, mask, steps_sum, prism, _pad }),
+    ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::mem::offset_of;
+
+    #[test]
+    fn sizes_and_offsets_match_the_wgsl_rules() {
+        // vec3<f32> has 16-byte alignment in WGSL: a scalar after each vec3 fills its padding.
+        // A reordering here without the same change in common.wgsl breaks this test.
+        assert_eq!(offset_of!(GpuVertex, normal), 16);
+        assert_eq!(offset_of!(GpuBvhNode, max), 16);
+        assert_eq!(offset_of!(GpuFrame, cam_back), 48);
+        assert_eq!(offset_of!(GpuFrame, tile_origin), 64);
+        assert_eq!(offset_of!(GpuFrame, spp), 80);
+        assert_eq!(offset_of!(GpuFrame, jitter), 96);
+        assert_eq!(offset_of!(GpuAovPixel, uv), 16);
+        assert_eq!(offset_of!(GpuAovPixel, prism), 32);
+        assert_eq!(offset_of!(GpuPrism, texel_world), 32);
+    }
+}

@@ -1,0 +1,43 @@
+//! prismbake on the GPU: wgpu compute kernels that trace the same displaced surface as the CPU
+//! renderer, with the same hit records and the same random numbers.
+//!
+//! * `GpuContext::new()` — adapter, device, pipelines and persistent buffers, built once. Any
+//!   wgpu adapter works, software ones included (Mesa's lavapipe is what CI uses).
+//! * `GpuScene::upload(&ctx, &scene)` — prisms, vertices, a BVH2 over the CPU's prism boxes,
+//!   the height map.
+//! * `render_aovs(&ctx, &gpu_scene, &camera, &settings, &pdm_options, progress)` — one frame of
+//!   AOVs as `prismbake::render::AovImage`, so `render::output::write_frame` writes it.
+//! * `job::run` — a whole `RenderJob` (frames, turntables, files) on the GPU.
+//!
+//! The shaders (`shaders/*.wgsl`, one per stage) mirror the CPU function by function under the
+//! same names: `pcg_hash`/`hash_counters` (rng), `camera_ray` (`Camera::ray`), `sample_map`
+//! (`HeightMap::sample`), `surface_point`, `project_to_prism` (canonical),
+//! `ray_prism_interval` (prism_hit), `intersect_prism`, `march`, `crossing`,
+//! `refine_canonical`, `flat_hit`, `fill_surface`, `intersect` (pdm) and `render_aovs`
+//! (render). Parity is tested image against image (`tests/parity.rs`); see docs/gpu.md.
+
+pub mod context;
+pub mod job;
+pub mod layout;
+pub mod render;
+pub mod scene;
+pub mod shaders;
+
+pub use context::GpuContext;
+pub use render::render_aovs;
+pub use scene::GpuScene;
+
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    /// No wgpu adapter at all (no GPU driver, no software Vulkan such as lavapipe).
+    #[error("no GPU adapter found ({0}); install a Vulkan driver (Debian: mesa-vulkan-drivers for the lavapipe software rasteriser) or use --device cpu")]
+    NoAdapter(String),
+    #[error("could not open the GPU device: {0}")]
+    Device(String),
+    #[error("shader or pipeline rejected by wgpu: {0}")]
+    Shader(String),
+    #[error("{what}: {bytes} bytes exceed this GPU's storage-binding limit of {limit} bytes; use --device cpu or a smaller asset")]
+    TooLarge { what: &'static str, bytes: u64, limit: u64 },
+    #[error("not supported on the GPU: {0}")]
+    Unsupported(String),
+}

@@ -1,0 +1,159 @@
+//! A `prismbake::accel::Scene` on the GPU: prism records, base vertices, a BVH2 over the same
+//! padded prism boxes the CPU uses (`accel::prism_aabbs`), and the height map as a plain f32
+//! storage buffer (read with loads and the CPU's bilinear weights and wrap, so that sampling is
+//! bit-for-bit the CPU's rather than a texture unit's 8-bit-fraction filtering).
+//!
+//! The CPU scene holds a CWBVH (8-wide, best on CPUs); the GPU gets a binary obvhs BVH2 built
+//! from the same boxes, flattened into `GpuBvhNode`s (obvhs's `small_bvh2_node` layout; the
+//! feature itself is not enabled, so the CPU's BVH2 is unchanged) with leaves pointing into a
+//! prism index list.
+
+use crate::context::GpuContext;
+use crate::layout::{GpuBvhNode, GpuPrism, GpuSceneParams, GpuVertex};
+use crate::GpuError;
+use obvhs::bvh2::builder::build_bvh2;
+use obvhs::BvhBuildParams;
+use prismbake::accel::{prism_aabbs, Scene};
+use prismbake::Wrap;
+use std::time::Duration;
+use wgpu::util::DeviceExt;
+
+/// The flattened hierarchy: nodes (root first) and the leaf-to-prism index list.
+pub struct FlatBvh {
+    pub nodes: Vec<GpuBvhNode>,
+    pub prim_indices: Vec<u32>,
+}
+
+/// Build a BVH2 over the scene's prism boxes (obvhs `medium_build`, as the CPU) and flatten it.
+pub fn flatten_bvh(scene: &Scene) -> FlatBvh {
+    let aabbs = prism_aabbs(&scene.table);
+    if aabbs.is_empty() {
+        return FlatBvh { nodes: vec![], prim_indices: vec![] };
+    }
+    let mut build_time = Duration::default();
+    let bvh = build_bvh2(&aabbs, BvhBuildParams::medium_build(), &mut build_time);
+    let nodes = bvh
+        .nodes
+        .iter()
+        .map(|n| GpuBvhNode {
+            min: n.aabb.min.to_array(),
+            prim_count: n.prim_count,
+            max: n.aabb.max.to_array(),
+            first_index: n.first_index,
+        })
+        .collect();
+    FlatBvh { nodes, prim_indices: bvh.primitive_indices.clone() }
+}
+
+pub struct GpuScene {
+    pub(crate) group: wgpu::BindGroup,
+    pub(crate) params: GpuSceneParams,
+    bytes: u64,
+    method_bytes: u64,
+}
+
+impl GpuScene {
+    /// Upload a scene. Fails with `GpuError::TooLarge` if one array exceeds the device's
+    /// storage-binding limit (128 MiB on WebGPU defaults: ~33 M map texels, ~3.7 M prisms).
+    pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
+        let table = &scene.table;
+        let prisms: Vec<GpuPrism> = table
+            .prisms
+            .iter()
+            .map(|p| GpuPrism {
+                tri: p.tri,
+                flags: p.flags,
+                d_min: p.d_min,
+                d_max: p.d_max,
+                lambda_lo: p.lambda_lo,
+                lambda_hi: p.lambda_hi,
+                texel_world: p.texel_world,
+            })
+            .collect();
+        let vertices: Vec<GpuVertex> = (0..table.positions.len())
+            .map(|i| GpuVertex {
+                position: table.positions[i].to_array(),
+                u: table.uvs[i].x,
+                normal: table.normals[i].to_array(),
+                v: table.uvs[i].y,
+            })
+            .collect();
+        let bvh = flatten_bvh(scene);
+        let map = &scene.map;
+        let params = GpuSceneParams {
+            map_width: map.width,
+            map_height: map.height,
+            wrap: match map.wrap {
+                Wrap::Repeat => 0,
+                Wrap::Clamp => 1,
+            },
+            node_count: bvh.nodes.len() as u32,
+            disp_scale: table.params.scale,
+            disp_midlevel: table.params.midlevel,
+            prism_count: prisms.len() as u32,
+            _pad: 0,
+        };
+        let limit = ctx.max_binding_bytes();
+        let mut bytes = 0u64;
+        let mut storage = |what: &'static str, data: &[u8]| -> Result<wgpu::Buffer, GpuError> {
+            if data.len() as u64 > limit {
+                return Err(GpuError::TooLarge { what, bytes: data.len() as u64, limit });
+            }
+            bytes += data.len() as u64;
+            // Zero-sized bindings are invalid: an empty array gets one zeroed element.
+            let padded;
+            let contents = if data.is_empty() {
+                padded = [0u8; 32];
+                &padded[..]
+            } else {
+                data
+            };
+            Ok(ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(what),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            }))
+        };
+        let prism_buf = storage("prisms", bytemuck::cast_slice(&prisms))?;
+        let vertex_buf = storage("vertices", bytemuck::cast_slice(&vertices))?;
+        let node_buf = storage("BVH nodes", bytemuck::cast_slice(&bvh.nodes))?;
+        let index_buf = storage("BVH prism indices", bytemuck::cast_slice(&bvh.prim_indices))?;
+        let map_buf = storage("height map", bytemuck::cast_slice(&map.data))?;
+        let param_buf = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("scene params"),
+            contents: bytemuck::bytes_of(&params),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene"),
+            layout: &ctx.scene_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: param_buf.as_entire_binding() },  // scene
+                wgpu::BindGroupEntry { binding: 1, resource: prism_buf.as_entire_binding() },  // prisms
+                wgpu::BindGroupEntry { binding: 2, resource: vertex_buf.as_entire_binding() }, // vertices
+                wgpu::BindGroupEntry { binding: 3, resource: node_buf.as_entire_binding() },   // nodes
+                wgpu::BindGroupEntry { binding: 4, resource: index_buf.as_entire_binding() },  // prim_indices
+                wgpu::BindGroupEntry { binding: 5, resource: map_buf.as_entire_binding() },    // height_map
+            ],
+        });
+        let method_bytes = (std::mem::size_of_val(&bvh.nodes[..])
+            + std::mem::size_of_val(&bvh.prim_indices[..])
+            + std::mem::size_of_val(&prisms[..])) as u64;
+        Ok(GpuScene { group, params, bytes, method_bytes })
+    }
+
+    pub fn prism_count(&self) -> u32 {
+        self.params.prism_count
+    }
+
+    /// Bytes uploaded (prisms, vertices, BVH, map).
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+
+    /// Bytes of what PDM holds beyond mesh and map (BVH nodes, indices, prism records): the
+    /// GPU counterpart of `Intersector::memory_bytes`.
+    pub fn method_bytes(&self) -> u64 {
+        self.method_bytes
+    }
+}

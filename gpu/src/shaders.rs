@@ -1,0 +1,33 @@
+//! The WGSL sources (`shaders/`, one file per stage), included at build time and concatenated
+//! into one module: WGSL resolves names across the whole module, so the order only matters
+//! for reading (shared declarations first, the entry point last).
+
+/// Structs shared with the host, sentinels, the scene bind group, small helpers.
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");
+/// Counter-based random numbers (mirror of `prismbake::rng`).
+pub const RNG: &str = include_str!("../../shaders/rng.wgsl");
+/// Primary rays and pixel jitter (mirror of `prismbake::render::camera`).
+pub const CAMERA: &str = include_str!("../../shaders/camera.wgsl");
+/// Bilinear height-map sampling (mirror of `prismbake::heightmap`).
+pub const HEIGHTMAP: &str = include_str!("../../shaders/heightmap.wgsl");
+/// BVH2 closest-hit traversal (GPU counterpart of `prismbake::accel::Scene::closest_hit`).
+pub const BVH: &str = include_str!("../../shaders/bvh.wgsl");
+/// Ray vs prism interval (mirror of `prismbake::trace::prism_hit`).
+pub const PRISM_HIT: &str = include_str!("../../shaders/prism_hit.wgsl");
+/// Canonical surface and projection (mirror of `prismbake::canonical`).
+pub const CANONICAL: &str = include_str!("../../shaders/canonical.wgsl");
+/// The PDM march and refinement (mirror of `prismbake::trace::pdm`).
+pub const PDM: &str = include_str!("../../shaders/pdm.wgsl");
+/// The AOV kernel (mirror of `prismbake::render::render_aovs`).
+pub const AOV: &str = include_str!("../../shaders/aov.wgsl");
+
+/// Every stage but the entry points: what any kernel (AOVs now, beauty later) builds on.
+pub const LIBRARY: [&str; 8] = [COMMON, RNG, CAMERA, HEIGHTMAP, BVH, PRISM_HIT, CANONICAL, PDM];
+
+/// The AOV module: the library plus `aov.wgsl` (entry point `render_aovs`).
+pub fn aov_module_source() -> String {
+    let mut s = LIBRARY.join("\n");
+    s.push('\n');
+    s.push_str(AOV);
+    s
+}

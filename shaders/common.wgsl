@@ -1,0 +1,167 @@
+// common.wgsl — structs shared with the host (gpu/src/layout.rs mirrors each one; the layout
+// test compares member offsets and sizes through naga), sentinels, scene bindings and small
+// helpers. The other stage files are appended to this one into a single module
+// (gpu/src/shaders.rs), so every declaration here is visible to them.
+
+// Sentinels, mirrored from the host (prismbake::trace::NO_PRISM, gpu::layout::T_FAR).
+const NO_PRISM: u32 = 0xffffffffu;
+// Stands for +infinity: WGSL lets an implementation assume no infinities at run time.
+const T_FAR: f32 = 3.0e38;
+// prismbake::bake::{PRISM_FLAT, M_LO_FLOOR}.
+const PRISM_FLAT: u32 = 1u;
+const M_LO_FLOOR: f32 = 1e-3;
+// Smallest normal length (glam's normalize_or_zero gives zero where 1/len is not finite).
+const TINY_LEN: f32 = 1e-30;
+
+// GpuPrism, 36 bytes.
+struct Prism {
+    tri: array<u32, 3>,
+    flags: u32,
+    d_min: f32,
+    d_max: f32,
+    lambda_lo: f32,
+    lambda_hi: f32,
+    texel_world: f32,
+}
+
+// GpuVertex, 32 bytes.
+struct Vertex {
+    position: vec3f,
+    u: f32,
+    normal: vec3f,
+    v: f32,
+}
+
+// GpuBvhNode, 32 bytes (obvhs Bvh2Node with small_bvh2_node).
+struct BvhNode {
+    min: vec3f,
+    prim_count: u32,
+    max: vec3f,
+    first_index: u32,
+}
+
+// GpuSceneParams, 32 bytes.
+struct SceneParams {
+    map_width: u32,
+    map_height: u32,
+    wrap: u32,           // 0 repeat, 1 clamp
+    node_count: u32,
+    disp_scale: f32,
+    disp_midlevel: f32,
+    prism_count: u32,
+    _pad: u32,
+}
+
+// GpuFrame, 112 bytes.
+struct Frame {
+    cam_from: vec3f,
+    tan_half_fov: f32,
+    cam_right: vec3f,
+    aspect: f32,
+    cam_up: vec3f,
+    width: u32,
+    cam_back: vec3f,
+    height: u32,
+    tile_origin: vec2<u32>,
+    tile_size: vec2<u32>,
+    spp: u32,
+    seed: u32,
+    dt_auto: u32,        // 1: dt_value × texel size (StepSize::Auto); 0: world units
+    dt_value: f32,
+    jitter: u32,
+    refine: u32,
+    normal_mode: u32,    // 0 smooth, 1 geometric
+    _pad: u32,
+}
+
+// GpuAovPixel, 48 bytes.
+struct AovPixel {
+    normal: vec3f,
+    depth: f32,
+    uv: vec2f,
+    mask: f32,
+    steps_sum: f32,
+    prism: u32,          // prism id + 1 of the first hit, 0 = miss
+    _pad: array<u32, 3>,
+}
+
+// Group 0: the scene (GpuScene), shared by every kernel.
+@group(0) @binding(0) var<uniform> scene: SceneParams;
+@group(0) @binding(1) var<storage, read> prisms: array<Prism>;
+@group(0) @binding(2) var<storage, read> vertices: array<Vertex>;
+@group(0) @binding(3) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(4) var<storage, read> prim_indices: array<u32>;
+@group(0) @binding(5) var<storage, read> height_map: array<f32>;
+
+// prismbake::trace::Ray.
+struct Ray {
+    origin: vec3f,
+    dir: vec3f,
+    t_min: f32,
+    t_max: f32,
+}
+
+fn ray_at(ray: Ray, t: f32) -> vec3f {
+    return ray.origin + ray.dir * t;
+}
+
+// prismbake::trace::RayContext.
+struct RayContext {
+    pixel: u32,
+    sample: u32,
+    bounce: u32,
+    seed: u32,
+}
+
+// prismbake::trace::Hit.
+struct Hit {
+    t: f32,
+    prism: u32,
+    bary: vec3f,
+    uv: vec2f,
+    position: vec3f,
+    geometric_normal: vec3f,
+    shading_normal: vec3f,
+    steps: u32,
+}
+
+fn no_hit() -> Hit {
+    return Hit(T_FAR, NO_PRISM, vec3f(0.0), vec2f(0.0), vec3f(0.0), vec3f(0.0), vec3f(0.0), 0u);
+}
+
+// glam's normalize_or_zero.
+fn normalize_or_zero(v: vec3f) -> vec3f {
+    let len = length(v);
+    if (len > TINY_LEN) {
+        return v * (1.0 / len);
+    }
+    return vec3f(0.0);
+}
+
+fn min_element(v: vec3f) -> f32 {
+    return min(min(v.x, v.y), v.z);
+}
+
+// Solve J x = f for a 3×3 J given by its columns, as glam's `Mat3::inverse() * f` does it
+// (adjugate from column cross products, times 1/det). `ok` is false for |det| < 1e-30.
+struct Solve3 {
+    ok: bool,
+    x: vec3f,
+}
+
+fn solve3(c0: vec3f, c1: vec3f, c2: vec3f, f: vec3f) -> Solve3 {
+    let t0 = cross(c1, c2);
+    let t1 = cross(c2, c0);
+    let t2 = cross(c0, c1);
+    let det = dot(c2, t2);
+    if (abs(det) < 1e-30) {
+        return Solve3(false, vec3f(0.0));
+    }
+    let inv_det = 1.0 / det;
+    // inverse = transpose(cols(t0, t1, t2)) / det, so (inverse * f)_k = t_k · f / det.
+    return Solve3(true, vec3f(dot(t0, f), dot(t1, f), dot(t2, f)) * inv_det);
+}
+
+fn finite(x: f32) -> bool {
+    return abs(x) <= 3.4028235e38;
+}

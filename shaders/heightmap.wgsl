@@ -1,0 +1,76 @@
+// heightmap.wgsl — the mirror of prismbake::heightmap::HeightMap: bilinear sampling with
+// texel centres at (i + 0.5) / N, row 0 at the top (v up), repeat or clamp wrap, read with
+// plain loads from a storage buffer so every texel and weight is the CPU's.
+
+// Texel (x, y) with the wrap mode applied; x, y may be any integers.
+fn texel(x: i32, y: i32) -> f32 {
+    let w = i32(scene.map_width);
+    let h = i32(scene.map_height);
+    var xx: i32;
+    var yy: i32;
+    if (scene.wrap == 0u) {
+        // rem_euclid
+        xx = ((x % w) + w) % w;
+        yy = ((y % h) + h) % h;
+    } else {
+        xx = clamp(x, 0, w - 1);
+        yy = clamp(y, 0, h - 1);
+    }
+    return height_map[u32(yy * w + xx)];
+}
+
+// Continuous texel coordinates of a UV: texel (i, j) has its centre at (i + 0.5, j + 0.5).
+fn texel_coords(uv: vec2f) -> vec2f {
+    return vec2f(uv.x * f32(scene.map_width), (1.0 - uv.y) * f32(scene.map_height));
+}
+
+// Bilinear sample of the raw map value at `uv`.
+fn sample_map(uv: vec2f) -> f32 {
+    let p = texel_coords(uv) - vec2f(0.5);
+    let fx = floor(p.x);
+    let fy = floor(p.y);
+    let tx = p.x - fx;
+    let ty = p.y - fy;
+    let x = i32(fx);
+    let y = i32(fy);
+    let a = texel(x, y);
+    let b = texel(x + 1, y);
+    let c = texel(x, y + 1);
+    let d = texel(x + 1, y + 1);
+    let top = a + (b - a) * tx;
+    let bottom = c + (d - c) * tx;
+    return top + (bottom - top) * ty;
+}
+
+// Bilinear sample and its gradient with respect to (u, v) (HeightMap::sample_grad).
+struct SampleGrad {
+    value: f32,
+    grad: vec2f,
+}
+
+fn sample_grad(uv: vec2f) -> SampleGrad {
+    let p = texel_coords(uv) - vec2f(0.5);
+    let fx = floor(p.x);
+    let fy = floor(p.y);
+    let tx = p.x - fx;
+    let ty = p.y - fy;
+    let x = i32(fx);
+    let y = i32(fy);
+    let a = texel(x, y);
+    let b = texel(x + 1, y);
+    let c = texel(x, y + 1);
+    let d = texel(x + 1, y + 1);
+    let top = a + (b - a) * tx;
+    let bottom = c + (d - c) * tx;
+    let value = top + (bottom - top) * ty;
+    let d_dx = (b - a) + ((d - c) - (b - a)) * ty;
+    let d_dy = bottom - top;
+    // x grows with u; y (rows) grows as v falls.
+    let grad = vec2f(d_dx * f32(scene.map_width), -d_dy * f32(scene.map_height));
+    return SampleGrad(value, grad);
+}
+
+// DisplaceParams::displacement: D = scale (h − midlevel).
+fn displacement_of(h: f32) -> f32 {
+    return scene.disp_scale * (h - scene.disp_midlevel);
+}
