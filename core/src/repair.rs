@@ -12,8 +12,11 @@
 //! 3. `crease` — report corners whose normal faces away from the face (`n_i·N_g ≤ 0`).
 //! 4. `crease` — sharp creases (PDM paper §5.4: the extrusion `1/(n_i·N_g)` blows up where
 //!    `n_i·N_g` is small): mark crease edges, split vertices into one copy per sector of their fan.
+//!    Both work on the topology BY POSITION (weld's quantised keys), so a crease that is also a
+//!    UV seam (different vertex records on its two sides) is found and split like any other.
 //! 5. `stitch` — close hard edges (same positions, different normals) with zero-area triangles
-//!    (`FACE_INSERTED`), and the k-gon holes where k ≥ 3 copies meet (cube corners).
+//!    (`FACE_INSERTED`), and the k-gon holes where k ≥ 3 copies meet (cube corners). The result
+//!    is closed up to UV seams: every edge is shared by two triangles or has a seam twin.
 //!
 //! Why stitch and not only split (the paper inserts triangles; a plain normal split is the
 //! other option DESIGN.md names): the canonical displaced surface
@@ -105,7 +108,7 @@ pub fn repair(mesh: BaseMesh, opts: &RepairOptions) -> (BaseMesh, RepairReport) 
     weld::drop_degenerate_faces(&mut work, &quant, &mut report);
     weld::compact_vertices(&mut work, &mut report);
     crease::report_inverted_corners(&work, &mut report);
-    crease::split_creases(&mut work, opts.crease_threshold, &mut report);
+    crease::split_creases(&mut work, &quant, opts.crease_threshold, &mut report);
     stitch::stitch(&mut work, &quant, opts.stitch_hard_edges, &mut report);
     report.output_vertices = work.positions.len();
     report.output_triangles = work.triangles.len();

@@ -15,7 +15,9 @@ pub struct CornerFinding {
     pub dot: f32,
 }
 
-/// A vertex split by crease repair: one copy per sector of its fan.
+/// A vertex record changed by crease repair: one copy per sector (of the fan at its position)
+/// that its corners lie in. A record in one sector only (e.g. one side of a crease that is
+/// also a UV seam) keeps its slot and takes the sector's normal: one copy, itself.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct VertexSplit {
     /// Input vertex index.
@@ -68,8 +70,10 @@ pub struct RepairReport {
     pub inverted_corners: Vec<CornerFinding>,
     /// Corners with `n_i·N̂_g` below the crease threshold (includes the inverted ones).
     pub sharp_corners: Vec<CornerFinding>,
-    /// Crease edges, as input vertex index pairs.
+    /// Crease edges (by position: a crease may be a UV seam), as input vertex index pairs (the
+    /// records of the edge's first face).
     pub crease_edges: Vec<[u32; 2]>,
+    /// Vertex records that were copied or whose normal changed at a crease.
     pub split_vertices: Vec<VertexSplit>,
     /// Corners still below the threshold after splitting (a crease ends at the vertex, or its
     /// normal is wrong on a smooth region): the bake clamps these prisms.

@@ -11,6 +11,12 @@
 //!
 //! Edges whose positions and normals match but UVs differ are UV seams: their walls coincide,
 //! only the height can jump. They are counted, not stitched (the seams issue handles them).
+//! Crease repair (`crease`) works by position, so its hard edges may lie on UV seams and cross
+//! them: the two sides of a stitched edge may differ in UV as well as normal, and where only
+//! one end differs in normal (a crease ending there) only the half of the quad that spans the
+//! normal jump is inserted. Corner loops are followed by normal (see `close_corners`). The
+//! result is closed up to UV seams: every edge, by vertex index, has two faces or is a UV seam
+//! edge with a twin (same positions and normals, other UVs).
 
 use super::weld::Quantizer;
 use super::{CornerFan, RepairReport, StitchedEdge, Work, INSERTED_ORIGIN};
@@ -110,7 +116,8 @@ fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut Repair
         matched[h2] = true;
         let (t2, b2, a2) = half[h2];
         let n = |i: u32| w.normals[i as usize];
-        if same_normal(n(a), n(a2)) && same_normal(n(b), n(b2)) {
+        let (same_a, same_b) = (same_normal(n(a), n(a2)), same_normal(n(b), n(b2)));
+        if same_a && same_b {
             let uv = |i: u32| w.uvs[i as usize];
             if uv(a) != uv(a2) || uv(b) != uv(b2) {
                 report.uv_seam_edges += 1;
@@ -122,9 +129,12 @@ fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut Repair
             continue;
         }
         let group = w.face_group[t1];
-        let inserted: Vec<u32> = [[b, a, a2], [b, a2, b2]]
+        // Where one end agrees in normal (a crease ending there, possibly on a UV seam) only
+        // the other half of the quad is needed; its zero-length edge would join seam twins.
+        let inserted: Vec<u32> = [(!same_a, [b, a, a2]), (!same_b, [b, a2, b2])]
             .into_iter()
-            .filter_map(|tri| push_inserted(w, tri, group))
+            .filter(|&(needed, _)| needed)
+            .filter_map(|(_, tri)| push_inserted(w, tri, group))
             .collect();
         report.inserted_triangles += inserted.len();
         report.stitched_edges.push(StitchedEdge {
@@ -136,6 +146,13 @@ fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut Repair
 }
 
 /// Close the loops of zero-length boundary edges left at positions where ≥ 3 copies meet.
+///
+/// The loop is followed over the copies' NORMALS, not their records: where a UV seam crosses
+/// the crease, one normal has several records (seam twins), and the loop passes from one twin
+/// to the other across the seam. A loop of two normals (a crease crossing a UV seam) is already
+/// closed up to the seam: nothing to fill. A loop of k ≥ 3 normals is filled by a fan over one
+/// record per normal (the tail of its outgoing edge); where that record differs from a twin
+/// the fan's edge is again a UV seam edge.
 fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
     let mut groups: HashMap<PosKey, Vec<(u32, u32)>> = HashMap::new();
     for (_, a, b) in boundary_half_edges(&w.triangles) {
@@ -147,8 +164,24 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
     keys.sort_unstable();
     for key in keys {
         let edges = &groups[&key];
-        let mut next: HashMap<u32, u32> = HashMap::new();
-        let ambiguous = edges.iter().any(|&(a, b)| next.insert(a, b).is_some());
+        // Normal class of each record: the smallest record at this position with its normal.
+        let mut records: Vec<u32> = edges.iter().flat_map(|&(a, b)| [a, b]).collect();
+        records.sort_unstable();
+        records.dedup();
+        let class = |v: u32| -> u32 {
+            let n = w.normals[v as usize];
+            *records
+                .iter()
+                .find(|&&r| same_normal(w.normals[r as usize], n))
+                .expect("v is among the records")
+        };
+        // Class → (next class, tail record).
+        let mut next: HashMap<u32, (u32, u32)> = HashMap::new();
+        let mut ambiguous = false;
+        for &(a, b) in edges {
+            let (ca, cb) = (class(a), class(b));
+            ambiguous |= ca == cb || next.insert(ca, (cb, a)).is_some();
+        }
         if ambiguous {
             report.unclosed_corners += 1;
             continue;
@@ -165,8 +198,8 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
             let mut cur = s;
             let closed = loop {
                 match next.get(&cur) {
-                    Some(&n) if n == s => break true,
-                    Some(&n) if !cycle.contains(&n) => {
+                    Some(&(n, _)) if n == s => break true,
+                    Some(&(n, _)) if !cycle.contains(&n) => {
                         cycle.push(n);
                         cur = n;
                     }
@@ -175,8 +208,9 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
             };
             visited.extend_from_slice(&cycle);
             if closed && cycle.len() >= 3 {
-                fan(w, &cycle, report);
-            } else {
+                let tails: Vec<u32> = cycle.iter().map(|c| next[c].1).collect();
+                fan(w, &tails, report);
+            } else if !closed {
                 open = true;
             }
         }

@@ -618,3 +618,170 @@ fn crease_ending_inside_the_mesh_is_closed_with_single_triangles() {
     assert_eq!(open_half_edges(&out), 0, "{}", rep.to_text());
     assert_eq!(max_displaced_gap(&out, 0.1), 0.0);
 }
+
+/// Directed edges a→b with no reverse b→a (by vertex index) that are NOT a UV seam: a seam
+/// edge has a reversed twin b'→a' at the same positions with the same normals and different
+/// UVs. Returns the offending edges (empty when the mesh is closed up to UV seams).
+fn open_edges_not_seams(m: &BaseMesh) -> Vec<(u32, u32)> {
+    let key = |v: u32| m.positions[v as usize].to_array().map(f32::to_bits);
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut by_pos: HashMap<_, Vec<(u32, u32)>> = HashMap::new();
+    for tri in &m.triangles {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            *directed.entry((a, b)).or_default() += 1;
+            by_pos.entry((key(a), key(b))).or_default().push((a, b));
+        }
+    }
+    assert!(
+        directed.values().all(|&c| c == 1),
+        "an edge is used twice in the same direction"
+    );
+    let (n, uv) = (|v: u32| m.normals[v as usize], |v: u32| m.uvs[v as usize]);
+    let mut bad: Vec<(u32, u32)> = directed
+        .keys()
+        .filter(|&&(a, b)| !directed.contains_key(&(b, a)))
+        .filter(|&&(a, b)| {
+            let twin = by_pos
+                .get(&(key(b), key(a)))
+                .into_iter()
+                .flatten()
+                .any(|&(b2, a2)| {
+                    n(a2) == n(a) && n(b2) == n(b) && (uv(a2) != uv(a) || uv(b2) != uv(b))
+                });
+            !twin
+        })
+        .copied()
+        .collect();
+    bad.sort_unstable();
+    bad
+}
+
+/// The knife-edge lens with its top cap cut into two UV islands: top faces `i ≥ rim/2` use
+/// their own copies of the apex and of rim vertices `rim/2..rim` and 0 (same positions and
+/// normals, UVs shifted), so half of the rim crease is a UV seam by vertex index, and the
+/// seam between the islands crosses the rim at vertices 0 and rim/2.
+fn lens_with_split_top_cap(rim: u32, h: f32) -> BaseMesh {
+    let mut m = lens(rim, h);
+    let mut copy_of: HashMap<u32, u32> = HashMap::new();
+    let mut dup = |m: &mut BaseMesh, v: u32| {
+        *copy_of.entry(v).or_insert_with(|| {
+            m.positions.push(m.positions[v as usize]);
+            m.normals.push(m.normals[v as usize]);
+            m.uvs.push(m.uvs[v as usize] + Vec2::new(0.37, 0.0));
+            (m.positions.len() - 1) as u32
+        })
+    };
+    for i in rim / 2..rim {
+        let t = 2 * i as usize; // [top, i, j]
+        let tri = m.triangles[t];
+        m.triangles[t] = [
+            dup(&mut m, tri[0]),
+            dup(&mut m, tri[1]),
+            dup(&mut m, tri[2]),
+        ];
+    }
+    m
+}
+
+// Would break if crease detection went back to edges by vertex index: across a UV seam it
+// sees two boundary edges, no crease, and the knife edge's corners stay singular.
+#[test]
+fn knife_edge_crossing_a_uv_seam_is_split_and_stitched() {
+    const D: f32 = 0.1;
+    let rim = 12usize;
+    let m = lens_with_split_top_cap(rim as u32, 0.02);
+    assert!(
+        open_half_edges(&m) > 0,
+        "the input has seams by vertex index"
+    );
+    assert!(
+        open_edges_not_seams(&m).is_empty(),
+        "but is closed up to them"
+    );
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert_sized(&out);
+    assert_eq!(rep.sharp_corners.len(), 4 * rim, "{}", rep.to_text());
+    assert_eq!(rep.crease_edges.len(), rim, "the whole rim, seam or not");
+    assert!(
+        rep.unresolved_crease_corners.is_empty(),
+        "{}",
+        rep.to_text()
+    );
+    // Rim records used by both sides are copied; the top island's own copies and the bottom's
+    // records on the seam half take their side's normal in place.
+    let copied = rep
+        .split_vertices
+        .iter()
+        .filter(|s| s.copies.len() == 2)
+        .count();
+    let in_place = rep
+        .split_vertices
+        .iter()
+        .filter(|s| s.copies.len() == 1)
+        .count();
+    assert_eq!(copied, rim / 2 + 1, "{}", rep.to_text());
+    assert_eq!(in_place, 2 * (rim / 2 + 1) - 2, "{}", rep.to_text());
+    assert_eq!(rep.stitched_edges.len(), rim);
+    assert_eq!(rep.unclosed_corners, 0, "{}", rep.to_text());
+    assert!(rep.corner_fans.is_empty());
+    // The cap seam's two edges stay plain UV seams: their twins keep equal normals.
+    assert_eq!(rep.uv_seam_edges, 2, "{}", rep.to_text());
+    assert_eq!(open_edges_not_seams(&out), vec![], "{}", rep.to_text());
+    assert_eq!(max_displaced_gap(&out, D), 0.0);
+    for t in 0..out.triangles.len() {
+        if out.face_flags[t] & FACE_INSERTED == 0 {
+            let ng = out.face_cross(t).normalize();
+            assert!(out.corner_normals(t).iter().all(|n| n.dot(ng) > 0.9));
+        }
+    }
+}
+
+// Would break if crease repair ignored UV seams on a real asset: the rock's knife-edge fin
+// runs along the seams of its box-projected UV islands.
+#[test]
+fn rock_fin_crease_is_repaired_across_uv_seams() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+    let m = crate::load::load_mesh(&path, &Default::default()).unwrap();
+    let input = m.clone();
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert_sized(&out);
+    assert!(!rep.sharp_corners.is_empty());
+    assert!(
+        (10..=14).contains(&rep.crease_edges.len()),
+        "{}",
+        rep.to_text()
+    );
+    assert!(!rep.split_vertices.is_empty());
+    assert!(
+        rep.unresolved_crease_corners.is_empty(),
+        "{}",
+        rep.to_text()
+    );
+    // Every crease edge (by position) is stitched.
+    let key = |p: Vec3| p.to_array().map(f32::to_bits);
+    let stitched: std::collections::HashSet<_> = rep
+        .stitched_edges
+        .iter()
+        .map(|e| {
+            let (a, b) = (
+                key(out.positions[e.vertices[0] as usize]),
+                key(out.positions[e.vertices[1] as usize]),
+            );
+            (a.min(b), a.max(b))
+        })
+        .collect();
+    for &[a, b] in &rep.crease_edges {
+        let (a, b) = (
+            key(input.positions[a as usize]),
+            key(input.positions[b as usize]),
+        );
+        assert!(
+            stitched.contains(&(a.min(b), a.max(b))),
+            "crease {a:?}-{b:?} not stitched"
+        );
+    }
+    assert_eq!(rep.unclosed_corners, 0, "{}", rep.to_text());
+    assert_eq!(open_edges_not_seams(&out), vec![], "{}", rep.to_text());
+    assert_eq!(max_displaced_gap(&out, 0.02), 0.0);
+}
