@@ -48,7 +48,7 @@ pub struct RenderArgs {
     pub disp: DispArgs,
     #[command(flatten)]
     pub repair: RepairArgs,
-    /// Intersection method: pdm or reference.
+    /// Intersection method: pdm, reference or rmip.
     #[arg(long, default_value = "pdm")]
     pub method: String,
     #[arg(long, value_enum, default_value = "cpu")]
@@ -86,6 +86,16 @@ pub struct RenderArgs {
     /// Reference tessellation density, in micro-edges per texel.
     #[arg(long, default_value_t = 2.0)]
     pub ref_density: f32,
+    /// Nonlinear rays (`--method nonlinear`): arithmetic of the per-prism work, f32 (with
+    /// FMA) or f64.
+    #[arg(long, default_value = "f32", value_parser = ["f32", "f64"])]
+    pub precision: String,
+    /// RMIP: march texels once a texture-space bound's longer side is at most this many texels.
+    #[arg(long, default_value_t = 8.0)]
+    pub marching_scale: f32,
+    /// RMIP: pyramid resolution along the map's longer side (default: the N²-sized pyramid).
+    #[arg(long, value_name = "N")]
+    pub rmip_res: Option<u32>,
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
     /// Worker threads (default: all cores).

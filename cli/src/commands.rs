@@ -9,7 +9,9 @@ use glam::Vec3;
 use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob};
 use prismbake::render::{Aov, RenderSettings};
 use prismbake::bench::BenchConfig;
+use prismbake::trace::nonlinear::NonlinearOptions;
 use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
+use prismbake::trace::rmip::RmipOptions;
 use prismbake::trace::NormalMode;
 use std::path::Path;
 use std::process::ExitCode;
@@ -192,7 +194,9 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
             method,
             normal_mode,
             pdm: PdmOptions { dt: parse_dt(&a.dt)?, jitter: !a.no_jitter, ..PdmOptions::default() },
+            nonlinear: NonlinearOptions { precision: a.precision.parse().map_err(Error::Param)?, ..NonlinearOptions::default() },
             ref_density: a.ref_density,
+            rmip: RmipOptions { marching_scale: a.marching_scale, resolution: a.rmip_res, ..RmipOptions::default() },
         },
         settings: RenderSettings { width: a.res.0, height: a.res.1, spp: a.spp, seed: a.seed },
         aovs,

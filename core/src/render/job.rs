@@ -11,7 +11,9 @@ use crate::heightmap::HeightMap;
 use crate::mesh::{SceneCamera, UpAxis};
 use crate::repair::RepairOptions;
 use crate::trace::pdm::{Pdm, PdmOptions};
+use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
 use crate::trace::reference::Reference;
+use crate::trace::rmip::{Rmip, RmipOptions};
 use crate::trace::{Intersector, NormalMode};
 use glam::Vec3;
 use serde::Serialize;
@@ -23,6 +25,8 @@ use std::time::Instant;
 pub enum Method {
     Pdm,
     Reference,
+    Nonlinear,
+    Rmip,
 }
 
 impl std::str::FromStr for Method {
@@ -31,8 +35,9 @@ impl std::str::FromStr for Method {
         match s {
             "pdm" => Ok(Method::Pdm),
             "reference" => Ok(Method::Reference),
-            "rmip" | "nonlinear" => Err(format!("method '{s}' is not built yet (expected pdm or reference)")),
-            _ => Err(format!("unknown method '{s}' (expected pdm or reference)")),
+            "rmip" => Ok(Method::Rmip),
+            "nonlinear" => Ok(Method::Nonlinear),
+            _ => Err(format!("unknown method '{s}' (expected pdm, reference or rmip)")),
         }
     }
 }
@@ -60,11 +65,13 @@ pub struct MethodConfig {
     pub pdm: PdmOptions,
     /// Reference tessellation density (micro-edges per texel).
     pub ref_density: f32,
+    pub nonlinear: NonlinearOptions,
+    pub rmip: RmipOptions,
 }
 
 impl Default for MethodConfig {
     fn default() -> Self {
-        MethodConfig { method: Method::Pdm, normal_mode: NormalMode::Smooth, pdm: PdmOptions::default(), ref_density: 2.0 }
+        MethodConfig { method: Method::Pdm, normal_mode: NormalMode::Smooth, pdm: PdmOptions::default(), ref_density: 2.0, nonlinear: NonlinearOptions::default(), rmip: RmipOptions::default() }
     }
 }
 
@@ -124,6 +131,13 @@ impl RenderJob {
             if (a - b).length() == 0.0 {
                 return Err(Error::Param("--camera-from and --camera-to are the same point".into()));
             }
+        }
+        let rmip = &self.method.rmip;
+        if !(rmip.marching_scale > 0.0 && rmip.marching_scale.is_finite()) {
+            return Err(Error::Param(format!("--marching-scale {}: must be a positive number of texels", rmip.marching_scale)));
+        }
+        if rmip.resolution == Some(0) {
+            return Err(Error::Param("--rmip-res 0: the pyramid needs at least one cell".into()));
         }
         if !(self.method.ref_density > 0.0 && self.method.ref_density <= 64.0) {
             return Err(Error::Param(format!("--ref-density {}: must be in (0, 64]", self.method.ref_density)));
@@ -218,6 +232,8 @@ pub fn with_intersector<R>(cfg: &MethodConfig, scene: &Scene, f: impl FnOnce(&dy
             r.normal_mode = cfg.normal_mode;
             f(&r)
         }
+        Method::Nonlinear => f(&Nonlinear::new(scene, NonlinearOptions { normal_mode: cfg.normal_mode, ..cfg.nonlinear })),
+        Method::Rmip => f(&Rmip::new(scene, RmipOptions { normal_mode: cfg.normal_mode, ..cfg.rmip })),
     }
 }
 

@@ -30,9 +30,8 @@ pub struct Pyramid {
     /// Grid size in cells (the RMIP resolution).
     cw: u32,
     ch: u32,
-    /// Layers per axis: `p ∈ 0..levels_x` with `2^p ≤ cw`.
+    /// Layers along x: `p ∈ 0..levels_x` with `2^p ≤ cw` (likewise `q` with `ch`).
     levels_x: u32,
-    levels_y: u32,
     wrap: Wrap,
     /// Layer `(p, q)` at `((q * levels_x + p) * cw * ch)`, row-major, `[min, max]`.
     data: Vec<[f32; 2]>,
@@ -130,7 +129,6 @@ impl Pyramid {
             cw,
             ch,
             levels_x: lx,
-            levels_y: ly,
             wrap: map.wrap,
             data,
         }

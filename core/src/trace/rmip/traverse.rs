@@ -377,7 +377,7 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
             self.steps += 1;
             let gn = f.ray_height(pn, tn) - self.disp(pn);
             if (g > 0.0) != (gn > 0.0) {
-                if let Some(hit) = self.refine(t, tn, g, gn, p, pn) {
+                if let Some(hit) = self.refine(t, tn, p, pn) {
                     return Some(hit);
                 }
             }
@@ -391,8 +391,7 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
 
     /// Illinois regula falsi on the ray's height above the canonical surface between two
     /// curve points of opposite sign; each evaluation projects the ray point by Newton.
-    #[allow(clippy::too_many_arguments)]
-    fn refine(&self, mut t0: f64, mut t1: f64, mut g0: f64, mut g1: f64, p0: DVec2, p1: DVec2) -> Option<(f32, Vec3)> {
+    fn refine(&self, mut t0: f64, mut t1: f64, p0: DVec2, p1: DVec2) -> Option<(f32, Vec3)> {
         // Confirm the bracket on the Newton-projected surface: the quadric's points carry no
         // λ check beyond the shell's, and a false bracket must not become a hit.
         let eval = |t: f64, guess: DVec2| -> Option<(f64, DVec2)> {
@@ -403,7 +402,7 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         if (e0 > 0.0) == (e1 > 0.0) {
             return None;
         }
-        (g0, g1) = (e0, e1);
+        let (mut g0, mut g1) = (e0, e1);
         let tol_g = 1e-6 * self.scale;
         let tol_t = 1e-7 * (self.span + self.scale);
         let mut side = 0;
