@@ -20,12 +20,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     if is_glb {
         check_glb_header(path, &bytes)?;
     }
-    let doc = ::gltf::Gltf::from_slice(&bytes).map_err(|e| {
-        Error::invalid(
-            path,
-            format!("is not valid glTF 2.0: {e} (the file is truncated or corrupt; re-export it)"),
-        )
-    })?;
+    let doc = parse_gltf(path, &bytes)?;
     let buffers = load_buffers(path, &doc)?;
     let mut loader = Loader {
         path,
@@ -54,6 +49,36 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         mesh.camera = Some(scene_camera(&mesh, world, yfov));
     }
     Ok(mesh)
+}
+
+/// `Gltf::from_slice`, but gltf-json 1.4's validation indexes a primitive's POSITION
+/// accessor before checking the index (a panic on `"POSITION": 0` with no accessors, found
+/// by fuzzing; see docs/fuzzing.md): parse without validation, check that index, then validate.
+fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
+    let invalid = |what: String| {
+        Error::invalid(
+            path,
+            format!("is not valid glTF 2.0: {what} (the file is truncated or corrupt; re-export it)"),
+        )
+    };
+    let unchecked =
+        ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(e.to_string()))?;
+    let root = unchecked.document.as_json();
+    let position = ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(a) = primitive.attributes.get(&position) {
+                if a.value() >= root.accessors.len() {
+                    return Err(invalid(format!(
+                        "mesh {m} primitive {p}: POSITION names accessor {} but there are {}",
+                        a.value(),
+                        root.accessors.len()
+                    )));
+                }
+            }
+        }
+    }
+    ::gltf::Gltf::from_slice(bytes).map_err(|e| invalid(e.to_string()))
 }
 
 /// The default scene's roots, else the roots of every scene, else every parentless node.
