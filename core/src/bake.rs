@@ -16,7 +16,7 @@
 //! bound of a convex function, minimised at a vertex). So `λ ∈ [min(dmin, dmin/m_lo),
 //! max(dmax, dmax/m_lo)]` bounds the surface for any `D ∈ [dmin, dmax]`.
 
-use crate::heightmap::{DisplaceParams, HeightMap};
+use crate::heightmap::{DisplaceParams, HeightMap, Wrap};
 use crate::mesh::{BaseMesh, FACE_INSERTED};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -186,7 +186,7 @@ pub fn footprint_range(map: &HeightMap, uv: &[Vec2; 3]) -> (f32, f32) {
         };
         let c0 = (x0 - 0.5).floor() as i64;
         let c1 = (x1 - 0.5).floor() as i64 + 1;
-        let (a, b) = map.texel_range(c0, c1, j, j);
+        let (a, b) = row_range(map, c0, c1, j);
         lo = lo.min(a);
         hi = hi.max(b);
     }
@@ -197,6 +197,48 @@ pub fn footprint_range(map: &HeightMap, uv: &[Vec2; 3]) -> (f32, f32) {
         return map.texel_range(x, x + 1, y, y + 1);
     }
     (lo, hi)
+}
+
+/// `map.texel_range(c0, c1, j, j)` read as at most two contiguous slices of row `j`: the
+/// wrap is applied once per row, not per texel (the bake's inner loop; see
+/// docs/benchmarks.md).
+fn row_range(map: &HeightMap, c0: i64, c1: i64, j: i64) -> (f32, f32) {
+    let (w, h) = (map.width as i64, map.height as i64);
+    let (y, x0, x1) = match map.wrap {
+        // Columns `c0..=c1` clamp to `clamp(c0)..=clamp(c1)`.
+        Wrap::Clamp => (j.clamp(0, h - 1), c0.clamp(0, w - 1), c1.clamp(0, w - 1)),
+        Wrap::Repeat if c1 - c0 + 1 >= w => (j.rem_euclid(h), 0, w - 1),
+        // Narrower than the map: one run, or two when it wraps past the last column.
+        Wrap::Repeat => (j.rem_euclid(h), c0.rem_euclid(w), c1.rem_euclid(w)),
+    };
+    let row = &map.data[(y * w) as usize..((y + 1) * w) as usize];
+    let (x0, x1) = (x0 as usize, x1 as usize);
+    if x0 <= x1 {
+        slice_range(&row[x0..=x1])
+    } else {
+        let (a, b) = slice_range(&row[x0..]);
+        let (c, d) = slice_range(&row[..=x1]);
+        (a.min(c), b.max(d))
+    }
+}
+
+/// Min and max of a slice, eight lanes at a time so that the compiler vectorises it.
+fn slice_range(s: &[f32]) -> (f32, f32) {
+    let mut lo = [f32::INFINITY; 8];
+    let mut hi = [f32::NEG_INFINITY; 8];
+    let chunks = s.chunks_exact(8);
+    let rest = chunks.remainder();
+    for c in chunks {
+        for k in 0..8 {
+            lo[k] = lo[k].min(c[k]);
+            hi[k] = hi[k].max(c[k]);
+        }
+    }
+    for (k, &v) in rest.iter().enumerate() {
+        lo[k] = lo[k].min(v);
+        hi[k] = hi[k].max(v);
+    }
+    (lo.into_iter().fold(f32::INFINITY, f32::min), hi.into_iter().fold(f32::NEG_INFINITY, f32::max))
 }
 
 /// x-extent of a triangle clipped to the horizontal band `y ∈ [y0, y1]`, if they meet.
@@ -306,5 +348,179 @@ pub fn bake(mesh: &BaseMesh, map: &HeightMap, opts: &BakeOptions) -> PrismTable 
         input_hash: [0; 32],
         map_path: map.source.to_string_lossy().into_owned(),
         wrap: map.wrap,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::BaseMesh;
+    use crate::rng::{pcg_hash, to_unit_float};
+
+    struct Rng(u32);
+    impl Rng {
+        fn unit(&mut self) -> f32 {
+            self.0 = pcg_hash(self.0);
+            to_unit_float(self.0)
+        }
+        fn range(&mut self, lo: f32, hi: f32) -> f32 {
+            lo + (hi - lo) * self.unit()
+        }
+        fn below(&mut self, n: u32) -> u32 {
+            self.0 = pcg_hash(self.0);
+            self.0 % n
+        }
+    }
+
+    /// A small map of raw values in [-0.5, 1.5] (float maps may leave [0, 1]), odd sizes so
+    /// that texel rows and columns do not line up with UV fractions.
+    fn random_map(rng: &mut Rng, wrap: Wrap) -> HeightMap {
+        let (w, h) = (1 + rng.below(13), 1 + rng.below(11));
+        let data = (0..w * h).map(|_| rng.range(-0.5, 1.5)).collect();
+        HeightMap::new(w, h, data, wrap)
+    }
+
+    /// A UV triangle from sub-texel to several map widths across, centred anywhere in
+    /// [-1.5, 2.5]² so that repeat wrap-around and clamped borders are both exercised.
+    fn random_uv_triangle(rng: &mut Rng, map: &HeightMap) -> [Vec2; 3] {
+        let centre = Vec2::new(rng.range(-1.5, 2.5), rng.range(-1.5, 2.5));
+        let texel = 1.0 / map.width.max(map.height) as f32;
+        let size = texel * 0.05 * (60.0 / texel).powf(rng.unit()); // log-uniform, up to ~3 UV units
+        std::array::from_fn(|_| centre + Vec2::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)) * size)
+    }
+
+    /// Dense barycentric lattice plus random interior points of the triangle.
+    fn samples(rng: &mut Rng, uv: &[Vec2; 3]) -> Vec<(Vec3, Vec2)> {
+        let n = 24;
+        let mut out = Vec::new();
+        for i in 0..=n {
+            for j in 0..=n - i {
+                let b = Vec3::new(i as f32, j as f32, (n - i - j) as f32) / n as f32;
+                out.push(b);
+            }
+        }
+        for _ in 0..200 {
+            let (a, c) = (rng.unit(), rng.unit());
+            let (a, c) = if a + c > 1.0 { (1.0 - a, 1.0 - c) } else { (a, c) };
+            out.push(Vec3::new(1.0 - a - c, a, c));
+        }
+        out.into_iter().map(|b| (b, uv[0] * b.x + uv[1] * b.y + uv[2] * b.z)).collect()
+    }
+
+    /// The footprint bound is what every intersector's prism extent rests on: a bilinear
+    /// sample inside the UV triangle that escapes `[hmin, hmax]` is a surface point outside
+    /// its prism, i.e. a hole. Brute force: sample the triangle densely, for both wraps.
+    #[test]
+    fn footprint_range_contains_every_bilinear_sample() {
+        let mut rng = Rng(0x5eed);
+        for case in 0..600 {
+            let wrap = if case % 2 == 0 { Wrap::Repeat } else { Wrap::Clamp };
+            let map = random_map(&mut rng, wrap);
+            let uv = random_uv_triangle(&mut rng, &map);
+            let (lo, hi) = footprint_range(&map, &uv);
+            assert!(lo <= hi, "case {case}: empty range for {uv:?}");
+            for (_, p) in samples(&mut rng, &uv) {
+                let s = map.sample(p);
+                // Bilinear interpolation may round one ulp past its corner values.
+                let tol = 1e-6 * s.abs().max(1.0);
+                assert!(
+                    s >= lo - tol && s <= hi + tol,
+                    "case {case} ({wrap:?}, {}x{}): sample {s} at {p} outside [{lo}, {hi}] for {uv:?}",
+                    map.width,
+                    map.height
+                );
+            }
+        }
+    }
+
+    /// The pre-optimisation scan (wrap applied per texel through `HeightMap::texel_range`):
+    /// the row-slice version must give the very same range, so tables do not change.
+    fn footprint_range_per_texel(map: &HeightMap, uv: &[Vec2; 3]) -> (f32, f32) {
+        let p = uv.map(|t| map.texel_coords(t));
+        let ymin = p.iter().map(|q| q.y).fold(f32::INFINITY, f32::min);
+        let ymax = p.iter().map(|q| q.y).fold(f32::NEG_INFINITY, f32::max);
+        let (w, h) = (map.width as f32, map.height as f32);
+        let xmin = p.iter().map(|q| q.x).fold(f32::INFINITY, f32::min);
+        let xmax = p.iter().map(|q| q.x).fold(f32::NEG_INFINITY, f32::max);
+        if (xmax - xmin) >= w + 1.0 && (ymax - ymin) >= h + 1.0 {
+            return map.value_range();
+        }
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for j in (ymin - 0.5).floor() as i64..=(ymax - 0.5).floor() as i64 + 1 {
+            let Some((x0, x1)) = triangle_band_x_extent(&p, (j as f32 - 0.5, j as f32 + 1.5)) else {
+                continue;
+            };
+            let (a, b) = map.texel_range((x0 - 0.5).floor() as i64, (x1 - 0.5).floor() as i64 + 1, j, j);
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        if lo > hi {
+            let q = p[0] - Vec2::splat(0.5);
+            let (x, y) = (q.x.floor() as i64, q.y.floor() as i64);
+            return map.texel_range(x, x + 1, y, y + 1);
+        }
+        (lo, hi)
+    }
+
+    #[test]
+    fn row_slices_give_the_per_texel_range() {
+        let mut rng = Rng(0x0dd5);
+        for case in 0..3000 {
+            let wrap = if case % 2 == 0 { Wrap::Repeat } else { Wrap::Clamp };
+            let mut map = random_map(&mut rng, wrap);
+            if case % 5 == 0 {
+                // Wide rows, so that the eight-lane loop and its remainder both run.
+                let w = 8 + rng.below(40);
+                map = HeightMap::new(w, 3, (0..w * 3).map(|_| rng.range(-0.5, 1.5)).collect(), wrap);
+            }
+            let uv = random_uv_triangle(&mut rng, &map);
+            assert_eq!(footprint_range(&map, &uv), footprint_range_per_texel(&map, &uv), "case {case}: {uv:?}");
+        }
+    }
+
+    /// The whole prism: the canonical surface `P + D m/|m|` sits at `λ = D/|m|` on the line
+    /// `P + λ m`; for random normals tilted off the face (up to the floor of `m_lo`), negative
+    /// scales (displacement below the base) and midlevels, every sampled point's `D` is in
+    /// `[d_min, d_max]` and its `λ` in `[lambda_lo, lambda_hi]`.
+    #[test]
+    fn bake_prism_extent_contains_the_canonical_surface() {
+        let mut rng = Rng(0xba4e);
+        for case in 0..400 {
+            let wrap = if case % 3 == 0 { Wrap::Clamp } else { Wrap::Repeat };
+            let map = random_map(&mut rng, wrap);
+            let uv = random_uv_triangle(&mut rng, &map);
+            let positions = vec![Vec3::ZERO, Vec3::new(1.0, 0.1, 0.0), Vec3::new(0.2, 0.9, 0.0)];
+            let tilt = rng.range(0.0, 1.2);
+            let normals: Vec<Vec3> = (0..3)
+                .map(|_| (Vec3::Z + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0) * tilt).normalize())
+                .collect();
+            let mesh = BaseMesh {
+                positions,
+                normals: normals.clone(),
+                uvs: uv.to_vec(),
+                triangles: vec![[0, 1, 2]],
+                face_group: vec![0],
+                face_flags: vec![0],
+                ..Default::default()
+            };
+            let params = DisplaceParams { scale: rng.range(-0.3, 0.3), midlevel: rng.range(-0.2, 1.2) };
+            let p = bake_prism(&mesh, &map, &params, 0);
+            assert!(p.d_min <= p.d_max && p.lambda_lo <= p.lambda_hi, "case {case}: {p:?}");
+            for (b, t) in samples(&mut rng, &uv) {
+                let d = params.displacement(map.sample(t));
+                let tol = 1e-5 * d.abs().max(1e-3);
+                assert!(d >= p.d_min - tol && d <= p.d_max + tol, "case {case}: D = {d} outside {p:?}");
+                let m = (normals[0] * b.x + normals[1] * b.y + normals[2] * b.z).length();
+                if p.flags & PRISM_DEGENERATE_NORMALS != 0 || m < M_LO_FLOOR {
+                    continue; // the λ range is clamped there by design (and flagged)
+                }
+                let lambda = d / m;
+                let tol = 1e-4 * lambda.abs().max(1e-3);
+                assert!(
+                    lambda >= p.lambda_lo - tol && lambda <= p.lambda_hi + tol,
+                    "case {case}: λ = {lambda} outside {p:?} (|m| = {m})"
+                );
+            }
+        }
     }
 }
