@@ -45,7 +45,12 @@ pub fn to_usda(prepared: &Prepared, out: &Path) -> String {
         hi = hi.max(p);
     }
     let (s, m) = (t.params.scale, t.params.midlevel);
-    let channel = match spec.channel.as_deref().map(str::to_ascii_uppercase).as_deref() {
+    let channel = match spec
+        .channel
+        .as_deref()
+        .map(str::to_ascii_uppercase)
+        .as_deref()
+    {
         Some("G") => "g",
         Some("B") => "b",
         Some("A") => "a",
@@ -63,10 +68,17 @@ pub fn to_usda(prepared: &Prepared, out: &Path) -> String {
         "#usda 1.0\n(\n    defaultPrim = \"{root}\"\n    doc = \"{}\"\n    metersPerUnit = 1\n    upAxis = \"{up}\"\n)\n\n",
         escape(&doc)
     );
-    let _ = write!(o, "def Xform \"{root}\" (\n    kind = \"component\"\n)\n{{\n");
+    let _ = write!(
+        o,
+        "def Xform \"{root}\" (\n    kind = \"component\"\n)\n{{\n"
+    );
     let _ = write!(o, "    def Mesh \"Mesh\" (\n        prepend apiSchemas = [\"MaterialBindingAPI\"]\n    )\n    {{\n");
     let _ = writeln!(o, "        float3[] extent = [{}, {}]", v3(lo), v3(hi));
-    let _ = writeln!(o, "        int[] faceVertexCounts = [{}]", join(t.prisms.iter().map(|_| "3".to_string())));
+    let _ = writeln!(
+        o,
+        "        int[] faceVertexCounts = [{}]",
+        join(t.prisms.iter().map(|_| "3".to_string()))
+    );
     let _ = writeln!(
         o,
         "        int[] faceVertexIndices = [{}]",
@@ -78,7 +90,11 @@ pub fn to_usda(prepared: &Prepared, out: &Path) -> String {
         "        normal3f[] normals = [{}] (\n            interpolation = \"vertex\"\n        )",
         join(t.normals.iter().map(|&n| v3(n)))
     );
-    let _ = writeln!(o, "        point3f[] points = [{}]", join(t.positions.iter().map(|&p| v3(p))));
+    let _ = writeln!(
+        o,
+        "        point3f[] points = [{}]",
+        join(t.positions.iter().map(|&p| v3(p)))
+    );
     let _ = writeln!(
         o,
         "        float[] primvars:prismbake:wmax = [{}] (\n            interpolation = \"uniform\"\n        )",
@@ -94,7 +110,10 @@ pub fn to_usda(prepared: &Prepared, out: &Path) -> String {
         "        texCoord2f[] primvars:st = [{}] (\n            interpolation = \"vertex\"\n        )",
         join(t.uvs.iter().map(|uv| format!("({}, {})", f(uv.x), f(uv.y))))
     );
-    let _ = writeln!(o, "        uniform token subdivisionScheme = \"none\"\n    }}\n");
+    let _ = writeln!(
+        o,
+        "        uniform token subdivisionScheme = \"none\"\n    }}\n"
+    );
     let color = prepared.mesh.base_color.unwrap_or([0.8, 0.8, 0.8, 1.0]);
     let _ = write!(
         o,
@@ -165,17 +184,27 @@ fn join(items: impl Iterator<Item = String>) -> String {
 }
 
 fn file_name(p: &Path) -> String {
-    p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 fn escape(s: &str) -> String {
-    s.replace('\\', "\\\\").replace('"', "\\\"").replace('\n', " ")
+    s.replace('\\', "\\\\")
+        .replace('"', "\\\"")
+        .replace('\n', " ")
 }
 
 /// A valid USD prim name from the mesh file's stem (`rock-01.glb` → `rock_01`).
 pub fn prim_name(mesh: &Path) -> String {
-    let stem = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let mut name: String = stem.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let stem = mesh
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let mut name: String = stem
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
     if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit()) {
         name.insert(0, '_');
     }
@@ -187,10 +216,15 @@ pub fn prim_name(mesh: &Path) -> String {
 pub fn asset_path_from(out: &Path, map: &Path) -> String {
     let abs = |p: &Path| -> PathBuf {
         std::fs::canonicalize(p).unwrap_or_else(|_| {
-            std::env::current_dir().map(|d| d.join(p)).unwrap_or_else(|_| p.to_path_buf())
+            std::env::current_dir()
+                .map(|d| d.join(p))
+                .unwrap_or_else(|_| p.to_path_buf())
         })
     };
-    let dir = out.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let (map_abs, dir_abs) = (abs(map), abs(dir));
     let a: Vec<Component> = map_abs.components().collect();
     let b: Vec<Component> = dir_abs.components().collect();
@@ -201,7 +235,11 @@ pub fn asset_path_from(out: &Path, map: &Path) -> String {
     let ups = b.len() - common;
     let mut parts: Vec<String> = vec![if ups == 0 { "." } else { ".." }.into()];
     parts.extend(std::iter::repeat_n("..".to_string(), ups.saturating_sub(1)));
-    parts.extend(a[common..].iter().map(|c| c.as_os_str().to_string_lossy().into_owned()));
+    parts.extend(
+        a[common..]
+            .iter()
+            .map(|c| c.as_os_str().to_string_lossy().into_owned()),
+    );
     parts.join("/")
 }
 
@@ -221,8 +259,14 @@ mod tests {
         std::fs::create_dir_all(d.join("maps")).unwrap();
         std::fs::create_dir_all(d.join("out")).unwrap();
         std::fs::write(d.join("maps/h.png"), b"x").unwrap();
-        assert_eq!(asset_path_from(&d.join("out/a.usda"), &d.join("maps/h.png")), "../maps/h.png");
-        assert_eq!(asset_path_from(&d.join("a.usda"), &d.join("maps/h.png")), "./maps/h.png");
+        assert_eq!(
+            asset_path_from(&d.join("out/a.usda"), &d.join("maps/h.png")),
+            "../maps/h.png"
+        );
+        assert_eq!(
+            asset_path_from(&d.join("a.usda"), &d.join("maps/h.png")),
+            "./maps/h.png"
+        );
         std::fs::remove_dir_all(&d).unwrap();
     }
 }

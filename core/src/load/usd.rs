@@ -78,12 +78,17 @@ pub fn displacement(path: &Path) -> Result<Option<UsdDisplacement>> {
         collect_meshes(path, &stage.prim(sdf::Path::abs_root()), &mut meshes)?;
         let mut found: Option<UsdDisplacement> = None;
         for prim in &meshes {
-            let Some(d) = mesh_displacement(path, &stage, prim)? else { continue };
+            let Some(d) = mesh_displacement(path, &stage, prim)? else {
+                continue;
+            };
             match &found {
                 None => found = Some(d),
                 Some(first) if *first != d => warn(
                     path,
-                    &format!("{} has a different displacement than the first mesh; the first is used", prim.path()),
+                    &format!(
+                        "{} has a different displacement than the first mesh; the first is used",
+                        prim.path()
+                    ),
                 ),
                 Some(_) => {}
             }
@@ -104,7 +109,9 @@ fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
 }
 
 fn open(path: &Path) -> Result<Stage> {
-    let s = path.to_str().ok_or_else(|| Error::invalid(path, "the path is not UTF-8 (rename the file)"))?;
+    let s = path
+        .to_str()
+        .ok_or_else(|| Error::invalid(path, "the path is not UTF-8 (rename the file)"))?;
     Stage::open(s).map_err(|e| {
         Error::invalid(
             path,
@@ -126,7 +133,11 @@ fn prim_err(path: &Path, at: &sdf::Path, what: impl std::fmt::Display) -> Error 
 }
 
 fn usd_err(path: &Path, at: &sdf::Path, e: impl std::fmt::Display) -> Error {
-    prim_err(path, at, format!("cannot be read: {e:#} (re-export the file)"))
+    prim_err(
+        path,
+        at,
+        format!("cannot be read: {e:#} (re-export the file)"),
+    )
 }
 
 fn up_axis(stage: &Stage) -> UpAxis {
@@ -141,13 +152,20 @@ fn children(path: &Path, prim: &Prim) -> Result<Vec<Prim>> {
 }
 
 fn type_name(prim: &Prim) -> String {
-    prim.type_name().ok().flatten().map(|t| t.as_str().to_string()).unwrap_or_default()
+    prim.type_name()
+        .ok()
+        .flatten()
+        .map(|t| t.as_str().to_string())
+        .unwrap_or_default()
 }
 
 /// Defined, active, not a class, and not a guide: a prim that renders.
 fn is_renderable(path: &Path, prim: &Prim) -> Result<bool> {
     let e = |e| usd_err(path, prim.path(), e);
-    if !prim.is_active().map_err(e)? || !prim.is_defined().map_err(e)? || prim.is_abstract().map_err(e)? {
+    if !prim.is_active().map_err(e)?
+        || !prim.is_defined().map_err(e)?
+        || prim.is_abstract().map_err(e)?
+    {
         return Ok(false);
     }
     let purpose = value(path, prim, "purpose")?;
@@ -178,7 +196,9 @@ fn attr_value(path: &Path, stage: &Stage, attr_path: &sdf::Path) -> Result<Optio
     }
     let times = attr.time_sample_times().map_err(e)?;
     match times.first() {
-        Some(&t) => Ok(attr.get_at::<Value>(openusd::usd::TimeCode::from(t)).map_err(e)?),
+        Some(&t) => Ok(attr
+            .get_at::<Value>(openusd::usd::TimeCode::from(t))
+            .map_err(e)?),
         None => Ok(None),
     }
 }
@@ -194,7 +214,11 @@ fn property_path(path: &Path, prim: &sdf::Path, name: &str) -> Result<sdf::Path>
 }
 
 fn metadata_token(stage: &Stage, attr: &sdf::Path, key: &str) -> Option<String> {
-    let v: Value = stage.attribute(attr.clone()).get_metadata(key).ok().flatten()?;
+    let v: Value = stage
+        .attribute(attr.clone())
+        .get_metadata(key)
+        .ok()
+        .flatten()?;
     v.as_str().map(str::to_string)
 }
 
@@ -231,8 +255,14 @@ fn vec4(v: &Value) -> Option<[f64; 4]> {
 fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
     Some(match v {
         Value::Vec3fVec(a) => a.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect(),
-        Value::Vec3dVec(a) => a.iter().map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32)).collect(),
-        Value::Vec3hVec(a) => a.iter().map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32())).collect(),
+        Value::Vec3dVec(a) => a
+            .iter()
+            .map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32))
+            .collect(),
+        Value::Vec3hVec(a) => a
+            .iter()
+            .map(|p| Vec3::new(p.x.to_f32(), p.y.to_f32(), p.z.to_f32()))
+            .collect(),
         _ => return None,
     })
 }
@@ -240,8 +270,14 @@ fn vec3_array(v: &Value) -> Option<Vec<Vec3>> {
 fn vec2_array(v: &Value) -> Option<Vec<Vec2>> {
     Some(match v {
         Value::Vec2fVec(a) => a.iter().map(|p| Vec2::new(p.x, p.y)).collect(),
-        Value::Vec2dVec(a) => a.iter().map(|p| Vec2::new(p.x as f32, p.y as f32)).collect(),
-        Value::Vec2hVec(a) => a.iter().map(|p| Vec2::new(p.x.to_f32(), p.y.to_f32())).collect(),
+        Value::Vec2dVec(a) => a
+            .iter()
+            .map(|p| Vec2::new(p.x as f32, p.y as f32))
+            .collect(),
+        Value::Vec2hVec(a) => a
+            .iter()
+            .map(|p| Vec2::new(p.x.to_f32(), p.y.to_f32()))
+            .collect(),
         _ => return None,
     })
 }
@@ -264,10 +300,18 @@ fn kind(v: &Value) -> String {
 
 /// The prim's local transform and whether it resets the parent's (`!resetXformStack!`).
 fn local_transform(path: &Path, prim: &Prim) -> Result<(DMat4, bool)> {
-    let Some(order) = value(path, prim, "xformOpOrder")? else { return Ok((DMat4::IDENTITY, false)) };
+    let Some(order) = value(path, prim, "xformOpOrder")? else {
+        return Ok((DMat4::IDENTITY, false));
+    };
     let ops: Vec<String> = match order {
         Value::TokenVec(t) => t.iter().map(|t| t.as_str().to_string()).collect(),
-        other => return Err(prim_err(path, prim.path(), format!("xformOpOrder is {}, expected token[]", kind(&other)))),
+        other => {
+            return Err(prim_err(
+                path,
+                prim.path(),
+                format!("xformOpOrder is {}, expected token[]", kind(&other)),
+            ))
+        }
     };
     let mut m = DMat4::IDENTITY;
     let mut reset = false;
@@ -315,7 +359,9 @@ fn xform_op(path: &Path, prim: &Prim, name: &str) -> Result<DMat4> {
             let q = match &v {
                 Value::Quatf(q) => DQuat::from_xyzw(q.x as f64, q.y as f64, q.z as f64, q.w as f64),
                 Value::Quatd(q) => DQuat::from_xyzw(q.x, q.y, q.z, q.w),
-                Value::Quath(q) => DQuat::from_xyzw(q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64()),
+                Value::Quath(q) => {
+                    DQuat::from_xyzw(q.x.to_f64(), q.y.to_f64(), q.z.to_f64(), q.w.to_f64())
+                }
                 _ => return Err(bad(format!("is {}, expected a quaternion", kind(&v)))),
             };
             DMat4::from_quat(q.normalize())
@@ -342,7 +388,11 @@ fn xform_op(path: &Path, prim: &Prim, name: &str) -> Result<DMat4> {
             }
             r
         }
-        other => return Err(bad(format!("unknown xformOp type '{other}' (re-export with translate/rotate/scale ops)"))),
+        other => {
+            return Err(bad(format!(
+                "unknown xformOp type '{other}' (re-export with translate/rotate/scale ops)"
+            )))
+        }
     })
 }
 
@@ -380,20 +430,36 @@ impl Loader<'_> {
         Ok(())
     }
 
-    fn array<T>(&self, prim: &Prim, name: &str, conv: fn(&Value) -> Option<Vec<T>>, want: &str) -> Result<Option<Vec<T>>> {
+    fn array<T>(
+        &self,
+        prim: &Prim,
+        name: &str,
+        conv: fn(&Value) -> Option<Vec<T>>,
+        want: &str,
+    ) -> Result<Option<Vec<T>>> {
         match value(self.path, prim, name)? {
             None => Ok(None),
             Some(v) => conv(&v).map(Some).ok_or_else(|| {
-                prim_err(self.path, prim.path(), format!("{name} is {}, expected {want} (re-export)", kind(&v)))
+                prim_err(
+                    self.path,
+                    prim.path(),
+                    format!("{name} is {}, expected {want} (re-export)", kind(&v)),
+                )
             }),
         }
     }
 
     fn mesh_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
         let (path, at) = (self.path, prim.path().clone());
-        let points = self.array(prim, "points", vec3_array, "point3f[]")?.unwrap_or_default();
-        let counts = self.array(prim, "faceVertexCounts", int_array, "int[]")?.unwrap_or_default();
-        let indices = self.array(prim, "faceVertexIndices", int_array, "int[]")?.unwrap_or_default();
+        let points = self
+            .array(prim, "points", vec3_array, "point3f[]")?
+            .unwrap_or_default();
+        let counts = self
+            .array(prim, "faceVertexCounts", int_array, "int[]")?
+            .unwrap_or_default();
+        let indices = self
+            .array(prim, "faceVertexIndices", int_array, "int[]")?
+            .unwrap_or_default();
         if points.is_empty() || counts.is_empty() {
             warn(path, &format!("{at}: mesh has no points or faces; skipped"));
             return Ok(());
@@ -412,7 +478,11 @@ impl Loader<'_> {
         let mut skipped = 0usize;
         for (f, &c) in counts.iter().enumerate() {
             if c < 0 {
-                return Err(prim_err(path, &at, format!("faceVertexCounts[{f}] is {c}, negative (re-export)")));
+                return Err(prim_err(
+                    path,
+                    &at,
+                    format!("faceVertexCounts[{f}] is {c}, negative (re-export)"),
+                ));
             }
             let c = c as usize;
             if corner + c > indices.len() {
@@ -432,19 +502,32 @@ impl Loader<'_> {
             corner += c;
         }
         let n_corners = corner;
-        if let Some((k, &i)) = indices[..n_corners].iter().enumerate().find(|(_, &i)| i < 0 || i as usize >= n_points) {
+        if let Some((k, &i)) = indices[..n_corners]
+            .iter()
+            .enumerate()
+            .find(|(_, &i)| i < 0 || i as usize >= n_points)
+        {
             return Err(prim_err(
                 path,
                 &at,
-                format!("faceVertexIndices[{k}] is {i} but the mesh has {n_points} points (re-export)"),
+                format!(
+                    "faceVertexIndices[{k}] is {i} but the mesh has {n_points} points (re-export)"
+                ),
             ));
         }
         if skipped > 0 {
-            warn(path, &format!("{at}: {skipped} faces with fewer than 3 corners skipped"));
+            warn(
+                path,
+                &format!("{at}: {skipped} faces with fewer than 3 corners skipped"),
+            );
         }
         let point_of = |k: usize| indices[k] as usize;
 
-        let flip = (det < 0.0) != (value(path, prim, "orientation")?.as_ref().and_then(|v| v.as_str()) == Some("leftHanded"));
+        let flip = (det < 0.0)
+            != (value(path, prim, "orientation")?
+                .as_ref()
+                .and_then(|v| v.as_str())
+                == Some("leftHanded"));
         let mut tris: Vec<[usize; 3]> = Vec::new(); // corner indices
         let mut tri_face: Vec<usize> = Vec::new();
         for (f, &(first, c)) in faces.iter().enumerate() {
@@ -455,12 +538,29 @@ impl Loader<'_> {
             }
         }
 
-        let positions: Vec<Vec3> = points.iter().map(|&p| world32.transform_point3(p)).collect();
-        let point_tris: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|k| point_of(k) as u32)).collect();
+        let positions: Vec<Vec3> = points
+            .iter()
+            .map(|&p| world32.transform_point3(p))
+            .collect();
+        let point_tris: Vec<[u32; 3]> =
+            tris.iter().map(|t| t.map(|k| point_of(k) as u32)).collect();
         let derived = BaseMesh::angle_weighted_normals(&positions, &point_tris);
-        let normal_name = if value(path, prim, "primvars:normals")?.is_some() { "primvars:normals" } else { "normals" };
+        let normal_name = if value(path, prim, "primvars:normals")?.is_some() {
+            "primvars:normals"
+        } else {
+            "normals"
+        };
         let to_world = linear.inverse().transpose();
-        let file_normals = self.corner_values(prim, normal_name, vec3_array, "normal3f[]", &faces, &indices, n_points, "vertex")?;
+        let file_normals = self.corner_values(
+            prim,
+            normal_name,
+            vec3_array,
+            "normal3f[]",
+            &faces,
+            &indices,
+            n_points,
+            "vertex",
+        )?;
         let uvs = self.corner_uvs(prim, &faces, &indices, n_points)?;
 
         // One vertex per distinct (point, normal, UV) corner.
@@ -478,7 +578,11 @@ impl Loader<'_> {
                     None => derived[p],
                 };
                 let uv = uvs.as_ref().map_or(Vec2::ZERO, |u| u[k]);
-                let key = (p, n.to_array().map(f32::to_bits), uv.to_array().map(f32::to_bits));
+                let key = (
+                    p,
+                    n.to_array().map(f32::to_bits),
+                    uv.to_array().map(f32::to_bits),
+                );
                 corner_vertex[k] = *key_to_vertex.entry(key).or_insert_with(|| {
                     new_pos.push(positions[p]);
                     new_nrm.push(n);
@@ -501,17 +605,37 @@ impl Loader<'_> {
 
     /// The UV primvar: `uv_set` 0 is the one the displacement texture reads (else `st`, else
     /// the first texCoord2 primvar by name), N > 0 the N-th of the others by name.
-    fn corner_uvs(&mut self, prim: &Prim, faces: &[(usize, usize)], indices: &[i64], n_points: usize) -> Result<Option<Vec<Vec2>>> {
+    fn corner_uvs(
+        &mut self,
+        prim: &Prim,
+        faces: &[(usize, usize)],
+        indices: &[i64],
+        n_points: usize,
+    ) -> Result<Option<Vec<Vec2>>> {
         let path = self.path;
         let mut names: Vec<String> = Vec::new();
-        for attr in prim.attributes().map_err(|e| usd_err(path, prim.path(), e))? {
-            let Some((_, name)) = attr.path().split_property() else { continue };
-            let Some(short) = name.strip_prefix("primvars:") else { continue };
+        for attr in prim
+            .attributes()
+            .map_err(|e| usd_err(path, prim.path(), e))?
+        {
+            let Some((_, name)) = attr.path().split_property() else {
+                continue;
+            };
+            let Some(short) = name.strip_prefix("primvars:") else {
+                continue;
+            };
             if short.contains(':') {
                 continue;
             }
-            let ty = attr.type_name().ok().flatten().map(|t| t.as_str().to_string()).unwrap_or_default();
-            if ty.starts_with("texCoord2") || (ty.starts_with("float2[") && matches!(short, "st" | "uv" | "UVMap")) {
+            let ty = attr
+                .type_name()
+                .ok()
+                .flatten()
+                .map(|t| t.as_str().to_string())
+                .unwrap_or_default();
+            if ty.starts_with("texCoord2")
+                || (ty.starts_with("float2[") && matches!(short, "st" | "uv" | "UVMap"))
+            {
                 names.push(short.to_string());
             }
         }
@@ -542,7 +666,16 @@ impl Loader<'_> {
             ));
         };
         let full = format!("primvars:{name}");
-        self.corner_values(prim, &full, vec2_array, "texCoord2f[]", faces, indices, n_points, "constant")
+        self.corner_values(
+            prim,
+            &full,
+            vec2_array,
+            "texCoord2f[]",
+            faces,
+            indices,
+            n_points,
+            "constant",
+        )
     }
 
     /// An attribute or primvar expanded to one value per face corner (`None` when absent).
@@ -559,17 +692,32 @@ impl Loader<'_> {
         default_interp: &str,
     ) -> Result<Option<Vec<T>>> {
         let path = self.path;
-        let Some(mut vals) = self.array(prim, name, conv, want)? else { return Ok(None) };
+        let Some(mut vals) = self.array(prim, name, conv, want)? else {
+            return Ok(None);
+        };
         let at = property_path(path, prim.path(), name)?;
-        let interp_tok = metadata_token(self.stage, &at, "interpolation").unwrap_or_else(|| default_interp.to_string());
+        let interp_tok = metadata_token(self.stage, &at, "interpolation")
+            .unwrap_or_else(|| default_interp.to_string());
         let interp = match interp_tok.as_str() {
             "constant" => Interp::Constant,
             "uniform" => Interp::Uniform,
             "vertex" | "varying" => Interp::Vertex,
             "faceVarying" => Interp::FaceVarying,
-            other => return Err(prim_err(path, &at, format!("unknown interpolation '{other}' (re-export)"))),
+            other => {
+                return Err(prim_err(
+                    path,
+                    &at,
+                    format!("unknown interpolation '{other}' (re-export)"),
+                ))
+            }
         };
-        if let Some(v) = self.stage.attribute(at.clone()).get_metadata::<Value>("elementSize").ok().flatten() {
+        if let Some(v) = self
+            .stage
+            .attribute(at.clone())
+            .get_metadata::<Value>("elementSize")
+            .ok()
+            .flatten()
+        {
             if scalar(&v).is_some_and(|s| s != 1.0) {
                 return Err(prim_err(path, &at, "elementSize other than 1 is not supported (re-export with one value per element)"));
             }
@@ -577,8 +725,16 @@ impl Loader<'_> {
         if name.starts_with("primvars:") {
             if let Some(idx) = self.array(prim, &format!("{name}:indices"), int_array, "int[]")? {
                 let n = vals.len();
-                if let Some((k, &i)) = idx.iter().enumerate().find(|(_, &i)| i < 0 || i as usize >= n) {
-                    return Err(prim_err(path, &at, format!("{name}:indices[{k}] is {i} but there are {n} values (re-export)")));
+                if let Some((k, &i)) = idx
+                    .iter()
+                    .enumerate()
+                    .find(|(_, &i)| i < 0 || i as usize >= n)
+                {
+                    return Err(prim_err(
+                        path,
+                        &at,
+                        format!("{name}:indices[{k}] is {i} but there are {n} values (re-export)"),
+                    ));
                 }
                 vals = idx.iter().map(|&i| vals[i as usize]).collect();
             }
@@ -594,7 +750,10 @@ impl Loader<'_> {
             return Err(prim_err(
                 path,
                 &at,
-                format!("has {} values, expected {what}: {expected} (re-export)", vals.len()),
+                format!(
+                    "has {} values, expected {what}: {expected} (re-export)",
+                    vals.len()
+                ),
             ));
         }
         let mut out = Vec::with_capacity(n_corners);
@@ -622,9 +781,16 @@ fn bound_material(path: &Path, stage: &Stage, prim: &sdf::Path) -> Result<Option
         if cur.is_abs_root() {
             break;
         }
-        for rel in ["material:binding", "material:binding:full", "material:binding:preview"] {
+        for rel in [
+            "material:binding",
+            "material:binding:full",
+            "material:binding:preview",
+        ] {
             let rp = property_path(path, &cur, rel)?;
-            let targets = stage.relationship(rp.clone()).targets().map_err(|e| usd_err(path, &rp, e))?;
+            let targets = stage
+                .relationship(rp.clone())
+                .targets()
+                .map_err(|e| usd_err(path, &rp, e))?;
             if let Some(t) = targets.into_iter().next() {
                 return Ok(Some(t));
             }
@@ -641,13 +807,26 @@ fn info_id(path: &Path, stage: &Stage, shader: &sdf::Path) -> Result<Option<Stri
 
 /// Follow connections from an input or output attribute through node graphs to the shader
 /// output that feeds it: `(shader prim, output name)`; `None` if it ends in a plain value.
-fn connected_output(path: &Path, stage: &Stage, attr: &sdf::Path) -> Result<Option<(sdf::Path, String)>> {
+fn connected_output(
+    path: &Path,
+    stage: &Stage,
+    attr: &sdf::Path,
+) -> Result<Option<(sdf::Path, String)>> {
     let mut cur = attr.clone();
     for _ in 0..32 {
-        let conns = stage.attribute(cur.clone()).connections().map_err(|e| usd_err(path, &cur, e))?;
-        let Some(target) = conns.into_iter().next() else { return Ok(None) };
+        let conns = stage
+            .attribute(cur.clone())
+            .connections()
+            .map_err(|e| usd_err(path, &cur, e))?;
+        let Some(target) = conns.into_iter().next() else {
+            return Ok(None);
+        };
         let Some((prim, prop)) = target.split_property() else {
-            return Err(prim_err(path, &cur, format!("connects to {target}, which is not a property (re-export)")));
+            return Err(prim_err(
+                path,
+                &cur,
+                format!("connects to {target}, which is not a property (re-export)"),
+            ));
         };
         if let Some(out) = prop.strip_prefix("outputs:") {
             if info_id(path, stage, &prim)?.is_some() {
@@ -656,29 +835,52 @@ fn connected_output(path: &Path, stage: &Stage, attr: &sdf::Path) -> Result<Opti
         }
         cur = target.clone();
     }
-    Err(prim_err(path, attr, "connection chain is longer than 32 links or cyclic (re-export)"))
+    Err(prim_err(
+        path,
+        attr,
+        "connection chain is longer than 32 links or cyclic (re-export)",
+    ))
 }
 
 /// A shader input's value, following connections to node-graph interface inputs.
-fn input_value(path: &Path, stage: &Stage, shader: &sdf::Path, name: &str) -> Result<Option<Value>> {
+fn input_value(
+    path: &Path,
+    stage: &Stage,
+    shader: &sdf::Path,
+    name: &str,
+) -> Result<Option<Value>> {
     let mut cur = property_path(path, shader, &format!("inputs:{name}"))?;
     for _ in 0..32 {
-        let conns = stage.attribute(cur.clone()).connections().map_err(|e| usd_err(path, &cur, e))?;
+        let conns = stage
+            .attribute(cur.clone())
+            .connections()
+            .map_err(|e| usd_err(path, &cur, e))?;
         match conns.into_iter().next() {
             Some(t) => cur = t,
             None => return attr_value(path, stage, &cur),
         }
     }
-    Err(prim_err(path, &cur, "connection chain is longer than 32 links or cyclic (re-export)"))
+    Err(prim_err(
+        path,
+        &cur,
+        "connection chain is longer than 32 links or cyclic (re-export)",
+    ))
 }
 
-fn token_input(path: &Path, stage: &Stage, shader: &sdf::Path, name: &str) -> Result<Option<String>> {
+fn token_input(
+    path: &Path,
+    stage: &Stage,
+    shader: &sdf::Path,
+    name: &str,
+) -> Result<Option<String>> {
     Ok(input_value(path, stage, shader, name)?.and_then(|v| v.as_str().map(str::to_string)))
 }
 
 /// The texture-driven displacement of one mesh prim, if its material has one.
 fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<UsdDisplacement>> {
-    let Some(material) = bound_material(path, stage, prim.path())? else { return Ok(None) };
+    let Some(material) = bound_material(path, stage, prim.path())? else {
+        return Ok(None);
+    };
     // The material's displacement output leads to the surface shader; a material that only
     // wires `outputs:surface` still gets its preview surface's displacement read.
     let mut surface = None;
@@ -689,12 +891,16 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
             break;
         }
     }
-    let Some(surface) = surface else { return Ok(None) };
+    let Some(surface) = surface else {
+        return Ok(None);
+    };
     if info_id(path, stage, &surface)?.as_deref() != Some("UsdPreviewSurface") {
         return Ok(None);
     }
     let disp_in = property_path(path, &surface, "inputs:displacement")?;
-    let Some((tex, output)) = connected_output(path, stage, &disp_in)? else { return Ok(None) };
+    let Some((tex, output)) = connected_output(path, stage, &disp_in)? else {
+        return Ok(None);
+    };
     let id = info_id(path, stage, &tex)?.unwrap_or_default();
     if id != "UsdUVTexture" {
         return Err(prim_err(
@@ -708,19 +914,39 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
         "g" => 1,
         "b" => 2,
         "a" => 3,
-        other => return Err(prim_err(path, &disp_in, format!("reads output '{other}' of {tex}; expected r, g, b or a"))),
+        other => {
+            return Err(prim_err(
+                path,
+                &disp_in,
+                format!("reads output '{other}' of {tex}; expected r, g, b or a"),
+            ))
+        }
     };
     let file = match input_value(path, stage, &tex, "file")? {
-        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => resolve_asset(path, stage, &tex, &a),
-        Some(Value::String(s)) if !s.is_empty() => resolve_asset(path, stage, &tex, &sdf::AssetPath::new(s)),
+        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => {
+            resolve_asset(path, stage, &tex, &a)
+        }
+        Some(Value::String(s)) if !s.is_empty() => {
+            resolve_asset(path, stage, &tex, &sdf::AssetPath::new(s))
+        }
         _ => {
-            return Err(prim_err(path, &tex, "the displacement texture has no inputs:file (set the height map's path)"));
+            return Err(prim_err(
+                path,
+                &tex,
+                "the displacement texture has no inputs:file (set the height map's path)",
+            ));
         }
     };
     let four = |name: &str, default: [f64; 4]| -> Result<[f64; 4]> {
         Ok(match input_value(path, stage, &tex, name)? {
             None => default,
-            Some(v) => vec4(&v).ok_or_else(|| prim_err(path, &tex, format!("inputs:{name} is {}, expected float4", kind(&v))))?,
+            Some(v) => vec4(&v).ok_or_else(|| {
+                prim_err(
+                    path,
+                    &tex,
+                    format!("inputs:{name} is {}, expected float4", kind(&v)),
+                )
+            })?,
         })
     };
     let scale = four("scale", [1.0; 4])?[channel];
@@ -735,18 +961,27 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
     let wrap_s = token_input(path, stage, &tex, "wrapS")?;
     let wrap_t = token_input(path, stage, &tex, "wrapT")?;
     if wrap_s != wrap_t {
-        warn(path, &format!("{tex}: wrapS {wrap_s:?} and wrapT {wrap_t:?} differ; wrapS is used for both"));
+        warn(
+            path,
+            &format!("{tex}: wrapS {wrap_s:?} and wrapT {wrap_t:?} differ; wrapS is used for both"),
+        );
     }
     let wrap = match wrap_s.as_deref() {
         None | Some("useMetadata") | Some("repeat") => Wrap::Repeat,
         Some("clamp") => Wrap::Clamp,
         Some(other) => {
-            warn(path, &format!("{tex}: wrap mode '{other}' is not supported; repeat is used"));
+            warn(
+                path,
+                &format!("{tex}: wrap mode '{other}' is not supported; repeat is used"),
+            );
             Wrap::Repeat
         }
     };
     if token_input(path, stage, &tex, "sourceColorSpace")?.as_deref() == Some("sRGB") {
-        warn(path, &format!("{tex}: sourceColorSpace is sRGB; height maps are read raw (set it to raw)"));
+        warn(
+            path,
+            &format!("{tex}: sourceColorSpace is sRGB; height maps are read raw (set it to raw)"),
+        );
     }
     let st_in = property_path(path, &tex, "inputs:st")?;
     let uv_primvar = match connected_output(path, stage, &st_in)? {

@@ -48,15 +48,28 @@ fn polygons_are_fan_triangulated_counter_clockwise() {
     let d = dir("poly");
     let p = write(&d, "a.usda", &quad_and_pentagon(""));
     let m = load_mesh(&p, &MeshOptions::default()).unwrap();
-    assert_eq!(m.triangle_count(), 2 + 3, "a quad gives 2 triangles, a pentagon 3");
+    assert_eq!(
+        m.triangle_count(),
+        2 + 3,
+        "a quad gives 2 triangles, a pentagon 3"
+    );
     for t in 0..m.triangle_count() {
-        assert!(area_sign_z(&m, t) > 0.0, "triangle {t} must keep the polygon's winding");
+        assert!(
+            area_sign_z(&m, t) > 0.0,
+            "triangle {t} must keep the polygon's winding"
+        );
     }
-    assert!(m.missing_uvs, "no st primvar: the mesh is flagged as having no UVs");
+    assert!(
+        m.missing_uvs,
+        "no st primvar: the mesh is flagged as having no UVs"
+    );
     assert_eq!(m.up_axis, Some(UpAxis::Y));
     assert_eq!(m.groups, vec!["/M".to_string()]);
     for n in &m.normals {
-        assert!((n.z - 1.0).abs() < 1e-5, "derived normals of a flat +z mesh point up, got {n}");
+        assert!(
+            (n.z - 1.0).abs() < 1e-5,
+            "derived normals of a flat +z mesh point up, got {n}"
+        );
     }
 }
 
@@ -80,9 +93,17 @@ fn indexed_face_varying_st_is_expanded_per_corner() {
     };
     assert_eq!(uv_at(Vec3::new(0.0, 0.0, 0.0)), Vec2::new(0.0, 0.0));
     assert_eq!(uv_at(Vec3::new(1.0, 1.0, 0.0)), Vec2::new(1.0, 1.0));
-    assert_eq!(uv_at(Vec3::new(0.0, 1.0, 0.0)), Vec2::new(0.0, 1.0), "v points up: no flip");
+    assert_eq!(
+        uv_at(Vec3::new(0.0, 1.0, 0.0)),
+        Vec2::new(0.0, 1.0),
+        "v points up: no flip"
+    );
     // Point 1 and 2 carry different UVs in the two faces: they are split, so 4 + 5 vertices.
-    assert_eq!(m.vertex_count(), 9, "corners are shared only where point, normal and UV agree");
+    assert_eq!(
+        m.vertex_count(),
+        9,
+        "corners are shared only where point, normal and UV agree"
+    );
 }
 
 #[test]
@@ -117,7 +138,11 @@ fn vertex_uniform_and_constant_st_interpolations() {
         assert_eq!(m.vertex_count(), verts, "{name}: vertex count");
         match name {
             "vertex" => {
-                let v = m.positions.iter().position(|p| *p == Vec3::new(2.5, 0.5, 0.0)).unwrap();
+                let v = m
+                    .positions
+                    .iter()
+                    .position(|p| *p == Vec3::new(2.5, 0.5, 0.0))
+                    .unwrap();
                 assert_eq!(m.uvs[v], Vec2::new(0.3, 0.5));
             }
             "uniform" => {
@@ -258,8 +283,14 @@ fn face_varying_normals_and_primvars_normals_win() {
     );
     let m = load_mesh(&write(&d, "a.usda", &text), &MeshOptions::default()).unwrap();
     let n = m.corner_normals(0);
-    assert!((n[0] - Vec3::Z).length() < 1e-6, "primvars:normals over normals, renormalised: {n:?}");
-    assert!((n[1] - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-6, "indexed: {n:?}");
+    assert!(
+        (n[0] - Vec3::Z).length() < 1e-6,
+        "primvars:normals over normals, renormalised: {n:?}"
+    );
+    assert!(
+        (n[1] - Vec3::new(0.0, 0.6, 0.8)).length() < 1e-6,
+        "indexed: {n:?}"
+    );
 }
 
 #[test]
@@ -321,10 +352,19 @@ fn displacement_material_gives_scale_and_midlevel() {
 }"#,
     );
     let p = write(&d, "a.usda", &text);
-    let disp = displacement(&p).unwrap().expect("the bound material displaces");
-    assert_eq!(disp.file, d.join("./tex/h.exr"), "relative to the authoring layer");
+    let disp = displacement(&p)
+        .unwrap()
+        .expect("the bound material displaces");
+    assert_eq!(
+        disp.file,
+        d.join("./tex/h.exr"),
+        "relative to the authoring layer"
+    );
     assert!((disp.scale - 0.2).abs() < 1e-6, "scale of channel g");
-    assert!((disp.midlevel - 0.3).abs() < 1e-6, "M = -bias/scale = 0.06/0.2");
+    assert!(
+        (disp.midlevel - 0.3).abs() < 1e-6,
+        "M = -bias/scale = 0.06/0.2"
+    );
     assert_eq!(disp.wrap, Wrap::Clamp);
     assert_eq!(disp.channel, "G");
     assert_eq!(disp.uv_primvar.as_deref(), Some("heightUV"));
@@ -332,8 +372,14 @@ fn displacement_material_gives_scale_and_midlevel() {
     let m = load_mesh(&p, &MeshOptions::default()).unwrap();
     assert_eq!(m.corner_uvs(0)[1], Vec2::new(1.0, 0.0));
     let m1 = load_mesh(&p, &MeshOptions { uv_set: 1 }).unwrap();
-    assert_eq!(m1.corner_uvs(0)[1], Vec2::splat(9.0), "uv_set 1 = the next primvar by name");
-    let e = load_mesh(&p, &MeshOptions { uv_set: 2 }).unwrap_err().to_string();
+    assert_eq!(
+        m1.corner_uvs(0)[1],
+        Vec2::splat(9.0),
+        "uv_set 1 = the next primvar by name"
+    );
+    let e = load_mesh(&p, &MeshOptions { uv_set: 2 })
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("/Asset/M") && e.contains("heightUV, aaa"), "{e}");
 }
 
@@ -397,7 +443,10 @@ fn bad_files_are_errors_not_panics() {
     for (name, text, want) in cases {
         let p = write(&d, name, &text);
         let r = std::panic::catch_unwind(|| load_mesh(&p, &MeshOptions::default()));
-        let e = r.unwrap_or_else(|_| panic!("{name}: panicked")).expect_err(name).to_string();
+        let e = r
+            .unwrap_or_else(|_| panic!("{name}: panicked"))
+            .expect_err(name)
+            .to_string();
         assert!(e.contains(name), "{name}: the error names the file: {e}");
         assert!(e.contains(want), "{name}: expected '{want}' in: {e}");
     }

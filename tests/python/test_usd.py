@@ -1,0 +1,306 @@
+"""USD in and out, checked against the real tools: files written by Blender (`bpy`) and by
+Pixar's `usd-core` load in prismbake, and what `prismbake export --usd` writes passes every
+registered `pxr.UsdValidation` validator, `UsdGeom.Mesh.ValidateTopology` and reads back with
+its displacement intact. Blender → USD → prismbake must render the same mask as
+Blender → glTF → prismbake.
+
+bpy runs in a subprocess: it bundles its own USD libraries, which must not meet usd-core's
+in one process.
+"""
+import json
+import pathlib
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import OpenEXR
+import pytest
+from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdValidation, Vt
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+MAP = ROOT / "examples" / "maps" / "rock_1024.png"
+SCALE, MIDLEVEL = 0.1, 0.5
+
+# Blender is Z-up; its glTF exporter writes Y-up: glTF (x, y, z) = Blender (x, z, -y).
+CAM_GLTF = ("0.5,0.8,3.5", "0.5,0,0")
+CAM_ZUP = ("0.5,-3.5,0.8", "0.5,0,0")
+
+BLENDER_SCRIPT = textwrap.dedent(
+    """
+    import sys, bpy
+    out, image = sys.argv[1], sys.argv[2]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.0)
+    ob = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    ob.location = (0.5, 0.0, 0.0)
+    mat = bpy.data.materials.new("Rock")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(image)
+    tex.image.colorspace_settings.name = "Non-Color"
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    disp.inputs["Midlevel"].default_value = %(mid)r
+    disp.inputs["Scale"].default_value = %(scale)r
+    nt.links.new(tex.outputs["Color"], disp.inputs["Height"])
+    nt.links.new(disp.outputs["Displacement"], nt.nodes["Material Output"].inputs["Displacement"])
+    ob.data.materials.append(mat)
+    bpy.ops.wm.usd_export(filepath=out + ".usdc")
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb")
+    """
+    % {"mid": MIDLEVEL, "scale": SCALE}
+)
+
+
+@pytest.fixture(scope="session")
+def blender_sphere(tmp_path_factory):
+    """A smooth UV sphere with an image-texture displacement material, exported by Blender
+    as sphere.usdc, sphere.usda (textures copied to textures/) and sphere.glb."""
+    d = tmp_path_factory.mktemp("blender")
+    base = d / "sphere"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base), str(MAP)],
+        input=BLENDER_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for ext in ("usdc", "usda", "glb"):
+        assert (d / f"sphere.{ext}").is_file(), f"Blender wrote no sphere.{ext}\n{proc.stderr[-2000:]}"
+    return d
+
+
+def read_mask(path):
+    with OpenEXR.File(str(path)) as f:
+        channels = f.channels()
+        name = next(iter(channels))
+        return np.asarray(channels[name].pixels, dtype=np.float32)
+
+
+def render_mask(run, mesh, out, camera, *flags):
+    run("render", mesh, *flags, "--aov", "mask", "--res", "64x64",
+        "--camera-from", camera[0], "--camera-to", camera[1], "--no-jitter", "-o", out, check=0)
+    return read_mask(out / "mask.exr")
+
+
+def mismatch(a, b):
+    assert a.shape == b.shape
+    return float(np.mean((a > 0.5) != (b > 0.5)))
+
+
+def inspect(run, mesh, *flags):
+    return json.loads(run("inspect", mesh, *flags, "--json", check=0).stdout)
+
+
+def validate_stage(stage):
+    """Every registered validator over the stage; returns the errors (all severities)."""
+    registry = UsdValidation.ValidationRegistry()
+    validators = registry.GetOrLoadAllValidators()
+    assert len(validators) > 10, "usd-core registered no validators: the check would be empty"
+    return UsdValidation.ValidationContext(validators).Validate(stage)
+
+
+# ---- ingest ----
+
+def test_blender_usdc_and_usda_load_like_its_gltf(run, blender_sphere):
+    glb = inspect(run, blender_sphere / "sphere.glb", "--disp", MAP)
+    for ext in ("usdc", "usda"):
+        usd = inspect(run, blender_sphere / f"sphere.{ext}")
+        assert usd["triangles"] == glb["triangles"], ext
+        assert usd["vertices"] == glb["vertices"], f"{ext}: corners shared where point, normal and UV agree"
+        assert usd["has_uvs"]
+        # Same sphere, Z-up vs Y-up: bounds agree after the axis swap.
+        lo, hi = usd["bounds_min"], usd["bounds_max"]
+        g_lo, g_hi = glb["bounds_min"], glb["bounds_max"]
+        assert np.allclose([lo[0], lo[2], -hi[1]], g_lo, atol=1e-4), (lo, hi, g_lo)
+        assert np.allclose([hi[0], hi[2], -lo[1]], g_hi, atol=1e-4), (lo, hi, g_hi)
+
+
+def test_blender_material_gives_the_displacement(run, blender_sphere):
+    """No --disp and no sidecar: the map, scale and midlevel come from the USD material."""
+    info = inspect(run, blender_sphere / "sphere.usdc")
+    m = info["map"]
+    assert pathlib.Path(m["path"]).name == MAP.name
+    assert pathlib.Path(m["path"]).is_file()
+    # D = S·(h − M) over the map's values: S 0.1 and M 0.5 as Blender's Displacement node set.
+    assert m["displacement_min"] == pytest.approx(SCALE * (m["value_min"] - MIDLEVEL), abs=1e-6), m
+    assert m["displacement_max"] == pytest.approx(SCALE * (m["value_max"] - MIDLEVEL), abs=1e-6), m
+
+
+@pytest.mark.parametrize("ext", ["usdc", "usda"])
+def test_blender_usd_renders_the_same_mask_as_its_gltf(run, blender_sphere, tmp_path, ext):
+    flags = ("--disp", MAP, "--scale", SCALE, "--midlevel", MIDLEVEL)
+    ref = render_mask(run, blender_sphere / "sphere.glb", tmp_path / "glb", CAM_GLTF, *flags)
+    assert 0.1 < ref.mean() < 0.9, "the sphere fills part of the frame"
+    flat = render_mask(run, blender_sphere / "sphere.glb", tmp_path / "flat", CAM_GLTF, "--disp", MAP, "--scale", 0)
+    assert mismatch(ref, flat) > 0.01, "control: the displacement shows in the mask"
+    usd = render_mask(run, blender_sphere / f"sphere.{ext}", tmp_path / "usd", CAM_ZUP, *flags)
+    assert mismatch(ref, usd) <= 0.005
+    # The same again with the displacement taken from the USD material instead of flags.
+    own = render_mask(run, blender_sphere / f"sphere.{ext}", tmp_path / "own", CAM_ZUP)
+    assert mismatch(ref, own) <= 0.005
+
+
+def make_usd_core_mesh(path):
+    """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
+    UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+    root = UsdGeom.Xform.Define(stage, "/World")
+    root.AddTranslateOp().Set(Gf.Vec3d(1, 2, 3))
+    root.AddRotateXYZOp().Set(Gf.Vec3f(0, 0, 90))
+    child = UsdGeom.Xform.Define(stage, "/World/Part")
+    child.AddScaleOp().Set(Gf.Vec3f(2, 2, 2))
+    mesh = UsdGeom.Mesh.Define(stage, "/World/Part/Panel")
+    mesh.CreatePointsAttr([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (2, 0.5, 0)])
+    mesh.CreateFaceVertexCountsAttr([4, 3])
+    mesh.CreateFaceVertexIndicesAttr([0, 1, 2, 3, 1, 4, 2])
+    mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+    st = UsdGeom.PrimvarsAPI(mesh).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray, UsdGeom.Tokens.faceVarying)
+    st.Set([(0, 0), (0.5, 0), (0.5, 1), (0, 1), (1, 0.5)])
+    st.SetIndices(Vt.IntArray([0, 1, 2, 3, 1, 4, 2]))
+    mat = UsdShade.Material.Define(stage, "/World/Looks/M")
+    surf = UsdShade.Shader.Define(stage, "/World/Looks/M/Surface")
+    surf.CreateIdAttr("UsdPreviewSurface")
+    tex = UsdShade.Shader.Define(stage, "/World/Looks/M/Height")
+    tex.CreateIdAttr("UsdUVTexture")
+    tex.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(str(MAP)))
+    tex.CreateInput("scale", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(0.2, 0.2, 0.2, 1))
+    tex.CreateInput("bias", Sdf.ValueTypeNames.Float4).Set(Gf.Vec4f(-0.1, -0.1, -0.1, 0))
+    tex.CreateInput("wrapS", Sdf.ValueTypeNames.Token).Set("clamp")
+    tex.CreateInput("wrapT", Sdf.ValueTypeNames.Token).Set("clamp")
+    reader = UsdShade.Shader.Define(stage, "/World/Looks/M/Reader")
+    reader.CreateIdAttr("UsdPrimvarReader_float2")
+    reader.CreateInput("varname", Sdf.ValueTypeNames.String).Set("st")
+    tex.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+    surf.CreateInput("displacement", Sdf.ValueTypeNames.Float).ConnectToSource(tex.ConnectableAPI(), "r")
+    mat.CreateSurfaceOutput().ConnectToSource(surf.ConnectableAPI(), "surface")
+    mat.CreateDisplacementOutput().ConnectToSource(surf.ConnectableAPI(), "displacement")
+    UsdShade.MaterialBindingAPI.Apply(mesh.GetPrim()).Bind(mat)
+    stage.SetDefaultPrim(root.GetPrim())
+    stage.GetRootLayer().Save()
+    world = UsdGeom.BBoxCache(Usd.TimeCode.Default(), [UsdGeom.Tokens.default_]).ComputeWorldBound(mesh.GetPrim())
+    return world.ComputeAlignedRange()
+
+
+@pytest.mark.parametrize("ext", ["usda", "usdc"])
+def test_usd_core_mesh_loads_with_transforms_and_material(run, tmp_path, ext):
+    path = tmp_path / f"panel.{ext}"
+    box = make_usd_core_mesh(path)
+    info = inspect(run, path)
+    assert info["triangles"] == 2 + 1
+    assert np.allclose(info["bounds_min"], list(box.GetMin()), atol=1e-5), (info, box)
+    assert np.allclose(info["bounds_max"], list(box.GetMax()), atol=1e-5), (info, box)
+    assert info["uv_min"] == [0.0, 0.0] and info["uv_max"] == [1.0, 1.0]
+    assert pathlib.Path(info["map"]["path"]) == MAP
+
+
+def test_broken_usd_files_fail_cleanly(run, blender_sphere, tmp_path):
+    data = (blender_sphere / "sphere.usdc").read_bytes()
+    for n, cut in enumerate([0, 8, 88, len(data) // 3, len(data) - 16]):
+        p = tmp_path / f"cut{n}.usdc"
+        p.write_bytes(data[:cut])
+        proc = run("inspect", p, "--disp", MAP)
+        assert proc.returncode in (0, 2), proc.stderr
+        assert "panicked" not in proc.stderr, proc.stderr
+        if proc.returncode == 2:
+            assert str(p.name) in proc.stderr, proc.stderr
+
+
+# ---- export ----
+
+@pytest.fixture(scope="session")
+def exported(blender_sphere, prismbake, tmp_path_factory):
+    """`prismbake export` of Blender's sphere.usdc (displacement from its material) into a
+    folder of its own, so the texture path has to be relative across folders."""
+    out = tmp_path_factory.mktemp("export") / "sub" / "sphere_out.usda"
+    out.parent.mkdir()
+    proc = subprocess.run([prismbake, "export", str(blender_sphere / "sphere.usdc"), "--usd", str(out)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_export_passes_every_usd_validator(exported):
+    stage = Usd.Stage.Open(str(exported))
+    errors = validate_stage(stage)
+    assert not errors, "\n".join(f"{e.GetName()}: {e.GetMessage()}" for e in errors)
+
+
+def test_validators_do_catch_a_broken_export(exported, tmp_path):
+    """Control: the same file without upAxis/metersPerUnit and with a dangling texture fails,
+    so an empty error list above means something."""
+    text = exported.read_text()
+    text = text.replace('    metersPerUnit = 1\n', '').replace('    upAxis = "Z"\n', '')
+    text = text.replace("rock_1024.png", "missing.png")
+    bad = tmp_path / "bad.usda"
+    bad.write_text(text)
+    names = {e.GetName() for e in validate_stage(Usd.Stage.Open(str(bad)))}
+    assert {"MissingUpAxisMetadata", "MissingMetersPerUnitMetadata", "UnresolvableDependency"} <= names, names
+
+
+def test_export_topology_primvars_and_metadata(exported):
+    stage = Usd.Stage.Open(str(exported))
+    assert UsdGeom.GetStageUpAxis(stage) == UsdGeom.Tokens.z, "Blender's Z-up is kept"
+    assert UsdGeom.GetStageMetersPerUnit(stage) == 1.0
+    default = stage.GetDefaultPrim()
+    assert default and default.GetPath() == Sdf.Path("/sphere")
+    meshes = [UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    assert len(meshes) == 1
+    mesh = meshes[0]
+    counts = mesh.GetFaceVertexCountsAttr().Get()
+    indices = mesh.GetFaceVertexIndicesAttr().Get()
+    points = mesh.GetPointsAttr().Get()
+    ok, why = UsdGeom.Mesh.ValidateTopology(indices, counts, len(points))
+    assert ok, why
+    primvars = UsdGeom.PrimvarsAPI(mesh)
+    n_faces = len(counts)
+    for name in ("prismbake:wmin", "prismbake:wmax"):
+        pv = primvars.GetPrimvar(name)
+        assert pv and pv.GetInterpolation() == UsdGeom.Tokens.uniform, name
+        assert pv.GetTypeName() == Sdf.ValueTypeNames.FloatArray, name
+        assert len(pv.Get()) == n_faces, f"{name}: one value per face"
+    wmin = np.array(primvars.GetPrimvar("prismbake:wmin").Get())
+    wmax = np.array(primvars.GetPrimvar("prismbake:wmax").Get())
+    assert np.all(wmin <= wmax)
+    assert wmin.min() >= -SCALE * MIDLEVEL - 1e-6 and wmax.max() <= SCALE * (1 - MIDLEVEL) + 1e-6
+    st = primvars.GetPrimvar("st")
+    assert st.GetInterpolation() == UsdGeom.Tokens.vertex and len(st.Get()) == len(points)
+    assert len(mesh.GetNormalsAttr().Get()) == len(points)
+    extent = mesh.GetExtentAttr().Get()
+    computed = UsdGeom.Boundable.ComputeExtentFromPlugins(mesh, Usd.TimeCode.Default())
+    assert all(extent[0][i] <= computed[0][i] + 1e-6 and extent[1][i] >= computed[1][i] - 1e-6 for i in range(3)), \
+        "the extent holds the points (and the displaced shell around them)"
+
+
+def test_export_material_carries_the_displacement(exported):
+    stage = Usd.Stage.Open(str(exported))
+    mesh = next(p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh))
+    material, _ = UsdShade.MaterialBindingAPI(mesh).ComputeBoundMaterial()
+    assert material
+    surface = material.ComputeDisplacementSource()[0]
+    assert surface.GetIdAttr().Get() == "UsdPreviewSurface"
+    sources, _ = surface.GetInput("displacement").GetConnectedSources()
+    tex = UsdShade.Shader(sources[0].source.GetPrim())
+    assert tex.GetIdAttr().Get() == "UsdUVTexture" and sources[0].sourceName == "r"
+    scale = tex.GetInput("scale").Get()
+    bias = tex.GetInput("bias").Get()
+    assert scale[0] == pytest.approx(SCALE) and bias[0] == pytest.approx(-MIDLEVEL * SCALE)
+    file = tex.GetInput("file").Get()
+    assert file.path.startswith("../"), f"relative asset path, got {file.path}"
+    assert pathlib.Path(file.resolvedPath).name == MAP.name
+    assert pathlib.Path(file.resolvedPath).is_file(), "usd-core resolves the texture"
+
+
+def test_export_reads_back_and_renders_the_same_mask(run, blender_sphere, exported, tmp_path):
+    ref = render_mask(run, blender_sphere / "sphere.usdc", tmp_path / "src", CAM_ZUP)
+    back = render_mask(run, exported, tmp_path / "back", CAM_ZUP)
+    assert mismatch(ref, back) <= 0.005
+
+
+def test_export_refuses_other_extensions(run, blender_sphere, tmp_path):
+    proc = run("export", blender_sphere / "sphere.usdc", "--usd", tmp_path / "x.usdc")
+    assert proc.returncode == 2 and ".usda" in proc.stderr
+    assert not (tmp_path / "x.usdc").exists()
