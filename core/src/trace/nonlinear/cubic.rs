@@ -11,6 +11,9 @@
 //! that is how double roots (a tangent ray grazing a micro-triangle) are found, since the
 //! sign does not change there — and roots closer than the requested `x_err` are merged.
 
+// `!(a < b)` is deliberate: it is also true for NaN, which must be rejected.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
 use super::real::{diff_of_products, Real};
 
 /// Real roots of `a x² + b x + c`, ascending, without the cancellation of the textbook
@@ -59,7 +62,11 @@ pub fn eval3<T: Real>(c: &[T; 4], x: T) -> (T, T) {
 #[inline]
 fn eval_bound<T: Real>(c: &[T; 4], x: T) -> T {
     let ax = x.abs();
-    let s = c[3].abs().fma(ax, c[2].abs()).fma(ax, c[1].abs()).fma(ax, c[0].abs());
+    let s = c[3]
+        .abs()
+        .fma(ax, c[2].abs())
+        .fma(ax, c[1].abs())
+        .fma(ax, c[0].abs());
     T::of(16.0) * T::EPS * s
 }
 
@@ -191,7 +198,10 @@ mod tests {
                 "{what}: spurious root {g}, want {want:?} ({c:?})"
             );
         }
-        assert!(got.windows(2).all(|p| p[0] <= p[1]), "{what}: not ascending {got:?}");
+        assert!(
+            got.windows(2).all(|p| p[0] <= p[1]),
+            "{what}: not ascending {got:?}"
+        );
     }
 
     fn random_cubics<T: Real>(tol_simple: f64, tol_double: f64) {
@@ -199,7 +209,11 @@ mod tests {
         for i in 0..4000 {
             let k = rng.range(0.2, 5.0) * if i % 2 == 0 { 1.0 } else { -1.0 };
             // Three simple roots at least 0.05 apart.
-            let mut r = [rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)];
+            let mut r = [
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            ];
             r.sort_by(f64::total_cmp);
             if r[1] - r[0] > 0.05 && r[2] - r[1] > 0.05 {
                 check::<T>(from_roots(k, r), &r, -1.2, 1.2, tol_simple, "simple");
@@ -207,10 +221,21 @@ mod tests {
             // A double root and a simple one.
             let (d, s) = (rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
             if (d - s).abs() > 0.1 {
-                check::<T>(from_roots(k, [d, d, s]), &[d, s], -1.2, 1.2, tol_double, "double");
+                check::<T>(
+                    from_roots(k, [d, d, s]),
+                    &[d, s],
+                    -1.2,
+                    1.2,
+                    tol_double,
+                    "double",
+                );
             }
             // One real root and a complex pair.
-            let (a, re, im) = (rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(0.1, 1.0));
+            let (a, re, im) = (
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(0.1, 1.0),
+            );
             let c = [
                 -k * a * (re * re + im * im),
                 k * (re * re + im * im + 2.0 * a * re),
@@ -225,7 +250,14 @@ mod tests {
             let (p, q) = (r0 + r1, r0 * r1);
             // (x² − p x + q)(ε x − 1) = ε x³ − (1 + ε p) x² + (p + ε q) x − q
             let c = [-k * q, k * (p + eps * q), -k * (1.0 + eps * p), k * eps];
-            check::<T>(c, &[r0, r1, 1.0 / eps], -1.2, 1.2, tol_simple, "tiny leading");
+            check::<T>(
+                c,
+                &[r0, r1, 1.0 / eps],
+                -1.2,
+                1.2,
+                tol_simple,
+                "tiny leading",
+            );
             // Leading coefficient exactly zero: a plain quadratic.
             let c = [k * q, -k * p, k, 0.0];
             check::<T>(c, &[r0, r1], -1.2, 1.2, tol_simple, "quadratic");
@@ -248,7 +280,10 @@ mod tests {
     #[test]
     fn triple_root_and_constant() {
         let got = roots::<f64>(from_roots(1.0, [0.3, 0.3, 0.3]), -1.0, 1.0, 1e-12);
-        assert!(!got.is_empty() && got.iter().all(|g| (g - 0.3).abs() < 1e-4), "{got:?}");
+        assert!(
+            !got.is_empty() && got.iter().all(|g| (g - 0.3).abs() < 1e-4),
+            "{got:?}"
+        );
         assert!(roots::<f32>([1.0, 0.0, 0.0, 0.0], -1.0, 1.0, 1e-6).is_empty());
         assert!(roots::<f32>([1.0, 1.0, 1.0, 1.0], 1.0, 0.0, 1e-6).is_empty());
     }
@@ -257,7 +292,10 @@ mod tests {
     fn quadratic_is_cancellation_free() {
         let mut out = [0.0f32; 2];
         assert_eq!(quadratic(1.0, -2e4, 1.0, &mut out), 2);
-        assert!((out[0] - 5e-5).abs() < 1e-9 && (out[1] - 2e4).abs() < 1.0, "{out:?}");
+        assert!(
+            (out[0] - 5e-5).abs() < 1e-9 && (out[1] - 2e4).abs() < 1.0,
+            "{out:?}"
+        );
         assert_eq!(quadratic(0.0, 2.0, -4.0, &mut out), 1);
         assert_eq!(out[0], 2.0);
         assert_eq!(quadratic(1.0, 0.0, 1.0, &mut out), 0);

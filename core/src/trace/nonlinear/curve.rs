@@ -13,6 +13,9 @@
 //! point of the ray nearest the prism's first vertex (so `A_i` are prism-sized, not
 //! camera-distance-sized, which is what keeps `f32` usable).
 
+// `!(a < b)` is deliberate: it is also true for NaN, which must be rejected.
+#![allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+
 use super::cubic::quadratic;
 use super::real::{diff_of_products, eval2, Real, V3};
 use glam::Vec3;
@@ -148,9 +151,7 @@ impl<T: Real> Curve<T> {
             return out;
         }
         let ws = &self.wsum;
-        let sub = |q: &[T; 3], s: T| -> [T; 3] {
-            std::array::from_fn(|p| (-s).fma(ws[p], q[p]))
-        };
+        let sub = |q: &[T; 3], s: T| -> [T; 3] { std::array::from_fn(|p| (-s).fma(ws[p], q[p])) };
         let polys = [
             *ws,
             sub(&self.xq, x.0),
@@ -209,7 +210,11 @@ mod tests {
     fn curve_points_lie_on_the_ray() {
         // Breaks if the projected signed areas, the texel map or t(λ) are wrong: for random
         // rays and λ, the prism point X(b(λ), λ) must be o + t(λ) d, in f32 and f64.
-        let v = [Vec3::ZERO, Vec3::new(1.0, 0.1, 0.0), Vec3::new(0.2, 0.9, 0.05)];
+        let v = [
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.1, 0.0),
+            Vec3::new(0.2, 0.9, 0.05),
+        ];
         let n = [
             Vec3::new(-0.3, -0.2, 1.0).normalize(),
             Vec3::new(0.4, -0.1, 1.0).normalize(),
@@ -236,7 +241,9 @@ mod tests {
             assert!((x - on_ray).length() < 1e-5, "{x:?} vs {on_ray:?}");
             assert!((b[0] + b[1] + b[2] - 1.0).abs() < 1e-9);
             let (tx, ty) = c64.tex(l);
-            let want = (0..3).fold((0.0, 0.0), |a, i| (a.0 + b[i] * tex[i].0, a.1 + b[i] * tex[i].1));
+            let want = (0..3).fold((0.0, 0.0), |a, i| {
+                (a.0 + b[i] * tex[i].0, a.1 + b[i] * tex[i].1)
+            });
             assert!((tx - want.0).abs() < 1e-9 && (ty - want.1).abs() < 1e-9);
             let b32 = c32.bary(l as f32);
             assert!((c32.t_at(&b32, l as f32) as f64 - t).abs() < 1e-4);

@@ -11,13 +11,20 @@
 //! **Reconciling the shell with the canonical surface.** Ogaki's shell `S_i(h) = P_i + h N_i`
 //! is DESIGN.md's shared-wall prism with `h = λ` and `N_i = n_i` (unnormalised interpolation),
 //! and his surface is `λ = D(uv)`. The canonical surface is `λ |m(b)| = D(uv(b))`. So each
-//! micro-triangle is taken in `(x, y, D)` space and met where `λ μ = D_lin(x, y)`:
-//! * with `μ` frozen the equation is Ogaki's plane in `(x, y, λ)` (normal `(n_x, n_y, μ)`), a
-//!   cubic in `λ`; it is solved with `μ = |m(b)|` at the middle of the curve's span in the
-//!   cell, then once more with `μ = |m(b)|` at the root found. The second root lies on
-//!   `λ|m(b)| = D_lin` up to the change of `μ` across that step (second order, far below a
-//!   texel): a surface that is continuous across prisms, because `m(b)` and `uv(b)` agree on
-//!   a shared edge — the detection surface has no cracks between prisms;
+//! micro-triangle is taken in `(x, y, D)` space and met where `λ |m(b)| = D_lin(x, y)`:
+//! * `|m(b)|` is replaced by its tangent plane `Σ b_i (m̂*·n_i)` at a point `b*` (exact at
+//!   `b*`, `|m|` being homogeneous of degree 1 in `b`). Then `λ Σ μ_i w_i(λ) = N(λ)` is still
+//!   a cubic in `λ` — Ogaki's plane equation with his constant `n_h` replaced by a linear
+//!   function of `b`. It is solved with `b*` at the middle of the curve's span in the cell,
+//!   then again with `b*` at the root found, so the root lies on `λ|m(b)| = D_lin` up to a
+//!   second-order term. That surface is continuous across cells and prisms (`m(b)` and
+//!   `uv(b)` agree on a shared edge);
+//! * a first attempt with `|m|` frozen at the span's middle leaked (3 in 2·10⁴ rays on the
+//!   coarse test sphere, f32 and f64 alike: the frozen value differs between neighbouring
+//!   cells, which opens slits for rays crossing the surface right at a cell edge). So, when
+//!   no cubic root is accepted on a span whose two ends lie on opposite sides of the exact
+//!   detection surface (`g_exact`), Illinois regula falsi on `g_exact` finds the crossing.
+//!   Neighbouring spans share their end values, so no crossing can fall between them;
 //! * `refine` (default on) then moves the hit along the ray onto the exact canonical surface
 //!   (bilinear `D` instead of the two planes of the cell): a secant iteration on
 //!   `g(λ) = λ|m(b(λ))| − D_bilinear(x(λ), y(λ))`. If it fails (leaves the triangle or the
@@ -43,6 +50,9 @@
 //! UV-degenerate base triangles (the paper's Fig. 4) need nothing special: `b(λ)` comes from
 //! world-space geometry and `(x, y)` is only its affine image, so a triangle whose UVs
 //! collapse to a line or a point still yields a curve (on that line or point) and roots.
+
+// `!(a < b)` is deliberate throughout: it is also true for NaN, which must be rejected.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cubic;
 pub mod curve;
@@ -191,7 +201,11 @@ impl<'a> Nonlinear<'a> {
         let p = &table.prisms[prism as usize];
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
         let origin = table.positions[i0];
-        let v = [Vec3::ZERO, table.positions[i1] - origin, table.positions[i2] - origin];
+        let v = [
+            Vec3::ZERO,
+            table.positions[i1] - origin,
+            table.positions[i2] - origin,
+        ];
         let n = [table.normals[i0], table.normals[i1], table.normals[i2]];
         let scale = v[1].length().max(v[2].length()).max((v[2] - v[1]).length());
         let ro = ray.origin - origin;
@@ -212,9 +226,17 @@ impl<'a> Nonlinear<'a> {
         });
         let fp = 1e-3;
         let xmin = tex_abs.iter().map(|t| t.0).fold(f64::INFINITY, f64::min) - fp;
-        let xmax = tex_abs.iter().map(|t| t.0).fold(f64::NEG_INFINITY, f64::max) + fp;
+        let xmax = tex_abs
+            .iter()
+            .map(|t| t.0)
+            .fold(f64::NEG_INFINITY, f64::max)
+            + fp;
         let ymin = tex_abs.iter().map(|t| t.1).fold(f64::INFINITY, f64::min) - fp;
-        let ymax = tex_abs.iter().map(|t| t.1).fold(f64::NEG_INFINITY, f64::max) + fp;
+        let ymax = tex_abs
+            .iter()
+            .map(|t| t.1)
+            .fold(f64::NEG_INFINITY, f64::max)
+            + fp;
         if !(xmin.is_finite() && xmax.is_finite() && ymin.is_finite() && ymax.is_finite()) {
             return None;
         }
@@ -228,14 +250,16 @@ impl<'a> Nonlinear<'a> {
             fy: (T::of(ymin - cell0.1 as f64), T::of(ymax - cell0.1 as f64)),
             cell0,
             m_lo: mean_normal_lower_bound(&n),
-            lam: (T::of32(p.lambda_lo) - lam_pad, T::of32(p.lambda_hi) + lam_pad),
+            lam: (
+                T::of32(p.lambda_lo) - lam_pad,
+                T::of32(p.lambda_hi) + lam_pad,
+            ),
             lam_pad,
             t_range,
         };
         // Root selection: the coarsest level whose 2 × 2 blocks hold the footprint.
         let mut k = 0u32;
-        while k < 62
-            && ((cell1.0 >> k) - (cell0.0 >> k) > 1 || (cell1.1 >> k) - (cell0.1 >> k) > 1)
+        while k < 62 && ((cell1.0 >> k) - (cell0.0 >> k) > 1 || (cell1.1 >> k) - (cell0.1 >> k) > 1)
         {
             k += 1;
         }
@@ -271,7 +295,9 @@ impl<'a> Nonlinear<'a> {
             nk = 0;
             for (dy, dx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
                 *steps += 1;
-                if let Some(nd) = self.test_node(&pr, node.k - 1, 2 * node.ix + dx, 2 * node.iy + dy) {
+                if let Some(nd) =
+                    self.test_node(&pr, node.k - 1, 2 * node.ix + dx, 2 * node.iy + dy)
+                {
                     if nd.key < best_t {
                         kids[nk] = Some(nd);
                         nk += 1;
@@ -281,14 +307,24 @@ impl<'a> Nonlinear<'a> {
             push_sorted(&mut stack, &mut sp, &mut kids, nk);
         }
         let c = best?;
-        Some(if self.opts.refine { self.refine(&pr, c).unwrap_or(c) } else { c })
+        Some(if self.opts.refine {
+            self.refine(&pr, c).unwrap_or(c)
+        } else {
+            c
+        })
     }
 
     /// Curve–box test of block `(ix, iy)` at level `k`, its box clipped to the footprint.
     fn test_node<T: Real>(&self, pr: &PrismRay<T>, k: u32, ix: i64, iy: i64) -> Option<Node<T>> {
         let s = 1i64 << k;
-        let bx = (T::of(((ix * s) - pr.cell0.0) as f64).max(pr.fx.0), T::of((((ix + 1) * s) - pr.cell0.0) as f64).min(pr.fx.1));
-        let by = (T::of(((iy * s) - pr.cell0.1) as f64).max(pr.fy.0), T::of((((iy + 1) * s) - pr.cell0.1) as f64).min(pr.fy.1));
+        let bx = (
+            T::of(((ix * s) - pr.cell0.0) as f64).max(pr.fx.0),
+            T::of((((ix + 1) * s) - pr.cell0.0) as f64).min(pr.fx.1),
+        );
+        let by = (
+            T::of(((iy * s) - pr.cell0.1) as f64).max(pr.fy.0),
+            T::of((((iy + 1) * s) - pr.cell0.1) as f64).min(pr.fy.1),
+        );
         if !(bx.0 <= bx.1 && by.0 <= by.1) {
             return None;
         }
@@ -298,7 +334,9 @@ impl<'a> Nonlinear<'a> {
         let l0 = (T::of32(la) - pr.lam_pad).max(pr.lam.0);
         let l1 = (T::of32(lb) + pr.lam_pad).min(pr.lam.1);
         let pad = T::of(CELL_TOL);
-        let iv = pr.curve.box_intervals((bx.0 - pad, bx.1 + pad), (by.0 - pad, by.1 + pad), l0, l1);
+        let iv = pr
+            .curve
+            .box_intervals((bx.0 - pad, bx.1 + pad), (by.0 - pad, by.1 + pad), l0, l1);
         if iv.n == 0 {
             return None;
         }
@@ -306,14 +344,31 @@ impl<'a> Nonlinear<'a> {
         for &(a, b) in &iv.iv[..iv.n] {
             for l in [a, b] {
                 let t = pr.curve.t_at(&pr.curve.bary(l), l);
-                key = if t.is_finite() { key.min(t) } else { -T::INFINITY };
+                key = if t.is_finite() {
+                    key.min(t)
+                } else {
+                    -T::INFINITY
+                };
             }
         }
-        Some(Node { k, ix, iy, key, iv, h })
+        Some(Node {
+            k,
+            ix,
+            iy,
+            key,
+            iv,
+            h,
+        })
     }
 
     /// Micro-triangles of a level-0 cell, or one constant plane for a flat node.
-    fn leaf<T: Real>(&self, pr: &PrismRay<T>, node: &Node<T>, best_t: T, steps: &mut u32) -> Option<Cand<T>> {
+    fn leaf<T: Real>(
+        &self,
+        pr: &PrismRay<T>,
+        node: &Node<T>,
+        best_t: T,
+        steps: &mut u32,
+    ) -> Option<Cand<T>> {
         let cell = (
             T::of((node.ix - pr.cell0.0) as f64),
             T::of((node.iy - pr.cell0.1) as f64),
@@ -339,7 +394,15 @@ impl<'a> Nonlinear<'a> {
             let mut found = false;
             for &lower in halves {
                 *steps += 1;
-                let c = Cand { t: T::ZERO, b: [T::ZERO; 3], l: T::ZERO, d, cell, lower, f: (T::ZERO, T::ZERO) };
+                let c = Cand {
+                    t: T::ZERO,
+                    b: [T::ZERO; 3],
+                    l: T::ZERO,
+                    d,
+                    cell,
+                    lower,
+                    f: (T::ZERO, T::ZERO),
+                };
                 if let Some(h) = self.micro_triangle(pr, c, a, b, best_t) {
                     best_t = h.t;
                     best = Some(h);
@@ -347,7 +410,15 @@ impl<'a> Nonlinear<'a> {
                 }
             }
             if !found {
-                let c = Cand { t: T::ZERO, b: [T::ZERO; 3], l: T::ZERO, d, cell, lower: halves[0], f: (T::ZERO, T::ZERO) };
+                let c = Cand {
+                    t: T::ZERO,
+                    b: [T::ZERO; 3],
+                    l: T::ZERO,
+                    d,
+                    cell,
+                    lower: halves[0],
+                    f: (T::ZERO, T::ZERO),
+                };
                 if let Some(h) = self.bracket_root(pr, &c, a, b, best_t) {
                     best_t = h.t;
                     best = Some(h);
@@ -372,12 +443,22 @@ impl<'a> Nonlinear<'a> {
     /// `W`: `λ Σ μ_i w_i(λ) = N(λ)`, a cubic. `μ_i = m̂*·n_i` is the tangent plane of `|m(b)|`
     /// at the expansion point (exact there, `|m|` being homogeneous of degree 1 in `b`).
     #[inline]
-    fn solve<T: Real>(pr: &PrismRay<T>, c: &Cand<T>, mu: &[T; 3], a: T, b: T, out: &mut [T; 3]) -> usize {
+    fn solve<T: Real>(
+        pr: &PrismRay<T>,
+        c: &Cand<T>,
+        mu: &[T; 3],
+        a: T,
+        b: T,
+        out: &mut [T; 3],
+    ) -> usize {
         let (ga, gc) = Self::plane(c);
         let cv = &pr.curve;
         let k0 = c.d[0] - ga * c.cell.0 - gc * c.cell.1;
-        let num: [T; 3] = std::array::from_fn(|p| k0.fma(cv.wsum[p], ga.fma(cv.xq[p], gc * cv.yq[p])));
-        let m: [T; 3] = std::array::from_fn(|p| mu[0].fma(cv.w[0][p], mu[1].fma(cv.w[1][p], mu[2] * cv.w[2][p])));
+        let num: [T; 3] =
+            std::array::from_fn(|p| k0.fma(cv.wsum[p], ga.fma(cv.xq[p], gc * cv.yq[p])));
+        let m: [T; 3] = std::array::from_fn(|p| {
+            mu[0].fma(cv.w[0][p], mu[1].fma(cv.w[1][p], mu[2] * cv.w[2][p]))
+        });
         let coef = [num[0], num[1] - m[0], num[2] - m[1], -m[2]];
         let span = (b - a).abs().max(pr.lam_pad);
         let x_err = span * T::EPS * T::of(64.0);
@@ -417,10 +498,17 @@ impl<'a> Nonlinear<'a> {
     /// Fallback when no cubic root was accepted on a span whose ends lie on opposite sides
     /// of the exact detection surface: Illinois regula falsi on `g_exact`. This is what
     /// makes the detection surface crack-free between cells whatever the linearisation error.
-    fn bracket_root<T: Real>(&self, pr: &PrismRay<T>, c: &Cand<T>, a: T, b: T, t_max: T) -> Option<Cand<T>> {
+    fn bracket_root<T: Real>(
+        &self,
+        pr: &PrismRay<T>,
+        c: &Cand<T>,
+        a: T,
+        b: T,
+        t_max: T,
+    ) -> Option<Cand<T>> {
         let (mut l0, mut l1) = (a, b);
         let (mut g0, mut g1) = (Self::g_exact(pr, c, l0), Self::g_exact(pr, c, l1));
-        if !((g0 < T::ZERO) != (g1 < T::ZERO)) || !(g0.is_finite() && g1.is_finite()) {
+        if (g0 < T::ZERO) == (g1 < T::ZERO) || !(g0.is_finite() && g1.is_finite()) {
             return None;
         }
         let tol = (b - a).abs() * T::EPS * T::of(64.0);
@@ -479,12 +567,25 @@ impl<'a> Nonlinear<'a> {
             }
         }
         let t = pr.curve.t_at(&b, l);
-        (t >= pr.t_range.0 && t < t_max).then_some(Cand { t, b, l, f: (fx, fy), ..*c })
+        (t >= pr.t_range.0 && t < t_max).then_some(Cand {
+            t,
+            b,
+            l,
+            f: (fx, fy),
+            ..*c
+        })
     }
 
     /// Closest root on one micro-triangle over the curve span `[a, b]`, with `|m|` linearised
     /// at the span's middle, then re-linearised at the root (module doc).
-    fn micro_triangle<T: Real>(&self, pr: &PrismRay<T>, c: Cand<T>, a: T, b: T, t_max: T) -> Option<Cand<T>> {
+    fn micro_triangle<T: Real>(
+        &self,
+        pr: &PrismRay<T>,
+        c: Cand<T>,
+        a: T,
+        b: T,
+        t_max: T,
+    ) -> Option<Cand<T>> {
         let mu0 = Self::tangent_mu(pr, T::HALF * (a + b))?;
         let mut roots = [T::ZERO; 3];
         let n = Self::solve(pr, &c, &mu0, a, b, &mut roots);
@@ -560,8 +661,16 @@ impl<'a> Nonlinear<'a> {
         if !(fx >= -m && fx <= T::ONE + m && fy >= -m && fy <= T::ONE + m) {
             return None;
         }
-        let h = self.accept(pr, &loose, l1, pr.t_range.1 + (pr.t_range.1 - pr.t_range.0) * T::of(1e-3))?;
-        Some(Cand { lower: c.lower, ..h })
+        let h = self.accept(
+            pr,
+            &loose,
+            l1,
+            pr.t_range.1 + (pr.t_range.1 - pr.t_range.0) * T::of(1e-3),
+        )?;
+        Some(Cand {
+            lower: c.lower,
+            ..h
+        })
     }
 
     /// The paper's eq. 13 normal of the canonical surface at a candidate (module doc).
@@ -631,13 +740,22 @@ impl<'a> Nonlinear<'a> {
         hit.steps = steps;
         let table = &self.scene.table;
         let p = &table.prisms[hit.prism as usize];
-        let sp = surface_point(&PrismGeom::new(table, p), &self.scene.map, &table.params, hit.bary);
+        let sp = surface_point(
+            &PrismGeom::new(table, p),
+            &self.scene.map,
+            &table.params,
+            hit.bary,
+        );
         hit.uv = sp.uv;
         let (geo, smooth) = match (self.opts.normals, extra) {
             (NormalSource::Adjugate, Some((prism, c))) if prism == hit.prism => {
                 let ng = PrismGeom::new(table, p).base_normal();
                 let na = self.adjugate_normal(p, &c);
-                let na = if na == Vec3::ZERO { sp.geometric_normal } else { na };
+                let na = if na == Vec3::ZERO {
+                    sp.geometric_normal
+                } else {
+                    na
+                };
                 (na, (na - ng + sp.base_normal).try_normalize().unwrap_or(na))
             }
             _ => (sp.geometric_normal, sp.smooth_normal),
@@ -652,7 +770,12 @@ impl<'a> Nonlinear<'a> {
 }
 
 /// Push up to four tested children so that the one with the smallest `key` is popped first.
-fn push_sorted<T: Real>(stack: &mut [Option<Node<T>>; STACK], sp: &mut usize, kids: &mut [Option<Node<T>>; 4], n: usize) {
+fn push_sorted<T: Real>(
+    stack: &mut [Option<Node<T>>; STACK],
+    sp: &mut usize,
+    kids: &mut [Option<Node<T>>; 4],
+    n: usize,
+) {
     let key = |k: &Option<Node<T>>| k.as_ref().map_or(T::INFINITY, |n| n.key);
     for i in 1..n {
         let mut j = i;
@@ -683,10 +806,11 @@ impl Intersector for Nonlinear<'_> {
 
     fn occluded(&self, ray: &Ray, _ctx: &RayContext) -> bool {
         let mut steps = 0;
-        self.scene.any_hit(ray, |r, prism| match self.opts.precision {
-            Precision::F32 => self.prism_hit::<f32>(r, prism, &mut steps).is_some(),
-            Precision::F64 => self.prism_hit::<f64>(r, prism, &mut steps).is_some(),
-        })
+        self.scene
+            .any_hit(ray, |r, prism| match self.opts.precision {
+                Precision::F32 => self.prism_hit::<f32>(r, prism, &mut steps).is_some(),
+                Precision::F64 => self.prism_hit::<f64>(r, prism, &mut steps).is_some(),
+            })
     }
 
     /// BVH nodes and leaf indices, the prism records, and the min-max mipmap.

@@ -58,11 +58,19 @@ struct Agreement {
     p95_texels: f32,
 }
 
-fn agreement(isect: &dyn Intersector, reference: &Reference, table: &PrismTable, rays: &[Ray]) -> Agreement {
+fn agreement(
+    isect: &dyn Intersector,
+    reference: &Reference,
+    table: &PrismTable,
+    rays: &[Ray],
+) -> Agreement {
     let mut errs = vec![];
     let mut mismatches = 0;
     for ray in rays {
-        match (isect.intersect(ray, &ctx()), reference.intersect(ray, &ctx())) {
+        match (
+            isect.intersect(ray, &ctx()),
+            reference.intersect(ray, &ctx()),
+        ) {
             (Some(a), Some(r)) => {
                 assert!(a.t.is_finite() && a.position.is_finite() && a.shading_normal.is_finite());
                 errs.push((a.t - r.t).abs() / table.prisms[r.prism as usize].texel_world);
@@ -72,7 +80,11 @@ fn agreement(isect: &dyn Intersector, reference: &Reference, table: &PrismTable,
         }
     }
     errs.sort_by(f32::total_cmp);
-    let at = |q: f32| errs.get(((errs.len() as f32 * q) as usize).min(errs.len().saturating_sub(1))).copied().unwrap_or(0.0);
+    let at = |q: f32| {
+        errs.get(((errs.len() as f32 * q) as usize).min(errs.len().saturating_sub(1)))
+            .copied()
+            .unwrap_or(0.0)
+    };
     Agreement {
         rays: rays.len(),
         mismatches,
@@ -82,7 +94,9 @@ fn agreement(isect: &dyn Intersector, reference: &Reference, table: &PrismTable,
 }
 
 fn example(name: &str) -> (PrismTable, HeightMap) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples")
+        .join(name);
     let spec = asset::resolve(&path, &Default::default()).expect("example resolves");
     let p = asset::prepare(&spec, &Default::default()).expect("example prepares");
     (p.table, p.map)
@@ -91,7 +105,10 @@ fn example(name: &str) -> (PrismTable, HeightMap) {
 /// Rays per second of `isect` over `rays` (one thread).
 fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
     let t0 = Instant::now();
-    let hits = rays.iter().filter(|r| isect.intersect(r, &ctx()).is_some()).count();
+    let hits = rays
+        .iter()
+        .filter(|r| isect.intersect(r, &ctx()).is_some())
+        .count();
     std::hint::black_box(hits);
     rays.len() as f64 / t0.elapsed().as_secs_f64()
 }
@@ -106,10 +123,27 @@ fn agrees_with_reference_on_the_example_assets() {
         let reference = Reference::new(&table, &map, 2.0);
         let rays = camera_rays(&table, 96);
         let scene = Scene::new(table.clone(), map.clone());
-        let pdm = Pdm::new(&scene, PdmOptions { jitter: false, ..Default::default() });
+        let pdm = Pdm::new(
+            &scene,
+            PdmOptions {
+                jitter: false,
+                ..Default::default()
+            },
+        );
         let pdm_rps = rays_per_second(&pdm, &rays);
-        for (precision, refine) in [(Precision::F32, true), (Precision::F64, true), (Precision::F32, false)] {
-            let nl = Nonlinear::new(&scene, NonlinearOptions { precision, refine, ..Default::default() });
+        for (precision, refine) in [
+            (Precision::F32, true),
+            (Precision::F64, true),
+            (Precision::F32, false),
+        ] {
+            let nl = Nonlinear::new(
+                &scene,
+                NonlinearOptions {
+                    precision,
+                    refine,
+                    ..Default::default()
+                },
+            );
             let a = agreement(&nl, &reference, &table, &rays);
             let rps = rays_per_second(&nl, &rays);
             eprintln!(
@@ -124,7 +158,10 @@ fn agrees_with_reference_on_the_example_assets() {
                 rps / 1e6,
                 pdm_rps / 1e6,
             );
-            assert!(a.mismatches as f32 <= 0.005 * a.rays as f32, "{name} {precision:?}: {a:?}");
+            assert!(
+                a.mismatches as f32 <= 0.005 * a.rays as f32,
+                "{name} {precision:?}: {a:?}"
+            );
             assert!(a.median_texels <= 0.5, "{name} {precision:?}: {a:?}");
         }
     }
@@ -161,7 +198,15 @@ fn closed_displaced_sphere_does_not_leak() {
                 .count();
             let occl_leaks = rays
                 .iter()
-                .filter(|(ray, t_inner)| !nl.occluded(&Ray { t_max: *t_inner, ..*ray }, &ctx()))
+                .filter(|(ray, t_inner)| {
+                    !nl.occluded(
+                        &Ray {
+                            t_max: *t_inner,
+                            ..*ray
+                        },
+                        &ctx(),
+                    )
+                })
                 .count();
             eprintln!(
                 "{} faces {precision:?}: leaks {leaks}/{} (closest), {occl_leaks} (occluded)",
@@ -179,7 +224,8 @@ fn canonical_error_texels(scene: &Scene, ray: &Ray, hit: &Hit) -> f32 {
     let p = &scene.table.prisms[hit.prism as usize];
     let g = PrismGeom::new(&scene.table, p);
     let x = ray.at(hit.t);
-    let (b, lambda) = crate::canonical::project_to_prism(&g, x, hit.bary, 0.0).expect("hit projects");
+    let (b, lambda) =
+        crate::canonical::project_to_prism(&g, x, hit.bary, 0.0).expect("hit projects");
     let m = g.normal_dir(b).length();
     let d = scene.table.params.displacement(scene.map.sample(g.uv(b)));
     (lambda * m - d).abs() / p.texel_world
@@ -200,7 +246,8 @@ fn grazing_rays_at_three_scales_are_finite_and_on_the_surface() {
             let mut rng = Rng(21);
             let (mut worst, mut reached, mut total) = (0.0_f32, 0, 0);
             for _ in 0..2000 {
-                let prism = (rng.next() * scene.table.prisms.len() as f32) as usize % scene.table.prisms.len();
+                let prism = (rng.next() * scene.table.prisms.len() as f32) as usize
+                    % scene.table.prisms.len();
                 let g = PrismGeom::new(&scene.table, &scene.table.prisms[prism]);
                 let b = Vec3::new(rng.next() + 0.05, rng.next() + 0.05, rng.next() + 0.05);
                 let b = b / b.element_sum();
@@ -214,7 +261,10 @@ fn grazing_rays_at_three_scales_are_finite_and_on_the_surface() {
                 total += 1;
                 if let Some(hit) = nl.intersect(&ray, &ctx()) {
                     assert!(hit.t.is_finite() && hit.position.is_finite(), "size {size}");
-                    assert!(hit.shading_normal.is_finite() && hit.bary.is_finite(), "size {size}");
+                    assert!(
+                        hit.shading_normal.is_finite() && hit.bary.is_finite(),
+                        "size {size}"
+                    );
                     worst = worst.max(canonical_error_texels(&scene, &ray, &hit));
                     if hit.t <= dist * (1.0 + 1e-3) {
                         reached += 1;
@@ -226,7 +276,12 @@ fn grazing_rays_at_three_scales_are_finite_and_on_the_surface() {
             shares.push(reached as f32 / total as f32);
         }
     }
-    assert!(shares.iter().all(|&r| (r - shares[0]).abs() < 0.02 && r > 0.9), "{shares:?}");
+    assert!(
+        shares
+            .iter()
+            .all(|&r| (r - shares[0]).abs() < 0.02 && r > 0.9),
+        "{shares:?}"
+    );
 }
 
 /// A 4 × 4 grid plane (normals +z, a slight bend so normals differ) whose UVs are the grid
@@ -247,7 +302,14 @@ fn uv_degenerate_scene() -> (Scene, Vec<usize>) {
             for (di, dj) in [(0, 0), (1, 0), (1, 1), (0, 1)] {
                 let (x, y) = ((i + di) as f32 / n as f32, (j + dj) as f32 / n as f32);
                 positions.push(Vec3::new(x, y, 0.1 * (x * 3.0).sin() * (y * 2.0).cos()));
-                normals.push(Vec3::new(-0.3 * (x * 3.0).cos() * (y * 2.0).cos(), 0.2 * (x * 3.0).sin() * (y * 2.0).sin(), 1.0).normalize());
+                normals.push(
+                    Vec3::new(
+                        -0.3 * (x * 3.0).cos() * (y * 2.0).cos(),
+                        0.2 * (x * 3.0).sin() * (y * 2.0).sin(),
+                        1.0,
+                    )
+                    .normalize(),
+                );
                 let uv = match q % 3 {
                     0 => Vec2::new(x, y) * 0.9 + 0.05,
                     // Collapsed to a point.
@@ -260,7 +322,7 @@ fn uv_degenerate_scene() -> (Scene, Vec<usize>) {
             let base = 4 * q;
             triangles.push([base, base + 1, base + 2]);
             triangles.push([base, base + 2, base + 3]);
-            if q % 3 != 0 {
+            if !q.is_multiple_of(3) {
                 degenerate.extend([triangles.len() - 2, triangles.len() - 1]);
             }
         }
@@ -328,7 +390,14 @@ fn hit_record_is_complete_and_adjugate_normals_match_canonical() {
     let map = relief_map(64);
     let scene = Scene::new(table(&mesh, &map, 0.15), map);
     let canon = Nonlinear::new(&scene, NonlinearOptions::default());
-    let adj = Nonlinear::new(&scene, NonlinearOptions { normals: NormalSource::Adjugate, normal_mode: NormalMode::Geometric, ..Default::default() });
+    let adj = Nonlinear::new(
+        &scene,
+        NonlinearOptions {
+            normals: NormalSource::Adjugate,
+            normal_mode: NormalMode::Geometric,
+            ..Default::default()
+        },
+    );
     assert_eq!(canon.name(), "nonlinear");
     assert!(canon.memory_bytes() > scene.table.prisms.len() * 36);
     let mut cosines = vec![];
@@ -339,17 +408,30 @@ fn hit_record_is_complete_and_adjugate_normals_match_canonical() {
         assert!((h.geometric_normal.length() - 1.0).abs() < 1e-4);
         assert!((h.bary.element_sum() - 1.0).abs() < 1e-4 && h.bary.min_element() > -1e-4);
         assert!((h.position - ray.at(h.t)).length() < 1e-5);
-        let sp = surface_point(&PrismGeom::new(&scene.table, &scene.table.prisms[h.prism as usize]), &scene.map, &scene.table.params, h.bary);
+        let sp = surface_point(
+            &PrismGeom::new(&scene.table, &scene.table.prisms[h.prism as usize]),
+            &scene.map,
+            &scene.table.params,
+            h.bary,
+        );
         assert!((sp.uv - h.uv).length() < 1e-6);
-        assert!((sp.position - h.position).length() < 1e-4, "{} vs {}", sp.position, h.position);
+        assert!(
+            (sp.position - h.position).length() < 1e-4,
+            "{} vs {}",
+            sp.position,
+            h.position
+        );
         let a = adj.intersect(&ray, &ctx()).unwrap();
         assert_eq!(a.prism, h.prism);
         cosines.push(a.geometric_normal.dot(h.geometric_normal));
     }
     cosines.sort_by(f32::total_cmp);
-    eprintln!("adjugate vs canonical normal: min cos {:.6}, median {:.6}", cosines[0], cosines[cosines.len() / 2]);
+    eprintln!(
+        "adjugate vs canonical normal: min cos {:.6}, median {:.6}",
+        cosines[0],
+        cosines[cosines.len() / 2]
+    );
     assert!(cosines[cosines.len() / 100] > 0.999, "{:?}", &cosines[..10]);
     let away = Ray::new(Vec3::new(0.0, 0.0, 3.0), Vec3::Z);
     assert!(canon.intersect(&away, &ctx()).is_none() && !canon.occluded(&away, &ctx()));
 }
-
