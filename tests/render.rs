@@ -48,7 +48,10 @@ fn turntable_frame_ranges_match_the_full_run() {
     assert_eq!(files_in(&full).iter().filter(|f| f.ends_with(".exr")).count(), 4);
     run(&["render", s(&rock), "--res", "24x24", "--turntable", "4", "--frames", "2-3", "--aov", "depth", "-o", s(&part)])
         .assert_success();
-    assert_eq!(files_in(&part), vec!["depth_0002.exr", "depth_0002.png", "depth_0003.exr", "depth_0003.png"]);
+    assert_eq!(
+        files_in(&part),
+        vec!["depth_0002.exr", "depth_0002.png", "depth_0003.exr", "depth_0003.png", "depth_contact_sheet.png"]
+    );
     for f in ["depth_0002.exr", "depth_0003.exr"] {
         assert!(read(&full.join(f)) == read(&part.join(f)), "{f} differs from the full run");
     }
@@ -75,7 +78,9 @@ fn bad_render_input() {
     run(&["render", s(&sphere), "--res", "big", "-o", s(&out)]).assert_code(2);
     run(&["render", s(&sphere), "--spp", "0", "-o", s(&out)]).assert_error(&["--spp"]);
     run(&["render", s(&sphere), "--spp", "100000000", "-o", s(&out)]).assert_error(&["--spp"]);
-    run(&["render", s(&sphere), "--aov", "beauty", "-o", s(&out)]).assert_error(&["beauty"]);
+    run(&["render", s(&sphere), "--aov", "shiny", "-o", s(&out)]).assert_error(&["shiny"]);
+    run(&["render", s(&sphere), "--aov", "beauty", "--bounces", "9", "-o", s(&out)]).assert_error(&["--bounces"]);
+    run(&["render", s(&sphere), "--aov", "beauty", "--roughness", "2", "-o", s(&out)]).assert_error(&["--roughness"]);
     run(&["render", s(&sphere), "--method", "magic", "-o", s(&out)]).assert_error(&["magic"]);
     run(&["render", s(&sphere), "--camera-from", "nan,0,0", "-o", s(&out)]).assert_error(&["finite"]);
     run(&["render", s(&sphere), "--frames", "0-3", "-o", s(&out)]).assert_error(&["--turntable"]);

@@ -4,5 +4,6 @@ mod util;
 
 mod bad_input;
 mod bake;
+mod beauty;
 mod render;
 mod validate;

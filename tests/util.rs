@@ -62,7 +62,9 @@ impl Output {
 /// Run `prismbake ARGS` with `cwd` as working directory.
 pub fn run_in(cwd: &Path, args: &[&str]) -> Output {
     let bin = env!("CARGO_BIN_EXE_prismbake");
-    let out = Command::new(bin).args(args).current_dir(cwd).output().expect("binary runs");
+    // Tables cached by `render` go to a folder of the test run, not the user's cache.
+    let cache = std::env::temp_dir().join(format!("prismbake-it-cache-{}", std::process::id()));
+    let out = Command::new(bin).args(args).current_dir(cwd).env("XDG_CACHE_HOME", cache).output().expect("binary runs");
     Output {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),

@@ -19,7 +19,8 @@ pub enum Command {
     Bake(BakeArgs),
     /// Check assets (files or folders) for everything that breaks displacement.
     Validate(ValidateArgs),
-    /// Ray trace AOV images (depth, normal, mask, uv, steps) of an asset or a baked table.
+    /// Ray trace AOV images (depth, normal, mask, uv, steps) and path-traced beauty of an asset,
+    /// a baked table or every asset under a folder.
     Render(RenderArgs),
     /// Repair and bake an asset, then write it as USD: mesh, displacement material, per-face bounds.
     Export(ExportArgs),
@@ -59,7 +60,7 @@ pub struct RenderArgs {
     /// Samples per pixel (jittered inside the pixel when > 1).
     #[arg(long, default_value_t = 1)]
     pub spp: u32,
-    /// Comma-separated AOVs: depth, normal, mask, uv, steps, prism.
+    /// Comma-separated AOVs: depth, normal, mask, uv, steps, prism, beauty (path traced).
     #[arg(long, default_value = "depth,normal,mask", value_delimiter = ',')]
     pub aov: Vec<String>,
     /// Render an N-frame turntable around the up axis.
@@ -107,6 +108,53 @@ pub struct RenderArgs {
     /// Print a JSON summary (timings, rays/s, files) on stdout.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub look: LookArgs,
+    /// After rendering, re-render whenever the height map file changes (re-baking only the
+    /// prisms whose bounds no longer hold); Ctrl-C to stop.
+    #[arg(long)]
+    pub watch: bool,
+    /// With --watch: stop after N re-renders.
+    #[arg(long, value_name = "N", requires = "watch")]
+    pub watch_max: Option<u32>,
+    /// Do not read or write the prism-table cache ($XDG_CACHE_HOME/prismbake).
+    #[arg(long)]
+    pub no_cache: bool,
+}
+
+/// Beauty settings: lights, material, bounces, ground.
+#[derive(Args, Debug, Clone)]
+pub struct LookArgs {
+    /// Equirectangular HDR environment (.exr); default: a neutral built-in sky.
+    #[arg(long, value_name = "MAP.exr")]
+    pub env: Option<PathBuf>,
+    /// Rotate the environment about the up axis (degrees).
+    #[arg(long, value_name = "DEG", default_value_t = 0.0, allow_negative_numbers = true)]
+    pub env_rotate: f32,
+    /// Multiply the environment's radiance (0 = no environment light).
+    #[arg(long, value_name = "K", default_value_t = 1.0)]
+    pub env_intensity: f32,
+    /// Directional key light with shadows: azimuth and elevation in degrees (azimuth 0 = the
+    /// camera's side, 90 = +X), and its irradiance.
+    #[arg(long, value_name = "AZ,EL,INTENSITY", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub key_light: Option<[f32; 3]>,
+    /// Base colour (linear R,G,B in [0, 1]); default: the mesh's material colour, else 0.8 grey.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
+    pub base_color: Option<[f32; 3]>,
+    /// GGX roughness in [0, 1] (below 0.02: a perfect mirror).
+    #[arg(long, default_value_t = 0.5)]
+    pub roughness: f32,
+    #[arg(long, default_value_t = 0.0)]
+    pub metallic: f32,
+    /// Dielectric reflectance at normal incidence (0.04 ≈ IOR 1.5; 0 = pure diffuse).
+    #[arg(long, default_value_t = 0.04)]
+    pub specular: f32,
+    /// Surface bounces per path, 1..=4 (1 = direct light only).
+    #[arg(long, default_value_t = 2)]
+    pub bounces: u32,
+    /// Shadow-catcher ground plane at the asset's lowest point (its shadow in the alpha).
+    #[arg(long)]
+    pub ground: bool,
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32), String> {

@@ -7,13 +7,14 @@ use prismbake::repair::RepairOptions;
 use prismbake::{prism_file, report, validate, Error, Result};
 use glam::Vec3;
 use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob};
+use prismbake::render::lookdev::{self, CacheUse, LookdevOptions, LookdevSummary, WatchEvent};
 use prismbake::render::{Aov, RenderSettings};
 use prismbake::bench::BenchConfig;
 use prismbake::trace::nonlinear::NonlinearOptions;
 use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
 use prismbake::trace::rmip::RmipOptions;
 use prismbake::trace::NormalMode;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 pub fn run(cli: Cli) -> Result<ExitCode> {
@@ -179,16 +180,66 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         Device::Cpu => {}
     }
     let aovs = a.aov.iter().map(|s| s.parse::<Aov>()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Param)?;
+    let look = lookdev_options(&a)?;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| Error::Param(format!("--threads: {e}")))?;
+    if a.input.is_dir() {
+        return render_batch(&a, method, &aovs, &look, &pool);
+    }
     let input = if prismbake::load::extension(&a.input) == "prisms" {
         Input::Table { path: a.input.clone(), disp: a.disp.disp.clone(), channel: a.disp.channel.clone() }
     } else {
         Input::Asset(asset::resolve(&a.input, &overrides(&a.disp, None))?)
     };
+    let job = render_job_for(&a, method, aovs, input, a.output.clone())?;
+    job.validate()?;
+    let frames = frame_count(&job);
+    let rows = job.settings.height as u64;
+    if a.watch {
+        let on_event = |ev: &WatchEvent, s: &LookdevSummary| {
+            eprintln!(
+                "map changed: re-baked {} of {} prisms ({} records updated), BVH {}; re-rendered in {:.0} ms (change detected -> {} files written; re-bake {:.1} ms)",
+                ev.rebake.prisms_rebaked, ev.rebake.prisms, ev.rebake.records_updated, ev.bvh, ev.latency_ms, s.render.files.len(), ev.rebake_ms
+            );
+        };
+        let summary = pool.install(|| lookdev::watch(&job, &look, a.watch_max, &|m| eprintln!("{m}"), &on_event, &|_, _| {}))?;
+        print_render_summary(&a, &summary);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let pb = progress::bar(frames * rows, "rendering");
+    let summary = pool.install(|| lookdev::run(&job, &look, &|frame, done| pb.set_position(frame as u64 * rows + done as u64)))?;
+    pb.finish_and_clear();
+    print_render_summary(&a, &summary);
+    Ok(ExitCode::SUCCESS)
+}
+
+fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
+    let l = &a.look;
+    let opts = LookdevOptions {
+        env: l.env.clone(),
+        env_rotate_deg: l.env_rotate,
+        env_intensity: l.env_intensity,
+        key_light: l.key_light,
+        base_color: l.base_color.map(Vec3::from),
+        roughness: l.roughness,
+        metallic: l.metallic,
+        specular: l.specular,
+        bounces: l.bounces,
+        ground: l.ground,
+        cache_dir: if a.no_cache { None } else { prismbake::table_cache::default_dir() },
+    };
+    opts.validate()?;
+    Ok(opts)
+}
+
+fn render_job_for(a: &RenderArgs, method: Method, aovs: Vec<Aov>, input: Input, out_dir: PathBuf) -> Result<RenderJob> {
     let normal_mode = match a.normal {
         NormalArg::Smooth => NormalMode::Smooth,
         NormalArg::Geometric => NormalMode::Geometric,
     };
-    let job = RenderJob {
+    Ok(RenderJob {
         input,
         method: MethodConfig {
             method,
@@ -207,35 +258,108 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
             to: a.camera_to.map(Vec3::from),
             fov_deg: a.fov,
         },
-        out_dir: a.output.clone(),
+        out_dir,
         repair: repair_options(&a.repair)?,
-    };
-    job.validate()?;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads.unwrap_or(0))
-        .build()
-        .map_err(|e| Error::Param(format!("--threads: {e}")))?;
-    let frames = job.turntable.map_or(1, |n| job.frames.map_or(n, |(x, y)| y - x + 1));
-    let pb = progress::bar(frames as u64 * job.settings.height as u64, "rendering");
-    let rows = job.settings.height as u64;
-    let summary = pool.install(|| render_job::run(&job, &|frame, done| pb.set_position(frame as u64 * rows + done as u64)))?;
+    })
+}
+
+fn frame_count(job: &RenderJob) -> u64 {
+    job.turntable.map_or(1, |n| job.frames.map_or(n, |(x, y)| y - x + 1)) as u64
+}
+
+fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(summary).expect("serialises"));
+        return;
+    }
+    match &summary.table_cache {
+        CacheUse::Reused(p) => eprintln!("reused cached prism table {}", p.display()),
+        CacheUse::Stored(p) => eprintln!("baked {} prisms (cached as {})", summary.render.prisms, p.display()),
+        CacheUse::NotStored(e) => eprintln!("baked {} prisms (not cached: {e})", summary.render.prisms),
+        CacheUse::Off => {}
+    }
+    for f in &summary.render.frames {
+        eprintln!(
+            "{}frame: {:.3} s, {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
+            f.frame.map(|i| format!("[{i:04}] ")).unwrap_or_default(),
+            f.seconds,
+            f.mrays_per_s,
+            f.steps_per_ray,
+            100.0 * f.coverage
+        );
+    }
+    let b = &summary.beauty_rays;
+    if b.rays > 0 {
+        eprintln!(
+            "beauty: {} rays, {} shadow rays ({} key light, {} environment)",
+            b.rays, summary.shadow_rays, b.key_shadow_rays, b.env_shadow_rays
+        );
+    }
+    for p in &summary.contact_sheets {
+        eprintln!("contact sheet: {}", p.display());
+    }
+    eprintln!("wrote {} files to {}", summary.render.files.len() + summary.contact_sheets.len(), a.output.display());
+}
+
+/// `render DIR`: every mesh under DIR into OUTPUT/<stem>/, past failures; exit 1 if any failed.
+fn render_batch(a: &RenderArgs, method: Method, aovs: &[Aov], look: &LookdevOptions, pool: &rayon::ThreadPool) -> Result<ExitCode> {
+    if a.watch {
+        return Err(Error::Param(format!("--watch follows one asset's height map; {} is a folder", a.input.display())));
+    }
+    let meshes = asset::find_meshes(&a.input);
+    if meshes.is_empty() {
+        return Err(Error::Param(format!("no mesh files (.gltf, .glb, .obj, .usd*) found under {}", a.input.display())));
+    }
+    render_job::prepare_out_dir(&a.output)?;
+    let probe = render_job_for(a, method, aovs.to_vec(), Input::Table { path: PathBuf::new(), disp: None, channel: None }, a.output.clone())?;
+    probe.validate()?;
+    let frames = frame_count(&probe);
+    let pb = progress::bar(meshes.len() as u64 * frames, "rendering");
+    let mut used = std::collections::HashSet::new();
+    let mut failures: Vec<(PathBuf, String)> = Vec::new();
+    let mut results = Vec::new();
+    for (k, mesh) in meshes.iter().enumerate() {
+        let base = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "asset".into());
+        let mut stem = base.clone();
+        let mut n = 2;
+        while !used.insert(stem.clone()) {
+            stem = format!("{base}_{n}");
+            n += 1;
+        }
+        pb.set_message(stem.clone());
+        let out = a.output.join(&stem);
+        let result = asset::resolve(mesh, &overrides(&a.disp, None))
+            .and_then(|spec| render_job_for(a, method, aovs.to_vec(), Input::Asset(spec), out.clone()))
+            .and_then(|job| pool.install(|| lookdev::run(&job, look, &|f, _| pb.set_position(k as u64 * frames + f as u64))));
+        pb.set_position((k as u64 + 1) * frames);
+        match result {
+            Ok(s) => {
+                if !a.json {
+                    let secs: f64 = s.render.frames.iter().map(|f| f.seconds).sum();
+                    pb.suspend(|| eprintln!("{}: {} files in {}/ ({secs:.2} s)", mesh.display(), s.render.files.len() + s.contact_sheets.len(), out.display()));
+                }
+                results.push(serde_json::json!({"mesh": mesh, "output": out, "ok": true, "summary": s}));
+            }
+            Err(e) => {
+                pb.suspend(|| eprintln!("{}: FAILED: {e}", mesh.display()));
+                results.push(serde_json::json!({"mesh": mesh, "output": out, "ok": false, "error": e.to_string()}));
+                failures.push((mesh.clone(), e.to_string()));
+            }
+        }
+    }
     pb.finish_and_clear();
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary).expect("serialises"));
-    } else {
-        for f in &summary.frames {
-            eprintln!(
-                "{}frame: {:.3} s, {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
-                f.frame.map(|i| format!("[{i:04}] ")).unwrap_or_default(),
-                f.seconds,
-                f.mrays_per_s,
-                f.steps_per_ray,
-                100.0 * f.coverage
-            );
-        }
-        eprintln!("wrote {} files to {}", summary.files.len(), a.output.display());
+        println!("{}", serde_json::to_string_pretty(&serde_json::json!({"assets": results})).expect("serialises"));
     }
-    Ok(ExitCode::SUCCESS)
+    eprintln!("rendered {} of {} assets into {}", meshes.len() - failures.len(), meshes.len(), a.output.display());
+    if failures.is_empty() {
+        return Ok(ExitCode::SUCCESS);
+    }
+    eprintln!("{} failed:", failures.len());
+    for (mesh, e) in &failures {
+        eprintln!("  {}: {e}", mesh.display());
+    }
+    Ok(ExitCode::from(1))
 }
 
 fn bench(a: BenchArgs) -> Result<ExitCode> {

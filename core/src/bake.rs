@@ -22,6 +22,9 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
 
+mod rebake;
+pub use rebake::{rebake_for_map, RebakeStats};
+
 /// The prism's displacement range is a single value: trace it as a plain triangle.
 pub const PRISM_FLAT: u32 = 1;
 /// The prism stitches a hard edge or corner (inserted by repair; zero base area).

@@ -3,11 +3,17 @@
 //! Every pixel's rays and random numbers depend only on (pixel, sample, seed), so the image is
 //! the same for 1 or N threads. AOVs: `depth` (distance along the camera ray), `normal`
 //! (world-space shading normal, the asset's own frame), `mask` (coverage), `uv`, `steps`
-//! (marching/traversal steps), `prism` (prism id + 1, 0 = miss).
+//! (marching/traversal steps), `prism` (prism id + 1, 0 = miss). `beauty` is not an AOV of
+//! this pass: it is path traced by `beauty` (and orchestrated with the AOVs by `lookdev`).
 
+pub mod beauty;
 pub mod camera;
+pub mod contact_sheet;
+pub mod env;
 pub mod job;
+pub mod lookdev;
 pub mod output;
+pub mod shading;
 
 use crate::rng::{self, Purpose};
 use crate::trace::{Intersector, RayContext};
@@ -24,10 +30,12 @@ pub enum Aov {
     Uv,
     Steps,
     Prism,
+    /// The path-traced picture (`render::beauty`), RGBA.
+    Beauty,
 }
 
 impl Aov {
-    pub const ALL: [Aov; 6] = [Aov::Depth, Aov::Normal, Aov::Mask, Aov::Uv, Aov::Steps, Aov::Prism];
+    pub const ALL: [Aov; 7] = [Aov::Depth, Aov::Normal, Aov::Mask, Aov::Uv, Aov::Steps, Aov::Prism, Aov::Beauty];
     pub fn name(self) -> &'static str {
         match self {
             Aov::Depth => "depth",
@@ -36,12 +44,14 @@ impl Aov {
             Aov::Uv => "uv",
             Aov::Steps => "steps",
             Aov::Prism => "prism",
+            Aov::Beauty => "beauty",
         }
     }
     pub fn channels(self) -> usize {
         match self {
             Aov::Normal => 3,
             Aov::Uv => 2,
+            Aov::Beauty => 4,
             _ => 1,
         }
     }
@@ -54,7 +64,7 @@ impl std::str::FromStr for Aov {
             .iter()
             .find(|a| a.name() == s)
             .copied()
-            .ok_or_else(|| format!("unknown AOV '{s}' (expected depth, normal, mask, uv, steps or prism)"))
+            .ok_or_else(|| format!("unknown AOV '{s}' (expected depth, normal, mask, uv, steps, prism or beauty)"))
     }
 }
 
@@ -83,7 +93,7 @@ pub struct AovImage {
 }
 
 impl AovImage {
-    /// The AOV as rows of `channels()` floats.
+    /// The AOV as rows of `channels()` floats (empty for `Beauty`, which is not in this image).
     pub fn channel_data(&self, aov: Aov) -> Vec<f32> {
         match aov {
             Aov::Depth => self.depth.clone(),
@@ -92,6 +102,7 @@ impl AovImage {
             Aov::Prism => self.prism.clone(),
             Aov::Normal => self.normal.iter().flat_map(|n| n.to_array()).collect(),
             Aov::Uv => self.uv.iter().flat_map(|u| u.to_array()).collect(),
+            Aov::Beauty => Vec::new(),
         }
     }
 }

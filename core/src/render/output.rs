@@ -59,6 +59,7 @@ pub fn exr_channels(aov: Aov) -> &'static [&'static str] {
     match aov {
         Aov::Normal => &["R", "G", "B"],
         Aov::Uv => &["R", "G"],
+        Aov::Beauty => &["R", "G", "B", "A"],
         _ => &["Y"],
     }
 }
@@ -112,6 +113,8 @@ pub fn preview(img: &AovImage, aov: Aov) -> Vec<u8> {
             let p99 = sorted.get((sorted.len() * 99) / 100).copied().unwrap_or(1.0).max(1.0);
             rgb.extend(img.steps.iter().flat_map(|s| heat(s / p99)));
         }
+        // Written by `beauty::beauty_preview` from a `BeautyImage`, never from AOVs.
+        Aov::Beauty => rgb.resize(n * 3, 0),
         Aov::Prism => {
             for p in &img.prism {
                 let c = if *p > 0.0 {
@@ -136,9 +139,10 @@ pub fn stem(aov: Aov, frame: Option<u32>) -> String {
 }
 
 /// Write `DIR/<stem>.exr` and `DIR/<stem>.png` for every requested AOV; returns the paths.
+/// `Beauty` is skipped: `write_beauty` writes it.
 pub fn write_frame(dir: &Path, img: &AovImage, aovs: &[Aov], frame: Option<u32>) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
-    for &aov in aovs {
+    for &aov in aovs.iter().filter(|a| **a != Aov::Beauty) {
         let stem = stem(aov, frame);
         let exr_path = dir.join(format!("{stem}.exr"));
         write_exr(&exr_path, img.width, img.height, exr_channels(aov), &img.channel_data(aov))?;
@@ -148,6 +152,18 @@ pub fn write_frame(dir: &Path, img: &AovImage, aovs: &[Aov], frame: Option<u32>)
         written.push(png_path);
     }
     Ok(written)
+}
+
+/// Write `DIR/beauty[_NNNN].exr` (linear premultiplied RGBA) and `.png` (the tonemapped
+/// preview over the environment); returns the paths.
+pub fn write_beauty(dir: &Path, img: &super::beauty::BeautyImage, frame: Option<u32>) -> Result<Vec<PathBuf>> {
+    let stem = stem(Aov::Beauty, frame);
+    let exr_path = dir.join(format!("{stem}.exr"));
+    let data: Vec<f32> = img.rgba.iter().flatten().copied().collect();
+    write_exr(&exr_path, img.width, img.height, exr_channels(Aov::Beauty), &data)?;
+    let png_path = dir.join(format!("{stem}.png"));
+    write_png_rgb(&png_path, img.width, img.height, &super::beauty::beauty_preview(img))?;
+    Ok(vec![exr_path, png_path])
 }
 
 /// Read the first channels of an EXR back (tests, comparisons): (width, height, names, data

@@ -1,0 +1,111 @@
+//! Incremental re-bake for a changed height map (`render --watch`): same mesh and
+//! parameters, new map values; only prisms whose stored bounds no longer hold are re-derived.
+
+use super::{footprint_range, lambda_range, mean_normal_lower_bound, texel_world_size, Prism, PrismTable, PRISM_FLAT};
+use crate::heightmap::HeightMap;
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// What `rebake_for_map` changed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct RebakeStats {
+    pub prisms: usize,
+    /// Prisms whose stored λ range no longer held the new displacement and was re-derived.
+    pub prisms_rebaked: usize,
+    /// Prisms whose displacement range or flat flag changed (bounds kept or not).
+    pub records_updated: usize,
+    /// Re-baked prisms whose box grew: the BVH no longer bounds them.
+    pub boxes_grown: usize,
+    pub bvh_rebuild_needed: bool,
+}
+
+/// Update a table for a new version of its height map (same mesh, same parameters) without a
+/// full bake: every prism's footprint range is recomputed (`footprint_range`), its `d` range
+/// and flat flag updated, but its extrusion range `[λlo, λhi]` is re-derived only when the new
+/// `lambda_range(d_min, d_max, m_lo)` is not inside the stored one (the λ range, not the `d`
+/// range, is what bounds the surface; `m_lo` comes from the unchanged normals). Kept ranges
+/// may now be loose, never too small. A BVH built over the old boxes still bounds every prism
+/// unless some re-derived box grew (`bvh_rebuild_needed`).
+pub fn rebake_for_map(table: &mut PrismTable, map: &HeightMap) -> RebakeStats {
+    let resized = (map.width, map.height) != (table.map_width, table.map_height);
+    let params = table.params;
+    let view: &PrismTable = table;
+    let updated: Vec<(Prism, bool, bool)> = view
+        .prisms
+        .par_iter()
+        .map(|p| {
+            let uv = view.prism_uvs(p);
+            let (pos, n) = view.prism_corners(p);
+            let (hmin, hmax) = footprint_range(map, &uv);
+            let (d_min, d_max) = params.displacement_range(hmin, hmax);
+            let (lo, hi) = lambda_range(d_min, d_max, mean_normal_lower_bound(&n));
+            let mut q = Prism { d_min, d_max, ..*p };
+            q.flags = (p.flags & !PRISM_FLAT) | if d_min == d_max { PRISM_FLAT } else { 0 };
+            if resized {
+                q.texel_world = texel_world_size(map, &pos, &uv);
+            }
+            let holds = lo >= p.lambda_lo && hi <= p.lambda_hi;
+            let mut grew = false;
+            if !holds {
+                q.lambda_lo = lo;
+                q.lambda_hi = hi;
+                let (a0, a1) = view.prism_aabb(p);
+                let (b0, b1) = view.prism_aabb(&q);
+                grew = b0.cmplt(a0).any() || b1.cmpgt(a1).any();
+            }
+            (q, !holds, grew)
+        })
+        .collect();
+    let mut stats = RebakeStats { prisms: table.prisms.len(), ..RebakeStats::default() };
+    for (slot, (q, rebaked, grew)) in table.prisms.iter_mut().zip(updated) {
+        stats.prisms_rebaked += rebaked as usize;
+        stats.boxes_grown += grew as usize;
+        stats.records_updated += (*slot != q) as usize;
+        *slot = q;
+    }
+    stats.bvh_rebuild_needed = stats.boxes_grown > 0;
+    table.map_width = map.width;
+    table.map_height = map.height;
+    stats
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::{bake, BakeOptions};
+    use crate::accel::fixtures::*;
+
+    /// A local edit of the map re-bakes only the prisms over it; the result bounds the surface
+    /// as a fresh bake does (fresh λ range inside the kept one, same d ranges and flags).
+    #[test]
+    fn local_edit_rebakes_only_the_prisms_over_it() {
+        let mesh = sphere_mesh(2, 0.1);
+        let map = relief_map(64);
+        let mut table = table(&mesh, &map, 0.05);
+        let n = table.prisms.len();
+        assert_eq!(rebake_for_map(&mut table.clone(), &map).prisms_rebaked, 0, "same map: nothing to do");
+
+        let mut edited = map.clone();
+        for y in 20..24 {
+            for x in 30..34 {
+                edited.data[y * 64 + x] = 1.5; // above the old maximum: those bounds must grow
+            }
+        }
+        let stats = rebake_for_map(&mut table, &edited);
+        let fresh = bake(&mesh, &edited, &BakeOptions { params: table.params });
+        assert!(stats.prisms_rebaked > 0 && stats.prisms_rebaked < n / 4, "{stats:?} of {n}");
+        assert!(stats.bvh_rebuild_needed && stats.boxes_grown > 0);
+        for (got, want) in table.prisms.iter().zip(&fresh.prisms) {
+            assert_eq!((got.d_min, got.d_max, got.flags), (want.d_min, want.d_max, want.flags));
+            assert!(got.lambda_lo <= want.lambda_lo && got.lambda_hi >= want.lambda_hi, "{got:?} vs {want:?}");
+        }
+
+        // The same map again: every bound holds, no BVH work.
+        let again = rebake_for_map(&mut table, &edited);
+        assert_eq!((again.prisms_rebaked, again.records_updated, again.bvh_rebuild_needed), (0, 0, false), "{again:?}");
+        // Back to the old map: only prisms under the patch can need new bounds (those whose
+        // minimum was inside it now reach lower again); the others keep theirs, loose or not.
+        let back = rebake_for_map(&mut table, &map);
+        assert!(back.prisms_rebaked <= stats.prisms_rebaked && back.records_updated > 0, "{back:?}");
+    }
+}

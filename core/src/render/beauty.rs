@@ -1,0 +1,366 @@
+//! The beauty pass: a progressive path tracer over any intersector. Lighting: the environment
+//! (`env`) and an optional directional key light; material: `shading::Material` (Lambert +
+//! GGX, mirror below `MIRROR_ROUGHNESS`); `bounces` surface events; next-event estimation of
+//! the environment combined with BSDF sampling by MIS (power heuristic); the key light is a
+//! delta light, sampled only by shadow rays. An optional shadow-catcher ground plane at the
+//! asset's lowest point records how much light the asset takes away (alpha), nothing else.
+//!
+//! Samples are rendered in passes (sample 0 of every pixel, then sample 1, ...) and every
+//! random number is `rng::random(pixel, sample, dimension, purpose, seed)`, so the image is the
+//! same for any thread count and a run of N samples is the first N of a longer run. Secondary
+//! rays are not traced when nothing needs them: no shadow rays without a light to sample, and
+//! the last bounce's BSDF ray only asks whether it escapes to the environment (`occluded`).
+//!
+//! Output: linear, premultiplied RGBA for the EXR (background alpha 0, RGB 0; shadow catcher
+//! RGB 0, alpha = shadow), and a preview composited over the visible environment, filmic
+//! tonemapped and sRGB encoded, for the PNG.
+
+use super::camera::Camera;
+use super::env::{env_pdf, env_radiance, env_radiance_smooth, env_sample, EnvMap};
+use super::shading::{self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material};
+use super::RenderSettings;
+use crate::rng::{self, Purpose};
+use crate::trace::{Hit, Intersector, Ray, RayContext};
+use glam::{Vec2, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Random dimensions per bounce: `rng`'s `bounce` counter is `bounce * DIMS + k`.
+const DIMS: u32 = 8;
+
+/// A directional light: unit direction towards the light and its irradiance at normal incidence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KeyLight {
+    pub dir: Vec3,
+    pub irradiance: f32,
+}
+
+impl KeyLight {
+    /// From azimuth/elevation in degrees about the up axis: azimuth 0 = the side the default
+    /// camera looks from (+Z for Y-up, −Y for Z-up), 90 = +X; elevation 90 = straight above.
+    pub fn from_angles(azimuth_deg: f32, elevation_deg: f32, irradiance: f32, z_up: bool) -> Self {
+        let (az, el) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
+        let (x, up, front) = (az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
+        let dir = if z_up { Vec3::new(x, -front, up) } else { Vec3::new(x, up, front) };
+        KeyLight { dir: dir.normalize(), irradiance }
+    }
+}
+
+/// Shadow-catcher ground: the plane `p·up = height`, seen only by camera rays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ground {
+    pub up: Vec3,
+    pub height: f32,
+}
+
+/// Everything the beauty pass needs besides the intersector and the camera.
+pub struct BeautyScene<'a> {
+    pub env: &'a EnvMap,
+    /// Whether the environment lights the scene (false when it is black: no env rays).
+    pub env_lights: bool,
+    pub key: Option<KeyLight>,
+    pub material: Material,
+    pub ground: Option<Ground>,
+    /// Surface events per path, 1..=4 (1 = direct light only).
+    pub bounces: u32,
+    /// Ray origin offset (world units), from the scene's size.
+    pub eps: f32,
+}
+
+/// Ray counts of a beauty frame (shadow rays by the light they test).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct BeautyCounters {
+    /// Closest-hit rays (camera and bounce rays).
+    pub rays: u64,
+    /// Occlusion rays towards the key light.
+    pub key_shadow_rays: u64,
+    /// Occlusion rays towards the environment (light samples and last-bounce escapes).
+    pub env_shadow_rays: u64,
+}
+
+impl BeautyCounters {
+    fn add(&mut self, o: &BeautyCounters) {
+        self.rays += o.rays;
+        self.key_shadow_rays += o.key_shadow_rays;
+        self.env_shadow_rays += o.env_shadow_rays;
+    }
+    pub fn shadow_rays(&self) -> u64 {
+        self.key_shadow_rays + self.env_shadow_rays
+    }
+}
+
+/// One frame: premultiplied linear RGBA and the background seen behind it (for previews).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BeautyImage {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<[f32; 4]>,
+    /// What shows where alpha is below 1 (environment, darkened by catcher shadows).
+    pub background: Vec<Vec3>,
+    pub counters: BeautyCounters,
+}
+
+/// Per-pixel running sums over samples.
+#[derive(Clone, Copy, Default)]
+struct PixelSums {
+    radiance: Vec3,
+    surface: f32,
+    background: Vec3,
+    ground_background: Vec3,
+    ground_samples: f32,
+    ground_lit: f32,
+    ground_unshadowed: f32,
+}
+
+/// What one camera sample saw.
+#[derive(Clone, Copy, Default)]
+struct SampleResult {
+    radiance: Vec3,
+    surface: bool,
+    background: Vec3,
+    ground: Option<(f32, f32)>,
+}
+
+#[inline]
+fn rand2(ctx: &RayContext, bounce: u32, k: u32, purpose: Purpose) -> Vec2 {
+    let d = bounce * DIMS + k;
+    Vec2::new(
+        rng::random(ctx.pixel, ctx.sample, d, purpose, ctx.seed),
+        rng::random(ctx.pixel, ctx.sample, d + 1, purpose, ctx.seed),
+    )
+}
+
+#[inline]
+fn shadow_ray(origin: Vec3, dir: Vec3) -> Ray {
+    Ray { origin, dir, t_min: 0.0, t_max: f32::INFINITY }
+}
+
+/// Distance along `ray` to the ground plane, if it is in front and the ray goes down to it.
+#[inline]
+pub fn ground_hit(g: &Ground, ray: &Ray) -> Option<f32> {
+    let denom = ray.dir.dot(g.up);
+    if denom >= 0.0 {
+        return None;
+    }
+    let t = (g.height - ray.origin.dot(g.up)) / denom;
+    (t > ray.t_min && t < ray.t_max).then_some(t)
+}
+
+/// Light reaching a ground point with and without the asset in the way (luminance):
+/// (lit, unshadowed). Their ratio is the catcher's visibility.
+fn ground_light(isect: &dyn Intersector, s: &BeautyScene, p: Vec3, ctx: &RayContext, n: &mut BeautyCounters) -> (f32, f32) {
+    let Some(g) = s.ground else { return (0.0, 0.0) };
+    let origin = p + g.up * s.eps;
+    let (mut lit, mut all) = (0.0, 0.0);
+    if let Some(k) = s.key {
+        let cos = k.dir.dot(g.up);
+        if cos > 0.0 {
+            all += k.irradiance * cos;
+            n.key_shadow_rays += 1;
+            if !isect.occluded(&shadow_ray(origin, k.dir), ctx) {
+                lit += k.irradiance * cos;
+            }
+        }
+    }
+    if s.env_lights {
+        let es = env_sample(s.env, rand2(ctx, 0, 0, Purpose::Light));
+        let cos = es.dir.dot(g.up);
+        if cos > 0.0 && es.pdf > 0.0 {
+            let e = shading::luminance(env_radiance(s.env, es.dir)) * cos / es.pdf;
+            all += e;
+            n.env_shadow_rays += 1;
+            if !isect.occluded(&shadow_ray(origin, es.dir), ctx) {
+                lit += e;
+            }
+        }
+    }
+    (lit, all)
+}
+
+/// Radiance leaving a camera hit towards the camera: the path tracer proper.
+fn surface_radiance(isect: &dyn Intersector, s: &BeautyScene, first: Hit, first_dir: Vec3, ctx: &RayContext, n: &mut BeautyCounters) -> Vec3 {
+    let m = &s.material;
+    let mut hit = first;
+    let mut dir = first_dir;
+    let mut throughput = Vec3::ONE;
+    let mut radiance = Vec3::ZERO;
+    for bounce in 0..s.bounces {
+        let wo = -dir;
+        let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
+        if wo.dot(ng) < 0.0 {
+            ng = -ng;
+            ns = -ns;
+        }
+        if wo.dot(ns) <= 0.0 {
+            ns = ng;
+        }
+        let (t, b) = onb(ns);
+        let wo_l = shading::to_local(wo, t, b, ns);
+        let p = hit.position;
+        let bctx = RayContext { bounce: bounce + 1, ..*ctx };
+
+        if let Some(k) = s.key {
+            let wi_l = shading::to_local(k.dir, t, b, ns);
+            let f = if k.dir.dot(ng) > 0.0 { bsdf_eval(m, wo_l, wi_l) } else { Vec3::ZERO };
+            if f.max_element() > 0.0 {
+                n.key_shadow_rays += 1;
+                if !isect.occluded(&shadow_ray(offset_origin(p, ng, k.dir, s.eps), k.dir), &bctx) {
+                    radiance += throughput * f * k.irradiance;
+                }
+            }
+        }
+        if s.env_lights {
+            let es = env_sample(s.env, rand2(ctx, bounce, 0, Purpose::Light));
+            if es.pdf > 0.0 && es.dir.dot(ng) > 0.0 {
+                let wi_l = shading::to_local(es.dir, t, b, ns);
+                let f = bsdf_eval(m, wo_l, wi_l);
+                if f.max_element() > 0.0 {
+                    n.env_shadow_rays += 1;
+                    if !isect.occluded(&shadow_ray(offset_origin(p, ng, es.dir, s.eps), es.dir), &bctx) {
+                        let w = power_heuristic(es.pdf, bsdf_pdf(m, wo_l, wi_l));
+                        radiance += throughput * f * env_radiance(s.env, es.dir) * (w / es.pdf);
+                    }
+                }
+            }
+        }
+
+        let u_lobe = rng::random(ctx.pixel, ctx.sample, bounce * DIMS + 2, Purpose::Bsdf, ctx.seed);
+        let Some(bs) = bsdf_sample(m, wo_l, u_lobe, rand2(ctx, bounce, 3, Purpose::Bsdf)) else { break };
+        let wi = shading::from_local(bs.wi, t, b, ns);
+        if wi.dot(ng) <= 0.0 {
+            break;
+        }
+        throughput *= bs.weight;
+        let ray = shadow_ray(offset_origin(p, ng, wi, s.eps), wi);
+        let env_weight = |s: &BeautyScene| if bs.delta { 1.0 } else { power_heuristic(bs.pdf, env_pdf(s.env, wi)) };
+        if bounce + 1 == s.bounces {
+            // Last event: only whether the ray escapes matters.
+            if s.env_lights {
+                n.env_shadow_rays += 1;
+                if !isect.occluded(&ray, &bctx) {
+                    radiance += throughput * env_radiance(s.env, wi) * env_weight(s);
+                }
+            }
+            break;
+        }
+        n.rays += 1;
+        match isect.intersect(&ray, &bctx) {
+            Some(h) => {
+                hit = h;
+                dir = wi;
+            }
+            None => {
+                if s.env_lights {
+                    radiance += throughput * env_radiance(s.env, wi) * env_weight(s);
+                }
+                break;
+            }
+        }
+    }
+    radiance
+}
+
+fn trace_sample(isect: &dyn Intersector, s: &BeautyScene, ray: &Ray, ctx: &RayContext, n: &mut BeautyCounters) -> SampleResult {
+    n.rays += 1;
+    let hit = isect.intersect(ray, ctx);
+    let ground_t = s.ground.as_ref().and_then(|g| ground_hit(g, ray));
+    match (hit, ground_t) {
+        (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => {
+            SampleResult { radiance: surface_radiance(isect, s, h, ray.dir, ctx, n), surface: true, ..Default::default() }
+        }
+        (_, Some(gt)) => SampleResult {
+            background: env_radiance_smooth(s.env, ray.dir),
+            ground: Some(ground_light(isect, s, ray.at(gt), ctx, n)),
+            ..Default::default()
+        },
+        _ => SampleResult { background: env_radiance_smooth(s.env, ray.dir), ..Default::default() },
+    }
+}
+
+/// Render one beauty frame. `progress` is called with rows finished, scaled to `height`
+/// (samples are rendered in passes over the whole image).
+pub fn render_beauty(
+    isect: &dyn Intersector,
+    cam: &Camera,
+    settings: &RenderSettings,
+    scene: &BeautyScene,
+    progress: &(dyn Fn(usize) + Sync),
+) -> BeautyImage {
+    let (w, h, spp) = (settings.width as usize, settings.height as usize, settings.spp);
+    let mut sums = vec![PixelSums::default(); w * h];
+    let mut counters = BeautyCounters::default();
+    let done = AtomicUsize::new(0);
+    for sample in 0..spp {
+        let row_counters: Vec<BeautyCounters> = sums
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut n = BeautyCounters::default();
+                for (x, acc) in row.iter_mut().enumerate() {
+                    let pixel = (y * w + x) as u32;
+                    let jitter = if spp == 1 {
+                        Vec2::splat(0.5)
+                    } else {
+                        Vec2::new(
+                            rng::random(pixel, sample, 0, Purpose::PixelJitter, settings.seed),
+                            rng::random(pixel, sample, 1, Purpose::PixelJitter, settings.seed),
+                        )
+                    };
+                    let ray = cam.ray(Vec2::new(x as f32, y as f32) + jitter, w as u32, h as u32);
+                    let ctx = RayContext { pixel, sample, bounce: 0, seed: settings.seed };
+                    let r = trace_sample(isect, scene, &ray, &ctx, &mut n);
+                    acc.radiance += r.radiance;
+                    acc.surface += r.surface as u32 as f32;
+                    match r.ground {
+                        Some((lit, all)) => {
+                            acc.ground_samples += 1.0;
+                            acc.ground_lit += lit;
+                            acc.ground_unshadowed += all;
+                            acc.ground_background += r.background;
+                        }
+                        None => acc.background += r.background,
+                    }
+                }
+                let rows = done.fetch_add(1, Ordering::Relaxed) + 1;
+                progress(rows / spp as usize);
+                n
+            })
+            .collect();
+        for c in &row_counters {
+            counters.add(c);
+        }
+    }
+    let k = 1.0 / spp as f32;
+    let (rgba, background) = sums
+        .iter()
+        .map(|a| {
+            let shadow = if a.ground_unshadowed > 0.0 { (1.0 - a.ground_lit / a.ground_unshadowed).clamp(0.0, 1.0) } else { 0.0 };
+            let alpha = (a.surface + a.ground_samples * shadow) * k;
+            let c = a.radiance * k;
+            let bg = (a.background + a.ground_background * (1.0 - shadow)) * k;
+            ([c.x, c.y, c.z, alpha], bg)
+        })
+        .unzip();
+    BeautyImage { width: w as u32, height: h as u32, rgba, background, counters }
+}
+
+/// The sRGB preview: radiance plus the background where the asset does not cover the pixel,
+/// filmic tonemapped.
+pub fn beauty_preview(img: &BeautyImage) -> Vec<u8> {
+    let mut rgb = Vec::with_capacity(img.rgba.len() * 3);
+    for (c, bg) in img.rgba.iter().zip(&img.background) {
+        let lin = Vec3::new(c[0], c[1], c[2]) + *bg;
+        let t = shading::tonemap_filmic(lin);
+        rgb.extend(t.to_array().map(|v| (shading::linear_to_srgb(v) * 255.0).round() as u8));
+    }
+    rgb
+}
+
+/// Offset for ray origins: a relative 1e-4 of the scene diagonal clears PDM's refined hit
+/// error (about 1e-5 relative) and f32 rounding of coordinates far from the origin.
+pub fn scene_epsilon(lo: Vec3, hi: Vec3) -> f32 {
+    let diag = (hi - lo).length();
+    let far = lo.abs().max(hi.abs()).max_element();
+    (1e-4 * diag).max(32.0 * f32::EPSILON * far).max(1e-6)
+}

@@ -1,0 +1,360 @@
+//! The environment light: an equirectangular radiance map (from an EXR, or a neutral built-in
+//! sky), rotated about the asset's up axis and importance sampled by a 2D piecewise-constant
+//! distribution over its texels (pbrt's `PiecewiseConstant2D`: a marginal CDF over rows,
+//! one conditional CDF per row, weights = luminance × sin θ).
+//!
+//! Lighting reads texels nearest-neighbour so that radiance and `env_pdf` are constant over
+//! the same texel; the camera's view of the background reads them bilinearly (`env_radiance_smooth`).
+//! The env frame is Y-up: `u` = 0.5 + atan2(x, −z)/2π, `v` = θ/π with v = 0 at the zenith
+//! (row 0 of the image); Z-up assets map world (x, y, z) → env (x, z, −y).
+
+use super::shading::{luminance, PI};
+use crate::error::{Error, Result};
+use glam::{Vec2, Vec3};
+use std::path::Path;
+
+/// Largest environment accepted (texels per side), so a corrupt header cannot ask for gigabytes.
+pub const MAX_ENV_SIDE: u32 = 16384;
+
+/// Size of the built-in sky.
+const DEFAULT_ENV_SIZE: (u32, u32) = (256, 128);
+
+#[derive(Clone, Debug)]
+pub struct EnvMap {
+    pub width: u32,
+    pub height: u32,
+    /// Radiance × intensity, rows top (zenith) to bottom.
+    pub texels: Vec<Vec3>,
+    /// `height + 1` entries, 0 … 1.
+    pub marginal_cdf: Vec<f32>,
+    /// `height` rows of `width + 1` entries, 0 … 1 (uniform for a black row).
+    pub conditional_cdf: Vec<f32>,
+    /// Per row, its share of the total weight (the marginal pdf × height).
+    pub row_weight: Vec<f32>,
+    /// Per texel, its weight divided by its row's sum (the conditional pdf ÷ width).
+    pub texel_weight: Vec<f32>,
+    /// Sum of all weights; 0 = a black map (nothing to sample).
+    pub total_weight: f32,
+    pub frame: EnvFrame,
+}
+
+/// How world directions map into the env's Y-up frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvFrame {
+    pub z_up: bool,
+    /// Rotation about the up axis, radians (positive turns the map counter-clockwise seen from above).
+    pub rotation: f32,
+}
+
+/// A direction drawn from the map and its solid-angle density.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvSample {
+    pub dir: Vec3,
+    pub pdf: f32,
+}
+
+#[inline]
+pub fn world_to_env(d: Vec3, f: EnvFrame) -> Vec3 {
+    let d = if f.z_up { Vec3::new(d.x, d.z, -d.y) } else { d };
+    let (s, c) = (-f.rotation).sin_cos();
+    Vec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
+}
+
+#[inline]
+pub fn env_to_world(d: Vec3, f: EnvFrame) -> Vec3 {
+    let (s, c) = f.rotation.sin_cos();
+    let d = Vec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z);
+    if f.z_up {
+        Vec3::new(d.x, -d.z, d.y)
+    } else {
+        d
+    }
+}
+
+/// Env-frame direction → equirect (u, v) in [0, 1]².
+#[inline]
+pub fn env_dir_to_uv(d: Vec3) -> Vec2 {
+    let u = 0.5 + d.x.atan2(-d.z) * (0.5 * std::f32::consts::FRAC_1_PI);
+    let v = d.y.clamp(-1.0, 1.0).acos() * std::f32::consts::FRAC_1_PI;
+    Vec2::new(u, v)
+}
+
+#[inline]
+pub fn env_uv_to_dir(uv: Vec2) -> Vec3 {
+    let phi = (uv.x - 0.5) * 2.0 * PI;
+    let theta = uv.y * PI;
+    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
+}
+
+#[inline]
+fn texel_index(env: &EnvMap, uv: Vec2) -> (usize, usize) {
+    let x = ((uv.x * env.width as f32) as i64).rem_euclid(env.width as i64) as usize;
+    let y = ((uv.y * env.height as f32) as i64).clamp(0, env.height as i64 - 1) as usize;
+    (x, y)
+}
+
+/// Radiance arriving from world direction `d` (nearest texel; what lighting uses).
+#[inline]
+pub fn env_radiance(env: &EnvMap, d: Vec3) -> Vec3 {
+    let (x, y) = texel_index(env, env_dir_to_uv(world_to_env(d, env.frame)));
+    env.texels[y * env.width as usize + x]
+}
+
+/// Radiance seen directly by the camera (bilinear; a smooth background).
+pub fn env_radiance_smooth(env: &EnvMap, d: Vec3) -> Vec3 {
+    let uv = env_dir_to_uv(world_to_env(d, env.frame));
+    let p = uv * Vec2::new(env.width as f32, env.height as f32) - 0.5;
+    let (x0, y0) = (p.x.floor(), p.y.floor());
+    let (fx, fy) = (p.x - x0, p.y - y0);
+    let w = env.width as i64;
+    let at = |x: i64, y: i64| {
+        let (x, y) = (x.rem_euclid(w), y.clamp(0, env.height as i64 - 1));
+        env.texels[(y * w + x) as usize]
+    };
+    let (x0, y0) = (x0 as i64, y0 as i64);
+    let top = at(x0, y0).lerp(at(x0 + 1, y0), fx);
+    let bottom = at(x0, y0 + 1).lerp(at(x0 + 1, y0 + 1), fx);
+    top.lerp(bottom, fy)
+}
+
+/// Index of the CDF interval containing `u`: the last `i` with `cdf[i] <= u`.
+#[inline]
+fn find_interval(cdf: &[f32], u: f32) -> usize {
+    let (mut lo, mut hi) = (0usize, cdf.len() - 1);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if cdf[mid] <= u {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Draw a direction with density proportional to luminance (× sin θ, the equirect Jacobian).
+#[inline]
+pub fn env_sample(env: &EnvMap, u: Vec2) -> EnvSample {
+    let (w, h) = (env.width as usize, env.height as usize);
+    let y = find_interval(&env.marginal_cdf, u.y).min(h - 1);
+    let (c0, c1) = (env.marginal_cdf[y], env.marginal_cdf[y + 1]);
+    let fy = if c1 > c0 { ((u.y - c0) / (c1 - c0)).clamp(0.0, 1.0) } else { 0.5 };
+    let row = &env.conditional_cdf[y * (w + 1)..(y + 1) * (w + 1)];
+    let x = find_interval(row, u.x).min(w - 1);
+    let (r0, r1) = (row[x], row[x + 1]);
+    let fx = if r1 > r0 { ((u.x - r0) / (r1 - r0)).clamp(0.0, 1.0) } else { 0.5 };
+    let uv = Vec2::new((x as f32 + fx) / w as f32, (y as f32 + fy) / h as f32);
+    let dir = env_to_world(env_uv_to_dir(uv), env.frame);
+    // The density of the texel `dir` maps back to, as `env_pdf` and `env_radiance` see it: on a
+    // texel edge float rounding may pick the neighbour, and radiance / pdf must come from the
+    // same texel there.
+    EnvSample { dir, pdf: env_pdf(env, dir) }
+}
+
+#[inline]
+fn pdf_of_texel(env: &EnvMap, x: usize, y: usize, v: f32) -> f32 {
+    let sin_theta = (v * PI).sin();
+    if sin_theta <= 0.0 || env.total_weight <= 0.0 {
+        return 0.0;
+    }
+    // p(u, v) = (row share × height) × (texel share × width); dω = 2π² sin θ du dv.
+    let p_uv = env.row_weight[y] * env.height as f32 * env.texel_weight[y * env.width as usize + x] * env.width as f32;
+    p_uv / (2.0 * PI * PI * sin_theta)
+}
+
+/// Solid-angle density of `env_sample` producing world direction `d`.
+#[inline]
+pub fn env_pdf(env: &EnvMap, d: Vec3) -> f32 {
+    let uv = env_dir_to_uv(world_to_env(d, env.frame));
+    let (x, y) = texel_index(env, uv);
+    pdf_of_texel(env, x, y, uv.y)
+}
+
+impl EnvMap {
+    /// Build the sampling tables for `texels` (radiance already scaled by the intensity).
+    pub fn new(width: u32, height: u32, texels: Vec<Vec3>, frame: EnvFrame) -> Self {
+        let (w, h) = (width as usize, height as usize);
+        assert_eq!(texels.len(), w * h);
+        let mut conditional_cdf = Vec::with_capacity(h * (w + 1));
+        let mut texel_weight = Vec::with_capacity(w * h);
+        let mut row_sums = Vec::with_capacity(h);
+        for y in 0..h {
+            // The row's solid angle (∫ sin θ dθ over its band), not sin θ at its centre: the
+            // polar rows would otherwise be weighted wrongly by a large factor on small maps.
+            let band = (y as f32 / h as f32 * PI).cos() - ((y + 1) as f32 / h as f32 * PI).cos();
+            let row = &texels[y * w..(y + 1) * w];
+            let weights: Vec<f32> = row.iter().map(|c| luminance(*c).max(0.0) * band).collect();
+            let sum: f32 = weights.iter().sum();
+            row_sums.push(sum);
+            let mut acc = 0.0f32;
+            conditional_cdf.push(0.0);
+            for (x, wt) in weights.iter().enumerate() {
+                // A black row is sampled uniformly (it is never chosen by the marginal anyway).
+                let share = if sum > 0.0 { wt / sum } else { 1.0 / w as f32 };
+                texel_weight.push(share);
+                acc += share;
+                conditional_cdf.push(if x + 1 == w { 1.0 } else { acc });
+            }
+        }
+        let total: f32 = row_sums.iter().sum();
+        let row_weight: Vec<f32> = row_sums.iter().map(|s| if total > 0.0 { s / total } else { 1.0 / h as f32 }).collect();
+        let mut marginal_cdf = Vec::with_capacity(h + 1);
+        marginal_cdf.push(0.0);
+        let mut acc = 0.0f32;
+        for (y, r) in row_weight.iter().enumerate() {
+            acc += r;
+            marginal_cdf.push(if y + 1 == h { 1.0 } else { acc });
+        }
+        EnvMap { width, height, texels, marginal_cdf, conditional_cdf, row_weight, texel_weight, total_weight: total, frame }
+    }
+
+    /// The built-in neutral studio sky: a soft grey gradient (cooler and darker towards the
+    /// zenith), a bright horizon band and a darker warm-grey ground below it.
+    pub fn default_sky(intensity: f32, frame: EnvFrame) -> Self {
+        let (w, h) = DEFAULT_ENV_SIZE;
+        let zenith = Vec3::new(0.55, 0.6, 0.68);
+        let horizon = Vec3::new(0.9, 0.9, 0.88);
+        let ground = Vec3::new(0.22, 0.21, 0.2);
+        let texels = (0..w * h)
+            .map(|i| {
+                let v = ((i / w) as f32 + 0.5) / h as f32;
+                let elevation = (0.5 - v) * PI; // +π/2 at the zenith
+                let c = if elevation >= 0.0 {
+                    horizon.lerp(zenith, (elevation / (0.5 * PI)).powf(0.6))
+                } else {
+                    horizon.lerp(ground, (-elevation / 0.15).min(1.0))
+                };
+                c * intensity
+            })
+            .collect();
+        EnvMap::new(w, h, texels, frame)
+    }
+
+    /// A constant-radiance environment (furnace tests).
+    pub fn constant(radiance: Vec3, frame: EnvFrame) -> Self {
+        EnvMap::new(8, 4, vec![radiance; 32], frame)
+    }
+
+    /// Read an equirect EXR (R, G, B; or a single channel as grey), scaled by `intensity`.
+    pub fn load_exr(path: &Path, intensity: f32, frame: EnvFrame) -> Result<Self> {
+        if super::super::load::extension(path) != "exr" {
+            return Err(Error::invalid(path, "--env needs an equirectangular .exr (linear HDR) map"));
+        }
+        let (w, h, names, data) = super::output::read_exr(path)?;
+        if w == 0 || h == 0 || w > MAX_ENV_SIDE || h > MAX_ENV_SIDE {
+            return Err(Error::invalid(path, format!("environment is {w}x{h}; each side must be 1..={MAX_ENV_SIDE}")));
+        }
+        let k = names.len();
+        let find = |n: &str| names.iter().position(|c| c == n || c.ends_with(&format!(".{n}")));
+        let idx = match (find("R"), find("G"), find("B")) {
+            (Some(r), Some(g), Some(b)) => [r, g, b],
+            _ => {
+                let c = find("Y").unwrap_or(0);
+                [c, c, c]
+            }
+        };
+        let mut texels = Vec::with_capacity((w * h) as usize);
+        for i in 0..(w * h) as usize {
+            let c = Vec3::new(data[i * k + idx[0]], data[i * k + idx[1]], data[i * k + idx[2]]);
+            if !c.is_finite() {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                return Err(Error::invalid(path, format!("texel ({x}, {y}) is NaN or infinite; clamp the HDR before using it")));
+            }
+            texels.push(c.max(Vec3::ZERO) * intensity);
+        }
+        Ok(EnvMap::new(w, h, texels, frame))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{random, Purpose};
+
+    /// A lopsided map: one bright spot near the horizon, a dim gradient elsewhere.
+    fn spot_map(frame: EnvFrame) -> EnvMap {
+        let (w, h) = (32u32, 16u32);
+        let texels = (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                if (x, y) == (20, 7) { Vec3::new(200.0, 150.0, 100.0) } else { Vec3::splat(0.1 + 0.05 * x as f32 / w as f32) }
+            })
+            .collect();
+        EnvMap::new(w, h, texels, frame)
+    }
+
+    fn frames() -> [EnvFrame; 2] {
+        [EnvFrame { z_up: false, rotation: 0.0 }, EnvFrame { z_up: true, rotation: 1.1 }]
+    }
+
+    #[test]
+    fn direction_and_uv_round_trip() {
+        for f in frames() {
+            for i in 0..100 {
+                let uv = Vec2::new(random(i, 0, 0, Purpose::Bench, 1), 0.02 + 0.96 * random(i, 0, 1, Purpose::Bench, 1));
+                let d = env_to_world(env_uv_to_dir(uv), f);
+                let back = env_dir_to_uv(world_to_env(d, f));
+                assert!((back - uv).abs().max_element() < 1e-4, "{uv:?} -> {back:?}");
+            }
+        }
+        // Zenith is the asset's up axis.
+        assert!((env_to_world(Vec3::Y, frames()[1]) - Vec3::Z).length() < 1e-6);
+    }
+
+    /// ∫ env_pdf dω = 1 (Riemann sum over the sphere), and the histogram of `env_sample`
+    /// over texels matches pdf × texel solid angle. A wrong Jacobian (sin θ) or a CDF off by
+    /// one shows up as a mismatch here before it shows up as noise or bias in renders.
+    #[test]
+    fn pdf_integrates_to_one_and_matches_the_histogram() {
+        for f in frames() {
+            let env = spot_map(f);
+            let (nt, np) = (600, 1200);
+            let mut integral = 0.0f64;
+            for i in 0..nt {
+                for j in 0..np {
+                    let c = 1.0 - 2.0 * (i as f32 + 0.5) / nt as f32;
+                    let phi = 2.0 * PI * (j as f32 + 0.5) / np as f32;
+                    let s = (1.0 - c * c).sqrt();
+                    let d = Vec3::new(s * phi.cos(), s * phi.sin(), c);
+                    integral += env_pdf(&env, d) as f64 * (4.0 * PI as f64) / (nt * np) as f64;
+                }
+            }
+            assert!((integral - 1.0).abs() < 0.01, "∫ pdf = {integral}");
+
+            let n = 400_000u32;
+            let (w, h) = (env.width as usize, env.height as usize);
+            let mut hist = vec![0u32; w * h];
+            for i in 0..n {
+                let s = env_sample(&env, Vec2::new(random(i, 0, 0, Purpose::Light, 5), random(i, 0, 1, Purpose::Light, 5)));
+                assert!((s.pdf - env_pdf(&env, s.dir)).abs() <= 1e-3 * s.pdf.max(1.0), "sample pdf disagrees with env_pdf");
+                let (x, y) = texel_index(&env, env_dir_to_uv(world_to_env(s.dir, f)));
+                hist[y * w + x] += 1;
+            }
+            for y in 0..h {
+                for x in 0..w {
+                    let expected = env.row_weight[y] as f64 * env.texel_weight[y * w + x] as f64;
+                    let got = hist[y * w + x] as f64 / n as f64;
+                    let sigma = (expected / n as f64).sqrt();
+                    assert!((got - expected).abs() < 5.0 * sigma + 1e-5, "texel ({x}, {y}): {got} vs {expected}");
+                }
+            }
+            // The spot dominates sampling.
+            assert!(hist[7 * w + 20] as f64 / n as f64 > 0.5);
+        }
+    }
+
+    /// E[1 / pdf] is the measure of the sphere for any density with full support: a constant
+    /// map must cover every direction (4π), as the furnace test of the renderer assumes.
+    #[test]
+    fn constant_env_covers_the_sphere() {
+        let env = EnvMap::constant(Vec3::ONE, frames()[0]);
+        let n = 100_000;
+        let mean: f64 = (0..n)
+            .map(|i| env_sample(&env, Vec2::new(random(i, 0, 0, Purpose::Light, 2), random(i, 0, 1, Purpose::Light, 2))))
+            // Directions within ~1e-4 rad of a pole round to it (pdf 0, skipped by the renderer).
+            .map(|s| if s.pdf > 0.0 { 1.0 / s.pdf as f64 } else { 0.0 })
+            .sum::<f64>()
+            / n as f64;
+        assert!((mean / (4.0 * PI as f64) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
+    }
+}

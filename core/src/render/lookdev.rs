@@ -1,0 +1,421 @@
+//! Lookdev runs on the CPU: a `RenderJob` plus beauty settings → AOV and beauty frames,
+//! contact sheets for turntables, a cached prism table, and `watch` (re-render when the height
+//! map changes, re-baking only the prisms whose bounds no longer hold).
+//!
+//! Only what the outputs need is computed: an AOV-only job builds no environment and shades
+//! nothing; a beauty job without `--key-light` casts no key-light shadow rays and a black
+//! environment casts no environment rays; the bake is skipped when the table cache holds a
+//! table made from the same inputs (`table_cache`, keyed by `asset::input_hash`).
+
+use super::beauty::{self, BeautyCounters, BeautyScene, Ground, KeyLight};
+use super::camera::Camera;
+use super::env::{EnvFrame, EnvMap};
+use super::job::{base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob, RenderSummary};
+use super::shading::Material;
+use super::{contact_sheet, output, render_aovs, Aov};
+use crate::accel::Scene;
+use crate::asset;
+use crate::bake::{self, BakeOptions, RebakeStats};
+use crate::error::{Error, Result};
+use crate::heightmap::HeightMap;
+use crate::load::{self, MapOptions};
+use crate::mesh::UpAxis;
+use crate::repair;
+use crate::table_cache;
+use glam::Vec3;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant, SystemTime};
+
+/// Beauty and caching settings (the part of a render the AOV job does not have).
+#[derive(Clone, Debug)]
+pub struct LookdevOptions {
+    /// Equirect EXR; `None` = the built-in neutral sky.
+    pub env: Option<PathBuf>,
+    pub env_rotate_deg: f32,
+    pub env_intensity: f32,
+    /// (azimuth°, elevation°, irradiance).
+    pub key_light: Option<[f32; 3]>,
+    /// Overrides the mesh's material colour (linear RGB).
+    pub base_color: Option<Vec3>,
+    pub roughness: f32,
+    pub metallic: f32,
+    pub specular: f32,
+    pub bounces: u32,
+    pub ground: bool,
+    /// Folder of cached prism tables; `None` = do not cache.
+    pub cache_dir: Option<PathBuf>,
+}
+
+impl Default for LookdevOptions {
+    fn default() -> Self {
+        LookdevOptions {
+            env: None,
+            env_rotate_deg: 0.0,
+            env_intensity: 1.0,
+            key_light: None,
+            base_color: None,
+            roughness: 0.5,
+            metallic: 0.0,
+            specular: 0.04,
+            bounces: 2,
+            ground: false,
+            cache_dir: table_cache::default_dir(),
+        }
+    }
+}
+
+impl LookdevOptions {
+    pub fn validate(&self) -> Result<()> {
+        let unit = |name: &str, v: f32| {
+            if (0.0..=1.0).contains(&v) {
+                Ok(())
+            } else {
+                Err(Error::Param(format!("{name} {v}: must be in [0, 1]")))
+            }
+        };
+        unit("--roughness", self.roughness)?;
+        unit("--metallic", self.metallic)?;
+        unit("--specular", self.specular)?;
+        if !(1..=4).contains(&self.bounces) {
+            return Err(Error::Param(format!("--bounces {}: must be 1..=4", self.bounces)));
+        }
+        if !(self.env_intensity >= 0.0 && self.env_intensity.is_finite()) {
+            return Err(Error::Param(format!("--env-intensity {}: must be a finite number >= 0", self.env_intensity)));
+        }
+        if !self.env_rotate_deg.is_finite() {
+            return Err(Error::Param("--env-rotate must be finite".into()));
+        }
+        if let Some([az, el, i]) = self.key_light {
+            if !(az.is_finite() && (-90.0..=90.0).contains(&el) && i >= 0.0 && i.is_finite()) {
+                return Err(Error::Param(format!(
+                    "--key-light {az},{el},{i}: expected AZIMUTH,ELEVATION,INTENSITY with elevation in [-90, 90] and intensity >= 0"
+                )));
+            }
+        }
+        if let Some(c) = self.base_color {
+            if !(c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0) {
+                return Err(Error::Param("--base-color: each component must be in [0, 1]".into()));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What the table cache did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "cache", content = "path")]
+pub enum CacheUse {
+    /// `--no-cache`, or a baked table given as input.
+    Off,
+    Reused(PathBuf),
+    Stored(PathBuf),
+    /// The bake worked but the cache could not be written (the reason).
+    NotStored(String),
+}
+
+#[derive(Debug, Serialize)]
+pub struct LookdevSummary {
+    #[serde(flatten)]
+    pub render: RenderSummary,
+    pub table_cache: CacheUse,
+    /// Beauty rays over all frames; shadow rays by the light they test.
+    pub beauty_rays: BeautyCounters,
+    pub shadow_rays: u64,
+    pub contact_sheets: Vec<PathBuf>,
+}
+
+/// A loaded job, kept between renders by `watch`.
+struct Session {
+    scene: Scene,
+    cam0: Camera,
+    up_axis: UpAxis,
+    base_color: Option<Vec3>,
+    env: Option<EnvMap>,
+    setup_seconds: f64,
+    cache: CacheUse,
+}
+
+/// Load the input (asset: load → [cache] → repair → bake; or a baked table).
+fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option<Vec3>, CacheUse)> {
+    let Input::Asset(spec) = &job.input else {
+        return Ok((super::job::load_input(&job.input, &job.repair)?, None, CacheUse::Off));
+    };
+    let (mesh, map) = asset::load(spec)?;
+    let base_color = mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2]));
+    let (scene_camera, up_axis) = (mesh.camera, mesh.up_axis.unwrap_or_default());
+    let hash = match &opts.cache_dir {
+        Some(_) => Some(asset::input_hash(spec, &job.repair)?),
+        None => None,
+    };
+    if let (Some(dir), Some(h)) = (&opts.cache_dir, &hash) {
+        if let Some((table, path)) = table_cache::load(dir, h, &map) {
+            return Ok((Loaded { table, map, scene_camera, up_axis }, base_color, CacheUse::Reused(path)));
+        }
+    }
+    let (mesh, _report) = repair::repair(mesh, &job.repair);
+    let mut table = bake::bake(&mesh, &map, &BakeOptions { params: spec.params });
+    let cache = match (&opts.cache_dir, hash) {
+        (Some(dir), Some(h)) => {
+            table.input_hash = h;
+            match table_cache::store(dir, &table) {
+                Ok(p) => CacheUse::Stored(p),
+                Err(e) => CacheUse::NotStored(e.to_string()),
+            }
+        }
+        _ => CacheUse::Off,
+    };
+    Ok((Loaded { table, map, scene_camera, up_axis }, base_color, cache))
+}
+
+fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
+    job.validate()?;
+    opts.validate()?;
+    prepare_out_dir(&job.out_dir)?;
+    let t0 = Instant::now();
+    let (loaded, base_color, cache) = load_cached(job, opts)?;
+    let cam0 = base_camera(&loaded, &job.camera, job.settings.width as f32 / job.settings.height as f32);
+    let up_axis = loaded.up_axis;
+    let env = if job.aovs.contains(&Aov::Beauty) {
+        let frame = EnvFrame { z_up: up_axis == UpAxis::Z, rotation: opts.env_rotate_deg.to_radians() };
+        Some(match &opts.env {
+            Some(p) => EnvMap::load_exr(p, opts.env_intensity, frame)?,
+            None => EnvMap::default_sky(opts.env_intensity, frame),
+        })
+    } else {
+        None
+    };
+    let scene = Scene::new(loaded.table, loaded.map);
+    Ok(Session { scene, cam0, up_axis, base_color, env, setup_seconds: t0.elapsed().as_secs_f64(), cache })
+}
+
+fn up_vector(up: UpAxis) -> Vec3 {
+    match up {
+        UpAxis::Y => Vec3::Y,
+        UpAxis::Z => Vec3::Z,
+    }
+}
+
+/// Bounds of the displaced surface: the base positions grown by the largest |D|. Tighter than
+/// the prism boxes, whose λ ranges grow as 1/m_lo on prisms with nearly opposed normals.
+fn surface_bounds(t: &crate::bake::PrismTable) -> (Vec3, Vec3) {
+    let d = t.prisms.iter().map(|p| p.d_min.abs().max(p.d_max.abs())).fold(0.0f32, f32::max);
+    let (lo, hi) = t.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
+    (lo - d, hi + d)
+}
+
+/// The frames a job renders (`None` = a still).
+pub fn frame_list(job: &RenderJob) -> Vec<Option<u32>> {
+    match job.turntable {
+        None => vec![None],
+        Some(n) => {
+            let (a, b) = job.frames.unwrap_or((0, n - 1));
+            (a..=b).map(Some).collect()
+        }
+    }
+}
+
+/// Render every frame of the job from a loaded session and write its files.
+fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<LookdevSummary> {
+    let frames = frame_list(job);
+    let aov_list: Vec<Aov> = job.aovs.iter().copied().filter(|a| *a != Aov::Beauty).collect();
+    let want_beauty = job.aovs.contains(&Aov::Beauty);
+    let (lo, hi) = surface_bounds(&s.scene.table);
+    let up = up_vector(s.up_axis);
+    let material = Material {
+        base_color: opts.base_color.or(s.base_color).unwrap_or(Vec3::splat(0.8)),
+        roughness: opts.roughness,
+        metallic: opts.metallic,
+        specular: opts.specular,
+    };
+    let env_fallback;
+    let env = match &s.env {
+        Some(e) => e,
+        None => {
+            env_fallback = EnvMap::constant(Vec3::ZERO, EnvFrame { z_up: false, rotation: 0.0 });
+            &env_fallback
+        }
+    };
+    let bscene = BeautyScene {
+        env,
+        env_lights: env.total_weight > 0.0,
+        key: opts.key_light.map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
+        material,
+        ground: opts.ground.then(|| Ground { up, height: lo.dot(up).min(hi.dot(up)) }),
+        bounces: opts.bounces,
+        eps: beauty::scene_epsilon(lo, hi),
+    };
+    with_intersector(&job.method, &s.scene, |isect| {
+        let mut summary = LookdevSummary {
+            render: RenderSummary {
+                method: job.method.method,
+                device: format!("cpu ({} threads)", rayon::current_num_threads()),
+                prisms: s.scene.table.prisms.len(),
+                setup_seconds: s.setup_seconds,
+                method_memory_bytes: isect.memory_bytes(),
+                frames: vec![],
+                files: vec![],
+            },
+            table_cache: s.cache.clone(),
+            beauty_rays: BeautyCounters::default(),
+            shadow_rays: 0,
+            contact_sheets: vec![],
+        };
+        let mut previews: Vec<(Aov, Vec<Vec<u8>>)> = job.aovs.iter().map(|a| (*a, Vec::new())).collect();
+        let (w, h) = (job.settings.width, job.settings.height);
+        for (i, frame) in frames.iter().enumerate() {
+            let cam = match (frame, job.turntable) {
+                (Some(f), Some(n)) => s.cam0.turntable(*f, n),
+                _ => s.cam0,
+            };
+            let t = Instant::now();
+            let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
+            if !aov_list.is_empty() {
+                let report = |rows: usize| if !want_beauty { progress(i, rows) };
+                let img = render_aovs(isect, &cam, &job.settings, &report);
+                summary.render.files.extend(output::write_frame(&job.out_dir, &img, &aov_list, *frame)?);
+                rays += img.rays;
+                steps += img.total_steps;
+                coverage = img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64;
+                if job.turntable.is_some() {
+                    for (aov, list) in previews.iter_mut().filter(|(a, _)| *a != Aov::Beauty) {
+                        list.push(output::preview(&img, *aov));
+                    }
+                }
+            }
+            if want_beauty {
+                let img = beauty::render_beauty(isect, &cam, &job.settings, &bscene, &|rows| progress(i, rows));
+                summary.render.files.extend(output::write_beauty(&job.out_dir, &img, *frame)?);
+                rays += img.counters.rays + img.counters.shadow_rays();
+                if aov_list.is_empty() {
+                    coverage = img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
+                }
+                summary.beauty_rays.rays += img.counters.rays;
+                summary.beauty_rays.key_shadow_rays += img.counters.key_shadow_rays;
+                summary.beauty_rays.env_shadow_rays += img.counters.env_shadow_rays;
+                if job.turntable.is_some() {
+                    if let Some((_, list)) = previews.iter_mut().find(|(a, _)| *a == Aov::Beauty) {
+                        list.push(beauty::beauty_preview(&img));
+                    }
+                }
+            }
+            let seconds = t.elapsed().as_secs_f64();
+            summary.render.frames.push(FrameStats {
+                frame: *frame,
+                seconds,
+                rays,
+                mrays_per_s: rays as f64 / seconds / 1e6,
+                steps_per_ray: steps as f64 / rays.max(1) as f64,
+                coverage,
+            });
+        }
+        summary.shadow_rays = summary.beauty_rays.shadow_rays();
+        if job.turntable.is_some() {
+            for (aov, list) in &previews {
+                let path = job.out_dir.join(format!("{}_contact_sheet.png", aov.name()));
+                contact_sheet::write_contact_sheet(&path, list, w, h)?;
+                summary.contact_sheets.push(path);
+            }
+        }
+        Ok(summary)
+    })
+}
+
+/// Run a job once.
+pub fn run(job: &RenderJob, opts: &LookdevOptions, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<LookdevSummary> {
+    let session = open(job, opts)?;
+    render_all(job, opts, &session, progress)
+}
+
+/// The height map a job's input reads (what `watch` polls).
+pub fn map_source(input: &Input) -> Result<(PathBuf, MapOptions)> {
+    match input {
+        Input::Asset(spec) => Ok((spec.require_disp()?.to_path_buf(), spec.map_options())),
+        Input::Table { path, disp, channel } => {
+            let table = crate::prism_file::read(path)?;
+            let map = match disp {
+                Some(d) => d.clone(),
+                None => {
+                    let p = PathBuf::from(&table.map_path);
+                    if p.is_absolute() { p } else { path.parent().unwrap_or(Path::new("")).join(p) }
+                }
+            };
+            Ok((map, MapOptions { channel: channel.clone(), wrap: table.wrap }))
+        }
+    }
+}
+
+/// What identifies a version of a file for polling: modification time and size.
+fn stamp(path: &Path) -> Option<(SystemTime, u64)> {
+    let m = std::fs::metadata(path).ok()?;
+    Some((m.modified().ok()?, m.len()))
+}
+
+/// One re-render of `watch`.
+#[derive(Debug, Serialize)]
+pub struct WatchEvent {
+    pub rebake: RebakeStats,
+    /// "kept", or "rebuilt" when some prism's box grew.
+    pub bvh: &'static str,
+    /// Change detected → every file written.
+    pub latency_ms: f64,
+    pub rebake_ms: f64,
+}
+
+/// Poll interval of `watch`.
+pub const WATCH_POLL: Duration = Duration::from_millis(200);
+
+/// Run the job, then re-render whenever the height map file changes (its mtime or size),
+/// `max_rerenders` times (forever if `None`). Each change: reload the map, `rebake_for_map`,
+/// rebuild the BVH only if a box grew, render all frames. A map that fails to load (e.g. caught
+/// half-written) is reported through `log` and waited out. `on_event` gets every re-render.
+pub fn watch(
+    job: &RenderJob,
+    opts: &LookdevOptions,
+    max_rerenders: Option<u32>,
+    log: &dyn Fn(&str),
+    on_event: &dyn Fn(&WatchEvent, &LookdevSummary),
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
+    let (map_path, map_opts) = map_source(&job.input)?;
+    // Taken before loading, so that an edit made while the first frame renders is not missed.
+    let mut last = stamp(&map_path);
+    let mut session = open(job, opts)?;
+    let mut summary = render_all(job, opts, &session, progress)?;
+    log(&format!("watching {} for changes (Ctrl-C to stop)", map_path.display()));
+    let mut count = 0;
+    while max_rerenders.is_none_or(|m| count < m) {
+        std::thread::sleep(WATCH_POLL);
+        let now = stamp(&map_path);
+        if now == last || now.is_none() {
+            continue;
+        }
+        last = now;
+        let detected = Instant::now();
+        let map: HeightMap = match load::load_height_map(&map_path, &map_opts) {
+            Ok(m) if m.first_non_finite().is_none() => m,
+            Ok(_) => {
+                log(&format!("{}: has NaN or infinite texels; waiting for the next change", map_path.display()));
+                continue;
+            }
+            Err(e) => {
+                log(&format!("{e}; waiting for the next change"));
+                continue;
+            }
+        };
+        let rebake = bake::rebake_for_map(&mut session.scene.table, &map);
+        let bvh = if rebake.bvh_rebuild_needed {
+            session.scene = Scene::new(std::mem::take(&mut session.scene.table), map);
+            "rebuilt"
+        } else {
+            session.scene.map = map;
+            "kept"
+        };
+        let rebake_ms = detected.elapsed().as_secs_f64() * 1e3;
+        summary = render_all(job, opts, &session, progress)?;
+        count += 1;
+        let event = WatchEvent { rebake, bvh, latency_ms: detected.elapsed().as_secs_f64() * 1e3, rebake_ms };
+        on_event(&event, &summary);
+    }
+    Ok(summary)
+}

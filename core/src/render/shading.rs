@@ -1,0 +1,403 @@
+//! Pure shading functions of the beauty renderer: a Lambert + GGX material (Smith
+//! height-correlated masking, Schlick Fresnel, visible-normal sampling), MIS weights and the
+//! filmic tonemap. Each takes plain data (f32, glam vectors, `Material`) and allocates nothing,
+//! so that the WGSL mirror can follow it function by function under the same names.
+//!
+//! Directions given to the BSDF functions are in the local shading frame (`z` = shading
+//! normal, see `onb`); `wo` points towards the viewer, `wi` towards the light; both unit.
+//!
+//! References: Heitz 2014 "Understanding the Masking-Shadowing Function" (Λ, G2); Heitz 2018
+//! "Sampling the GGX Distribution of Visible Normals" (VNDF sampling, `ggx_sample`); Duff et
+//! al. 2017 "Building an Orthonormal Basis, Revisited" (`onb`); Narkowicz 2015 "ACES Filmic
+//! Tone Mapping Curve" (`tonemap_filmic`).
+
+use glam::{Vec2, Vec3};
+
+pub const PI: f32 = std::f32::consts::PI;
+pub const INV_PI: f32 = std::f32::consts::FRAC_1_PI;
+
+/// Below this roughness the specular lobe is a perfect mirror (a delta lobe): GGX with
+/// α = roughness² < 4e-4 is numerically a spike that sampling finds but evaluation never does.
+pub const MIRROR_ROUGHNESS: f32 = 0.02;
+
+/// The surface material: base colour (linear), roughness and metallic as in glTF's
+/// metallic-roughness model, and the dielectric reflectance at normal incidence (F0; 0.04 is
+/// the usual IOR 1.5; 0 gives a pure Lambert surface).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    pub base_color: Vec3,
+    pub roughness: f32,
+    pub metallic: f32,
+    pub specular: f32,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Material { base_color: Vec3::splat(0.8), roughness: 0.5, metallic: 0.0, specular: 0.04 }
+    }
+}
+
+/// Rec. 709 luminance of linear RGB.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// Tangent and bitangent completing `n` to a right-handed orthonormal basis (Duff et al.).
+#[inline]
+pub fn onb(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+#[inline]
+pub fn to_local(v: Vec3, t: Vec3, b: Vec3, n: Vec3) -> Vec3 {
+    Vec3::new(v.dot(t), v.dot(b), v.dot(n))
+}
+
+#[inline]
+pub fn from_local(v: Vec3, t: Vec3, b: Vec3, n: Vec3) -> Vec3 {
+    t * v.x + b * v.y + n * v.z
+}
+
+/// GGX α from perceptual roughness, floored so that D stays finite in f32.
+#[inline]
+pub fn ggx_alpha(roughness: f32) -> f32 {
+    (roughness * roughness).max(1e-4)
+}
+
+#[inline]
+pub fn is_mirror(m: &Material) -> bool {
+    m.roughness < MIRROR_ROUGHNESS
+}
+
+/// GGX normal distribution D(h) for a local half vector.
+#[inline]
+pub fn ggx_d(h: Vec3, alpha: f32) -> f32 {
+    if h.z <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let d = h.z * h.z * (a2 - 1.0) + 1.0;
+    a2 / (PI * d * d)
+}
+
+/// Smith Λ(w) of GGX.
+#[inline]
+pub fn smith_lambda(w: Vec3, alpha: f32) -> f32 {
+    let c2 = w.z * w.z;
+    if c2 <= 0.0 {
+        return f32::INFINITY;
+    }
+    let t2 = (1.0 - c2).max(0.0) / c2;
+    0.5 * (-1.0 + (1.0 + alpha * alpha * t2).sqrt())
+}
+
+#[inline]
+pub fn smith_g1(w: Vec3, alpha: f32) -> f32 {
+    1.0 / (1.0 + smith_lambda(w, alpha))
+}
+
+/// Height-correlated masking-shadowing G2(wo, wi).
+#[inline]
+pub fn smith_g2(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
+    1.0 / (1.0 + smith_lambda(wo, alpha) + smith_lambda(wi, alpha))
+}
+
+#[inline]
+pub fn fresnel_schlick(f0: Vec3, cos_theta: f32) -> Vec3 {
+    let k = (1.0 - cos_theta.clamp(0.0, 1.0)).powi(5);
+    f0 + (Vec3::ONE - f0) * k
+}
+
+#[inline]
+pub fn reflect(wo: Vec3, n: Vec3) -> Vec3 {
+    n * (2.0 * wo.dot(n)) - wo
+}
+
+/// GGX microfacet BRDF times cos θi: `D G2 F / (4 cos θo)`.
+#[inline]
+pub fn ggx_eval(wo: Vec3, wi: Vec3, alpha: f32, f0: Vec3) -> Vec3 {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let h = (wo + wi).normalize();
+    let d = ggx_d(h, alpha);
+    let g = smith_g2(wo, wi, alpha);
+    fresnel_schlick(f0, wo.dot(h)) * (d * g / (4.0 * wo.z))
+}
+
+/// Solid-angle density of `ggx_sample` producing `wi`: `G1(wo) D(h) / (4 cos θo)`.
+#[inline]
+pub fn ggx_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        return 0.0;
+    }
+    let h = (wo + wi).normalize();
+    smith_g1(wo, alpha) * ggx_d(h, alpha) / (4.0 * wo.z)
+}
+
+/// Sample a visible normal (Heitz 2018, listing 1) and reflect `wo` about it. The result may
+/// lie below the horizon; callers reject it (`ggx_pdf` is zero there).
+#[inline]
+pub fn ggx_sample(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
+    let vh = Vec3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
+    let lensq = vh.x * vh.x + vh.y * vh.y;
+    let t1 = if lensq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3::X };
+    let t2 = vh.cross(t1);
+    let r = u.x.sqrt();
+    let phi = 2.0 * PI * u.y;
+    let p1 = r * phi.cos();
+    let s = 0.5 * (1.0 + vh.z);
+    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+    let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+    let ne = Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize();
+    reflect(wo, ne)
+}
+
+/// Cosine-weighted hemisphere direction (density `z / π`).
+#[inline]
+pub fn cosine_sample(u: Vec2) -> Vec3 {
+    let r = u.x.sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u.x).max(0.0).sqrt())
+}
+
+/// Reflectance of the Lambert lobe: what the metal and the dielectric coat leave over.
+#[inline]
+pub fn diffuse_albedo(m: &Material) -> Vec3 {
+    m.base_color * ((1.0 - m.metallic) * (1.0 - m.specular))
+}
+
+/// F0 of the specular lobe: the dielectric level, tinted by the base colour as it turns metal.
+#[inline]
+pub fn specular_f0(m: &Material) -> Vec3 {
+    Vec3::splat(m.specular).lerp(m.base_color, m.metallic)
+}
+
+/// Probability of sampling the specular lobe: proportional to the lobes' luminance, kept in
+/// [0.1, 0.9] when both lobes exist so that neither is starved.
+#[inline]
+pub fn specular_probability(m: &Material) -> f32 {
+    let s = luminance(specular_f0(m));
+    let d = luminance(diffuse_albedo(m));
+    if s <= 0.0 {
+        return 0.0;
+    }
+    if d <= 0.0 {
+        return 1.0;
+    }
+    (s / (s + d)).clamp(0.1, 0.9)
+}
+
+/// BSDF times cos θi for the non-delta lobes (the mirror lobe is a delta: only sampled).
+#[inline]
+pub fn bsdf_eval(m: &Material, wo: Vec3, wi: Vec3) -> Vec3 {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let diffuse = diffuse_albedo(m) * (INV_PI * wi.z);
+    if is_mirror(m) {
+        diffuse
+    } else {
+        diffuse + ggx_eval(wo, wi, ggx_alpha(m.roughness), specular_f0(m))
+    }
+}
+
+/// Density of `bsdf_sample` producing `wi` through a non-delta lobe.
+#[inline]
+pub fn bsdf_pdf(m: &Material, wo: Vec3, wi: Vec3) -> f32 {
+    if wo.z <= 0.0 || wi.z <= 0.0 {
+        return 0.0;
+    }
+    let ps = specular_probability(m);
+    let diffuse = (1.0 - ps) * wi.z * INV_PI;
+    if is_mirror(m) {
+        diffuse
+    } else {
+        diffuse + ps * ggx_pdf(wo, wi, ggx_alpha(m.roughness))
+    }
+}
+
+/// A sampled direction: `weight` = f·cos/pdf (the throughput factor), `pdf` the solid-angle
+/// density (0 with `delta` for the mirror lobe, which MIS must not weight).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    pub wi: Vec3,
+    pub weight: Vec3,
+    pub pdf: f32,
+    pub delta: bool,
+}
+
+/// Sample the material: `u_lobe` picks the lobe, `u` the direction within it.
+#[inline]
+pub fn bsdf_sample(m: &Material, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
+    if wo.z <= 0.0 {
+        return None;
+    }
+    let ps = specular_probability(m);
+    let specular = u_lobe < ps;
+    if specular && is_mirror(m) {
+        let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+        let weight = fresnel_schlick(specular_f0(m), wo.z) / ps;
+        return Some(BsdfSample { wi, weight, pdf: 0.0, delta: true });
+    }
+    let wi = if specular { ggx_sample(wo, ggx_alpha(m.roughness), u) } else { cosine_sample(u) };
+    let pdf = bsdf_pdf(m, wo, wi);
+    if wi.z <= 0.0 || pdf <= 0.0 {
+        return None;
+    }
+    Some(BsdfSample { wi, weight: bsdf_eval(m, wo, wi) / pdf, pdf, delta: false })
+}
+
+/// Veach's power heuristic (β = 2) for a sample of density `a` against a rival density `b`.
+#[inline]
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+/// Start a ray off a surface point without hitting that surface again: move it by `eps`
+/// along the geometric normal, to the side `dir` leaves from.
+#[inline]
+pub fn offset_origin(p: Vec3, ng: Vec3, dir: Vec3, eps: f32) -> Vec3 {
+    if dir.dot(ng) >= 0.0 {
+        p + ng * eps
+    } else {
+        p - ng * eps
+    }
+}
+
+/// Narkowicz's ACES-fitted filmic curve (per channel), after `exposure`.
+#[inline]
+pub fn tonemap_filmic(c: Vec3) -> Vec3 {
+    let f = |x: f32| {
+        let x = x.max(0.0);
+        ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+    };
+    Vec3::new(f(c.x), f(c.y), f(c.z))
+}
+
+/// sRGB transfer function (IEC 61966-2-1) of a linear value in [0, 1].
+#[inline]
+pub fn linear_to_srgb(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{random, Purpose};
+
+    fn rand2(i: u32, k: u32) -> Vec2 {
+        Vec2::new(random(i, k, 0, Purpose::Bench, 11), random(i, k, 1, Purpose::Bench, 11))
+    }
+
+    fn dir_from_angle(theta: f32, phi: f32) -> Vec3 {
+        Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    }
+
+    #[test]
+    fn onb_is_orthonormal_for_every_hemisphere() {
+        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::new(1e-7, 0.0, -1.0).normalize()] {
+            let (t, b) = onb(n);
+            assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
+            assert!(t.dot(b).abs() < 1e-5 && t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5);
+            let v = Vec3::new(0.2, 0.3, 0.9).normalize();
+            assert!((from_local(to_local(v, t, b, n), t, b, n) - v).length() < 1e-5);
+        }
+    }
+
+    /// A sample's weight must be exactly what evaluation says: f·cos/pdf from `bsdf_eval` and
+    /// `bsdf_pdf` at the sampled direction. A mismatch (e.g. a VNDF pdf that forgets G1, or a
+    /// lobe probability applied twice) biases every beauty render.
+    #[test]
+    fn ggx_sample_weight_matches_eval_over_pdf() {
+        for (k, rough) in [0.05f32, 0.3, 0.7, 1.0].into_iter().enumerate() {
+            let m = Material { roughness: rough, metallic: 0.5, ..Material::default() };
+            for i in 0..2000u32 {
+                let wo = dir_from_angle(1.5 * random(i, k as u32, 2, Purpose::Bench, 3), 6.0 * random(i, 0, 3, Purpose::Bench, 3));
+                let Some(s) = bsdf_sample(&m, wo, random(i, k as u32, 4, Purpose::Bench, 3), rand2(i, k as u32)) else { continue };
+                let want = bsdf_eval(&m, wo, s.wi) / bsdf_pdf(&m, wo, s.wi);
+                assert!((s.weight - want).length() <= 1e-4 * want.length().max(1.0), "rough {rough}: {:?} vs {want:?}", s.weight);
+                // The GGX lobe alone: its pdf is D_v(h) / (4 wo·h), written as G1 D / (4 cos θo).
+                let a = ggx_alpha(rough);
+                let h = (wo + s.wi).normalize();
+                let dv = smith_g1(wo, a) * wo.dot(h).max(0.0) * ggx_d(h, a) / wo.z;
+                assert!((ggx_pdf(wo, s.wi, a) - dv / (4.0 * wo.dot(h))).abs() <= 1e-3 * dv.max(1.0));
+            }
+        }
+    }
+
+    /// The GGX pdf integrates to the fraction of reflected directions above the horizon (≤ 1;
+    /// 0.94 here, at θo = 0.4 and α = 0.25), and the histogram of samples follows the pdf.
+    #[test]
+    fn ggx_pdf_integrates_and_matches_samples() {
+        let alpha = ggx_alpha(0.5);
+        let wo = dir_from_angle(0.4, 0.7);
+        // Riemann sum over the hemisphere in (cos θ, φ): dω = d(cos θ) dφ.
+        let (nc, np) = (400, 400);
+        let mut integral = 0.0f64;
+        let mut bins = vec![0.0f64; 8];
+        for i in 0..nc {
+            for j in 0..np {
+                let c = (i as f32 + 0.5) / nc as f32;
+                let phi = 2.0 * PI * (j as f32 + 0.5) / np as f32;
+                let wi = dir_from_angle(c.acos(), phi);
+                let p = ggx_pdf(wo, wi, alpha) as f64 * (2.0 * PI as f64) / (nc * np) as f64;
+                integral += p;
+                bins[((c * 8.0) as usize).min(7)] += p;
+            }
+        }
+        assert!(integral > 0.9 && integral <= 1.001, "∫ pdf = {integral}");
+        let n = 200_000;
+        let mut hist = vec![0.0f64; 8];
+        for i in 0..n {
+            let wi = ggx_sample(wo, alpha, rand2(i, 9));
+            if wi.z > 0.0 {
+                hist[((wi.z * 8.0) as usize).min(7)] += 1.0 / n as f64;
+            }
+        }
+        // The pdf's mass above the horizon is exactly the share of samples that land there.
+        let above: f64 = hist.iter().sum();
+        assert!((above - integral).abs() < 0.005, "{above} of the samples above the horizon, ∫ pdf = {integral}");
+        for (h, b) in hist.iter().zip(&bins) {
+            assert!((h - b).abs() < 0.01, "histogram {hist:?} vs pdf {bins:?}");
+        }
+    }
+
+    #[test]
+    fn lambert_white_furnace_and_mirror() {
+        let m = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0, specular: 0.0 };
+        let wo = dir_from_angle(0.8, 0.1);
+        let n = 50_000;
+        let mean: Vec3 = (0..n).filter_map(|i| bsdf_sample(&m, wo, 0.5, rand2(i, 1))).map(|s| s.weight).sum::<Vec3>() / n as f32;
+        assert!((mean - Vec3::ONE).abs().max_element() < 1e-3, "{mean:?}");
+        let mirror = Material { roughness: 0.0, metallic: 1.0, base_color: Vec3::ONE, ..m };
+        let s = bsdf_sample(&mirror, wo, 0.3, Vec2::ZERO).unwrap();
+        assert!(s.delta && (s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6 && (s.weight - Vec3::ONE).length() < 1e-5);
+    }
+
+    #[test]
+    fn tonemap_is_monotone_and_bounded() {
+        let mut last = -1.0;
+        for i in 0..100 {
+            let v = tonemap_filmic(Vec3::splat(i as f32 * 0.2)).x;
+            assert!(v >= last && (0.0..=1.0).contains(&v));
+            last = v;
+        }
+        assert_eq!(linear_to_srgb(0.0), 0.0);
+        assert!((linear_to_srgb(1.0) - 1.0).abs() < 1e-6);
+    }
+}
