@@ -306,3 +306,4 @@ fn closed_sphere_scaled_by_1e_minus_3_and_1e4_keeps_its_relative_error() {
         assert!(median <= 0.5);
     }
 }
+
