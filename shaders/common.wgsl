@@ -162,6 +162,9 @@ fn solve3(c0: vec3f, c1: vec3f, c2: vec3f, f: vec3f) -> Solve3 {
     return Solve3(true, vec3f(dot(t0, f), dot(t1, f), dot(t2, f)) * inv_det);
 }
 
+// f32::is_finite by the exponent bits: GPU compilers may assume that no NaN or infinity occurs
+// (Vulkan without SignedZeroInfNanPreserve) and fold a float comparison such as
+// `abs(x) <= MAX` to true; an integer test cannot be folded away.
 fn finite(x: f32) -> bool {
-    return abs(x) <= 3.4028235e38;
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }

@@ -19,9 +19,23 @@ fn texel(x: i32, y: i32) -> f32 {
     return height_map[u32(yy * w + xx)];
 }
 
+// Bound on continuous texel coordinates before they become integers. A NaN, infinite or huge
+// coordinate must not reach i32(): the conversion is undefined in SPIR-V, and an optimising
+// driver compiler (lavapipe's LLVM) may then drop the rest of the shader. Non-finite values
+// become 0 (what Rust's `NaN as i64` gives the CPU), huge ones are clamped (far outside any
+// footprint, where the CPU's i64 indices give the same wrapped texel up to f32 precision).
+const TEXEL_COORD_BOUND: f32 = 1.0e7;
+
+fn texel_safe(x: f32) -> f32 {
+    if (!finite(x)) {
+        return 0.0;
+    }
+    return clamp(x, -TEXEL_COORD_BOUND, TEXEL_COORD_BOUND);
+}
+
 // Continuous texel coordinates of a UV: texel (i, j) has its centre at (i + 0.5, j + 0.5).
 fn texel_coords(uv: vec2f) -> vec2f {
-    return vec2f(uv.x * f32(scene.map_width), (1.0 - uv.y) * f32(scene.map_height));
+    return vec2f(texel_safe(uv.x * f32(scene.map_width)), texel_safe((1.0 - uv.y) * f32(scene.map_height)));
 }
 
 // Bilinear sample of the raw map value at `uv`.

@@ -1,18 +1,21 @@
 // pdm.wgsl — projective displacement mapping (Hoetzlein 2025, Algorithm 1), the mirror of
-// core/src/trace/pdm.rs function by function: the ray's interval in the shared-wall prism
-// (prism_hit.wgsl), a march with step dt from the entry whose first step is jittered by R·dt
-// (§5.3, the same counter-based R as the CPU), scanning-triangle barycentrics by Ericson's five
-// dot products (App. C), and the crossing refined onto the canonical surface (Illinois regula
-// falsi on λ|m| − D(uv(b)) with `project_to_prism`). Flat prisms meet the triangle V_i + D n_i
-// and are moved onto the canonical surface by Newton (`flat_hit`). See pdm.rs for why each
-// departure from the paper is there. Only the shared-wall construction is built on the GPU
-// (the paper's parallel-offset prism is a CPU-only measurement mode).
+// core/src/trace/pdm.rs function by function for the shared-wall construction: the ray's
+// interval in the prism (prism_hit.wgsl), a march with step dt from the entry whose first
+// step is jittered by R·dt (§5.3, the CPU's counter-based R), each sample on the exact
+// canonical sign — its level λ by Newton on the level cubic (`level_cubic`, `level_at`,
+// warm-started from the paper's scanning-triangle estimate), barycentrics in the level
+// triangle T(λ) by Ericson's five dot products (App. C), g = λ|m(b)| − D(uv(b)) — and the
+// crossing refined by Illinois regula falsi on the same g (`refine_levels`). Flat prisms meet
+// the triangle V_i + D n_i and are moved onto the canonical surface by Newton (`flat_hit`).
+// pdm.rs documents each departure from the paper. The paper's parallel-offset prism
+// (`march_scan`) is a CPU-only measurement mode and is not built here.
 
 const EDGE_TOL: f32 = 1e-5;
 const DETECT_TOL: f32 = 0.05;
 const INTERVAL_PAD: f32 = 1e-4;
 const MAX_STEPS: u32 = 16384u;
-const REFINE_ITERS: u32 = 12u;
+const REFINE_ITERS: u32 = 24u;
+const LEVEL_ITERS: u32 = 8u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 
 // pdm::Local: one prism in a local frame (origin at V_0).
@@ -60,17 +63,27 @@ fn triangle_barycentric(s: vec3f, c: array<vec3f, 3>) -> vec3f {
     let d11 = dot(x1, x1);
     let d20 = dot(x2, x0);
     let d21 = dot(x2, x1);
-    let inv = 1.0 / (d00 * d11 - d01 * d01);
+    let denom = d00 * d11 - d01 * d01;
+    if (denom == 0.0) {
+        // Degenerate scanning triangle (the zero-area prisms crease repair inserts): the CPU
+        // gets NaN barycentrics, which no inside test accepts. GPU compilers may assume that
+        // no NaN occurs, so say "outside" explicitly, with values that keep uv(b) finite.
+        return vec3f(-1.0);
+    }
+    let inv = 1.0 / denom;
     let b1 = (d11 * d20 - d01 * d21) * inv;
     let b2 = (d00 * d21 - d01 * d20) * inv;
     return vec3f(1.0 - b1 - b2, b1, b2);
 }
 
-// A march sample: height difference (ray minus surface) and the scanning barycentrics.
+// A march sample (pdm::Sample; `ok` false stands for the CPU's None): ray parameter, the
+// canonical height difference g (ray above the surface: g > 0), barycentrics, level λ.
 struct Sample {
+    ok: bool,
     t: f32,
     g: f32,
     b: vec3f,
+    lambda: f32,
 }
 
 // A prism-local hit: ray parameter and barycentrics (the CPU's Option<(f32, Vec3)>).
@@ -99,7 +112,7 @@ fn intersect_prism(ray: Ray, ctx: RayContext, prism: u32, steps: ptr<function, u
     if ((p.flags & PRISM_FLAT) != 0u) {
         r = flat_hit(local, p.d_min, ro, ray);
     } else {
-        r = march(local, p, prism, ro, ray, ctx, steps);
+        r = march_levels(local, p, prism, ro, ray, ctx, steps);
     }
     if (!r.ok) {
         return no_hit();
@@ -143,20 +156,160 @@ fn step_size(p: Prism, local: Local) -> f32 {
     return max(abs(p.lambda_hi - p.lambda_lo), local.scale * 1e-3) / 16.0;
 }
 
-// Pdm::scan: sample at local point s with scanning triangle c at height h.
-fn scan(local: Local, t: f32, s: vec3f, c: array<vec3f, 3>, h: f32) -> Sample {
-    let b = triangle_barycentric(s, c);
-    let a = local.a[0] * b.x + local.a[1] * b.y + local.a[2] * b.z;
-    let uv = geom_uv(local.geom, b);
-    return Sample(t, h * length(a) - displacement(uv), b);
+// Pdm::jitter: the first step's jitter (paper §5.3), in [0, 1).
+fn jitter(ctx: RayContext, prism: u32) -> f32 {
+    if (frame.jitter != 0u) {
+        return random(ctx.pixel, ctx.sample, ctx.bounce, PURPOSE_MARCH_JITTER, ctx.seed ^ prism);
+    }
+    return 0.0;
+}
+
+// pdm::LevelCubic: the level λ of a ray point solves f(λ, t) = (a0 + a1 t) + (b0 + b1 t) λ
+// + (c0 + c1 t) λ² + d3 λ³ = 0 (the level sets of the shared-wall prism are the planar
+// triangles T(λ) = {v_i + λ n_i}); `deflate`: zero-area base, solve f/λ instead.
+struct LevelCubic {
+    a0: f32,
+    a1: f32,
+    b0: f32,
+    b1: f32,
+    c0: f32,
+    c1: f32,
+    d3: f32,
+    deflate: bool,
+}
+
+// pdm::level_cubic: the level cubic of prism g (local frame) along ro + t d; `lam` is the
+// prism's largest |λ|.
+fn level_cubic(g: PrismGeom, lam: f32, ro: vec3f, d: vec3f) -> LevelCubic {
+    let e1 = g.v[1] - g.v[0];
+    let e2 = g.v[2] - g.v[0];
+    let d1 = g.n[1] - g.n[0];
+    let d2 = g.n[2] - g.n[0];
+    var n0 = cross(e1, e2);
+    var n1 = cross(e1, d2) + cross(d1, e2);
+    var n2 = cross(d1, d2);
+    let l0 = length(n0);
+    let l1 = length(n1) * lam;
+    let l2 = length(n2) * lam * lam;
+    let inv = 1.0 / max(l0 + l1 + l2, F32_MIN_POSITIVE);
+    n0 *= inv;
+    n1 *= inv;
+    n2 *= inv;
+    let deflate = l0 <= 1e-6 * (l0 + l1 + l2);
+    let q = ro - g.v[0];
+    return LevelCubic(
+        dot(q, n0),
+        dot(d, n0),
+        dot(q, n1) - dot(g.n[0], n0),
+        dot(d, n1),
+        dot(q, n2) - dot(g.n[0], n1),
+        dot(d, n2),
+        -dot(g.n[0], n2),
+        deflate,
+    );
+}
+
+// The CPU's Option<f32> for a level.
+struct Level {
+    ok: bool,
+    l: f32,
+}
+
+// pdm::level_at: Newton on the level cubic at t from `guess`; fails if it does not converge
+// or leaves [lo, hi]. (df = 0 is tested explicitly: the CPU's non-finite step.)
+fn level_at(c: LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> Level {
+    let a = c.a0 + c.a1 * t;
+    let b = c.b0 + c.b1 * t;
+    let q = c.c0 + c.c1 * t;
+    var l = guess;
+    var step = T_FAR;
+    for (var i = 0u; i < LEVEL_ITERS; i++) {
+        var f: f32;
+        var df: f32;
+        if (c.deflate) {
+            f = b + l * (q + l * c.d3);
+            df = q + l * 2.0 * c.d3;
+        } else {
+            f = a + l * (b + l * (q + l * c.d3));
+            df = b + l * (2.0 * q + l * 3.0 * c.d3);
+        }
+        if (df == 0.0) {
+            return Level(false, l);
+        }
+        step = f / df;
+        if (!finite(step)) {
+            return Level(false, l);
+        }
+        l -= step;
+        if (!(l >= lo && l <= hi)) {
+            return Level(false, l);
+        }
+        if (abs(step) <= tol) {
+            return Level(true, l);
+        }
+    }
+    // Rounding noise above `tol`: accept a small last step.
+    return Level(abs(step) <= 1e3 * tol, l);
+}
+
+// pdm::LevelTrack: the level cubic, Newton tolerance and a generous λ range per ray and prism.
+struct LevelTrack {
+    cubic: LevelCubic,
+    tol: f32,
+    lo: f32,
+    hi: f32,
+    mid: f32,
+}
+
+// LevelTrack::new.
+fn level_track(local: Local, p: Prism, ro: vec3f, d: vec3f) -> LevelTrack {
+    let span = p.lambda_hi - p.lambda_lo + local.scale;
+    return LevelTrack(
+        level_cubic(local.geom, max(abs(p.lambda_lo), abs(p.lambda_hi)), ro, d),
+        1e-6 * local.scale,
+        p.lambda_lo - span,
+        p.lambda_hi + span,
+        0.5 * (p.lambda_lo + p.lambda_hi),
+    );
+}
+
+// Pdm::scan_level_estimate: the paper's scanning-triangle estimate of the level of x (only
+// the starting guess of level_at).
+fn scan_level_estimate(local: Local, x: vec3f) -> f32 {
+    let h = dot(x, local.ng);
+    let g = local.geom;
+    let c = array<vec3f, 3>(g.v[0] + local.a[0] * h, g.v[1] + local.a[1] * h, g.v[2] + local.a[2] * h);
+    let b = triangle_barycentric(x, c);
+    let mn = dot(geom_normal_dir(g, b), local.ng);
+    if (mn > M_LO_FLOOR) {
+        return h / mn;
+    }
+    return h;
+}
+
+// Pdm::level_sample: the exact canonical sample at t — level λ (Newton from `guess`, retried
+// from the middle of the prism), barycentrics in T(λ), g = λ|m(b)| − D(uv(b)).
+fn level_sample(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, t: f32, guess: f32) -> Sample {
+    var lv = level_at(lt.cubic, t, guess, lt.tol, lt.lo, lt.hi);
+    if (!lv.ok) {
+        lv = level_at(lt.cubic, t, lt.mid, lt.tol, lt.lo, lt.hi);
+        if (!lv.ok) {
+            return Sample(false, t, 0.0, vec3f(0.0), 0.0);
+        }
+    }
+    let l = lv.l;
+    let g = local.geom;
+    let c = array<vec3f, 3>(g.v[0] + g.n[0] * l, g.v[1] + g.n[1] * l, g.v[2] + g.n[2] * l);
+    let b = triangle_barycentric(ro + d * t, c);
+    return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement(geom_uv(g, b)), b, l);
 }
 
 fn inside_detect(b: vec3f) -> bool {
     return min_element(b) >= -DETECT_TOL;
 }
 
-// Pdm::march (shared-wall construction).
-fn march(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: RayContext, steps: ptr<function, u32>) -> PrismHit {
+// Pdm::march_levels: PDM in the shared-wall prism on the exact canonical sign.
+fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: RayContext, steps: ptr<function, u32>) -> PrismHit {
     let d = ray.dir;
     let g = local.geom;
     let lo = array<vec3f, 3>(g.v[0] + g.n[0] * p.lambda_lo, g.v[1] + g.n[1] * p.lambda_lo, g.v[2] + g.n[2] * p.lambda_lo);
@@ -169,167 +322,104 @@ fn march(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: RayContex
     let te = max(iv.t_enter - pad, ray.t_min);
     let tx = min(iv.t_exit + pad, ray.t_max);
     let dt = max(step_size(p, local), (tx - te) / f32(MAX_STEPS));
+    let lt = level_track(local, p, ro, d);
 
-    // Entry sample and the scanning triangle at its height.
-    var s = ro + d * te;
-    var h = dot(s, local.ng);
-    var c = array<vec3f, 3>(g.v[0] + local.a[0] * h, g.v[1] + local.a[1] * h, g.v[2] + local.a[2] * h);
-    var prev = scan(local, te, s, c, h);
-    var has_prev = inside_detect(prev.b);
-    var r = 0.0;
-    if (frame.jitter != 0u) {
-        r = random(ctx.pixel, ctx.sample, ctx.bounce, PURPOSE_MARCH_JITTER, ctx.seed ^ prism);
-    }
+    var guess = scan_level_estimate(local, ro + d * te);
+    var prev = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    let r = jitter(ctx, prism);
     var t = te;
-    var t_next = te + select(dt, r * dt, r > 0.0);
     var n = 0u;
     loop {
-        t_next = min(t_next, tx);
-        s = ro + d * t_next;
-        let h_next = dot(s, local.ng);
-        let dh = h_next - h;
-        c[0] += local.a[0] * dh;
-        c[1] += local.a[1] * dh;
-        c[2] += local.a[2] * dh;
-        h = h_next;
-        t = t_next;
         n += 1u;
-        let cur = scan(local, t, s, c, h);
-        if (inside_detect(cur.b)) {
-            if (has_prev && ((prev.g > 0.0) != (cur.g > 0.0))) {
-                let hit = crossing(local, ro, ray, prev, cur, te, tx, dt);
-                if (hit.ok) {
-                    *steps += n;
-                    return hit;
+        let cur = level_sample(local, lt, ro, d, t, guess);
+        if (cur.ok) {
+            guess = cur.lambda;
+            if (inside_detect(cur.b)) {
+                if (prev.ok && ((prev.g > 0.0) != (cur.g > 0.0))) {
+                    let hit = level_crossing(local, lt, ro, ray, prev, cur, te, tx);
+                    if (hit.ok) {
+                        *steps += n;
+                        return hit;
+                    }
                 }
+                prev = cur;
             }
-            prev = cur;
-            has_prev = true;
         }
         if (t >= tx || n >= MAX_STEPS) {
             break;
         }
-        t_next = t + dt;
+        if (n == 1u && r > 0.0) {
+            t = min(t + r * dt, tx);
+        } else {
+            t = min(t + dt, tx);
+        }
     }
     *steps += n;
     return no_prism_hit();
 }
 
-// Pdm::crossing: resolve a sign change between samples a and b into a hit (or reject it).
-fn crossing(local: Local, ro: vec3f, ray: Ray, a: Sample, b: Sample, te: f32, tx: f32, dt: f32) -> PrismHit {
-    if (frame.refine == 0u) {
-        // The paper's interpolateCrossing, barycentrics from a fresh scanning triangle.
-        let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
-        let s = ro + ray.dir * t;
-        let h = dot(s, local.ng);
-        let g = local.geom;
-        let c = array<vec3f, 3>(g.v[0] + local.a[0] * h, g.v[1] + local.a[1] * h, g.v[2] + local.a[2] * h);
-        let bary = triangle_barycentric(s, c);
-        let ok = min_element(bary) >= -EDGE_TOL && t >= te && t <= tx;
-        return PrismHit(ok, t, bary);
-    }
-    return refine_canonical(local, ro, ray, a, b, te, tx, dt);
-}
-
-// Pdm::canonical_g: λ|m| − D(uv(b)) at local point x, (b, λ) projected from a guess.
-struct CanonicalG {
-    ok: bool,
-    g: f32,
-    b: vec3f,
-    lambda: f32,
-}
-
-fn canonical_g(local: Local, x: vec3f, guess_b: vec3f, guess_lambda: f32) -> CanonicalG {
-    let g = local.geom;
-    var pr = project_to_prism(g, x, guess_b, guess_lambda);
-    if (!pr.ok) {
-        pr = project_to_prism(g, x, vec3f(1.0 / 3.0), guess_lambda);
-        if (!pr.ok) {
-            return CanonicalG(false, 0.0, vec3f(0.0), 0.0);
-        }
-    }
-    let m = length(geom_normal_dir(g, pr.b));
-    return CanonicalG(true, pr.lambda * m - displacement(geom_uv(g, pr.b)), pr.b, pr.lambda);
-}
-
-// The λ of a sample's ray point on the line through P(b) along m(b) (refine_canonical's guess).
-fn lambda_guess(local: Local, ro: vec3f, d: vec3f, s: Sample) -> f32 {
-    let x = ro + d * s.t;
-    let m = geom_normal_dir(local.geom, s.b);
-    return dot(x - geom_position(local.geom, s.b), m) / max(dot(m, m), 1e-12);
-}
-
-// Pdm::refine_canonical: Illinois regula falsi on the canonical height difference.
-fn refine_canonical(local: Local, ro: vec3f, ray: Ray, a: Sample, b: Sample, te: f32, tx: f32, dt: f32) -> PrismHit {
+// Pdm::level_crossing: a sign change of the canonical g between a and b into a hit (Illinois
+// refinement, or the paper's linear interpolation without `refine`).
+fn level_crossing(local: Local, lt: LevelTrack, ro: vec3f, ray: Ray, a: Sample, b: Sample, te: f32, tx: f32) -> PrismHit {
     let d = ray.dir;
-    var t0 = a.t;
-    var t1 = b.t;
-    var e0 = canonical_g(local, ro + d * t0, a.b, lambda_guess(local, ro, d, a));
-    if (!e0.ok) {
-        return no_prism_hit();
-    }
-    var e1 = canonical_g(local, ro + d * t1, b.b, lambda_guess(local, ro, d, b));
-    if (!e1.ok) {
-        return no_prism_hit();
-    }
-    if ((e0.g > 0.0) == (e1.g > 0.0)) {
-        // The scanning and canonical surfaces disagree about this bracket: widen it once.
-        t0 = max(t0 - dt, te);
-        t1 = min(t1 + dt, tx);
-        e0 = canonical_g(local, ro + d * t0, e0.b, e0.lambda);
-        if (!e0.ok) {
-            return no_prism_hit();
-        }
-        e1 = canonical_g(local, ro + d * t1, e1.b, e1.lambda);
-        if (!e1.ok) {
-            return no_prism_hit();
-        }
-        if ((e0.g > 0.0) == (e1.g > 0.0)) {
+    var s: Sample;
+    if (frame.refine != 0u) {
+        s = refine_levels(local, lt, ro, d, a, b);
+    } else {
+        let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
+        let guess = a.lambda + (b.lambda - a.lambda) * ((t - a.t) / (b.t - a.t));
+        s = level_sample(local, lt, ro, d, t, guess);
+        if (!s.ok) {
             return no_prism_hit();
         }
     }
+    let ok = min_element(s.b) >= -EDGE_TOL && s.t >= te && s.t <= tx && s.t >= ray.t_min && s.t <= ray.t_max;
+    return PrismHit(ok, s.t, s.b);
+}
+
+// Pdm::refine_levels: Illinois regula falsi on the canonical g(t) in the bracket [a, b];
+// returns the end sample with the smaller |g|.
+fn refine_levels(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, a: Sample, b: Sample) -> Sample {
+    var s0 = a;
+    var s1 = b;
+    var g0 = a.g;
+    var g1 = b.g;
     let tol_g = 1e-6 * local.scale;
-    let tol_t = 1e-7 * (abs(t0) + abs(t1) + local.scale);
+    let tol_t = 1e-7 * (abs(a.t) + abs(b.t) + local.scale);
     var side = 0;
     for (var i = 0u; i < REFINE_ITERS; i++) {
-        if (abs(e0.g) <= tol_g || abs(e1.g) <= tol_g || abs(t1 - t0) <= tol_t) {
+        if (abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t) {
             break;
         }
-        let t = (t0 * e1.g - t1 * e0.g) / (e1.g - e0.g);
-        var near_b = e1.b;
-        var near_l = e1.lambda;
-        if (abs(t - t0) < abs(t - t1)) {
-            near_b = e0.b;
-            near_l = e0.lambda;
+        let t = (s0.t * g1 - s1.t * g0) / (g1 - g0);
+        var guess = s1.lambda;
+        if (abs(t - s0.t) < abs(t - s1.t)) {
+            guess = s0.lambda;
         }
-        let e = canonical_g(local, ro + d * t, near_b, near_l);
-        if (!e.ok) {
+        let s = level_sample(local, lt, ro, d, t, guess);
+        if (!s.ok) {
             break;
         }
-        if ((e.g > 0.0) == (e1.g > 0.0)) {
-            t1 = t;
-            e1 = e;
+        if ((s.g > 0.0) == (s1.g > 0.0)) {
+            s1 = s;
+            g1 = s.g;
             if (side == -1) {
-                e0.g *= 0.5;
+                g0 *= 0.5;
             }
             side = -1;
         } else {
-            t0 = t;
-            e0 = e;
+            s0 = s;
+            g0 = s.g;
             if (side == 1) {
-                e1.g *= 0.5;
+                g1 *= 0.5;
             }
             side = 1;
         }
     }
-    var t = t1;
-    var bary = e1.b;
-    if (abs(e0.g) <= abs(e1.g)) {
-        t = t0;
-        bary = e0.b;
+    if (abs(s0.g) <= abs(s1.g)) {
+        return s0;
     }
-    let ok = min_element(bary) >= -EDGE_TOL && t >= te && t <= tx && t >= ray.t_min && t <= ray.t_max;
-    return PrismHit(ok, t, bary);
+    return s1;
 }
 
 // Pdm::flat_hit: constant displacement D — meet the triangle V_i + D n_i, then Newton on

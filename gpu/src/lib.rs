@@ -12,8 +12,9 @@
 //! The shaders (`shaders/*.wgsl`, one per stage) mirror the CPU function by function under the
 //! same names: `pcg_hash`/`hash_counters` (rng), `camera_ray` (`Camera::ray`), `sample_map`
 //! (`HeightMap::sample`), `surface_point`, `project_to_prism` (canonical),
-//! `ray_prism_interval` (prism_hit), `intersect_prism`, `march`, `crossing`,
-//! `refine_canonical`, `flat_hit`, `fill_surface`, `intersect` (pdm) and `render_aovs`
+//! `ray_prism_interval` (prism_hit), `intersect_prism`, `march_levels`, `level_cubic`,
+//! `level_at`, `level_sample`, `level_crossing`, `refine_levels`, `flat_hit`, `fill_surface`,
+//! `intersect` (pdm) and `render_aovs`
 //! (render). Parity is tested image against image (`tests/parity.rs`); see docs/gpu.md.
 
 pub mod context;
