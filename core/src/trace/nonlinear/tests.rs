@@ -4,9 +4,7 @@
 
 use super::*;
 use crate::accel::fixtures::*;
-use crate::asset;
 use crate::bake::PrismTable;
-use crate::heightmap::HeightMap;
 use crate::mesh::{BaseMesh, UpAxis};
 use crate::render::camera::Camera;
 use crate::rng::{pcg_hash, to_unit_float};
@@ -93,14 +91,6 @@ fn agreement(
     }
 }
 
-fn example(name: &str) -> (PrismTable, HeightMap) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../examples")
-        .join(name);
-    let spec = asset::resolve(&path, &Default::default()).expect("example resolves");
-    let p = asset::prepare(&spec, &Default::default()).expect("example prepares");
-    (p.table, p.map)
-}
 
 /// Rays per second of `isect` over `rays` (one thread).
 fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
@@ -117,14 +107,13 @@ fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
 fn agrees_with_reference_on_the_example_assets() {
     // Breaks if the curve, the mipmap bounds, the cubic or the canonical reconciliation are
     // wrong anywhere an artist would look: 96² primary rays per asset, f32 and f64, hit/miss
-    // mismatch ≤ 0.5 % and median |t − t_ref| ≤ 0.5 texel against the k = 2 tessellation.
+    // mismatch ≤ 0.5 % and median |t − t_ref| ≤ 0.5 texel against the shared reference tessellation (`test_util::EXAMPLE_REFERENCE_K`).
     for name in ["sphere/sphere.glb", "torus/torus.obj", "rock/rock.glb"] {
-        let (table, map) = example(name);
-        let reference = Reference::new(&table, &map, 2.0);
-        let rays = camera_rays(&table, 96);
-        let scene = Scene::new(table.clone(), map.clone());
+        let (scene, reference) = crate::test_util::example_with_reference(name);
+        let table = &scene.table;
+        let rays = camera_rays(table, 96);
         let pdm = Pdm::new(
-            &scene,
+            scene,
             PdmOptions {
                 jitter: false,
                 ..Default::default()
@@ -137,14 +126,14 @@ fn agrees_with_reference_on_the_example_assets() {
             (Precision::F32, false),
         ] {
             let nl = Nonlinear::new(
-                &scene,
+                scene,
                 NonlinearOptions {
                     precision,
                     refine,
                     ..Default::default()
                 },
             );
-            let a = agreement(&nl, &reference, &table, &rays);
+            let a = agreement(&nl, reference, table, &rays);
             let rps = rays_per_second(&nl, &rays);
             eprintln!(
                 "{name} {precision:?} refine={refine}: {} prisms, mismatches {}/{} ({:.3}%), |Δt| median {:.4} p95 {:.4} texel; \

@@ -5,7 +5,6 @@ use crate::accel::fixtures::*;
 use crate::canonical::project_to_prism;
 use crate::heightmap::HeightMap;
 use crate::rng::{pcg_hash, to_unit_float};
-use crate::asset;
 use crate::bake::PrismTable;
 use crate::render::camera::Camera;
 use crate::trace::pdm::{Pdm, PdmOptions};
@@ -202,12 +201,6 @@ fn every_setting_finds_the_same_hits_as_pdm() {
 }
 
 
-fn example(name: &str) -> (PrismTable, HeightMap) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
-    let spec = asset::resolve(&path, &Default::default()).expect("example resolves");
-    let p = asset::prepare(&spec, &Default::default()).expect("example prepares");
-    (p.table, p.map)
-}
 
 /// `n × n` primary rays through pixel centres of the camera framing the table's bounds.
 fn camera_rays(table: &PrismTable, n: u32) -> Vec<Ray> {
@@ -248,22 +241,18 @@ fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
 
 #[test]
 fn agrees_with_reference_on_the_example_assets() {
-    // 96² primary rays per example asset against the k = 2 tessellation: hit/miss mismatch
+    // 96² primary rays per example asset against the shared reference tessellation: hit/miss mismatch
     // ≤ 0.5 % and median |t − t_ref| ≤ 0.5 texel. Breaks if a bound culls surface, the
     // pyramid under-reports a range, or the march skips a cell. Speed against PDM on the same
     // rays is printed (not asserted; the test build is not optimised).
     for name in ["sphere/sphere.glb", "torus/torus.obj", "rock/rock.glb"] {
-        let t0 = Instant::now();
-        let (table, map) = example(name);
-        let t1 = Instant::now();
-        let reference = Reference::new(&table, &map, 2.0);
-        eprintln!("{name}: load {:.1} s, reference {:.1} s", (t1 - t0).as_secs_f32(), t1.elapsed().as_secs_f32());
-        let rays = camera_rays(&table, 96);
-        let scene = Scene::new(table.clone(), map.clone());
-        let rmip = Rmip::new(&scene, RmipOptions::default());
-        let (mis, median, p95) = agreement(&rmip, &reference, &table, &rays);
-        let pdm = Pdm::new(&scene, PdmOptions { jitter: false, ..Default::default() });
-        let (pmis, pmedian, _) = agreement(&pdm, &reference, &table, &rays);
+        let (scene, reference) = crate::test_util::example_with_reference(name);
+        let (table, map) = (&scene.table, &scene.map);
+        let rays = camera_rays(table, 96);
+        let rmip = Rmip::new(scene, RmipOptions::default());
+        let (mis, median, p95) = agreement(&rmip, reference, table, &rays);
+        let pdm = Pdm::new(scene, PdmOptions { jitter: false, ..Default::default() });
+        let (pmis, pmedian, _) = agreement(&pdm, reference, table, &rays);
         let (rps, pdm_rps) = (rays_per_second(&rmip, &rays), rays_per_second(&pdm, &rays));
         eprintln!(
             "{name}: {} prisms, map {}x{}, rmip {}x{} ({} KiB, built in {:.1} ms); mismatches {mis}/{} \
