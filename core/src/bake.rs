@@ -122,14 +122,25 @@ impl PrismTable {
         )
     }
 
-    /// Box of the six shared-wall corners (bilinear walls lie in the hull of their corners).
+    /// Box that holds the prism's part of the displaced surface: the box of the six
+    /// shared-wall corners (bilinear walls lie in the hull of their corners), cut down to the
+    /// base triangle's box grown by `max |D|` — every surface point is `P(b) + D m̂` with a
+    /// unit `m̂`, so it is within `|D|` of the base. The second box matters where normals
+    /// nearly cancel (crease-repair prisms across a knife edge): there `|m|` → 0 makes the λ
+    /// range, and the corner box, huge although the surface stays within `|D|` of the base.
     pub fn prism_aabb(&self, p: &Prism) -> (Vec3, Vec3) {
         let (lo, hi) = self.shared_wall_corners(p);
-        lo.iter()
+        let (clo, chi) = lo
+            .iter()
             .chain(hi.iter())
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
                 (a.min(c), b.max(c))
-            })
+            });
+        let (v, _) = self.prism_corners(p);
+        let reach = Vec3::splat(p.d_min.abs().max(p.d_max.abs()));
+        let blo = v[0].min(v[1]).min(v[2]) - reach;
+        let bhi = v[0].max(v[1]).max(v[2]) + reach;
+        (clo.max(blo), chi.min(bhi))
     }
 
     pub fn bounds(&self) -> (Vec3, Vec3) {

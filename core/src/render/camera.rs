@@ -95,9 +95,24 @@ mod tests {
 
     #[test]
     fn framing_contains_the_bounds() {
-        let c = Camera::frame_bounds(Vec3::splat(-1.0), Vec3::splat(1.0), UpAxis::Y, 40.0, 1.0);
-        let to_corner = (Vec3::ONE - c.from).normalize();
-        let axis = (c.to - c.from).normalize();
-        assert!(to_corner.dot(axis) > (20f32).to_radians().cos());
+        // Every corner of the box projects inside the image (with the 10% margin) for a wide
+        // and a tall image; breaks if the framing ignores the aspect ratio or a corner.
+        for aspect in [1.0f32, 2.0, 0.5] {
+            let c = Camera::frame_bounds(Vec3::new(-1.0, -0.2, -3.0), Vec3::new(1.0, 0.2, 3.0), UpAxis::Y, 40.0, aspect);
+            let (right, up, back) = c.basis();
+            let tan_y = (20f32).to_radians().tan();
+            for i in 0..8 {
+                let p = Vec3::new(
+                    if i & 1 == 0 { -1.0 } else { 1.0 },
+                    if i & 2 == 0 { -0.2 } else { 0.2 },
+                    if i & 4 == 0 { -3.0 } else { 3.0 },
+                ) - c.from;
+                let depth = -p.dot(back);
+                assert!(depth > 0.0);
+                let x = p.dot(right) / (depth * tan_y * aspect);
+                let y = p.dot(up) / (depth * tan_y);
+                assert!(x.abs() <= 1.0 / 1.1 + 1e-4 && y.abs() <= 1.0 / 1.1 + 1e-4, "aspect {aspect} corner {i}: {x} {y}");
+            }
+        }
     }
 }
