@@ -172,14 +172,27 @@ fn parse_dt(s: &str) -> Result<StepSize> {
 
 fn render(a: RenderArgs) -> Result<ExitCode> {
     let method: Method = a.method.parse().map_err(Error::Param)?;
-    match a.device {
-        Device::Gpu => {
-            return Err(Error::Param("--device gpu: the GPU renderer is not built yet; use --device cpu".into()));
-        }
-        Device::Auto => eprintln!("device: cpu (no GPU renderer in this build)"),
-        Device::Cpu => {}
-    }
     let aovs = a.aov.iter().map(|s| s.parse::<Aov>()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Param)?;
+    // The GPU renders PDM AOVs of one input; beauty, --watch, batch folders and the other
+    // methods run on the CPU (`auto` falls back to it, `gpu` says so).
+    let gpu_able = method == Method::Pdm && !aovs.contains(&Aov::Beauty) && !a.watch && !a.input.is_dir();
+    let gpu = match a.device {
+        Device::Cpu => None,
+        Device::Gpu if !gpu_able => {
+            return Err(Error::Param(
+                "--device gpu renders AOVs (not beauty) of one asset with --method pdm, without --watch; use --device cpu".into(),
+            ));
+        }
+        Device::Gpu => Some(prismbake_gpu::GpuContext::new().map_err(|e| Error::Param(format!("--device gpu: {e}")))?),
+        Device::Auto if !gpu_able => {
+            eprintln!("device: cpu (this render needs the CPU renderer)");
+            None
+        }
+        Device::Auto => prismbake_gpu::GpuContext::new().map_err(|e| eprintln!("device: cpu ({e})")).ok(),
+    };
+    if let Some(ctx) = &gpu {
+        eprintln!("device: gpu ({})", ctx.adapter_description());
+    }
     let look = lookdev_options(&a)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
@@ -209,7 +222,16 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     let pb = progress::bar(frames * rows, "rendering");
-    let summary = pool.install(|| lookdev::run(&job, &look, &|frame, done| pb.set_position(frame as u64 * rows + done as u64)))?;
+    let summary = match &gpu {
+        Some(ctx) => LookdevSummary {
+            render: prismbake_gpu::job::run(ctx, &job, &|frame, done| pb.set_position(frame as u64 * rows + done as u64))?,
+            table_cache: CacheUse::Off,
+            beauty_rays: Default::default(),
+            shadow_rays: 0,
+            contact_sheets: vec![],
+        },
+        None => pool.install(|| lookdev::run(&job, &look, &|frame, done| pb.set_position(frame as u64 * rows + done as u64)))?,
+    };
     pb.finish_and_clear();
     print_render_summary(&a, &summary);
     Ok(ExitCode::SUCCESS)

@@ -56,25 +56,42 @@ fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 }
 
 impl GpuContext {
-    /// Pick an adapter (any wgpu adapter, software ones such as lavapipe included; the usual
-    /// `WGPU_BACKEND` / `WGPU_ADAPTER_NAME` environment variables apply), open a device with
-    /// WebGPU's default limits and build the pipelines.
+    /// Pick an adapter (any wgpu adapter, software ones such as lavapipe included; wgpu's
+    /// `WGPU_BACKEND`, `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF` environment variables apply),
+    /// open a device with WebGPU's default limits (the adapter's own storage-binding and buffer
+    /// size limits) and build the pipelines.
     pub fn new() -> Result<GpuContext, GpuError> {
         pollster::block_on(Self::new_async())
     }
 
     async fn new_async() -> Result<GpuContext, GpuError> {
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let options = wgpu::RequestAdapterOptions {
-            power_preference: wgpu::PowerPreference::HighPerformance,
-            force_fallback_adapter: false,
-            compatible_surface: None,
-            apply_limit_buckets: false,
+        let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
+            // A named adapter (case-insensitive substring of its name), as wgpu's own helpers
+            // read it, but an error instead of a panic when none matches.
+            Ok(want) => {
+                let want = want.to_lowercase();
+                let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
+                let names: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+                adapters
+                    .into_iter()
+                    .find(|a| a.get_info().name.to_lowercase().contains(&want))
+                    .ok_or_else(|| GpuError::NoAdapter(format!("WGPU_ADAPTER_NAME={want} matches none of {names:?}")))?
+            }
+            Err(_) => {
+                let options = wgpu::RequestAdapterOptions {
+                    power_preference: wgpu::PowerPreference::from_env()
+                        .unwrap_or(wgpu::PowerPreference::HighPerformance),
+                    force_fallback_adapter: false,
+                    compatible_surface: None,
+                    apply_limit_buckets: false,
+                };
+                instance
+                    .request_adapter(&options)
+                    .await
+                    .map_err(|e| GpuError::NoAdapter(e.to_string()))?
+            }
         };
-        let adapter = instance
-            .request_adapter(&options)
-            .await
-            .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
         let adapter_info = adapter.get_info();
         let supported = adapter.limits();
         let required_limits = wgpu::Limits {
@@ -96,19 +113,19 @@ impl GpuContext {
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &[
-                uniform_entry(0),          // scene: SceneParams
-                storage_entry(1, true),    // prisms: array<Prism>
-                storage_entry(2, true),    // vertices: array<Vertex>
-                storage_entry(3, true),    // nodes: array<BvhNode>
-                storage_entry(4, true),    // prim_indices: array<u32>
-                storage_entry(5, true),    // height_map: array<f32>
+                uniform_entry(0),       // scene: SceneParams
+                storage_entry(1, true), // prisms: array<Prism>
+                storage_entry(2, true), // vertices: array<Vertex>
+                storage_entry(3, true), // nodes: array<BvhNode>
+                storage_entry(4, true), // prim_indices: array<u32>
+                storage_entry(5, true), // height_map: array<f32>
             ],
         });
         let aov_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("aov dispatch"),
             entries: &[
-                uniform_entry(0),          // frame: Frame
-                storage_entry(1, false),   // aov_out: array<AovPixel>
+                uniform_entry(0),        // frame: Frame
+                storage_entry(1, false), // aov_out: array<AovPixel>
             ],
         });
 
@@ -157,8 +174,14 @@ impl GpuContext {
             label: Some("aov dispatch"),
             layout: &aov_layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: frame_buffer.as_entire_binding() }, // frame
-                wgpu::BindGroupEntry { binding: 1, resource: aov_buffer.as_entire_binding() },   // aov_out
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: frame_buffer.as_entire_binding(),
+                }, // frame
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: aov_buffer.as_entire_binding(),
+                }, // aov_out
             ],
         });
         debug_assert_eq!(MAX_TILE % WORKGROUP, 0);
@@ -183,7 +206,10 @@ impl GpuContext {
 
     /// "name (backend, device type)", for logs.
     pub fn adapter_description(&self) -> String {
-        format!("{} ({:?}, {:?})", self.adapter_info.name, self.adapter_info.backend, self.adapter_info.device_type)
+        format!(
+            "{} ({:?}, {:?})",
+            self.adapter_info.name, self.adapter_info.backend, self.adapter_info.device_type
+        )
     }
 
     /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).

@@ -15,19 +15,28 @@ use std::time::Instant;
 pub fn run(ctx: &GpuContext, job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<RenderSummary> {
     job.validate()?;
     if job.method.method != Method::Pdm {
-        return Err(Error::Param(format!(
-            "--method {:?}: the GPU renderer traces pdm only; use --device cpu for this method",
-            job.method.method
-        )
-        .to_lowercase()));
+        return Err(Error::Param(
+            format!(
+                "--method {:?}: the GPU renderer traces pdm only; use --device cpu for this method",
+                job.method.method
+            )
+            .to_lowercase(),
+        ));
     }
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
     let loaded = load_input(&job.input, &job.repair)?;
-    let cam0 = base_camera(&loaded, &job.camera, job.settings.width as f32 / job.settings.height as f32);
+    let cam0 = base_camera(
+        &loaded,
+        &job.camera,
+        job.settings.width as f32 / job.settings.height as f32,
+    );
     let scene = Scene::new(loaded.table, loaded.map);
     let gpu_scene = GpuScene::upload(ctx, &scene).map_err(gpu_err)?;
-    let opts = PdmOptions { normal_mode: job.method.normal_mode, ..job.method.pdm };
+    let opts = PdmOptions {
+        normal_mode: job.method.normal_mode,
+        ..job.method.pdm
+    };
     let frames: Vec<Option<u32>> = match job.turntable {
         None => vec![None],
         Some(n) => {
@@ -50,9 +59,12 @@ pub fn run(ctx: &GpuContext, job: &RenderJob, progress: &(dyn Fn(usize, usize) +
             _ => cam0,
         };
         let t = Instant::now();
-        let img = render_aovs(ctx, &gpu_scene, &cam, &job.settings, &opts, &|rows| progress(i, rows)).map_err(gpu_err)?;
+        let img =
+            render_aovs(ctx, &gpu_scene, &cam, &job.settings, &opts, &|rows| progress(i, rows)).map_err(gpu_err)?;
         let seconds = t.elapsed().as_secs_f64();
-        summary.files.extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
+        summary
+            .files
+            .extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
         summary.frames.push(FrameStats {
             frame: *frame,
             seconds,

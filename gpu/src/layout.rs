@@ -117,30 +117,87 @@ const _: () = {
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
 };
 
-/// `(WGSL struct name, Rust size, [(member, Rust offset)])` for every shared struct, in the
-/// form the layout test compares against naga's view of the WGSL.
-pub fn shared_layouts() -> Vec<(&'static str, usize, Vec<(&'static str, usize)>)> {
+/// One shared struct as the layout test sees it: WGSL name, Rust size, `(member, offset)`s.
+pub type StructLayout = (&'static str, usize, Vec<(&'static str, usize)>);
+
+/// Every shared struct, in the form the layout test compares against naga's view of the WGSL.
+pub fn shared_layouts() -> Vec<StructLayout> {
     macro_rules! layout {
         ($wgsl:literal, $ty:ty { $($field:ident),* $(,)? }) => {
             ($wgsl, std::mem::size_of::<$ty>(), vec![$((stringify!($field), std::mem::offset_of!($ty, $field))),*])
         };
     }
     vec![
-        layout!("Prism", GpuPrism { tri, flags, d_min, d_max, lambda_lo, lambda_hi, texel_world }),
+        layout!(
+            "Prism",
+            GpuPrism {
+                tri,
+                flags,
+                d_min,
+                d_max,
+                lambda_lo,
+                lambda_hi,
+                texel_world
+            }
+        ),
         layout!("Vertex", GpuVertex { position, u, normal, v }),
-        layout!("BvhNode", GpuBvhNode { min, prim_count, max, first_index }),
+        layout!(
+            "BvhNode",
+            GpuBvhNode {
+                min,
+                prim_count,
+                max,
+                first_index
+            }
+        ),
         layout!(
             "SceneParams",
-            GpuSceneParams { map_width, map_height, wrap, node_count, disp_scale, disp_midlevel, prism_count, _pad }
+            GpuSceneParams {
+                map_width,
+                map_height,
+                wrap,
+                node_count,
+                disp_scale,
+                disp_midlevel,
+                prism_count,
+                _pad
+            }
         ),
         layout!(
             "Frame",
             GpuFrame {
-                cam_from, tan_half_fov, cam_right, aspect, cam_up, width, cam_back, height, tile_origin,
-                tile_size, spp, seed, dt_auto, dt_value, jitter, refine, normal_mode, _pad
+                cam_from,
+                tan_half_fov,
+                cam_right,
+                aspect,
+                cam_up,
+                width,
+                cam_back,
+                height,
+                tile_origin,
+                tile_size,
+                spp,
+                seed,
+                dt_auto,
+                dt_value,
+                jitter,
+                refine,
+                normal_mode,
+                _pad
             }
         ),
-        layout!("AovPixel", GpuAovPixel { normal, depth, uv, mask, steps_sum, prism, _pad }),
+        layout!(
+            "AovPixel",
+            GpuAovPixel {
+                normal,
+                depth,
+                uv,
+                mask,
+                steps_sum,
+                prism,
+                _pad
+            }
+        ),
     ]
 }
 

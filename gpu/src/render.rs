@@ -72,7 +72,10 @@ pub fn render_aovs(
         ));
     }
     if s.width == 0 || s.height == 0 || s.spp == 0 {
-        return Err(GpuError::Unsupported(format!("empty render {}x{} at {} spp", s.width, s.height, s.spp)));
+        return Err(GpuError::Unsupported(format!(
+            "empty render {}x{} at {} spp",
+            s.width, s.height, s.spp
+        )));
     }
     let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
     let (w, h) = (s.width, s.height);
@@ -82,11 +85,20 @@ pub fn render_aovs(
     for ty in (0..h).step_by(MAX_TILE as usize) {
         for tx in (0..w).step_by(MAX_TILE as usize) {
             let (tw, th) = ((w - tx).min(MAX_TILE), (h - ty).min(MAX_TILE));
-            let frame = GpuFrame { tile_origin: [tx, ty], tile_size: [tw, th], ..base };
+            let frame = GpuFrame {
+                tile_origin: [tx, ty],
+                tile_size: [tw, th],
+                ..base
+            };
             ctx.queue.write_buffer(&ctx.frame_buffer, 0, bytemuck::bytes_of(&frame));
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("aov tile") });
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("aov tile"),
+            });
             {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("render_aovs"), timestamp_writes: None });
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("render_aovs"),
+                    timestamp_writes: None,
+                });
                 pass.set_pipeline(&ctx.aov_pipeline);
                 pass.set_bind_group(0, &scene.group, &[]);
                 pass.set_bind_group(1, &ctx.aov_group, &[]);

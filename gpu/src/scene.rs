@@ -28,7 +28,10 @@ pub struct FlatBvh {
 pub fn flatten_bvh(scene: &Scene) -> FlatBvh {
     let aabbs = prism_aabbs(&scene.table);
     if aabbs.is_empty() {
-        return FlatBvh { nodes: vec![], prim_indices: vec![] };
+        return FlatBvh {
+            nodes: vec![],
+            prim_indices: vec![],
+        };
     }
     let mut build_time = Duration::default();
     let bvh = build_bvh2(&aabbs, BvhBuildParams::medium_build(), &mut build_time);
@@ -42,7 +45,10 @@ pub fn flatten_bvh(scene: &Scene) -> FlatBvh {
             first_index: n.first_index,
         })
         .collect();
-    FlatBvh { nodes, prim_indices: bvh.primitive_indices.clone() }
+    FlatBvh {
+        nodes,
+        prim_indices: bvh.primitive_indices.clone(),
+    }
 }
 
 pub struct GpuScene {
@@ -97,7 +103,11 @@ impl GpuScene {
         let mut bytes = 0u64;
         let mut storage = |what: &'static str, data: &[u8]| -> Result<wgpu::Buffer, GpuError> {
             if data.len() as u64 > limit {
-                return Err(GpuError::TooLarge { what, bytes: data.len() as u64, limit });
+                return Err(GpuError::TooLarge {
+                    what,
+                    bytes: data.len() as u64,
+                    limit,
+                });
             }
             bytes += data.len() as u64;
             // Zero-sized bindings are invalid: an empty array gets one zeroed element.
@@ -128,18 +138,41 @@ impl GpuScene {
             label: Some("scene"),
             layout: &ctx.scene_layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: param_buf.as_entire_binding() },  // scene
-                wgpu::BindGroupEntry { binding: 1, resource: prism_buf.as_entire_binding() },  // prisms
-                wgpu::BindGroupEntry { binding: 2, resource: vertex_buf.as_entire_binding() }, // vertices
-                wgpu::BindGroupEntry { binding: 3, resource: node_buf.as_entire_binding() },   // nodes
-                wgpu::BindGroupEntry { binding: 4, resource: index_buf.as_entire_binding() },  // prim_indices
-                wgpu::BindGroupEntry { binding: 5, resource: map_buf.as_entire_binding() },    // height_map
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: param_buf.as_entire_binding(),
+                }, // scene
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: prism_buf.as_entire_binding(),
+                }, // prisms
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: vertex_buf.as_entire_binding(),
+                }, // vertices
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: node_buf.as_entire_binding(),
+                }, // nodes
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: index_buf.as_entire_binding(),
+                }, // prim_indices
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: map_buf.as_entire_binding(),
+                }, // height_map
             ],
         });
         let method_bytes = (std::mem::size_of_val(&bvh.nodes[..])
             + std::mem::size_of_val(&bvh.prim_indices[..])
             + std::mem::size_of_val(&prisms[..])) as u64;
-        Ok(GpuScene { group, params, bytes, method_bytes })
+        Ok(GpuScene {
+            group,
+            params,
+            bytes,
+            method_bytes,
+        })
     }
 
     pub fn prism_count(&self) -> u32 {

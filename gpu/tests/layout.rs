@@ -24,14 +24,20 @@ fn shared_structs_have_the_same_offsets_and_sizes_in_wgsl() {
             panic!("{name} is not a struct in the WGSL");
         };
         assert_eq!(*span as usize, rust_size, "size of {name}");
-        let wgsl: Vec<(&str, usize)> =
-            members.iter().map(|mb| (mb.name.as_deref().unwrap_or("?"), mb.offset as usize)).collect();
+        let wgsl: Vec<(&str, usize)> = members
+            .iter()
+            .map(|mb| (mb.name.as_deref().unwrap_or("?"), mb.offset as usize))
+            .collect();
         assert_eq!(wgsl, rust_members, "members (name, offset) of {name}: WGSL vs Rust");
     }
 }
 
 fn constant(m: &naga::Module, name: &str) -> naga::Literal {
-    let (_, c) = m.constants.iter().find(|(_, c)| c.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("const {name}"));
+    let (_, c) = m
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("const {name}"));
     match m.global_expressions[c.init] {
         naga::Expression::Literal(l) => l,
         ref e => panic!("const {name} is not a literal: {e:?}"),
@@ -43,18 +49,37 @@ fn sentinels_and_flags_are_mirrored() {
     let m = module();
     assert_eq!(constant(&m, "NO_PRISM"), naga::Literal::U32(layout::NO_PRISM));
     assert_eq!(constant(&m, "T_FAR"), naga::Literal::F32(layout::T_FAR));
-    assert_eq!(constant(&m, "PRISM_FLAT"), naga::Literal::U32(prismbake::bake::PRISM_FLAT));
-    assert_eq!(constant(&m, "M_LO_FLOOR"), naga::Literal::F32(prismbake::bake::M_LO_FLOOR));
-    assert_eq!(constant(&m, "PURPOSE_MARCH_JITTER"), naga::Literal::U32(prismbake::rng::Purpose::MarchJitter as u32));
-    assert_eq!(constant(&m, "PURPOSE_PIXEL_JITTER"), naga::Literal::U32(prismbake::rng::Purpose::PixelJitter as u32));
+    assert_eq!(
+        constant(&m, "PRISM_FLAT"),
+        naga::Literal::U32(prismbake::bake::PRISM_FLAT)
+    );
+    assert_eq!(
+        constant(&m, "M_LO_FLOOR"),
+        naga::Literal::F32(prismbake::bake::M_LO_FLOOR)
+    );
+    assert_eq!(
+        constant(&m, "PURPOSE_MARCH_JITTER"),
+        naga::Literal::U32(prismbake::rng::Purpose::MarchJitter as u32)
+    );
+    assert_eq!(
+        constant(&m, "PURPOSE_PIXEL_JITTER"),
+        naga::Literal::U32(prismbake::rng::Purpose::PixelJitter as u32)
+    );
 }
 
 #[test]
 fn module_validates_and_states_the_host_workgroup_size() {
     let m = module();
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default())
-        .validate(&m)
-        .unwrap_or_else(|e| panic!("{e:?}"));
-    let ep = m.entry_points.iter().find(|e| e.name == "render_aovs").expect("entry point render_aovs");
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    )
+    .validate(&m)
+    .unwrap_or_else(|e| panic!("{e:?}"));
+    let ep = m
+        .entry_points
+        .iter()
+        .find(|e| e.name == "render_aovs")
+        .expect("entry point render_aovs");
     assert_eq!(ep.workgroup_size, [layout::WORKGROUP, layout::WORKGROUP, 1]);
 }

@@ -5,9 +5,9 @@
 //! mirrored stage (camera, BVH, interval, march, refinement, surface normal, jitter) diverges.
 
 use crate::util::{ctx, example};
+use glam::Vec3;
 use prismbake::accel::Scene;
 use prismbake::asset::{self, Overrides};
-use glam::Vec3;
 use prismbake::render::camera::Camera;
 use prismbake::render::job::{load_input, Input};
 use prismbake::render::{self, AovImage, RenderSettings};
@@ -58,11 +58,20 @@ fn compare(cpu: &AovImage, gpu: &AovImage) -> Agreement {
 fn check_asset(rel: &str, spp: u32) {
     let spec = asset::resolve(&example(rel), &Overrides::default()).expect("resolve");
     let loaded = load_input(&Input::Asset(spec), &RepairOptions::default()).expect("prepare");
-    let settings = RenderSettings { width: 128, height: 128, spp, seed: 7 };
+    let settings = RenderSettings {
+        width: 128,
+        height: 128,
+        spp,
+        seed: 7,
+    };
     // Framed from the base mesh, not `table.bounds()`: a prism with nearly opposed corner
     // normals (flagged PRISM_DEGENERATE_NORMALS, λ range / 1e-3) can make the table's box
     // much larger than the asset (the rock's is), leaving it a few pixels wide.
-    let (lo, hi) = loaded.table.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
+    let (lo, hi) = loaded
+        .table
+        .positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
     let cam = Camera::frame_bounds(lo, hi, loaded.up_axis, 40.0, 1.0);
     let scene = Scene::new(loaded.table, loaded.map);
     let opts = PdmOptions::default();
@@ -78,10 +87,26 @@ fn check_asset(rel: &str, spp: u32) {
         a.both_hit,
         a.normal_deg_median
     );
-    assert!(a.both_hit > 128 * 128 / 20, "{rel}: the asset barely covers the image ({} px)", a.both_hit);
-    assert!(a.mask_mismatch <= 0.005, "{rel}: mask mismatch {:.3}%", 100.0 * a.mask_mismatch);
-    assert!(a.depth_rel_median <= 1e-3, "{rel}: depth median rel. error {:.2e}", a.depth_rel_median);
-    assert!(a.normal_deg_median <= 1.0, "{rel}: normal median error {:.3}°", a.normal_deg_median);
+    assert!(
+        a.both_hit > 128 * 128 / 20,
+        "{rel}: the asset barely covers the image ({} px)",
+        a.both_hit
+    );
+    assert!(
+        a.mask_mismatch <= 0.005,
+        "{rel}: mask mismatch {:.3}%",
+        100.0 * a.mask_mismatch
+    );
+    assert!(
+        a.depth_rel_median <= 1e-3,
+        "{rel}: depth median rel. error {:.2e}",
+        a.depth_rel_median
+    );
+    assert!(
+        a.normal_deg_median <= 1.0,
+        "{rel}: normal median error {:.3}°",
+        a.normal_deg_median
+    );
 }
 
 #[test]
@@ -111,4 +136,3 @@ fn jittered_samples_match_the_cpu() {
     // spp > 1: the hashed pixel jitter and the per-sample march jitter must be the CPU's.
     check_asset("sphere/sphere.glb", 3);
 }
-

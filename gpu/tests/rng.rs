@@ -56,7 +56,10 @@ fn run_probe(cases: &[[u32; 6]]) -> Vec<[u32; 3]> {
     let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: None,
         layout: &pipeline.get_bind_group_layout(0),
-        entries: &[wgpu::BindGroupEntry { binding: 0, resource: io.as_entire_binding() }], // io
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: io.as_entire_binding(),
+        }], // io
     });
     let mut enc = device.create_command_encoder(&Default::default());
     {
@@ -75,14 +78,24 @@ fn run_probe(cases: &[[u32; 6]]) -> Vec<[u32; 3]> {
 }
 
 fn purpose(p: u32) -> Purpose {
-    [Purpose::MarchJitter, Purpose::PixelJitter, Purpose::Bsdf, Purpose::Light, Purpose::Bench][(p % 5) as usize]
+    [
+        Purpose::MarchJitter,
+        Purpose::PixelJitter,
+        Purpose::Bsdf,
+        Purpose::Light,
+        Purpose::Bench,
+    ][(p % 5) as usize]
 }
 
 #[test]
 fn hashes_match_the_cpu_bit_for_bit() {
     // Frozen values first (the CPU's own frozen test), then 4096 pseudo-random counters
     // including the extremes of u32.
-    let mut cases = vec![[0, 0, 0, 0, 1, 0], [1, 7, 3, 1, 2, 42], [u32::MAX, u32::MAX, u32::MAX, 1, 5, u32::MAX]];
+    let mut cases = vec![
+        [0, 0, 0, 0, 1, 0],
+        [1, 7, 3, 1, 2, 42],
+        [u32::MAX, u32::MAX, u32::MAX, 1, 5, u32::MAX],
+    ];
     let mut h = 99u32;
     for _ in 0..4096 {
         let mut next = || {
