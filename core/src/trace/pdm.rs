@@ -36,7 +36,7 @@
 
 use crate::accel::Scene;
 use crate::bake::Prism;
-use crate::canonical::{project_to_prism, surface_point, PrismGeom};
+use crate::canonical::{surface_point, PrismGeom};
 use crate::rng::{self, Purpose};
 use crate::trace::prism_hit::ray_prism_interval;
 use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
@@ -127,8 +127,10 @@ struct Local {
 /// The shared-wall prism's level sets are the planar triangles `T(λ) = {v_i + λ n_i}`. A point
 /// `x` is on level `λ` iff `f(λ) = (x − c_0(λ))·N(λ) = 0` with `N(λ) = e_1(λ) × e_2(λ) =
 /// N_0 + λ N_1 + λ² N_2`: a cubic in `λ`. Along a ray `x = o + t d` its coefficients are linear
-/// in `t`: `f(λ, t) = (a0 + a1 t) + (b0 + b1 t) λ + (c0 + c1 t) λ² + d3 λ³`, normalised by
-/// `|N_0|` so that `f` is a distance (`∂f/∂λ ≈ −m·N̂` near the prism's own root).
+/// in `t`: `f(λ, t) = (a0 + a1 t) + (b0 + b1 t) λ + (c0 + c1 t) λ² + d3 λ³` (scaled to avoid
+/// overflow; Newton does not care). A zero-area base (`PRISM_INSERTED` crease prisms) has
+/// `N_0 = 0`: every point is on the degenerate `T(0)`, so `f = λ f̃` and `deflate` solves the
+/// quadratic `f̃` instead.
 #[derive(Clone, Copy)]
 struct LevelCubic {
     a0: f32,
@@ -138,20 +140,24 @@ struct LevelCubic {
     c0: f32,
     c1: f32,
     d3: f32,
+    deflate: bool,
 }
 
-/// The level cubic of prism `g` (local frame, `v_0 = 0`) along the ray `ro + t d`.
+/// The level cubic of prism `g` (local frame) along the ray `ro + t d`; `lam` is the prism's
+/// largest `|λ|` (the scale of the `N_1`, `N_2` terms).
 #[inline]
-fn level_cubic(g: &PrismGeom, ro: Vec3, d: Vec3) -> LevelCubic {
+fn level_cubic(g: &PrismGeom, lam: f32, ro: Vec3, d: Vec3) -> LevelCubic {
     let e1 = g.v[1] - g.v[0];
     let e2 = g.v[2] - g.v[0];
     let d1 = g.n[1] - g.n[0];
     let d2 = g.n[2] - g.n[0];
     let n0 = e1.cross(e2);
-    let inv = 1.0 / n0.length().max(f32::MIN_POSITIVE);
-    let n0 = n0 * inv;
-    let n1 = (e1.cross(d2) + d1.cross(e2)) * inv;
-    let n2 = d1.cross(d2) * inv;
+    let n1 = e1.cross(d2) + d1.cross(e2);
+    let n2 = d1.cross(d2);
+    let (l0, l1, l2) = (n0.length(), n1.length() * lam, n2.length() * lam * lam);
+    let inv = 1.0 / (l0 + l1 + l2).max(f32::MIN_POSITIVE);
+    let (n0, n1, n2) = (n0 * inv, n1 * inv, n2 * inv);
+    let deflate = l0 <= 1e-6 * (l0 + l1 + l2);
     let q = ro - g.v[0];
     LevelCubic {
         a0: q.dot(n0),
@@ -161,6 +167,7 @@ fn level_cubic(g: &PrismGeom, ro: Vec3, d: Vec3) -> LevelCubic {
         c0: q.dot(n2) - g.n[0].dot(n1),
         c1: d.dot(n2),
         d3: -g.n[0].dot(n2),
+        deflate,
     }
 }
 
@@ -174,8 +181,11 @@ fn level_at(c: &LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> O
     let mut l = guess;
     let mut step = f32::INFINITY;
     for _ in 0..LEVEL_ITERS {
-        let f = a + l * (b + l * (q + l * c.d3));
-        let df = b + l * (2.0 * q + l * 3.0 * c.d3);
+        let (f, df) = if c.deflate {
+            (b + l * (q + l * c.d3), q + l * 2.0 * c.d3)
+        } else {
+            (a + l * (b + l * (q + l * c.d3)), b + l * (2.0 * q + l * 3.0 * c.d3))
+        };
         step = f / df;
         if !step.is_finite() {
             return None;
@@ -219,10 +229,14 @@ impl Local {
     }
 }
 
-/// What `level_sample` needs per ray and prism: the level cubic, the Newton tolerance and a
-/// generous λ range (a root outside it is another branch of the cubic).
+/// What `level_sample` needs per ray and prism: the level cubic along the ray rebased at its
+/// entry point `base = o + t0 d` (so that the cubic's coefficients are of the prism's size
+/// and rounding stays far below the Newton tolerance), the tolerance, and a padded λ range (a
+/// root outside it is another branch of the cubic).
 struct LevelTrack {
     cubic: LevelCubic,
+    base: Vec3,
+    t0: f32,
     tol: f32,
     lo: f32,
     hi: f32,
@@ -231,10 +245,13 @@ struct LevelTrack {
 
 impl LevelTrack {
     #[inline]
-    fn new(local: &Local, p: &Prism, ro: Vec3, d: Vec3) -> Self {
-        let span = p.lambda_hi - p.lambda_lo + local.scale;
+    fn new(local: &Local, p: &Prism, ro: Vec3, d: Vec3, t0: f32) -> Self {
+        let span = 0.5 * (p.lambda_hi - p.lambda_lo) + 1e-3 * local.scale;
+        let base = ro + d * t0;
         LevelTrack {
-            cubic: level_cubic(&local.geom, ro, d),
+            cubic: level_cubic(&local.geom, p.lambda_lo.abs().max(p.lambda_hi.abs()), base, d),
+            base,
+            t0,
             tol: 1e-6 * local.scale,
             lo: p.lambda_lo - span,
             hi: p.lambda_hi + span,
@@ -488,12 +505,13 @@ impl<'a> Pdm<'a> {
     /// level triangle `T(λ)` (the scanning triangle made exact), and `g = λ|m(b)| − D(uv(b))`:
     /// positive above the canonical surface, negative below.
     #[inline]
-    fn level_sample(&self, local: &Local, lt: &LevelTrack, ro: Vec3, d: Vec3, t: f32, guess: f32) -> Option<Sample> {
-        let l = level_at(&lt.cubic, t, guess, lt.tol, lt.lo, lt.hi)
-            .or_else(|| level_at(&lt.cubic, t, lt.mid, lt.tol, lt.lo, lt.hi))?;
+    fn level_sample(&self, local: &Local, lt: &LevelTrack, d: Vec3, t: f32, guess: f32) -> Option<Sample> {
+        let u = t - lt.t0;
+        let l = level_at(&lt.cubic, u, guess, lt.tol, lt.lo, lt.hi)
+            .or_else(|| level_at(&lt.cubic, u, lt.mid, lt.tol, lt.lo, lt.hi))?;
         let g = &local.geom;
         let c: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + g.n[i] * l);
-        let b = triangle_barycentric(ro + d * t, &c);
+        let b = triangle_barycentric(lt.base + d * u, &c);
         Some(Sample {
             t,
             g: l * g.normal_dir(b).length() - self.displacement(g.uv(b)),
@@ -527,7 +545,7 @@ impl<'a> Pdm<'a> {
         let dt = self
             .step_size(p, local)
             .max((tx - te) / MAX_STEPS as f32);
-        let lt = LevelTrack::new(local, p, ro, d);
+        let lt = LevelTrack::new(local, p, ro, d, te);
         let inside = |b: Vec3| b.min_element() >= -DETECT_TOL;
 
         let mut guess = Self::scan_level_estimate(local, ro + d * te);
@@ -537,7 +555,7 @@ impl<'a> Pdm<'a> {
         let mut n = 0;
         loop {
             n += 1;
-            if let Some(cur) = self.level_sample(local, &lt, ro, d, t, guess) {
+            if let Some(cur) = self.level_sample(local, &lt, d, t, guess) {
                 guess = cur.lambda;
                 if inside(cur.b) {
                     if let Some(pv) = prev {
@@ -579,11 +597,11 @@ impl<'a> Pdm<'a> {
     ) -> Option<(f32, Vec3)> {
         let d = ray.dir;
         let s = if self.opts.refine {
-            self.refine_levels(local, lt, ro, d, a, b)
+            self.refine_levels(local, lt, d, a, b)
         } else {
             let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
             let guess = a.lambda + (b.lambda - a.lambda) * ((t - a.t) / (b.t - a.t));
-            self.level_sample(local, lt, ro, d, t, guess)?
+            self.level_sample(local, lt, d, t, guess)?
         };
         let ok = s.b.min_element() >= -EDGE_TOL
             && s.t >= te
@@ -596,7 +614,7 @@ impl<'a> Pdm<'a> {
     /// Illinois regula falsi on the exact canonical `g(t)` in the bracket `[a, b]` (a sign
     /// change, so there is always a root); returns the end sample with the smaller `|g|`.
     #[allow(clippy::too_many_arguments)]
-    fn refine_levels(&self, local: &Local, lt: &LevelTrack, ro: Vec3, d: Vec3, a: Sample, b: Sample) -> Sample {
+    fn refine_levels(&self, local: &Local, lt: &LevelTrack, d: Vec3, a: Sample, b: Sample) -> Sample {
         let (mut s0, mut s1) = (a, b);
         let (mut g0, mut g1) = (a.g, b.g);
         let tol_g = 1e-6 * local.scale;
@@ -612,7 +630,7 @@ impl<'a> Pdm<'a> {
             } else {
                 s1.lambda
             };
-            let Some(s) = self.level_sample(local, lt, ro, d, t, guess) else {
+            let Some(s) = self.level_sample(local, lt, d, t, guess) else {
                 break;
             };
             if (s.g > 0.0) == (s1.g > 0.0) {
@@ -728,6 +746,7 @@ impl Intersector for Pdm<'_> {
 mod tests {
     use super::*;
     use crate::accel::fixtures::*;
+    use crate::canonical::project_to_prism;
     use crate::bake::PRISM_FLAT;
     use crate::heightmap::{HeightMap, Wrap};
     use crate::mesh::BaseMesh;

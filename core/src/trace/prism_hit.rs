@@ -227,6 +227,29 @@ fn box_exit(o: Vec3, d: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> f32 {
     far.x.min(far.y).min(far.z)
 }
 
+/// Cheap early-out before the walls: `true` if the segment `[t_min, t_max]` lies wholly
+/// outside the plane of one cap, on the side away from the prism. A cap plane bounds the
+/// prism only if the other cap's corners are on its inner side (walls lie in the hull of
+/// their corners); a flipped cap or folded prism is simply not culled by that plane.
+#[inline]
+fn cap_planes_reject(o: Vec3, d: Vec3, t_min: f32, t_max: f32, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> bool {
+    let extent = (hi[0] - lo[0]).length() + (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length();
+    for (cap, other, sign) in [(hi, lo, 1.0f32), (lo, hi, -1.0)] {
+        // Outward normal of this cap (counter-clockwise base: `hi` up, `lo` down).
+        let n = (cap[1] - cap[0]).cross(cap[2] - cap[0]) * sign;
+        let tol = 1e-5 * n.length() * extent;
+        if other.iter().any(|&c| (c - cap[0]).dot(n) > -tol) {
+            continue;
+        }
+        let s0 = (o - cap[0]).dot(n);
+        let sd = d.dot(n);
+        if s0 + t_min * sd > tol && (sd >= 0.0 || s0 + t_max * sd > tol) {
+            return true;
+        }
+    }
+    false
+}
+
 /// The hull `[first entry, last exit]` of the ray's inside set in `[t_min, t_max]`, or `None`
 /// if the ray misses the prism. `d` need not be unit length (t is in units of `d`).
 pub fn ray_prism_interval(
@@ -237,6 +260,9 @@ pub fn ray_prism_interval(
     lo: &[Vec3; 3],
     hi: &[Vec3; 3],
 ) -> Option<Interval> {
+    if cap_planes_reject(o, d, t_min, t_max, lo, hi) {
+        return None;
+    }
     // Crossings are gathered over [t_min, ∞) and clipped afterwards: a crossing past t_max
     // still tells whether the ray starts inside, so no point-in-prism test is needed when a
     // closer hit has already shortened the ray (the common case in a closest-hit traversal).
