@@ -100,29 +100,40 @@ impl HeightMap {
         Vec2::new(uv.x * self.width as f32, (1.0 - uv.y) * self.height as f32)
     }
 
-    /// Bilinear sample of the raw map value at `uv`.
+    /// The four texels a bilinear sample at continuous texel position `p` (centres at
+    /// integers) reads, `floor(p)` and the fraction. Fast path: all four inside the map, no
+    /// wrap arithmetic and no libm `floor` call (`p ≥ 0`, so truncation is the floor; same
+    /// texels, so bit-identical to the general path).
     #[inline]
-    pub fn sample(&self, uv: Vec2) -> f32 {
-        let p = self.texel_coords(uv) - Vec2::splat(0.5);
+    fn bilinear_texels(&self, p: Vec2) -> ([f32; 4], f32, f32) {
+        if p.x >= 0.0 && p.y >= 0.0 && p.x < self.width.saturating_sub(1) as f32 && p.y < self.height.saturating_sub(1) as f32 {
+            let (x, y) = (p.x as usize, p.y as usize);
+            let (tx, ty) = (p.x - x as f32, p.y - y as f32);
+            let w = self.width as usize;
+            let i = y * w + x;
+            let (r0, r1) = (&self.data[i..i + 2], &self.data[i + w..i + w + 2]);
+            return ([r0[0], r0[1], r1[0], r1[1]], tx, ty);
+        }
         let (fx, fy) = (p.x.floor(), p.y.floor());
         let (tx, ty) = (p.x - fx, p.y - fy);
-        // Fast path: all four texels inside the map, no wrap arithmetic (same texels, same
-        // arithmetic, so bit-identical to the general path).
-        let (w, h) = (self.width as f32, self.height as f32);
-        let (a, b, c, d) = if fx >= 0.0 && fy >= 0.0 && fx + 1.0 < w && fy + 1.0 < h {
-            let w = self.width as usize;
-            let i = fy as usize * w + fx as usize;
-            let (r0, r1) = (&self.data[i..i + 2], &self.data[i + w..i + w + 2]);
-            (r0[0], r0[1], r1[0], r1[1])
-        } else {
-            let (x, y) = (fx as i64, fy as i64);
-            (
+        let (x, y) = (fx as i64, fy as i64);
+        (
+            [
                 self.texel(x, y),
                 self.texel(x + 1, y),
                 self.texel(x, y + 1),
                 self.texel(x + 1, y + 1),
-            )
-        };
+            ],
+            tx,
+            ty,
+        )
+    }
+
+    /// Bilinear sample of the raw map value at `uv`.
+    #[inline]
+    pub fn sample(&self, uv: Vec2) -> f32 {
+        let p = self.texel_coords(uv) - Vec2::splat(0.5);
+        let ([a, b, c, d], tx, ty) = self.bilinear_texels(p);
         let top = a + (b - a) * tx;
         let bottom = c + (d - c) * tx;
         top + (bottom - top) * ty
@@ -131,13 +142,7 @@ impl HeightMap {
     /// Bilinear sample and its gradient with respect to (u, v).
     pub fn sample_grad(&self, uv: Vec2) -> (f32, Vec2) {
         let p = self.texel_coords(uv) - Vec2::splat(0.5);
-        let (fx, fy) = (p.x.floor(), p.y.floor());
-        let (tx, ty) = (p.x - fx, p.y - fy);
-        let (x, y) = (fx as i64, fy as i64);
-        let a = self.texel(x, y);
-        let b = self.texel(x + 1, y);
-        let c = self.texel(x, y + 1);
-        let d = self.texel(x + 1, y + 1);
+        let ([a, b, c, d], tx, ty) = self.bilinear_texels(p);
         let top = a + (b - a) * tx;
         let bottom = c + (d - c) * tx;
         let value = top + (bottom - top) * ty;
