@@ -116,7 +116,9 @@ impl HeightMap {
         }
         let (fx, fy) = (p.x.floor(), p.y.floor());
         let (tx, ty) = (p.x - fx, p.y - fy);
-        let (x, y) = (fx as i64, fy as i64);
+        // Far-off or NaN coordinates (a ray point far outside its prism) must not overflow
+        // `x + 1`: clamp to a range where the wrap arithmetic is exact (NaN becomes 0).
+        let (x, y) = (fx.clamp(-1e9, 1e9) as i64, fy.clamp(-1e9, 1e9) as i64);
         (
             [
                 self.texel(x, y),
