@@ -8,8 +8,22 @@ use std::path::{Path, PathBuf};
 fn bake_fails(name: &str, mesh: &Path, map: &Path, needles: &[&str]) {
     let dir = temp_dir(name);
     let out = dir.join("out.prisms");
-    run(&["bake", s(mesh), "--disp", s(map), "--scale", "0.1", "-o", s(&out)]).assert_error(needles);
-    assert!(files_in(&dir).is_empty(), "{name}: left files {:?}", files_in(&dir));
+    run(&[
+        "bake",
+        s(mesh),
+        "--disp",
+        s(map),
+        "--scale",
+        "0.1",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(needles);
+    assert!(
+        files_in(&dir).is_empty(),
+        "{name}: left files {:?}",
+        files_in(&dir)
+    );
 }
 
 fn map() -> PathBuf {
@@ -36,11 +50,21 @@ fn gltf_without_uvs(dir: &Path) -> PathBuf {
 
 #[test]
 fn missing_and_unknown_files() {
-    bake_fails("missing", Path::new("/nonexistent/rock.glb"), &map(), &["/nonexistent/rock.glb"]);
+    bake_fails(
+        "missing",
+        Path::new("/nonexistent/rock.glb"),
+        &map(),
+        &["/nonexistent/rock.glb"],
+    );
     let dir = temp_dir("ext");
     let stl = write(&dir, "model.stl", "solid x\nendsolid x\n");
     bake_fails("unknown-ext", &stl, &map(), &["model.stl", ".glb"]);
-    bake_fails("missing-map", &example("sphere/sphere.glb"), Path::new("/nonexistent/h.png"), &["/nonexistent/h.png"]);
+    bake_fails(
+        "missing-map",
+        &example("sphere/sphere.glb"),
+        Path::new("/nonexistent/h.png"),
+        &["/nonexistent/h.png"],
+    );
 }
 
 #[test]
@@ -63,9 +87,17 @@ fn gltf_without_uvs_is_refused_by_bake() {
 #[test]
 fn broken_obj_files() {
     let dir = temp_dir("obj");
-    let nan = write(&dir, "nan.obj", "v nan 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n");
+    let nan = write(
+        &dir,
+        "nan.obj",
+        "v nan 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n",
+    );
     bake_fails("nan", &nan, &map(), &["nan.obj", "vertex 0"]);
-    let oob = write(&dir, "oob.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 9/1\n");
+    let oob = write(
+        &dir,
+        "oob.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 9/1\n",
+    );
     bake_fails("oob", &oob, &map(), &["oob.obj"]);
     let empty = write(&dir, "empty.obj", "v 0 0 0\nv 1 0 0\n");
     bake_fails("empty", &empty, &map(), &["empty.obj", "zero triangles"]);
@@ -75,12 +107,27 @@ fn broken_obj_files() {
 fn broken_maps() {
     let dir = temp_dir("maps");
     let corrupt = write(&dir, "corrupt.png", b"\x89PNG\r\n\x1a\nthis is not a png");
-    bake_fails("corrupt-map", &example("sphere/sphere.glb"), &corrupt, &["corrupt.png"]);
+    bake_fails(
+        "corrupt-map",
+        &example("sphere/sphere.glb"),
+        &corrupt,
+        &["corrupt.png"],
+    );
     let folder = dir.join("folder.png");
     std::fs::create_dir_all(&folder).unwrap();
-    bake_fails("dir-map", &example("sphere/sphere.glb"), &folder, &["folder.png", "directory"]);
+    bake_fails(
+        "dir-map",
+        &example("sphere/sphere.glb"),
+        &folder,
+        &["folder.png", "directory"],
+    );
     let bad_ext = write(&dir, "h.bmp", b"BM");
-    bake_fails("bmp-map", &example("sphere/sphere.glb"), &bad_ext, &["h.bmp"]);
+    bake_fails(
+        "bmp-map",
+        &example("sphere/sphere.glb"),
+        &bad_ext,
+        &["h.bmp"],
+    );
 }
 
 #[test]
@@ -114,12 +161,39 @@ fn bad_prism_tables() {
 fn bad_parameters() {
     let dir = temp_dir("params");
     let out = dir.join("o.prisms");
-    run(&["bake", s(&example("sphere/sphere.glb")), "--scale", "nan", "-o", s(&out)]).assert_error(&["finite"]);
-    run(&["bake", s(&example("sphere/sphere.glb")), "--crease-threshold", "2", "-o", s(&out)])
-        .assert_error(&["--crease-threshold"]);
-    run(&["bake", s(&example("sphere/sphere.glb")), "--wrap", "mirror", "-o", s(&out)]).assert_code(2);
+    run(&[
+        "bake",
+        s(&example("sphere/sphere.glb")),
+        "--scale",
+        "nan",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["finite"]);
+    run(&[
+        "bake",
+        s(&example("sphere/sphere.glb")),
+        "--crease-threshold",
+        "2",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["--crease-threshold"]);
+    run(&[
+        "bake",
+        s(&example("sphere/sphere.glb")),
+        "--wrap",
+        "mirror",
+        "-o",
+        s(&out),
+    ])
+    .assert_code(2);
     // No map anywhere: the message says how to give one.
-    let obj = write(&dir, "m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n");
+    let obj = write(
+        &dir,
+        "m.obj",
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\n",
+    );
     run(&["bake", s(&obj), "-o", s(&out)]).assert_error(&["m.obj", "--disp", "m.prismbake.toml"]);
     assert!(files_in(&dir).iter().all(|f| f == "m.obj"));
 }

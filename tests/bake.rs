@@ -15,14 +15,25 @@ fn bake_writes_a_table_and_reuses_it_for_the_same_inputs() {
     assert!(prisms > 500, "{j}");
     // The documented budget: at most 64 bytes per triangle on disk.
     assert!(j["bytes_per_prism"].as_f64().unwrap() <= 64.0, "{j}");
-    assert_eq!(std::fs::metadata(&out).unwrap().len(), j["bytes"].as_u64().unwrap());
+    assert_eq!(
+        std::fs::metadata(&out).unwrap().len(),
+        j["bytes"].as_u64().unwrap()
+    );
 
     let second = run(&["bake", s(&sphere), "-o", s(&out), "--json"]);
     second.assert_success();
     assert_eq!(second.json()["reused"], true);
 
     // A different scale is a different input: re-baked.
-    let third = run(&["bake", s(&sphere), "-o", s(&out), "--json", "--scale", "0.02"]);
+    let third = run(&[
+        "bake",
+        s(&sphere),
+        "-o",
+        s(&out),
+        "--json",
+        "--scale",
+        "0.02",
+    ]);
     third.assert_success();
     assert_eq!(third.json()["reused"], false);
     assert_eq!(files_in(&dir), vec!["sphere.prisms"]);
@@ -37,10 +48,19 @@ fn bake_writes_a_table_and_reuses_it_for_the_same_inputs() {
 fn bake_repairs_creases_of_the_rock() {
     let dir = temp_dir("bake-rock");
     let out = dir.join("rock.prisms");
-    let r = run(&["bake", s(&example("rock/rock.glb")), "-o", s(&out), "--json"]);
+    let r = run(&[
+        "bake",
+        s(&example("rock/rock.glb")),
+        "-o",
+        s(&out),
+        "--json",
+    ]);
     r.assert_success();
     let j = r.json();
-    assert!(j["repair"]["sharp_corners"].as_array().unwrap().len() > 0, "the rock example has creases: {j}");
+    assert!(
+        j["repair"]["sharp_corners"].as_array().unwrap().len() > 0,
+        "the rock example has creases: {j}"
+    );
     assert!(j["inserted_prisms"].as_u64().unwrap() > 0, "{j}");
 }
 
@@ -51,7 +71,10 @@ fn inspect_reports_mesh_and_map() {
     let j = r.json();
     assert!(j["triangles"].as_u64().unwrap() > 500);
     assert_eq!(j["has_uvs"], true);
-    assert_eq!(j["camera"], true, "the sphere example carries a glTF camera");
+    assert_eq!(
+        j["camera"], true,
+        "the sphere example carries a glTF camera"
+    );
     assert_eq!(j["uv_sets"][0], 0);
     assert_eq!(j["map"]["width"], 1024);
     assert!(j["estimated_table_bytes"].as_u64().unwrap() > 0);

@@ -14,7 +14,14 @@ fn read(path: &Path) -> Vec<u8> {
 fn read_rgba(path: &Path) -> Vec<[f32; 4]> {
     let img = exr::prelude::read_all_flat_layers_from_file(path).unwrap();
     let layer = &img.layer_data[0];
-    let ch = |name: &str| layer.channel_data.list.iter().find(|c| c.name.to_string() == name).unwrap();
+    let ch = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap()
+    };
     let n = layer.size.0 * layer.size.1;
     let (r, g, b, a) = (ch("R"), ch("G"), ch("B"), ch("A"));
     (0..n)
@@ -26,7 +33,12 @@ fn read_rgba(path: &Path) -> Vec<[f32; 4]> {
 fn write_constant_env(path: &Path, radiance: f32) {
     use exr::prelude::*;
     let ch = |name: &str| AnyChannel::new(name, FlatSamples::F32(vec![radiance; 16 * 8]));
-    let layer = Layer::new((16, 8), LayerAttributes::default(), Encoding::UNCOMPRESSED, AnyChannels::sort(vec![ch("R"), ch("G"), ch("B")].into()));
+    let layer = Layer::new(
+        (16, 8),
+        LayerAttributes::default(),
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(vec![ch("R"), ch("G"), ch("B")].into()),
+    );
     Image::from_layer(layer).write().to_file(path).unwrap();
 }
 
@@ -36,12 +48,30 @@ fn beauty_is_the_same_for_one_and_two_threads() {
     let rock = example("rock/rock.glb");
     for (dir, threads) in [(&a, "1"), (&b, "2")] {
         run(&[
-            "render", s(&rock), "--res", "24x24", "--spp", "3", "--aov", "beauty", "--key-light", "40,50,2", "--ground",
-            "--bounces", "2", "--threads", threads, "-o", s(dir),
+            "render",
+            s(&rock),
+            "--res",
+            "24x24",
+            "--spp",
+            "3",
+            "--aov",
+            "beauty",
+            "--key-light",
+            "40,50,2",
+            "--ground",
+            "--bounces",
+            "2",
+            "--threads",
+            threads,
+            "-o",
+            s(dir),
         ])
         .assert_success();
     }
-    assert!(read(&a.join("beauty.exr")) == read(&b.join("beauty.exr")), "beauty.exr differs between 1 and 2 threads");
+    assert!(
+        read(&a.join("beauty.exr")) == read(&b.join("beauty.exr")),
+        "beauty.exr differs between 1 and 2 threads"
+    );
     assert!(read(&a.join("beauty.png")) == read(&b.join("beauty.png")));
     let img = image::open(a.join("beauty.png")).unwrap();
     assert_eq!((img.width(), img.height()), (24, 24));
@@ -59,19 +89,48 @@ fn white_furnace_converges_to_env_times_albedo() {
     write_constant_env(&env, 1.0);
     let out = dir.join("out");
     run(&[
-        "render", s(&example("sphere/sphere.glb")), "--scale", "0", "--res", "24x24", "--spp", "32", "--aov", "beauty",
-        "--env", s(&env), "--base-color", "1,1,1", "--specular", "0", "--roughness", "1", "--bounces", "1", "-o", s(&out),
+        "render",
+        s(&example("sphere/sphere.glb")),
+        "--scale",
+        "0",
+        "--res",
+        "24x24",
+        "--spp",
+        "32",
+        "--aov",
+        "beauty",
+        "--env",
+        s(&env),
+        "--base-color",
+        "1,1,1",
+        "--specular",
+        "0",
+        "--roughness",
+        "1",
+        "--bounces",
+        "1",
+        "-o",
+        s(&out),
     ])
     .assert_success();
-    let px: Vec<[f32; 4]> = read_rgba(&out.join("beauty.exr")).into_iter().filter(|p| p[3] >= 0.999).collect();
+    let px: Vec<[f32; 4]> = read_rgba(&out.join("beauty.exr"))
+        .into_iter()
+        .filter(|p| p[3] >= 0.999)
+        .collect();
     assert!(px.len() > 50, "the sphere covers the image");
-    let mean = px.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / px.len() as f64;
+    let mean = px
+        .iter()
+        .map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0)
+        .sum::<f64>()
+        / px.len() as f64;
     assert!((mean - 1.0).abs() < 0.03, "furnace mean {mean}");
     for p in &px {
         assert!((p[0] - 1.0).abs() < 0.25, "furnace pixel {p:?}");
     }
     // Background pixels are transparent and black in the EXR (the env shows only in the PNG).
-    assert!(read_rgba(&out.join("beauty.exr")).iter().any(|p| p[3] == 0.0 && p[0] == 0.0));
+    assert!(read_rgba(&out.join("beauty.exr"))
+        .iter()
+        .any(|p| p[3] == 0.0 && p[0] == 0.0));
 }
 
 #[test]
@@ -79,21 +138,45 @@ fn shadow_rays_only_for_lights_that_exist() {
     let dir = temp_dir("shadow-rays");
     let sphere = example("sphere/sphere.glb");
     let json = |extra: &[&str], name: &str| {
-        let mut args = vec!["render", s(&sphere), "--res", "16x16", "--spp", "2", "--json"];
+        let mut args = vec![
+            "render",
+            s(&sphere),
+            "--res",
+            "16x16",
+            "--spp",
+            "2",
+            "--json",
+        ];
         args.extend_from_slice(extra);
         let out = dir.join(name);
         args.extend_from_slice(&["-o", s(&out)]);
         run(&args).assert_success().json()
     };
     let aov_only = json(&["--aov", "depth,normal"], "aov");
-    assert_eq!(aov_only["beauty_rays"]["rays"], 0, "an AOV-only render does no shading");
+    assert_eq!(
+        aov_only["beauty_rays"]["rays"], 0,
+        "an AOV-only render does no shading"
+    );
     assert_eq!(aov_only["shadow_rays"], 0);
     let env_only = json(&["--aov", "beauty"], "env");
-    assert_eq!(env_only["beauty_rays"]["key_shadow_rays"], 0, "no key light, no key-light shadow rays");
+    assert_eq!(
+        env_only["beauty_rays"]["key_shadow_rays"], 0,
+        "no key light, no key-light shadow rays"
+    );
     assert!(env_only["beauty_rays"]["env_shadow_rays"].as_u64().unwrap() > 0);
     let dark = json(&["--aov", "beauty", "--env-intensity", "0"], "dark");
     assert_eq!(dark["shadow_rays"], 0, "no light at all: no shadow rays");
-    let key = json(&["--aov", "beauty", "--env-intensity", "0", "--key-light", "0,45,3"], "key");
+    let key = json(
+        &[
+            "--aov",
+            "beauty",
+            "--env-intensity",
+            "0",
+            "--key-light",
+            "0,45,3",
+        ],
+        "key",
+    );
     assert!(key["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
     assert_eq!(key["beauty_rays"]["env_shadow_rays"], 0);
 }
@@ -102,19 +185,57 @@ fn shadow_rays_only_for_lights_that_exist() {
 fn turntables_get_contact_sheets_of_the_frames_rendered() {
     let (full, part) = (temp_dir("sheet-full"), temp_dir("sheet-part"));
     let sphere = example("sphere/sphere.glb");
-    run(&["render", s(&sphere), "--res", "12x8", "--turntable", "5", "--aov", "mask,beauty", "-o", s(&full)]).assert_success();
+    run(&[
+        "render",
+        s(&sphere),
+        "--res",
+        "12x8",
+        "--turntable",
+        "5",
+        "--aov",
+        "mask,beauty",
+        "-o",
+        s(&full),
+    ])
+    .assert_success();
     for name in ["mask_contact_sheet.png", "beauty_contact_sheet.png"] {
         let img = image::open(full.join(name)).unwrap();
-        assert_eq!((img.width(), img.height()), (3 * 12, 2 * 8), "{name}: 5 frames in a 3x2 grid");
+        assert_eq!(
+            (img.width(), img.height()),
+            (3 * 12, 2 * 8),
+            "{name}: 5 frames in a 3x2 grid"
+        );
     }
-    run(&["render", s(&sphere), "--res", "12x8", "--turntable", "5", "--frames", "1-2", "--aov", "mask", "-o", s(&part)])
-        .assert_success();
+    run(&[
+        "render",
+        s(&sphere),
+        "--res",
+        "12x8",
+        "--turntable",
+        "5",
+        "--frames",
+        "1-2",
+        "--aov",
+        "mask",
+        "-o",
+        s(&part),
+    ])
+    .assert_success();
     let img = image::open(part.join("mask_contact_sheet.png")).unwrap();
-    assert_eq!((img.width(), img.height()), (2 * 12, 8), "2 frames side by side");
+    assert_eq!(
+        (img.width(), img.height()),
+        (2 * 12, 8),
+        "2 frames side by side"
+    );
     // The sheet's first tile is frame 1 of the full run.
     let tile = |dir: &Path, x0: u32| {
-        let im = image::open(dir.join("mask_contact_sheet.png")).unwrap().to_rgb8();
-        (0..8).flat_map(|y| (0..12).map(move |x| (x, y))).map(|(x, y)| im.get_pixel(x0 + x, y).0).collect::<Vec<_>>()
+        let im = image::open(dir.join("mask_contact_sheet.png"))
+            .unwrap()
+            .to_rgb8();
+        (0..8)
+            .flat_map(|y| (0..12).map(move |x| (x, y)))
+            .map(|(x, y)| im.get_pixel(x0 + x, y).0)
+            .collect::<Vec<_>>()
     };
     assert_eq!(tile(&part, 0), tile(&full, 12));
 }
@@ -124,9 +245,21 @@ fn batch_folder() -> PathBuf {
     let dir = temp_dir("batch-in");
     std::fs::copy(example("sphere/sphere.glb"), dir.join("sphere.glb")).unwrap();
     let map = example("maps/rock_1024.png");
-    std::fs::write(dir.join("sphere.prismbake.toml"), format!("disp = {:?}\nscale = 0.05\n", s(&map))).unwrap();
-    std::fs::write(dir.join("broken.obj"), "v 1 2\nf 1 2 9\nthis is not an obj\n").unwrap();
-    std::fs::write(dir.join("broken.prismbake.toml"), format!("disp = {:?}\n", s(&map))).unwrap();
+    std::fs::write(
+        dir.join("sphere.prismbake.toml"),
+        format!("disp = {:?}\nscale = 0.05\n", s(&map)),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("broken.obj"),
+        "v 1 2\nf 1 2 9\nthis is not an obj\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("broken.prismbake.toml"),
+        format!("disp = {:?}\n", s(&map)),
+    )
+    .unwrap();
     dir
 }
 
@@ -134,9 +267,22 @@ fn batch_folder() -> PathBuf {
 fn render_dir_continues_past_a_broken_asset() {
     let input = batch_folder();
     let out = temp_dir("batch-out");
-    let r = run(&["render", s(&input), "--res", "16x16", "--aov", "mask", "-o", s(&out)]);
+    let r = run(&[
+        "render",
+        s(&input),
+        "--res",
+        "16x16",
+        "--aov",
+        "mask",
+        "-o",
+        s(&out),
+    ]);
     r.assert_code(1);
-    assert!(r.stderr.contains("broken.obj") && r.stderr.contains("1 failed"), "{}", r.stderr);
+    assert!(
+        r.stderr.contains("broken.obj") && r.stderr.contains("1 failed"),
+        "{}",
+        r.stderr
+    );
     assert!(r.stderr.contains("rendered 1 of 2 assets"), "{}", r.stderr);
     assert_eq!(files_in(&out.join("sphere")), vec!["mask.exr", "mask.png"]);
     assert!(!r.stderr.contains("panicked"));
@@ -152,16 +298,26 @@ fn table_cache_is_reused_unless_disabled() {
         let out = dir.join("out");
         args.push(s(&out));
         args.extend_from_slice(extra);
-        let o = Command::new(env!("CARGO_BIN_EXE_prismbake")).args(&args).env("XDG_CACHE_HOME", &cache).output().unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_prismbake"))
+            .args(&args)
+            .env("XDG_CACHE_HOME", &cache)
+            .output()
+            .unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
     let first = render(&[]);
-    assert!(!first.contains("reused cached prism table") && first.contains("cached as"), "{first}");
+    assert!(
+        !first.contains("reused cached prism table") && first.contains("cached as"),
+        "{first}"
+    );
     let second = render(&[]);
     assert!(second.contains("reused cached prism table"), "{second}");
     let off = render(&["--no-cache"]);
-    assert!(!off.contains("reused cached prism table") && !off.contains("cached as"), "{off}");
+    assert!(
+        !off.contains("reused cached prism table") && !off.contains("cached as"),
+        "{off}"
+    );
 }
 
 /// A smooth 64² height map with an optional raised 4×4 patch.
@@ -183,10 +339,27 @@ fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
     std::fs::copy(example("sphere/sphere.glb"), dir.join("ball.glb")).unwrap();
     let map = dir.join("h.png");
     write_map(&map, false);
-    std::fs::write(dir.join("ball.prismbake.toml"), "disp = \"h.png\"\nscale = 0.05\n").unwrap();
+    std::fs::write(
+        dir.join("ball.prismbake.toml"),
+        "disp = \"h.png\"\nscale = 0.05\n",
+    )
+    .unwrap();
     let out = dir.join("out");
     let mut child = Command::new(env!("CARGO_BIN_EXE_prismbake"))
-        .args(["render", s(&dir.join("ball.glb")), "--res", "16x16", "--aov", "mask", "--no-cache", "--watch", "--watch-max", "1", "-o", s(&out)])
+        .args([
+            "render",
+            s(&dir.join("ball.glb")),
+            "--res",
+            "16x16",
+            "--aov",
+            "mask",
+            "--no-cache",
+            "--watch",
+            "--watch-max",
+            "1",
+            "-o",
+            s(&out),
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
@@ -210,10 +383,19 @@ fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
     std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
     assert!(child.wait().unwrap().success(), "{stderr}");
     // "re-baked K of N prisms": a 4x4-texel edit touches a few prisms, not the table.
-    let line = stderr.lines().find(|l| l.contains("re-baked")).unwrap_or_else(|| panic!("no re-bake line\n{stderr}"));
-    let nums: Vec<usize> = line.split_whitespace().filter_map(|w| w.parse().ok()).collect();
+    let line = stderr
+        .lines()
+        .find(|l| l.contains("re-baked"))
+        .unwrap_or_else(|| panic!("no re-bake line\n{stderr}"));
+    let nums: Vec<usize> = line
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .collect();
     let (k, n) = (nums[0], nums[1]);
     assert!(k > 0 && k < n / 4, "re-baked {k} of {n}: {line}");
-    assert!(line.contains("re-rendered in") && line.contains("BVH"), "{line}");
+    assert!(
+        line.contains("re-rendered in") && line.contains("BVH"),
+        "{line}"
+    );
     assert!(out.join("mask.exr").is_file() && read(&out.join("mask.exr")).len() == first.len());
 }

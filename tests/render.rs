@@ -10,8 +10,14 @@ fn read(path: &std::path::Path) -> Vec<u8> {
 fn writes_every_aov_as_exr_and_png() {
     let dir = temp_dir("render-aovs");
     run(&[
-        "render", s(&example("torus/torus.obj")), "--res", "48x32", "--aov", "depth,normal,mask,uv,steps,prism",
-        "-o", s(&dir),
+        "render",
+        s(&example("torus/torus.obj")),
+        "--res",
+        "48x32",
+        "--aov",
+        "depth,normal,mask,uv,steps,prism",
+        "-o",
+        s(&dir),
     ])
     .assert_success();
     let mut want: Vec<String> = ["depth", "mask", "normal", "prism", "steps", "uv"]
@@ -24,7 +30,10 @@ fn writes_every_aov_as_exr_and_png() {
     let img = image::open(dir.join("mask.png")).unwrap().to_luma8();
     assert_eq!(img.dimensions(), (48, 32));
     let covered = img.pixels().filter(|p| p.0[0] > 127).count();
-    assert!(covered > 48 * 32 / 10 && covered < 48 * 32 * 9 / 10, "coverage {covered}");
+    assert!(
+        covered > 48 * 32 / 10 && covered < 48 * 32 * 9 / 10,
+        "coverage {covered}"
+    );
 }
 
 #[test]
@@ -32,11 +41,27 @@ fn same_image_for_one_and_many_threads() {
     let (a, b) = (temp_dir("threads1"), temp_dir("threads2"));
     let sphere = example("sphere/sphere.glb");
     for (dir, threads) in [(&a, "1"), (&b, "2")] {
-        run(&["render", s(&sphere), "--res", "40x40", "--spp", "2", "--aov", "depth,normal,steps", "--threads", threads, "-o", s(dir)])
-            .assert_success();
+        run(&[
+            "render",
+            s(&sphere),
+            "--res",
+            "40x40",
+            "--spp",
+            "2",
+            "--aov",
+            "depth,normal,steps",
+            "--threads",
+            threads,
+            "-o",
+            s(dir),
+        ])
+        .assert_success();
     }
     for f in ["depth.exr", "normal.exr", "steps.exr"] {
-        assert!(read(&a.join(f)) == read(&b.join(f)), "{f} differs between 1 and 2 threads");
+        assert!(
+            read(&a.join(f)) == read(&b.join(f)),
+            "{f} differs between 1 and 2 threads"
+        );
     }
 }
 
@@ -44,16 +69,56 @@ fn same_image_for_one_and_many_threads() {
 fn turntable_frame_ranges_match_the_full_run() {
     let (full, part) = (temp_dir("tt-full"), temp_dir("tt-part"));
     let rock = example("rock/rock.glb");
-    run(&["render", s(&rock), "--res", "24x24", "--turntable", "4", "--aov", "depth", "-o", s(&full)]).assert_success();
-    assert_eq!(files_in(&full).iter().filter(|f| f.ends_with(".exr")).count(), 4);
-    run(&["render", s(&rock), "--res", "24x24", "--turntable", "4", "--frames", "2-3", "--aov", "depth", "-o", s(&part)])
-        .assert_success();
+    run(&[
+        "render",
+        s(&rock),
+        "--res",
+        "24x24",
+        "--turntable",
+        "4",
+        "--aov",
+        "depth",
+        "-o",
+        s(&full),
+    ])
+    .assert_success();
+    assert_eq!(
+        files_in(&full)
+            .iter()
+            .filter(|f| f.ends_with(".exr"))
+            .count(),
+        4
+    );
+    run(&[
+        "render",
+        s(&rock),
+        "--res",
+        "24x24",
+        "--turntable",
+        "4",
+        "--frames",
+        "2-3",
+        "--aov",
+        "depth",
+        "-o",
+        s(&part),
+    ])
+    .assert_success();
     assert_eq!(
         files_in(&part),
-        vec!["depth_0002.exr", "depth_0002.png", "depth_0003.exr", "depth_0003.png", "depth_contact_sheet.png"]
+        vec![
+            "depth_0002.exr",
+            "depth_0002.png",
+            "depth_0003.exr",
+            "depth_0003.png",
+            "depth_contact_sheet.png"
+        ]
     );
     for f in ["depth_0002.exr", "depth_0003.exr"] {
-        assert!(read(&full.join(f)) == read(&part.join(f)), "{f} differs from the full run");
+        assert!(
+            read(&full.join(f)) == read(&part.join(f)),
+            "{f} differs from the full run"
+        );
     }
     // Different frames see the asset from different sides.
     assert!(read(&full.join("depth_0000.exr")) != read(&full.join("depth_0001.exr")));
@@ -65,7 +130,18 @@ fn renders_a_baked_table() {
     let table = dir.join("t.prisms");
     run(&["bake", s(&example("sphere/sphere.glb")), "-o", s(&table)]).assert_success();
     let out = dir.join("img");
-    run(&["render", s(&table), "--res", "32x32", "--aov", "mask", "-o", s(&out), "--json"]).assert_success();
+    run(&[
+        "render",
+        s(&table),
+        "--res",
+        "32x32",
+        "--aov",
+        "mask",
+        "-o",
+        s(&out),
+        "--json",
+    ])
+    .assert_success();
     assert!(out.join("mask.exr").is_file());
 }
 
@@ -79,16 +155,62 @@ fn bad_render_input() {
     run(&["render", s(&sphere), "--spp", "0", "-o", s(&out)]).assert_error(&["--spp"]);
     run(&["render", s(&sphere), "--spp", "100000000", "-o", s(&out)]).assert_error(&["--spp"]);
     run(&["render", s(&sphere), "--aov", "shiny", "-o", s(&out)]).assert_error(&["shiny"]);
-    run(&["render", s(&sphere), "--aov", "beauty", "--bounces", "9", "-o", s(&out)]).assert_error(&["--bounces"]);
-    run(&["render", s(&sphere), "--aov", "beauty", "--roughness", "2", "-o", s(&out)]).assert_error(&["--roughness"]);
+    run(&[
+        "render",
+        s(&sphere),
+        "--aov",
+        "beauty",
+        "--bounces",
+        "9",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["--bounces"]);
+    run(&[
+        "render",
+        s(&sphere),
+        "--aov",
+        "beauty",
+        "--roughness",
+        "2",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["--roughness"]);
     run(&["render", s(&sphere), "--method", "magic", "-o", s(&out)]).assert_error(&["magic"]);
-    run(&["render", s(&sphere), "--camera-from", "nan,0,0", "-o", s(&out)]).assert_error(&["finite"]);
+    run(&[
+        "render",
+        s(&sphere),
+        "--camera-from",
+        "nan,0,0",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["finite"]);
     run(&["render", s(&sphere), "--frames", "0-3", "-o", s(&out)]).assert_error(&["--turntable"]);
-    run(&["render", s(&sphere), "--turntable", "4", "--frames", "2-9", "-o", s(&out)]).assert_error(&["--frames"]);
+    run(&[
+        "render",
+        s(&sphere),
+        "--turntable",
+        "4",
+        "--frames",
+        "2-9",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["--frames"]);
     run(&["render", s(&sphere), "--dt", "-1", "-o", s(&out)]).assert_error(&["--dt"]);
     assert!(!out.exists(), "nothing is created for a rejected job");
     // An output folder that cannot be created (a file is in the way).
     let file = dir.join("file");
     std::fs::write(&file, "x").unwrap();
-    run(&["render", s(&sphere), "--res", "8x8", "-o", s(&file.join("sub"))]).assert_error(&["file"]);
+    run(&[
+        "render",
+        s(&sphere),
+        "--res",
+        "8x8",
+        "-o",
+        s(&file.join("sub")),
+    ])
+    .assert_error(&["file"]);
 }

@@ -7,7 +7,10 @@ use std::process::Command;
 use std::sync::atomic::{AtomicU32, Ordering};
 
 pub fn repo_root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .unwrap()
+        .to_path_buf()
 }
 
 pub fn example(rel: &str) -> PathBuf {
@@ -36,7 +39,10 @@ pub struct Output {
 
 impl Output {
     fn describe(&self) -> String {
-        format!("command: {}\nexit: {}\n--- stdout\n{}\n--- stderr\n{}", self.cmdline, self.code, self.stdout, self.stderr)
+        format!(
+            "command: {}\nexit: {}\n--- stdout\n{}\n--- stderr\n{}",
+            self.cmdline, self.code, self.stdout, self.stderr
+        )
     }
     pub fn assert_code(&self, code: i32) -> &Self {
         assert_eq!(self.code, code, "unexpected exit code\n{}", self.describe());
@@ -48,14 +54,23 @@ impl Output {
     /// An error: non-zero exit, one clear line on stderr containing every needle, no panic.
     pub fn assert_error(&self, needles: &[&str]) -> &Self {
         assert_ne!(self.code, 0, "expected failure\n{}", self.describe());
-        assert!(!self.stderr.contains("panicked"), "panicked\n{}", self.describe());
+        assert!(
+            !self.stderr.contains("panicked"),
+            "panicked\n{}",
+            self.describe()
+        );
         for n in needles {
-            assert!(self.stderr.contains(n), "stderr lacks {n:?}\n{}", self.describe());
+            assert!(
+                self.stderr.contains(n),
+                "stderr lacks {n:?}\n{}",
+                self.describe()
+            );
         }
         self
     }
     pub fn json(&self) -> serde_json::Value {
-        serde_json::from_str(&self.stdout).unwrap_or_else(|e| panic!("stdout is not JSON: {e}\n{}", self.describe()))
+        serde_json::from_str(&self.stdout)
+            .unwrap_or_else(|e| panic!("stdout is not JSON: {e}\n{}", self.describe()))
     }
 }
 
@@ -64,7 +79,12 @@ pub fn run_in(cwd: &Path, args: &[&str]) -> Output {
     let bin = env!("CARGO_BIN_EXE_prismbake");
     // Tables cached by `render` go to a folder of the test run, not the user's cache.
     let cache = std::env::temp_dir().join(format!("prismbake-it-cache-{}", std::process::id()));
-    let out = Command::new(bin).args(args).current_dir(cwd).env("XDG_CACHE_HOME", cache).output().expect("binary runs");
+    let out = Command::new(bin)
+        .args(args)
+        .current_dir(cwd)
+        .env("XDG_CACHE_HOME", cache)
+        .output()
+        .expect("binary runs");
     Output {
         code: out.status.code().unwrap_or(-1),
         stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
@@ -84,7 +104,11 @@ pub fn s(p: &Path) -> &str {
 /// Files in a folder (to check that nothing half-written was left).
 pub fn files_in(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)
-        .map(|r| r.filter_map(|e| e.ok()).map(|e| e.file_name().to_string_lossy().into_owned()).collect())
+        .map(|r| {
+            r.filter_map(|e| e.ok())
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
         .unwrap_or_default();
     v.sort();
     v

@@ -27,9 +27,15 @@ fn examples_are_clean_and_exit_zero() {
 fn problems_exit_one_and_name_faces_in_every_format() {
     let dir = temp_dir("validate");
     write(&dir.join("bad.obj"), &quad_obj(-1.0));
-    write(&dir.join("bad.prismbake.toml"), "disp = \"h.png\"\nscale = 0.1\nwrap = \"clamp\"\n");
+    write(
+        &dir.join("bad.prismbake.toml"),
+        "disp = \"h.png\"\nscale = 0.1\nwrap = \"clamp\"\n",
+    );
     write(&dir.join("good.obj"), &quad_obj(1.0));
-    write(&dir.join("good.prismbake.toml"), "disp = \"h.png\"\nscale = 0.1\n");
+    write(
+        &dir.join("good.prismbake.toml"),
+        "disp = \"h.png\"\nscale = 0.1\n",
+    );
     // A real 16-bit PNG written by hand-rolled code would be overkill: reuse an example map.
     std::fs::copy(example("maps/scales_256.png"), dir.join("h.png")).unwrap();
 
@@ -46,29 +52,52 @@ fn problems_exit_one_and_name_faces_in_every_format() {
     let junit = run(&["validate", s(&dir), "--format", "junit"]);
     junit.assert_code(1);
     let doc = roxmltree::Document::parse(&junit.stdout).expect("JUnit output is well-formed XML");
-    let cases: Vec<_> = doc.descendants().filter(|n| n.has_tag_name("testcase")).collect();
+    let cases: Vec<_> = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("testcase"))
+        .collect();
     assert_eq!(cases.len(), 2 * 9, "one test case per asset × check");
-    let failures = doc.descendants().filter(|n| n.has_tag_name("failure")).count();
+    let failures = doc
+        .descendants()
+        .filter(|n| n.has_tag_name("failure"))
+        .count();
     assert_eq!(failures, 1);
 
     // --max-disp turns the displacement check on for both assets.
-    let strict = run(&["validate", s(&dir.join("good.obj")), "--max-disp", "0.001", "--format", "json"]);
+    let strict = run(&[
+        "validate",
+        s(&dir.join("good.obj")),
+        "--max-disp",
+        "0.001",
+        "--format",
+        "json",
+    ]);
     strict.assert_code(1);
     let checks = &strict.json()["assets"][0]["checks"];
-    let md = checks.as_array().unwrap().iter().find(|c| c["name"] == "max-displacement").unwrap();
+    let md = checks
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "max-displacement")
+        .unwrap();
     assert_eq!(md["status"], "fail");
 
     // The report can go to a file (written whole, atomically).
     let out = dir.join("report.xml");
     run(&["validate", s(&dir), "--format", "junit", "-o", s(&out)]).assert_code(1);
-    assert!(std::fs::read_to_string(&out).unwrap().contains("<testsuites"));
+    assert!(std::fs::read_to_string(&out)
+        .unwrap()
+        .contains("<testsuites"));
 }
 
 #[test]
 fn unreadable_map_and_missing_uvs_are_problems_not_crashes() {
     let dir = temp_dir("validate-map");
     write(&dir.join("a.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    write(&dir.join("a.prismbake.toml"), "disp = \"missing.png\"\nscale = 0.1\n");
+    write(
+        &dir.join("a.prismbake.toml"),
+        "disp = \"missing.png\"\nscale = 0.1\n",
+    );
     let r = run(&["validate", s(&dir), "--format", "json"]);
     r.assert_code(1);
     let j = r.json();
@@ -82,6 +111,8 @@ fn unreadable_map_and_missing_uvs_are_problems_not_crashes() {
 fn usage_errors_exit_two() {
     run(&["validate", "/nonexistent/path"]).assert_code(2);
     let dir = temp_dir("validate-empty");
-    run(&["validate", s(&dir)]).assert_error(&["no mesh files"]).assert_code(2);
+    run(&["validate", s(&dir)])
+        .assert_error(&["no mesh files"])
+        .assert_code(2);
     run(&["validate"]).assert_code(2);
 }

@@ -5,7 +5,11 @@ use prismbake::Wrap;
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
-#[command(name = "prismbake", version, about = "Displacement-mapped assets: repair, bake prisms, validate, ray trace without tessellation")]
+#[command(
+    name = "prismbake",
+    version,
+    about = "Displacement-mapped assets: repair, bake prisms, validate, ray trace without tessellation"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -129,7 +133,12 @@ pub struct LookArgs {
     #[arg(long, value_name = "MAP.exr")]
     pub env: Option<PathBuf>,
     /// Rotate the environment about the up axis (degrees).
-    #[arg(long, value_name = "DEG", default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(
+        long,
+        value_name = "DEG",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
     pub env_rotate: f32,
     /// Multiply the environment's radiance (0 = no environment light).
     #[arg(long, value_name = "K", default_value_t = 1.0)]
@@ -158,21 +167,34 @@ pub struct LookArgs {
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("'{s}': expected WIDTHxHEIGHT, e.g. 512x512"))?;
-    let p = |v: &str| v.trim().parse::<u32>().map_err(|_| format!("'{s}': expected WIDTHxHEIGHT, e.g. 512x512"));
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}': expected WIDTHxHEIGHT, e.g. 512x512"))?;
+    let p = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{s}': expected WIDTHxHEIGHT, e.g. 512x512"))
+    };
     Ok((p(w)?, p(h)?))
 }
 
 fn parse_range(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("'{s}': expected A-B, e.g. 0-11");
     match s.split_once('-') {
-        Some((a, b)) => Ok((a.trim().parse().map_err(|_| bad())?, b.trim().parse().map_err(|_| bad())?)),
+        Some((a, b)) => Ok((
+            a.trim().parse().map_err(|_| bad())?,
+            b.trim().parse().map_err(|_| bad())?,
+        )),
         None => s.trim().parse().map(|a| (a, a)).map_err(|_| bad()),
     }
 }
 
 fn parse_vec3(s: &str) -> Result<[f32; 3], String> {
-    let v: Vec<f32> = s.split(',').map(|c| c.trim().parse::<f32>()).collect::<Result<_, _>>().map_err(|_| format!("'{s}': expected X,Y,Z"))?;
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("'{s}': expected X,Y,Z"))?;
     <[f32; 3]>::try_from(v).map_err(|_| format!("'{s}': expected three numbers X,Y,Z"))
 }
 
@@ -278,7 +300,12 @@ pub struct BenchArgs {
     #[arg(long, default_value = "pdm,reference", value_delimiter = ',')]
     pub methods: Vec<String>,
     /// PDM step sizes to sweep: auto, auto:F (F texels) or world lengths.
-    #[arg(long, default_value = "auto:1,auto:0.5,auto:0.25", value_delimiter = ',', allow_hyphen_values = true)]
+    #[arg(
+        long,
+        default_value = "auto:1,auto:0.5,auto:0.25",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub dt: Vec<String>,
     /// Also run the paper-exact parallel-offset PDM (the before-fix watertightness numbers).
     #[arg(long)]

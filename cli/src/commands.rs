@@ -1,19 +1,24 @@
 //! One function per command: build the core config from the flags, call core, print.
 
-use crate::args::{BakeArgs, ExportArgs, BenchArgs, Cli, Command, Device, DispArgs, InspectArgs, NormalArg, RenderArgs, RepairArgs, ReportFormat, ValidateArgs};
+use crate::args::{
+    BakeArgs, BenchArgs, Cli, Command, Device, DispArgs, ExportArgs, InspectArgs, NormalArg,
+    RenderArgs, RepairArgs, ReportFormat, ValidateArgs,
+};
 use crate::progress;
-use prismbake::asset::{self, AssetSpec, Overrides};
-use prismbake::repair::RepairOptions;
-use prismbake::{prism_file, report, validate, Error, Result};
 use glam::Vec3;
-use prismbake::render::job::{self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob};
+use prismbake::asset::{self, AssetSpec, Overrides};
+use prismbake::bench::BenchConfig;
+use prismbake::render::job::{
+    self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob,
+};
 use prismbake::render::lookdev::{self, CacheUse, LookdevOptions, LookdevSummary, WatchEvent};
 use prismbake::render::{Aov, RenderSettings};
-use prismbake::bench::BenchConfig;
+use prismbake::repair::RepairOptions;
 use prismbake::trace::nonlinear::NonlinearOptions;
 use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
 use prismbake::trace::rmip::RmipOptions;
 use prismbake::trace::NormalMode;
+use prismbake::{prism_file, report, validate, Error, Result};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -44,7 +49,9 @@ pub fn repair_options(r: &RepairArgs) -> Result<RepairOptions> {
     let mut o = RepairOptions::default();
     if let Some(t) = r.crease_threshold {
         if !(0.0..1.0).contains(&t) {
-            return Err(Error::Param(format!("--crease-threshold {t} must be in [0, 1) (a dot product of unit vectors)")));
+            return Err(Error::Param(format!(
+                "--crease-threshold {t} must be in [0, 1) (a dot product of unit vectors)"
+            )));
         }
         o.crease_threshold = t;
     }
@@ -78,7 +85,10 @@ fn inspect(a: InspectArgs) -> Result<ExitCode> {
     let spec = asset::resolve(&a.mesh, &overrides(&a.disp, None))?;
     let info = validate::inspect(&spec, &repair_options(&a.repair)?)?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&info).expect("serialises"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&info).expect("serialises")
+        );
     } else {
         print!("{}", info.to_text());
     }
@@ -94,7 +104,10 @@ fn bake(a: BakeArgs) -> Result<ExitCode> {
         let table = prism_file::read(&a.output)?;
         let summary = validate::table_summary(&table, &a.output, true);
         if a.json {
-            println!("{}", serde_json::to_string_pretty(&summary).expect("serialises"));
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&summary).expect("serialises")
+            );
         } else {
             eprintln!("{}: up to date (same inputs), reused", a.output.display());
         }
@@ -132,7 +145,11 @@ fn validate(a: ValidateArgs) -> Result<ExitCode> {
     if meshes.is_empty() {
         return Err(Error::Param(format!(
             "no mesh files (.gltf, .glb, .obj) found under {}",
-            a.paths.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ")
+            a.paths
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
         )));
     }
     let pb = progress::bar(meshes.len() as u64, "validating");
@@ -152,11 +169,19 @@ fn validate(a: ValidateArgs) -> Result<ExitCode> {
         ReportFormat::Junit => report::to_junit(&reports),
     };
     print_or_write(&text, a.output.as_deref())?;
-    Ok(if reports.iter().any(|r| r.failed()) { ExitCode::from(1) } else { ExitCode::SUCCESS })
+    Ok(if reports.iter().any(|r| r.failed()) {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
 }
 
 fn parse_dt(s: &str) -> Result<StepSize> {
-    let bad = || Error::Param(format!("--dt {s}: expected auto, auto:F (F texels) or a positive world length"));
+    let bad = || {
+        Error::Param(format!(
+            "--dt {s}: expected auto, auto:F (F texels) or a positive world length"
+        ))
+    };
     let dt = if s == "auto" {
         StepSize::default()
     } else if let Some(f) = s.strip_prefix("auto:") {
@@ -172,10 +197,16 @@ fn parse_dt(s: &str) -> Result<StepSize> {
 
 fn render(a: RenderArgs) -> Result<ExitCode> {
     let method: Method = a.method.parse().map_err(Error::Param)?;
-    let aovs = a.aov.iter().map(|s| s.parse::<Aov>()).collect::<std::result::Result<Vec<_>, _>>().map_err(Error::Param)?;
+    let aovs = a
+        .aov
+        .iter()
+        .map(|s| s.parse::<Aov>())
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map_err(Error::Param)?;
     // The GPU renders PDM AOVs of one input; beauty, --watch, batch folders and the other
     // methods run on the CPU (`auto` falls back to it, `gpu` says so).
-    let gpu_able = method == Method::Pdm && !aovs.contains(&Aov::Beauty) && !a.watch && !a.input.is_dir();
+    let gpu_able =
+        method == Method::Pdm && !aovs.contains(&Aov::Beauty) && !a.watch && !a.input.is_dir();
     let gpu = match a.device {
         Device::Cpu => None,
         Device::Gpu if !gpu_able => {
@@ -183,12 +214,17 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
                 "--device gpu renders AOVs (not beauty) of one asset with --method pdm, without --watch; use --device cpu".into(),
             ));
         }
-        Device::Gpu => Some(prismbake_gpu::GpuContext::new().map_err(|e| Error::Param(format!("--device gpu: {e}")))?),
+        Device::Gpu => Some(
+            prismbake_gpu::GpuContext::new()
+                .map_err(|e| Error::Param(format!("--device gpu: {e}")))?,
+        ),
         Device::Auto if !gpu_able => {
             eprintln!("device: cpu (this render needs the CPU renderer)");
             None
         }
-        Device::Auto => prismbake_gpu::GpuContext::new().map_err(|e| eprintln!("device: cpu ({e})")).ok(),
+        Device::Auto => prismbake_gpu::GpuContext::new()
+            .map_err(|e| eprintln!("device: cpu ({e})"))
+            .ok(),
     };
     if let Some(ctx) = &gpu {
         eprintln!("device: gpu ({})", ctx.adapter_description());
@@ -202,7 +238,11 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         return render_batch(&a, method, &aovs, &look, &pool);
     }
     let input = if prismbake::load::extension(&a.input) == "prisms" {
-        Input::Table { path: a.input.clone(), disp: a.disp.disp.clone(), channel: a.disp.channel.clone() }
+        Input::Table {
+            path: a.input.clone(),
+            disp: a.disp.disp.clone(),
+            channel: a.disp.channel.clone(),
+        }
     } else {
         Input::Asset(asset::resolve(&a.input, &overrides(&a.disp, None))?)
     };
@@ -217,20 +257,35 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
                 ev.rebake.prisms_rebaked, ev.rebake.prisms, ev.rebake.records_updated, ev.bvh, ev.latency_ms, s.render.files.len(), ev.rebake_ms
             );
         };
-        let summary = pool.install(|| lookdev::watch(&job, &look, a.watch_max, &|m| eprintln!("{m}"), &on_event, &|_, _| {}))?;
+        let summary = pool.install(|| {
+            lookdev::watch(
+                &job,
+                &look,
+                a.watch_max,
+                &|m| eprintln!("{m}"),
+                &on_event,
+                &|_, _| {},
+            )
+        })?;
         print_render_summary(&a, &summary);
         return Ok(ExitCode::SUCCESS);
     }
     let pb = progress::bar(frames * rows, "rendering");
     let summary = match &gpu {
         Some(ctx) => LookdevSummary {
-            render: prismbake_gpu::job::run(ctx, &job, &|frame, done| pb.set_position(frame as u64 * rows + done as u64))?,
+            render: prismbake_gpu::job::run(ctx, &job, &|frame, done| {
+                pb.set_position(frame as u64 * rows + done as u64)
+            })?,
             table_cache: CacheUse::Off,
             beauty_rays: Default::default(),
             shadow_rays: 0,
             contact_sheets: vec![],
         },
-        None => pool.install(|| lookdev::run(&job, &look, &|frame, done| pb.set_position(frame as u64 * rows + done as u64)))?,
+        None => pool.install(|| {
+            lookdev::run(&job, &look, &|frame, done| {
+                pb.set_position(frame as u64 * rows + done as u64)
+            })
+        })?,
     };
     pb.finish_and_clear();
     print_render_summary(&a, &summary);
@@ -250,13 +305,23 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,
-        cache_dir: if a.no_cache { None } else { prismbake::table_cache::default_dir() },
+        cache_dir: if a.no_cache {
+            None
+        } else {
+            prismbake::table_cache::default_dir()
+        },
     };
     opts.validate()?;
     Ok(opts)
 }
 
-fn render_job_for(a: &RenderArgs, method: Method, aovs: Vec<Aov>, input: Input, out_dir: PathBuf) -> Result<RenderJob> {
+fn render_job_for(
+    a: &RenderArgs,
+    method: Method,
+    aovs: Vec<Aov>,
+    input: Input,
+    out_dir: PathBuf,
+) -> Result<RenderJob> {
     let normal_mode = match a.normal {
         NormalArg::Smooth => NormalMode::Smooth,
         NormalArg::Geometric => NormalMode::Geometric,
@@ -266,12 +331,28 @@ fn render_job_for(a: &RenderArgs, method: Method, aovs: Vec<Aov>, input: Input, 
         method: MethodConfig {
             method,
             normal_mode,
-            pdm: PdmOptions { dt: parse_dt(&a.dt)?, jitter: !a.no_jitter, ..PdmOptions::default() },
-            nonlinear: NonlinearOptions { precision: a.precision.parse().map_err(Error::Param)?, ..NonlinearOptions::default() },
+            pdm: PdmOptions {
+                dt: parse_dt(&a.dt)?,
+                jitter: !a.no_jitter,
+                ..PdmOptions::default()
+            },
+            nonlinear: NonlinearOptions {
+                precision: a.precision.parse().map_err(Error::Param)?,
+                ..NonlinearOptions::default()
+            },
             ref_density: a.ref_density,
-            rmip: RmipOptions { marching_scale: a.marching_scale, resolution: a.rmip_res, ..RmipOptions::default() },
+            rmip: RmipOptions {
+                marching_scale: a.marching_scale,
+                resolution: a.rmip_res,
+                ..RmipOptions::default()
+            },
         },
-        settings: RenderSettings { width: a.res.0, height: a.res.1, spp: a.spp, seed: a.seed },
+        settings: RenderSettings {
+            width: a.res.0,
+            height: a.res.1,
+            spp: a.spp,
+            seed: a.seed,
+        },
         aovs,
         turntable: a.turntable,
         frames: a.frames,
@@ -286,18 +367,28 @@ fn render_job_for(a: &RenderArgs, method: Method, aovs: Vec<Aov>, input: Input, 
 }
 
 fn frame_count(job: &RenderJob) -> u64 {
-    job.turntable.map_or(1, |n| job.frames.map_or(n, |(x, y)| y - x + 1)) as u64
+    job.turntable
+        .map_or(1, |n| job.frames.map_or(n, |(x, y)| y - x + 1)) as u64
 }
 
 fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
     if a.json {
-        println!("{}", serde_json::to_string_pretty(summary).expect("serialises"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(summary).expect("serialises")
+        );
         return;
     }
     match &summary.table_cache {
         CacheUse::Reused(p) => eprintln!("reused cached prism table {}", p.display()),
-        CacheUse::Stored(p) => eprintln!("baked {} prisms (cached as {})", summary.render.prisms, p.display()),
-        CacheUse::NotStored(e) => eprintln!("baked {} prisms (not cached: {e})", summary.render.prisms),
+        CacheUse::Stored(p) => eprintln!(
+            "baked {} prisms (cached as {})",
+            summary.render.prisms,
+            p.display()
+        ),
+        CacheUse::NotStored(e) => {
+            eprintln!("baked {} prisms (not cached: {e})", summary.render.prisms)
+        }
         CacheUse::Off => {}
     }
     for f in &summary.render.frames {
@@ -320,20 +411,46 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
     for p in &summary.contact_sheets {
         eprintln!("contact sheet: {}", p.display());
     }
-    eprintln!("wrote {} files to {}", summary.render.files.len() + summary.contact_sheets.len(), a.output.display());
+    eprintln!(
+        "wrote {} files to {}",
+        summary.render.files.len() + summary.contact_sheets.len(),
+        a.output.display()
+    );
 }
 
 /// `render DIR`: every mesh under DIR into OUTPUT/<stem>/, past failures; exit 1 if any failed.
-fn render_batch(a: &RenderArgs, method: Method, aovs: &[Aov], look: &LookdevOptions, pool: &rayon::ThreadPool) -> Result<ExitCode> {
+fn render_batch(
+    a: &RenderArgs,
+    method: Method,
+    aovs: &[Aov],
+    look: &LookdevOptions,
+    pool: &rayon::ThreadPool,
+) -> Result<ExitCode> {
     if a.watch {
-        return Err(Error::Param(format!("--watch follows one asset's height map; {} is a folder", a.input.display())));
+        return Err(Error::Param(format!(
+            "--watch follows one asset's height map; {} is a folder",
+            a.input.display()
+        )));
     }
     let meshes = asset::find_meshes(&a.input);
     if meshes.is_empty() {
-        return Err(Error::Param(format!("no mesh files (.gltf, .glb, .obj, .usd*) found under {}", a.input.display())));
+        return Err(Error::Param(format!(
+            "no mesh files (.gltf, .glb, .obj, .usd*) found under {}",
+            a.input.display()
+        )));
     }
     render_job::prepare_out_dir(&a.output)?;
-    let probe = render_job_for(a, method, aovs.to_vec(), Input::Table { path: PathBuf::new(), disp: None, channel: None }, a.output.clone())?;
+    let probe = render_job_for(
+        a,
+        method,
+        aovs.to_vec(),
+        Input::Table {
+            path: PathBuf::new(),
+            disp: None,
+            channel: None,
+        },
+        a.output.clone(),
+    )?;
     probe.validate()?;
     let frames = frame_count(&probe);
     let pb = progress::bar(meshes.len() as u64 * frames, "rendering");
@@ -341,7 +458,10 @@ fn render_batch(a: &RenderArgs, method: Method, aovs: &[Aov], look: &LookdevOpti
     let mut failures: Vec<(PathBuf, String)> = Vec::new();
     let mut results = Vec::new();
     for (k, mesh) in meshes.iter().enumerate() {
-        let base = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "asset".into());
+        let base = mesh
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "asset".into());
         let mut stem = base.clone();
         let mut n = 2;
         while !used.insert(stem.clone()) {
@@ -351,16 +471,33 @@ fn render_batch(a: &RenderArgs, method: Method, aovs: &[Aov], look: &LookdevOpti
         pb.set_message(stem.clone());
         let out = a.output.join(&stem);
         let result = asset::resolve(mesh, &overrides(&a.disp, None))
-            .and_then(|spec| render_job_for(a, method, aovs.to_vec(), Input::Asset(spec), out.clone()))
-            .and_then(|job| pool.install(|| lookdev::run(&job, look, &|f, _| pb.set_position(k as u64 * frames + f as u64))));
+            .and_then(|spec| {
+                render_job_for(a, method, aovs.to_vec(), Input::Asset(spec), out.clone())
+            })
+            .and_then(|job| {
+                pool.install(|| {
+                    lookdev::run(&job, look, &|f, _| {
+                        pb.set_position(k as u64 * frames + f as u64)
+                    })
+                })
+            });
         pb.set_position((k as u64 + 1) * frames);
         match result {
             Ok(s) => {
                 if !a.json {
                     let secs: f64 = s.render.frames.iter().map(|f| f.seconds).sum();
-                    pb.suspend(|| eprintln!("{}: {} files in {}/ ({secs:.2} s)", mesh.display(), s.render.files.len() + s.contact_sheets.len(), out.display()));
+                    pb.suspend(|| {
+                        eprintln!(
+                            "{}: {} files in {}/ ({secs:.2} s)",
+                            mesh.display(),
+                            s.render.files.len() + s.contact_sheets.len(),
+                            out.display()
+                        )
+                    });
                 }
-                results.push(serde_json::json!({"mesh": mesh, "output": out, "ok": true, "summary": s}));
+                results.push(
+                    serde_json::json!({"mesh": mesh, "output": out, "ok": true, "summary": s}),
+                );
             }
             Err(e) => {
                 pb.suspend(|| eprintln!("{}: FAILED: {e}", mesh.display()));
@@ -371,9 +508,18 @@ fn render_batch(a: &RenderArgs, method: Method, aovs: &[Aov], look: &LookdevOpti
     }
     pb.finish_and_clear();
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&serde_json::json!({"assets": results})).expect("serialises"));
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({"assets": results}))
+                .expect("serialises")
+        );
     }
-    eprintln!("rendered {} of {} assets into {}", meshes.len() - failures.len(), meshes.len(), a.output.display());
+    eprintln!(
+        "rendered {} of {} assets into {}",
+        meshes.len() - failures.len(),
+        meshes.len(),
+        a.output.display()
+    );
     if failures.is_empty() {
         return Ok(ExitCode::SUCCESS);
     }
@@ -391,16 +537,43 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         match method {
             Method::Pdm => {
                 for dt in &a.dt {
-                    let pdm = PdmOptions { dt: parse_dt(dt)?, ..PdmOptions::default() };
-                    settings.push((format!("dt={dt}"), MethodConfig { method, pdm, ..MethodConfig::default() }));
+                    let pdm = PdmOptions {
+                        dt: parse_dt(dt)?,
+                        ..PdmOptions::default()
+                    };
+                    settings.push((
+                        format!("dt={dt}"),
+                        MethodConfig {
+                            method,
+                            pdm,
+                            ..MethodConfig::default()
+                        },
+                    ));
                 }
             }
-            _ => settings.push((m.clone(), MethodConfig { method, ..MethodConfig::default() })),
+            _ => settings.push((
+                m.clone(),
+                MethodConfig {
+                    method,
+                    ..MethodConfig::default()
+                },
+            )),
         }
     }
     if a.paper_pdm {
-        let pdm = PdmOptions { construction: Construction::ParallelOffset, refine: false, ..PdmOptions::default() };
-        settings.push(("paper".to_string(), MethodConfig { method: Method::Pdm, pdm, ..MethodConfig::default() }));
+        let pdm = PdmOptions {
+            construction: Construction::ParallelOffset,
+            refine: false,
+            ..PdmOptions::default()
+        };
+        settings.push((
+            "paper".to_string(),
+            MethodConfig {
+                method: Method::Pdm,
+                pdm,
+                ..MethodConfig::default()
+            },
+        ));
     }
     let cfg = BenchConfig {
         width: a.res.0,
@@ -413,7 +586,10 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         repeats: a.repeats,
     };
     if cfg.width == 0 || cfg.height == 0 || cfg.width > 8192 || cfg.height > 8192 {
-        return Err(Error::Param(format!("--res {}x{}: each side must be 1..=8192", cfg.width, cfg.height)));
+        return Err(Error::Param(format!(
+            "--res {}x{}: each side must be 1..=8192",
+            cfg.width, cfg.height
+        )));
     }
     let meshes = asset::expand_paths(&a.assets)?;
     render_job::prepare_out_dir(&a.output)?;
@@ -426,25 +602,47 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         let spec = asset::resolve(mesh, &overrides(&a.disp, None))?;
         let input = Input::Asset(spec);
         let loaded = render_job::load_input(&input, &RepairOptions::default())?;
-        let cam = render_job::base_camera(&loaded, &CameraOverride::default(), cfg.width as f32 / cfg.height as f32);
+        let cam = render_job::base_camera(
+            &loaded,
+            &CameraOverride::default(),
+            cfg.width as f32 / cfg.height as f32,
+        );
         let scene = prismbake::accel::Scene::new(loaded.table, loaded.map);
         let name = mesh.display().to_string();
-        let asset_rows = pool.install(|| prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}")));
-        let stem = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-        prismbake::bench::plot::write_plot(&a.output.join(format!("{stem}.png")), &format!("{stem}: time vs depth error"), &asset_rows)?;
+        let asset_rows = pool.install(|| {
+            prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}"))
+        });
+        let stem = mesh
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        prismbake::bench::plot::write_plot(
+            &a.output.join(format!("{stem}.png")),
+            &format!("{stem}: time vs depth error"),
+            &asset_rows,
+        )?;
         rows.extend(asset_rows);
     }
     print!("{}", prismbake::bench::to_table(&rows));
-    prism_file::write_atomic(&a.output.join("bench.csv"), prismbake::bench::to_csv(&rows).as_bytes())?;
+    prism_file::write_atomic(
+        &a.output.join("bench.csv"),
+        prismbake::bench::to_csv(&rows).as_bytes(),
+    )?;
     let json = serde_json::to_string_pretty(&rows).expect("serialises");
     prism_file::write_atomic(&a.output.join("bench.json"), json.as_bytes())?;
-    eprintln!("wrote bench.csv, bench.json and plots to {}", a.output.display());
+    eprintln!(
+        "wrote bench.csv, bench.json and plots to {}",
+        a.output.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 
 fn export(a: ExportArgs) -> Result<ExitCode> {
     if prismbake::load::extension(&a.usd) != "usda" {
-        return Err(Error::Param(format!("--usd {}: only .usda (USD text) is written; name the output OUT.usda", a.usd.display())));
+        return Err(Error::Param(format!(
+            "--usd {}: only .usda (USD text) is written; name the output OUT.usda",
+            a.usd.display()
+        )));
     }
     let spec = asset::resolve(&a.mesh, &overrides(&a.disp, None))?;
     let pb = progress::spinner("baking");
@@ -454,6 +652,11 @@ fn export(a: ExportArgs) -> Result<ExitCode> {
         eprint!("{}", prepared.report.to_text());
     }
     prismbake::usd_export::write_usda(&prepared, &a.usd)?;
-    eprintln!("{}: {} faces, {} points", a.usd.display(), prepared.table.prisms.len(), prepared.table.positions.len());
+    eprintln!(
+        "{}: {} faces, {} points",
+        a.usd.display(),
+        prepared.table.prisms.len(),
+        prepared.table.positions.len()
+    );
     Ok(ExitCode::SUCCESS)
 }

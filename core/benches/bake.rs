@@ -34,7 +34,12 @@ fn footprint_range_per_texel(map: &HeightMap, uv: &[Vec2; 3]) -> (f32, f32) {
             }
         }
         if x0 <= x1 {
-            let (a, b) = map.texel_range((x0 - 0.5).floor() as i64, (x1 - 0.5).floor() as i64 + 1, j, j);
+            let (a, b) = map.texel_range(
+                (x0 - 0.5).floor() as i64,
+                (x1 - 0.5).floor() as i64 + 1,
+                j,
+                j,
+            );
             (lo, hi) = (lo.min(a), hi.max(b));
         }
     }
@@ -44,21 +49,28 @@ fn footprint_range_per_texel(map: &HeightMap, uv: &[Vec2; 3]) -> (f32, f32) {
 fn bake_4096(c: &mut Criterion) {
     let mesh = common::uv_sphere(64, 64);
     let map = common::relief_map(4096);
-    let opts = BakeOptions { params: DisplaceParams { scale: 0.05, midlevel: 0.5 } };
+    let opts = BakeOptions {
+        params: DisplaceParams {
+            scale: 0.05,
+            midlevel: 0.5,
+        },
+    };
     let mut g = c.benchmark_group("bake");
     g.sample_size(10);
-    g.bench_function(format!("4096x4096 map, {} triangles", mesh.triangle_count()), |b| {
-        b.iter(|| black_box(bake(black_box(&mesh), black_box(&map), &opts)))
-    });
+    g.bench_function(
+        format!("4096x4096 map, {} triangles", mesh.triangle_count()),
+        |b| b.iter(|| black_box(bake(black_box(&mesh), black_box(&map), &opts))),
+    );
     // One large footprint (a pole triangle: 64 texels wide, 64 tall) without rayon.
     let t = mesh.triangle_count() / 2;
     let uv = mesh.corner_uvs(t);
     g.bench_function("footprint_range, one 64x64-texel triangle", |b| {
         b.iter(|| black_box(footprint_range(black_box(&map), black_box(&uv))))
     });
-    g.bench_function("footprint_range, one 64x64-texel triangle, per-texel baseline", |b| {
-        b.iter(|| black_box(footprint_range_per_texel(black_box(&map), black_box(&uv))))
-    });
+    g.bench_function(
+        "footprint_range, one 64x64-texel triangle, per-texel baseline",
+        |b| b.iter(|| black_box(footprint_range_per_texel(black_box(&map), black_box(&uv)))),
+    );
     g.finish();
 }
 

@@ -4,6 +4,7 @@
 //! batch; docs/benchmarks.md divides by the ray count printed at setup.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use glam::Vec2;
 use prismbake::accel::Scene;
 use prismbake::asset::{self, Overrides};
 use prismbake::render::camera::Camera;
@@ -11,7 +12,6 @@ use prismbake::repair::RepairOptions;
 use prismbake::trace::pdm::{Pdm, PdmOptions};
 use prismbake::trace::reference::Reference;
 use prismbake::trace::{Intersector, Ray, RayContext};
-use glam::Vec2;
 use std::hint::black_box;
 use std::path::Path;
 
@@ -20,14 +20,26 @@ const RES: u32 = 128;
 
 fn primary_rays(cam: &Camera) -> Vec<Ray> {
     (0..RES)
-        .flat_map(|y| (0..RES).map(move |x| cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), RES, RES)))
+        .flat_map(|y| {
+            (0..RES).map(move |x| cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), RES, RES))
+        })
         .collect()
 }
 
 fn trace_batch(isect: &dyn Intersector, rays: &[Ray]) -> usize {
     rays.iter()
         .enumerate()
-        .filter(|(i, r)| isect.intersect(r, &RayContext { pixel: *i as u32, ..Default::default() }).is_some())
+        .filter(|(i, r)| {
+            isect
+                .intersect(
+                    r,
+                    &RayContext {
+                        pixel: *i as u32,
+                        ..Default::default()
+                    },
+                )
+                .is_some()
+        })
         .count()
 }
 
@@ -39,7 +51,13 @@ fn intersect(c: &mut Criterion) {
         Some(c) => Camera::from_scene(c),
         None => {
             let (lo, hi) = prepared.table.bounds();
-            Camera::frame_bounds(lo, hi, prepared.mesh.up_axis.unwrap_or(prismbake::mesh::UpAxis::Y), 40.0, 1.0)
+            Camera::frame_bounds(
+                lo,
+                hi,
+                prepared.mesh.up_axis.unwrap_or(prismbake::mesh::UpAxis::Y),
+                40.0,
+                1.0,
+            )
         }
     };
     let rays = primary_rays(&cam);
@@ -59,8 +77,12 @@ fn intersect(c: &mut Criterion) {
     let mut g = c.benchmark_group("intersect_sphere_primary");
     g.throughput(Throughput::Elements(rays.len() as u64));
     g.sample_size(20);
-    g.bench_function("pdm", |b| b.iter(|| black_box(trace_batch(&pdm, black_box(&rays)))));
-    g.bench_function("reference_k2", |b| b.iter(|| black_box(trace_batch(&reference, black_box(&rays)))));
+    g.bench_function("pdm", |b| {
+        b.iter(|| black_box(trace_batch(&pdm, black_box(&rays))))
+    });
+    g.bench_function("reference_k2", |b| {
+        b.iter(|| black_box(trace_batch(&reference, black_box(&rays))))
+    });
     g.finish();
 }
 

@@ -37,8 +37,17 @@ fn write_asset(dir: &Path, format: &str) -> PathBuf {
     let mesh = common::uv_sphere(64, 64);
     let map = common::relief_map(4096);
     let mut obj = String::new();
-    for (p, (n, t)) in mesh.positions.iter().zip(mesh.normals.iter().zip(&mesh.uvs)) {
-        writeln!(obj, "v {} {} {}\nvn {} {} {}\nvt {} {}", p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y).unwrap();
+    for (p, (n, t)) in mesh
+        .positions
+        .iter()
+        .zip(mesh.normals.iter().zip(&mesh.uvs))
+    {
+        writeln!(
+            obj,
+            "v {} {} {}\nvn {} {} {}\nvt {} {}",
+            p.x, p.y, p.z, n.x, n.y, n.z, t.x, t.y
+        )
+        .unwrap();
     }
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| i + 1);
@@ -49,22 +58,41 @@ fn write_asset(dir: &Path, format: &str) -> PathBuf {
     let (w, h) = (map.width, map.height);
     let map_name = match format {
         "png16" => {
-            let px: Vec<u16> = map.data.iter().map(|&v| (v * 65535.0).round() as u16).collect();
-            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, px).unwrap().save(dir.join("relief.png")).unwrap();
+            let px: Vec<u16> = map
+                .data
+                .iter()
+                .map(|&v| (v * 65535.0).round() as u16)
+                .collect();
+            image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, px)
+                .unwrap()
+                .save(dir.join("relief.png"))
+                .unwrap();
             "relief.png"
         }
         "png8" => {
-            let px: Vec<u8> = map.data.iter().map(|&v| (v * 255.0).round() as u8).collect();
-            image::ImageBuffer::<image::Luma<u8>, _>::from_raw(w, h, px).unwrap().save(dir.join("relief.png")).unwrap();
+            let px: Vec<u8> = map
+                .data
+                .iter()
+                .map(|&v| (v * 255.0).round() as u8)
+                .collect();
+            image::ImageBuffer::<image::Luma<u8>, _>::from_raw(w, h, px)
+                .unwrap()
+                .save(dir.join("relief.png"))
+                .unwrap();
             "relief.png"
         }
         "exr" => {
-            prismbake::render::output::write_exr(&dir.join("relief.exr"), w, h, &["Y"], &map.data).unwrap();
+            prismbake::render::output::write_exr(&dir.join("relief.exr"), w, h, &["Y"], &map.data)
+                .unwrap();
             "relief.exr"
         }
         other => panic!("unknown map format '{other}' (png16, png8 or exr)"),
     };
-    std::fs::write(dir.join("sphere.prismbake.toml"), format!("disp = \"{map_name}\"\nscale = 0.05\n")).unwrap();
+    std::fs::write(
+        dir.join("sphere.prismbake.toml"),
+        format!("disp = \"{map_name}\"\nscale = 0.05\n"),
+    )
+    .unwrap();
     obj_path
 }
 
@@ -83,7 +111,12 @@ fn measure(obj: &Path) {
          peak / map = {:.2} (delta / map = {:.2})",
         prepared.map.width,
         prepared.map.height,
-        spec.disp.as_ref().unwrap().extension().unwrap().to_string_lossy(),
+        spec.disp
+            .as_ref()
+            .unwrap()
+            .extension()
+            .unwrap()
+            .to_string_lossy(),
         prepared.mesh.triangle_count(),
         prepared.table.prisms.len(),
         seconds,

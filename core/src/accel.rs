@@ -284,7 +284,12 @@ pub(crate) mod fixtures {
         }
         let uvs = pos
             .iter()
-            .map(|p| Vec2::new(0.5 + 0.37 * (p.x + 0.4 * p.z), 0.5 + 0.37 * (p.y - 0.3 * p.z)))
+            .map(|p| {
+                Vec2::new(
+                    0.5 + 0.37 * (p.x + 0.4 * p.z),
+                    0.5 + 0.37 * (p.y - 0.3 * p.z),
+                )
+            })
             .collect();
         BaseMesh {
             normals: pos.clone(),

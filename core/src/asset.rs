@@ -73,14 +73,20 @@ impl AssetSpec {
 }
 
 pub fn sidecar_path(mesh: &Path) -> PathBuf {
-    let stem = mesh.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = mesh
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
     mesh.with_file_name(format!("{stem}{SIDECAR_SUFFIX}"))
 }
 
 pub fn read_sidecar(path: &Path) -> Result<Sidecar> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut s: Sidecar = toml::from_str(&text).map_err(|e| {
-        Error::invalid(path, format!("{} (see docs/sidecar.md for the fields)", e.message()))
+        Error::invalid(
+            path,
+            format!("{} (see docs/sidecar.md for the fields)", e.message()),
+        )
     })?;
     if let Some(d) = &s.disp {
         if d.is_relative() {
@@ -105,7 +111,10 @@ pub fn resolve(mesh: &Path, flags: &Overrides) -> Result<AssetSpec> {
         disp: flags.disp.clone().or(side.disp),
         params: DisplaceParams {
             scale: flags.scale.or(side.scale).unwrap_or(defaults.scale),
-            midlevel: flags.midlevel.or(side.midlevel).unwrap_or(defaults.midlevel),
+            midlevel: flags
+                .midlevel
+                .or(side.midlevel)
+                .unwrap_or(defaults.midlevel),
         },
         wrap: flags.wrap.or(side.wrap).unwrap_or_default(),
         channel: flags.channel.clone().or(side.channel),
@@ -128,7 +137,9 @@ fn with_usd_material(mesh: &Path, mut side: Sidecar) -> Result<Sidecar> {
     if !matches!(load::extension(mesh).as_str(), "usda" | "usdc" | "usd") || !mesh.is_file() {
         return Ok(side);
     }
-    let Some(usd) = load::usd::displacement(mesh)? else { return Ok(side) };
+    let Some(usd) = load::usd::displacement(mesh)? else {
+        return Ok(side);
+    };
     if side.channel.is_none() && usd.channel != "R" && load::extension(&usd.file) == "exr" {
         side.channel = Some(usd.channel.clone());
     }
@@ -147,7 +158,12 @@ pub fn find_meshes(root: &Path) -> Vec<PathBuf> {
         .filter_map(|e| e.ok())
         .filter(|e| e.file_type().is_file())
         .map(|e| e.into_path())
-        .filter(|p| matches!(load::extension(p).as_str(), "gltf" | "glb" | "obj" | "usda" | "usdc" | "usd"))
+        .filter(|p| {
+            matches!(
+                load::extension(p).as_str(),
+                "gltf" | "glb" | "obj" | "usda" | "usdc" | "usd"
+            )
+        })
         .collect();
     found.sort();
     found
@@ -238,7 +254,13 @@ pub fn load(spec: &AssetSpec) -> Result<(BaseMesh, HeightMap)> {
 pub fn prepare(spec: &AssetSpec, repair_opts: &RepairOptions) -> Result<Prepared> {
     let (mesh, map) = load(spec)?;
     let (mesh, report) = repair::repair(mesh, repair_opts);
-    let mut table = bake::bake(&mesh, &map, &BakeOptions { params: spec.params });
+    let mut table = bake::bake(
+        &mesh,
+        &map,
+        &BakeOptions {
+            params: spec.params,
+        },
+    );
     table.input_hash = input_hash(spec, repair_opts)?;
     Ok(Prepared {
         spec: spec.clone(),
@@ -253,7 +275,14 @@ pub fn prepare(spec: &AssetSpec, repair_opts: &RepairOptions) -> Result<Prepared
 pub fn map_path_for_table(map: &Path, table_path: &Path) -> String {
     let dir = table_path.parent().unwrap_or(Path::new(""));
     let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-    let (map_abs, dir_abs) = (abs(map), abs(if dir.as_os_str().is_empty() { Path::new(".") } else { dir }));
+    let (map_abs, dir_abs) = (
+        abs(map),
+        abs(if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        }),
+    );
     match map_abs.strip_prefix(&dir_abs) {
         Ok(rel) => rel.to_string_lossy().into_owned(),
         Err(_) => map_abs.to_string_lossy().into_owned(),
@@ -261,22 +290,40 @@ pub fn map_path_for_table(map: &Path, table_path: &Path) -> String {
 }
 
 /// Load a baked table and its height map (found relative to the table, or `disp` if given).
-pub fn load_table(path: &Path, disp: Option<&Path>, channel: Option<String>) -> Result<(PrismTable, HeightMap)> {
+pub fn load_table(
+    path: &Path,
+    disp: Option<&Path>,
+    channel: Option<String>,
+) -> Result<(PrismTable, HeightMap)> {
     let table = prism_file::read(path)?;
     let map_path = match disp {
         Some(d) => d.to_path_buf(),
         None => {
             let p = PathBuf::from(&table.map_path);
-            if p.is_absolute() { p } else { path.parent().unwrap_or(Path::new("")).join(p) }
+            if p.is_absolute() {
+                p
+            } else {
+                path.parent().unwrap_or(Path::new("")).join(p)
+            }
         }
     };
-    let map = load::load_height_map(&map_path, &MapOptions { channel, wrap: table.wrap })?;
+    let map = load::load_height_map(
+        &map_path,
+        &MapOptions {
+            channel,
+            wrap: table.wrap,
+        },
+    )?;
     if (map.width, map.height) != (table.map_width, table.map_height) {
         return Err(Error::invalid(
             path,
             format!(
                 "was baked for a {}x{} map but {} is {}x{}; re-bake the table for this map",
-                table.map_width, table.map_height, map_path.display(), map.width, map.height
+                table.map_width,
+                table.map_height,
+                map_path.display(),
+                map.width,
+                map.height
             ),
         ));
     }

@@ -252,7 +252,10 @@ fn slice_range(s: &[f32]) -> (f32, f32) {
         lo[k] = lo[k].min(v);
         hi[k] = hi[k].max(v);
     }
-    (lo.into_iter().fold(f32::INFINITY, f32::min), hi.into_iter().fold(f32::NEG_INFINITY, f32::max))
+    (
+        lo.into_iter().fold(f32::INFINITY, f32::min),
+        hi.into_iter().fold(f32::NEG_INFINITY, f32::max),
+    )
 }
 
 /// x-extent of a triangle clipped to the horizontal band `y ∈ [y0, y1]`, if they meet.
@@ -400,7 +403,9 @@ mod tests {
         let centre = Vec2::new(rng.range(-1.5, 2.5), rng.range(-1.5, 2.5));
         let texel = 1.0 / map.width.max(map.height) as f32;
         let size = texel * 0.05 * (60.0 / texel).powf(rng.unit()); // log-uniform, up to ~3 UV units
-        std::array::from_fn(|_| centre + Vec2::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)) * size)
+        std::array::from_fn(|_| {
+            centre + Vec2::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)) * size
+        })
     }
 
     /// Dense barycentric lattice plus random interior points of the triangle.
@@ -415,10 +420,16 @@ mod tests {
         }
         for _ in 0..200 {
             let (a, c) = (rng.unit(), rng.unit());
-            let (a, c) = if a + c > 1.0 { (1.0 - a, 1.0 - c) } else { (a, c) };
+            let (a, c) = if a + c > 1.0 {
+                (1.0 - a, 1.0 - c)
+            } else {
+                (a, c)
+            };
             out.push(Vec3::new(1.0 - a - c, a, c));
         }
-        out.into_iter().map(|b| (b, uv[0] * b.x + uv[1] * b.y + uv[2] * b.z)).collect()
+        out.into_iter()
+            .map(|b| (b, uv[0] * b.x + uv[1] * b.y + uv[2] * b.z))
+            .collect()
     }
 
     /// The footprint bound is what every intersector's prism extent rests on: a bilinear
@@ -428,7 +439,11 @@ mod tests {
     fn footprint_range_contains_every_bilinear_sample() {
         let mut rng = Rng(0x5eed);
         for case in 0..600 {
-            let wrap = if case % 2 == 0 { Wrap::Repeat } else { Wrap::Clamp };
+            let wrap = if case % 2 == 0 {
+                Wrap::Repeat
+            } else {
+                Wrap::Clamp
+            };
             let map = random_map(&mut rng, wrap);
             let uv = random_uv_triangle(&mut rng, &map);
             let (lo, hi) = footprint_range(&map, &uv);
@@ -461,10 +476,16 @@ mod tests {
         }
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for j in (ymin - 0.5).floor() as i64..=(ymax - 0.5).floor() as i64 + 1 {
-            let Some((x0, x1)) = triangle_band_x_extent(&p, (j as f32 - 0.5, j as f32 + 1.5)) else {
+            let Some((x0, x1)) = triangle_band_x_extent(&p, (j as f32 - 0.5, j as f32 + 1.5))
+            else {
                 continue;
             };
-            let (a, b) = map.texel_range((x0 - 0.5).floor() as i64, (x1 - 0.5).floor() as i64 + 1, j, j);
+            let (a, b) = map.texel_range(
+                (x0 - 0.5).floor() as i64,
+                (x1 - 0.5).floor() as i64 + 1,
+                j,
+                j,
+            );
             lo = lo.min(a);
             hi = hi.max(b);
         }
@@ -480,15 +501,28 @@ mod tests {
     fn row_slices_give_the_per_texel_range() {
         let mut rng = Rng(0x0dd5);
         for case in 0..3000 {
-            let wrap = if case % 2 == 0 { Wrap::Repeat } else { Wrap::Clamp };
+            let wrap = if case % 2 == 0 {
+                Wrap::Repeat
+            } else {
+                Wrap::Clamp
+            };
             let mut map = random_map(&mut rng, wrap);
             if case % 5 == 0 {
                 // Wide rows, so that the eight-lane loop and its remainder both run.
                 let w = 8 + rng.below(40);
-                map = HeightMap::new(w, 3, (0..w * 3).map(|_| rng.range(-0.5, 1.5)).collect(), wrap);
+                map = HeightMap::new(
+                    w,
+                    3,
+                    (0..w * 3).map(|_| rng.range(-0.5, 1.5)).collect(),
+                    wrap,
+                );
             }
             let uv = random_uv_triangle(&mut rng, &map);
-            assert_eq!(footprint_range(&map, &uv), footprint_range_per_texel(&map, &uv), "case {case}: {uv:?}");
+            assert_eq!(
+                footprint_range(&map, &uv),
+                footprint_range_per_texel(&map, &uv),
+                "case {case}: {uv:?}"
+            );
         }
     }
 
@@ -500,13 +534,24 @@ mod tests {
     fn bake_prism_extent_contains_the_canonical_surface() {
         let mut rng = Rng(0xba4e);
         for case in 0..400 {
-            let wrap = if case % 3 == 0 { Wrap::Clamp } else { Wrap::Repeat };
+            let wrap = if case % 3 == 0 {
+                Wrap::Clamp
+            } else {
+                Wrap::Repeat
+            };
             let map = random_map(&mut rng, wrap);
             let uv = random_uv_triangle(&mut rng, &map);
-            let positions = vec![Vec3::ZERO, Vec3::new(1.0, 0.1, 0.0), Vec3::new(0.2, 0.9, 0.0)];
+            let positions = vec![
+                Vec3::ZERO,
+                Vec3::new(1.0, 0.1, 0.0),
+                Vec3::new(0.2, 0.9, 0.0),
+            ];
             let tilt = rng.range(0.0, 1.2);
             let normals: Vec<Vec3> = (0..3)
-                .map(|_| (Vec3::Z + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0) * tilt).normalize())
+                .map(|_| {
+                    (Vec3::Z + Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), 0.0) * tilt)
+                        .normalize()
+                })
                 .collect();
             let mesh = BaseMesh {
                 positions,
@@ -517,13 +562,22 @@ mod tests {
                 face_flags: vec![0],
                 ..Default::default()
             };
-            let params = DisplaceParams { scale: rng.range(-0.3, 0.3), midlevel: rng.range(-0.2, 1.2) };
+            let params = DisplaceParams {
+                scale: rng.range(-0.3, 0.3),
+                midlevel: rng.range(-0.2, 1.2),
+            };
             let p = bake_prism(&mesh, &map, &params, 0);
-            assert!(p.d_min <= p.d_max && p.lambda_lo <= p.lambda_hi, "case {case}: {p:?}");
+            assert!(
+                p.d_min <= p.d_max && p.lambda_lo <= p.lambda_hi,
+                "case {case}: {p:?}"
+            );
             for (b, t) in samples(&mut rng, &uv) {
                 let d = params.displacement(map.sample(t));
                 let tol = 1e-5 * d.abs().max(1e-3);
-                assert!(d >= p.d_min - tol && d <= p.d_max + tol, "case {case}: D = {d} outside {p:?}");
+                assert!(
+                    d >= p.d_min - tol && d <= p.d_max + tol,
+                    "case {case}: D = {d} outside {p:?}"
+                );
                 let m = (normals[0] * b.x + normals[1] * b.y + normals[2] * b.z).length();
                 if p.flags & PRISM_DEGENERATE_NORMALS != 0 || m < M_LO_FLOOR {
                     continue; // the λ range is clamped there by design (and flagged)

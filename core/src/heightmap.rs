@@ -106,7 +106,11 @@ impl HeightMap {
     /// texels, so bit-identical to the general path).
     #[inline]
     fn bilinear_texels(&self, p: Vec2) -> ([f32; 4], f32, f32) {
-        if p.x >= 0.0 && p.y >= 0.0 && p.x < self.width.saturating_sub(1) as f32 && p.y < self.height.saturating_sub(1) as f32 {
+        if p.x >= 0.0
+            && p.y >= 0.0
+            && p.x < self.width.saturating_sub(1) as f32
+            && p.y < self.height.saturating_sub(1) as f32
+        {
             let (x, y) = (p.x as usize, p.y as usize);
             let (tx, ty) = (p.x - x as f32, p.y - y as f32);
             let w = self.width as usize;
@@ -218,7 +222,9 @@ mod tests {
     fn fast_path_is_bit_identical_to_the_wrapped_texels() {
         // `sample`'s in-range fast path against the general `texel` path, over the whole map
         // and past its edges, both wrap modes.
-        let data: Vec<f32> = (0..35).map(|i| ((i * 13) % 7) as f32 * 0.37 + i as f32 * 1e-3).collect();
+        let data: Vec<f32> = (0..35)
+            .map(|i| ((i * 13) % 7) as f32 * 0.37 + i as f32 * 1e-3)
+            .collect();
         for wrap in [Wrap::Repeat, Wrap::Clamp] {
             let m = HeightMap::new(7, 5, data.clone(), wrap);
             for k in 0..4000 {

@@ -26,17 +26,24 @@ pub const MAX_PRISMS: u64 = 1 << 28;
 
 pub fn encode(table: &PrismTable) -> Vec<u8> {
     let path = table.map_path.as_bytes();
-    let mut out = Vec::with_capacity(encoded_len(table.positions.len(), table.prisms.len(), path.len()));
+    let mut out = Vec::with_capacity(encoded_len(
+        table.positions.len(),
+        table.prisms.len(),
+        path.len(),
+    ));
     out.extend_from_slice(&MAGIC);
     put_u32(&mut out, VERSION);
     put_u64(&mut out, table.positions.len() as u64);
     put_u64(&mut out, table.prisms.len() as u64);
     put_u32(&mut out, table.map_width);
     put_u32(&mut out, table.map_height);
-    put_u32(&mut out, match table.wrap {
-        Wrap::Repeat => 0,
-        Wrap::Clamp => 1,
-    });
+    put_u32(
+        &mut out,
+        match table.wrap {
+            Wrap::Repeat => 0,
+            Wrap::Clamp => 1,
+        },
+    );
     put_f32(&mut out, table.params.scale);
     put_f32(&mut out, table.params.midlevel);
     put_u32(&mut out, 0); // reserved flags
@@ -77,8 +84,14 @@ pub fn write(path: &Path, table: &PrismTable) -> Result<()> {
 }
 
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
@@ -110,9 +123,16 @@ struct Reader<'a> {
 
 impl Reader<'_> {
     fn take(&mut self, n: usize) -> std::result::Result<&[u8], String> {
-        let end = self.pos.checked_add(n).filter(|&e| e <= self.bytes.len()).ok_or_else(|| {
-            format!("truncated prism table: needs {} more bytes at offset {} (re-bake the table)", n, self.pos)
-        })?;
+        let end = self
+            .pos
+            .checked_add(n)
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or_else(|| {
+                format!(
+                    "truncated prism table: needs {} more bytes at offset {} (re-bake the table)",
+                    n, self.pos
+                )
+            })?;
         let s = &self.bytes[self.pos..end];
         self.pos = end;
         Ok(s)
@@ -134,9 +154,13 @@ impl Reader<'_> {
 /// Decode a table; the error says what is wrong and what to do.
 pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
     let mut r = Reader { bytes, pos: 0 };
-    let magic = r.take(8).map_err(|_| "not a prism table: file is shorter than its 8-byte magic".to_string())?;
+    let magic = r
+        .take(8)
+        .map_err(|_| "not a prism table: file is shorter than its 8-byte magic".to_string())?;
     if magic != MAGIC {
-        return Err("not a prism table (bad magic; expected a file written by `prismbake bake`)".into());
+        return Err(
+            "not a prism table (bad magic; expected a file written by `prismbake bake`)".into(),
+        );
     }
     let version = r.u32()?;
     if version != VERSION {
@@ -154,7 +178,11 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
     let wrap = match r.u32()? {
         0 => Wrap::Repeat,
         1 => Wrap::Clamp,
-        w => return Err(format!("unknown wrap mode {w} in header (file is corrupt; re-bake)")),
+        w => {
+            return Err(format!(
+                "unknown wrap mode {w} in header (file is corrupt; re-bake)"
+            ))
+        }
     };
     let params = DisplaceParams {
         scale: r.f32()?,
@@ -165,7 +193,9 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
     input_hash.copy_from_slice(r.take(32)?);
     let path_len = r.u32()? as usize;
     if path_len > MAX_MAP_PATH {
-        return Err(format!("map path length {path_len} exceeds {MAX_MAP_PATH} bytes: the file is corrupt"));
+        return Err(format!(
+            "map path length {path_len} exceeds {MAX_MAP_PATH} bytes: the file is corrupt"
+        ));
     }
     let expected = (FIXED_HEADER as u64)
         .checked_add(path_len as u64)
@@ -183,10 +213,15 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
     if blake3::hash(&bytes[..body_end]).as_bytes() != &bytes[body_end..] {
         return Err("prism table checksum mismatch: the file is corrupt (re-bake it)".into());
     }
-    let map_path = String::from_utf8(r.take(path_len)?.to_vec()).map_err(|_| "map path is not UTF-8 (file is corrupt)".to_string())?;
+    let map_path = String::from_utf8(r.take(path_len)?.to_vec())
+        .map_err(|_| "map path is not UTF-8 (file is corrupt)".to_string())?;
     let (nv, np) = (nv as usize, np as usize);
-    let positions = (0..nv).map(|_| r.vec3()).collect::<std::result::Result<Vec<_>, _>>()?;
-    let normals = (0..nv).map(|_| r.vec3()).collect::<std::result::Result<Vec<_>, _>>()?;
+    let positions = (0..nv)
+        .map(|_| r.vec3())
+        .collect::<std::result::Result<Vec<_>, _>>()?;
+    let normals = (0..nv)
+        .map(|_| r.vec3())
+        .collect::<std::result::Result<Vec<_>, _>>()?;
     let uvs = (0..nv)
         .map(|_| Ok(Vec2::new(r.f32()?, r.f32()?)))
         .collect::<std::result::Result<Vec<_>, String>>()?;
@@ -205,14 +240,22 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         if let Some(&bad) = tri.iter().find(|&&v| v as usize >= nv) {
             return Err(format!("prism {i} references vertex {bad} but the table has {nv} vertices (corrupt; re-bake)"));
         }
-        let finite = [p.d_min, p.d_max, p.lambda_lo, p.lambda_hi, p.texel_world].iter().all(|f| f.is_finite());
+        let finite = [p.d_min, p.d_max, p.lambda_lo, p.lambda_hi, p.texel_world]
+            .iter()
+            .all(|f| f.is_finite());
         if !finite || p.d_min > p.d_max || p.lambda_lo > p.lambda_hi {
-            return Err(format!("prism {i} has a non-finite or inverted extent (corrupt; re-bake)"));
+            return Err(format!(
+                "prism {i} has a non-finite or inverted extent (corrupt; re-bake)"
+            ));
         }
         prisms.push(p);
     }
-    if let Some(v) = (0..nv).find(|&v| !(positions[v].is_finite() && normals[v].is_finite() && uvs[v].is_finite())) {
-        return Err(format!("vertex {v} has a NaN or infinite value (corrupt; re-bake)"));
+    if let Some(v) = (0..nv)
+        .find(|&v| !(positions[v].is_finite() && normals[v].is_finite() && uvs[v].is_finite()))
+    {
+        return Err(format!(
+            "vertex {v} has a NaN or infinite value (corrupt; re-bake)"
+        ));
     }
     Ok(PrismTable {
         positions,
@@ -262,7 +305,10 @@ mod tests {
                 texel_world: 0.01,
                 flags: PRISM_FLAT,
             }],
-            params: DisplaceParams { scale: 0.1, midlevel: 0.5 },
+            params: DisplaceParams {
+                scale: 0.1,
+                midlevel: 0.5,
+            },
             map_width: 64,
             map_height: 32,
             input_hash: [7; 32],
@@ -291,7 +337,10 @@ mod tests {
         let bytes = encode(&small_table());
         assert_eq!(&bytes[..8], b"PRISMBK\0");
         assert_eq!(&bytes[8..12], &[1, 0, 0, 0]); // version
-        assert_eq!(&bytes[12..28], &[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]); // counts
+        assert_eq!(
+            &bytes[12..28],
+            &[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]
+        ); // counts
         assert_eq!(&bytes[28..36], &[64, 0, 0, 0, 32, 0, 0, 0]); // map size
         assert_eq!(&bytes[36..40], &[1, 0, 0, 0]); // clamp
     }

@@ -28,16 +28,36 @@ pub struct Check {
 
 impl Check {
     pub fn pass(name: &'static str, message: impl Into<String>) -> Self {
-        Check { name, status: Status::Pass, message: message.into(), faces: vec![] }
+        Check {
+            name,
+            status: Status::Pass,
+            message: message.into(),
+            faces: vec![],
+        }
     }
     pub fn warn(name: &'static str, message: impl Into<String>) -> Self {
-        Check { name, status: Status::Warn, message: message.into(), faces: vec![] }
+        Check {
+            name,
+            status: Status::Warn,
+            message: message.into(),
+            faces: vec![],
+        }
     }
     pub fn fail(name: &'static str, message: impl Into<String>) -> Self {
-        Check { name, status: Status::Fail, message: message.into(), faces: vec![] }
+        Check {
+            name,
+            status: Status::Fail,
+            message: message.into(),
+            faces: vec![],
+        }
     }
     pub fn skipped(name: &'static str, why: impl Into<String>) -> Self {
-        Check { name, status: Status::Skipped, message: why.into(), faces: vec![] }
+        Check {
+            name,
+            status: Status::Skipped,
+            message: why.into(),
+            faces: vec![],
+        }
     }
     pub fn with_faces(mut self, faces: Vec<u32>) -> Self {
         self.faces = faces;
@@ -64,7 +84,11 @@ pub fn to_text(reports: &[AssetReport]) -> String {
         let fails = r.checks.iter().filter(|c| c.status == Status::Fail).count();
         let warns = r.checks.iter().filter(|c| c.status == Status::Warn).count();
         let verdict = if fails > 0 { "FAIL" } else { "ok" };
-        s.push_str(&format!("{verdict:4} {} ({} checks, {fails} failed, {warns} warnings)\n", r.asset, r.checks.len()));
+        s.push_str(&format!(
+            "{verdict:4} {} ({} checks, {fails} failed, {warns} warnings)\n",
+            r.asset,
+            r.checks.len()
+        ));
         for c in r.checks.iter().filter(|c| c.status != Status::Pass) {
             let tag = match c.status {
                 Status::Fail => "error",
@@ -75,13 +99,20 @@ pub fn to_text(reports: &[AssetReport]) -> String {
             s.push_str(&format!("  {tag}: {}: {}\n", c.name, c.message));
             if !c.faces.is_empty() {
                 let shown: Vec<String> = c.faces.iter().take(20).map(|f| f.to_string()).collect();
-                let more = if c.faces.len() > 20 { format!(" … ({} in all)", c.faces.len()) } else { String::new() };
+                let more = if c.faces.len() > 20 {
+                    format!(" … ({} in all)", c.faces.len())
+                } else {
+                    String::new()
+                };
                 s.push_str(&format!("    faces: {}{more}\n", shown.join(", ")));
             }
         }
     }
     let failed = reports.iter().filter(|r| r.failed()).count();
-    s.push_str(&format!("{} assets checked, {failed} with problems\n", reports.len()));
+    s.push_str(&format!(
+        "{} assets checked, {failed} with problems\n",
+        reports.len()
+    ));
     s
 }
 
@@ -131,11 +162,21 @@ pub fn to_junit(reports: &[AssetReport]) -> String {
         ));
         for c in &r.checks {
             let msg = xml_escape(&c.message);
-            s.push_str(&format!("    <testcase classname=\"{asset}\" name=\"{}\"", c.name));
+            s.push_str(&format!(
+                "    <testcase classname=\"{asset}\" name=\"{}\"",
+                c.name
+            ));
             let faces = if c.faces.is_empty() {
                 String::new()
             } else {
-                format!("\nfaces: {}", c.faces.iter().map(|f| f.to_string()).collect::<Vec<_>>().join(" "))
+                format!(
+                    "\nfaces: {}",
+                    c.faces
+                        .iter()
+                        .map(|f| f.to_string())
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                )
             };
             match c.status {
                 Status::Pass => s.push_str(" />\n"),

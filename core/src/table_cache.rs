@@ -12,7 +12,11 @@ use std::path::{Path, PathBuf};
 
 /// `$XDG_CACHE_HOME/prismbake`, else `$HOME/.cache/prismbake`; `None` without either.
 pub fn default_dir() -> Option<PathBuf> {
-    let nonempty = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty()).map(PathBuf::from);
+    let nonempty = |k: &str| {
+        std::env::var_os(k)
+            .filter(|v| !v.is_empty())
+            .map(PathBuf::from)
+    };
     nonempty("XDG_CACHE_HOME")
         .or_else(|| nonempty("HOME").map(|h| h.join(".cache")))
         .map(|d| d.join("prismbake"))
@@ -27,7 +31,8 @@ pub fn path_for(dir: &Path, hash: &[u8; 32]) -> PathBuf {
 pub fn load(dir: &Path, hash: &[u8; 32], map: &HeightMap) -> Option<(PrismTable, PathBuf)> {
     let path = path_for(dir, hash);
     let table = prism_file::read(&path).ok()?;
-    (table.input_hash == *hash && (table.map_width, table.map_height) == (map.width, map.height)).then_some((table, path))
+    (table.input_hash == *hash && (table.map_width, table.map_height) == (map.width, map.height))
+        .then_some((table, path))
 }
 
 /// Store `table` under its own input hash; returns the file written.
@@ -53,10 +58,19 @@ mod tests {
         store(&dir, &t).unwrap();
         let (back, _) = load(&dir, &[7; 32], &map).expect("reused");
         assert_eq!(back.prisms, t.prisms);
-        assert!(load(&dir, &[8; 32], &map).is_none(), "another hash is a miss");
-        assert!(load(&dir, &[7; 32], &relief_map(8)).is_none(), "another map size is a miss");
+        assert!(
+            load(&dir, &[8; 32], &map).is_none(),
+            "another hash is a miss"
+        );
+        assert!(
+            load(&dir, &[7; 32], &relief_map(8)).is_none(),
+            "another map size is a miss"
+        );
         std::fs::write(path_for(&dir, &[7; 32]), b"garbage").unwrap();
-        assert!(load(&dir, &[7; 32], &map).is_none(), "a broken file is a miss");
+        assert!(
+            load(&dir, &[7; 32], &map).is_none(),
+            "a broken file is a miss"
+        );
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -120,9 +120,15 @@ pub(crate) const EXAMPLE_REFERENCE_K: f32 = 1.0;
 /// it (building the reference dominates those tests' time).
 pub(crate) fn example_with_reference(
     name: &str,
-) -> &'static (crate::accel::Scene, crate::trace::reference::Reference<'static>) {
+) -> &'static (
+    crate::accel::Scene,
+    crate::trace::reference::Reference<'static>,
+) {
     use std::sync::{Mutex, OnceLock};
-    type Entry = &'static (crate::accel::Scene, crate::trace::reference::Reference<'static>);
+    type Entry = &'static (
+        crate::accel::Scene,
+        crate::trace::reference::Reference<'static>,
+    );
     static CACHE: OnceLock<Mutex<HashMap<String, Entry>>> = OnceLock::new();
     let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
     // Held while building, so two tests asking for the same asset build it once.
@@ -130,12 +136,18 @@ pub(crate) fn example_with_reference(
     if let Some(e) = map.get(name) {
         return e;
     }
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples").join(name);
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../examples")
+        .join(name);
     let spec = crate::asset::resolve(&path, &Default::default()).expect("example resolves");
     let p = crate::asset::prepare(&spec, &Default::default()).expect("example prepares");
-    let base: &'static (PrismTable, HeightMap) = Box::leak(Box::new((p.table.clone(), p.map.clone())));
+    let base: &'static (PrismTable, HeightMap) =
+        Box::leak(Box::new((p.table.clone(), p.map.clone())));
     let reference = crate::trace::reference::Reference::new(&base.0, &base.1, EXAMPLE_REFERENCE_K);
-    let entry: Entry = Box::leak(Box::new((crate::accel::Scene::new(p.table, p.map), reference)));
+    let entry: Entry = Box::leak(Box::new((
+        crate::accel::Scene::new(p.table, p.map),
+        reference,
+    )));
     map.insert(name.to_string(), entry);
     entry
 }

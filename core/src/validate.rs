@@ -50,7 +50,10 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
         Err(e) => {
             checks.push(Check::fail("mesh", e.to_string()));
             skip_rest(&mut checks, "the asset's settings could not be read");
-            return AssetReport { asset: name, checks };
+            return AssetReport {
+                asset: name,
+                checks,
+            };
         }
     };
     let mesh = match load::load_mesh(&spec.mesh, &spec.mesh_options()) {
@@ -58,15 +61,28 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
         Err(e) => {
             checks.push(Check::fail("mesh", e.to_string()));
             skip_rest(&mut checks, "the mesh could not be read");
-            return AssetReport { asset: name, checks };
+            return AssetReport {
+                asset: name,
+                checks,
+            };
         }
     };
     checks.push(Check::pass(
         "mesh",
-        format!("{} triangles, {} vertices", mesh.triangle_count(), mesh.vertex_count()),
+        format!(
+            "{} triangles, {} vertices",
+            mesh.triangle_count(),
+            mesh.vertex_count()
+        ),
     ));
     checks.push(if mesh.missing_uvs {
-        Check::fail("uvs", format!("no UV coordinates (TEXCOORD_{}): unwrap the mesh and re-export", spec.uv_set))
+        Check::fail(
+            "uvs",
+            format!(
+                "no UV coordinates (TEXCOORD_{}): unwrap the mesh and re-export",
+                spec.uv_set
+            ),
+        )
     } else {
         Check::pass("uvs", "present")
     });
@@ -74,7 +90,10 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
     let (_, report) = repair::repair(mesh.clone(), ropts);
     checks.extend(repair_checks(&report));
     checks.extend(map_checks(&spec));
-    AssetReport { asset: name, checks }
+    AssetReport {
+        asset: name,
+        checks,
+    }
 }
 
 fn uv_range_check(mesh: &BaseMesh, wrap: Wrap) -> Check {
@@ -100,18 +119,29 @@ fn uv_range_check(mesh: &BaseMesh, wrap: Wrap) -> Check {
 
 fn repair_checks(r: &RepairReport) -> Vec<Check> {
     let mut out = Vec::new();
-    let mut bad: Vec<u32> = r.zero_area_faces.iter().chain(&r.invalid_faces).cloned().collect();
+    let mut bad: Vec<u32> = r
+        .zero_area_faces
+        .iter()
+        .chain(&r.invalid_faces)
+        .cloned()
+        .collect();
     bad.sort_unstable();
     out.push(if !bad.is_empty() {
         Check::fail(
             "degenerate-faces",
-            format!("{} zero-area or invalid faces (dropped on bake; delete them or merge by distance)", bad.len()),
+            format!(
+                "{} zero-area or invalid faces (dropped on bake; delete them or merge by distance)",
+                bad.len()
+            ),
         )
         .with_faces(bad)
     } else if !r.uv_degenerate_faces.is_empty() {
         Check::warn(
             "degenerate-faces",
-            format!("{} faces have zero UV area (the map is sampled along a line across them)", r.uv_degenerate_faces.len()),
+            format!(
+                "{} faces have zero UV area (the map is sampled along a line across them)",
+                r.uv_degenerate_faces.len()
+            ),
         )
         .with_faces(r.uv_degenerate_faces.clone())
     } else {
@@ -130,8 +160,12 @@ fn repair_checks(r: &RepairReport) -> Vec<Check> {
         .with_faces(faces_of(&r.inverted_corners))
     });
     // Corners whose normal faces away are the inverted-normals check's; don't report them twice.
-    let unresolved: Vec<repair::CornerFinding> =
-        r.unresolved_crease_corners.iter().filter(|c| c.dot > 0.0).cloned().collect();
+    let unresolved: Vec<repair::CornerFinding> = r
+        .unresolved_crease_corners
+        .iter()
+        .filter(|c| c.dot > 0.0)
+        .cloned()
+        .collect();
     out.push(if !unresolved.is_empty() {
         Check::fail(
             "sharp-creases",
@@ -180,13 +214,19 @@ fn map_checks(spec: &AssetSpec) -> Vec<Check> {
             ]
         }
     };
-    let mut out = vec![Check::pass("map", format!("{}x{} channel {}", map.width, map.height, map.channel))];
+    let mut out = vec![Check::pass(
+        "map",
+        format!("{}x{} channel {}", map.width, map.height, map.channel),
+    )];
     out.push(match map.first_non_finite() {
         Some((x, y)) => {
             let n = map.data.iter().filter(|v| !v.is_finite()).count();
             Check::fail(
                 "finite-values",
-                format!("{}: {n} texels are NaN or infinite, the first at ({x}, {y}): fix the map", disp.display()),
+                format!(
+                    "{}: {n} texels are NaN or infinite, the first at ({x}, {y}): fix the map",
+                    disp.display()
+                ),
             )
         }
         None => Check::pass("finite-values", "all texels finite"),
@@ -213,7 +253,9 @@ fn finite_range(map: &HeightMap) -> (f32, f32) {
     map.data
         .iter()
         .filter(|v| v.is_finite())
-        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        })
 }
 
 #[derive(Debug, Serialize)]
@@ -286,9 +328,12 @@ fn uv_sets(mesh: &BaseMesh) -> Vec<u32> {
     };
     let mut sets: Vec<u32> = (0..8)
         .filter(|&n| {
-            doc.meshes().flat_map(|m| m.primitives().collect::<Vec<_>>()).all(|p| {
-                p.attributes().any(|(s, _)| s == gltf::Semantic::TexCoords(n))
-            })
+            doc.meshes()
+                .flat_map(|m| m.primitives().collect::<Vec<_>>())
+                .all(|p| {
+                    p.attributes()
+                        .any(|(s, _)| s == gltf::Semantic::TexCoords(n))
+                })
         })
         .collect();
     sets.dedup();
@@ -298,9 +343,18 @@ fn uv_sets(mesh: &BaseMesh) -> Vec<u32> {
 pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
     let mesh = load::load_mesh(&spec.mesh, &spec.mesh_options())?;
     let (lo, hi) = mesh.bounds();
-    let (uv_lo, uv_hi) = mesh.uvs.iter().fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(a, b), &u| (a.min(u), b.max(u)));
+    let (uv_lo, uv_hi) = mesh
+        .uvs
+        .iter()
+        .fold((Vec2::INFINITY, Vec2::NEG_INFINITY), |(a, b), &u| {
+            (a.min(u), b.max(u))
+        });
     let inside = (0..mesh.triangle_count())
-        .filter(|&t| mesh.corner_uvs(t).iter().all(|u| u.x >= -1e-6 && u.y >= -1e-6 && u.x <= 1.0 + 1e-6 && u.y <= 1.0 + 1e-6))
+        .filter(|&t| {
+            mesh.corner_uvs(t)
+                .iter()
+                .all(|u| u.x >= -1e-6 && u.y >= -1e-6 && u.x <= 1.0 + 1e-6 && u.y <= 1.0 + 1e-6)
+        })
         .count();
     let (repaired, report) = repair::repair(mesh.clone(), ropts);
     let map = match &spec.disp {
@@ -341,7 +395,11 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         zero_area_faces: report.zero_area_faces.len(),
         triangles_after_repair: repaired.triangle_count(),
         vertices_after_repair: repaired.vertex_count(),
-        estimated_table_bytes: prism_file::encoded_len(repaired.vertex_count(), repaired.triangle_count(), path_len),
+        estimated_table_bytes: prism_file::encoded_len(
+            repaired.vertex_count(),
+            repaired.triangle_count(),
+            path_len,
+        ),
         map,
     })
 }
@@ -375,14 +433,26 @@ pub fn table_summary(t: &PrismTable, path: &Path, reused: bool) -> TableSummary 
         reused,
         prisms: t.prisms.len(),
         flat_prisms: t.flat_count(),
-        inserted_prisms: t.prisms.iter().filter(|p| p.flags & crate::bake::PRISM_INSERTED != 0).count(),
+        inserted_prisms: t
+            .prisms
+            .iter()
+            .filter(|p| p.flags & crate::bake::PRISM_INSERTED != 0)
+            .count(),
         vertices: t.positions.len(),
         bytes,
         bytes_per_prism: bytes as f32 / t.prisms.len().max(1) as f32,
         bounds_min: lo.to_array(),
         bounds_max: hi.to_array(),
-        displacement_min: t.prisms.iter().map(|p| p.d_min).fold(f32::INFINITY, f32::min),
-        displacement_max: t.prisms.iter().map(|p| p.d_max).fold(f32::NEG_INFINITY, f32::max),
+        displacement_min: t
+            .prisms
+            .iter()
+            .map(|p| p.d_min)
+            .fold(f32::INFINITY, f32::min),
+        displacement_max: t
+            .prisms
+            .iter()
+            .map(|p| p.d_max)
+            .fold(f32::NEG_INFINITY, f32::max),
         map: t.map_path.clone(),
         map_size: [t.map_width, t.map_height],
         input_hash: t.input_hash.iter().map(|b| format!("{b:02x}")).collect(),

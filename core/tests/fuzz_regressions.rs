@@ -8,7 +8,8 @@ use prismbake::prism_file;
 use std::path::{Path, PathBuf};
 
 fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("prismbake-fuzz-regressions-{}", std::process::id()));
+    let dir =
+        std::env::temp_dir().join(format!("prismbake-fuzz-regressions-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join(name);
     std::fs::write(&path, bytes).unwrap();
@@ -20,9 +21,15 @@ fn scratch(name: &str, bytes: &[u8]) -> PathBuf {
 /// target in its first seconds, from a seed whose `"accessors"` key had two bits flipped).
 #[test]
 fn gltf_position_accessor_out_of_range_is_an_error() {
-    let json = br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#;
-    let err = load::load_mesh(&scratch("position.gltf", json), &MeshOptions::default()).unwrap_err();
-    assert!(err.to_string().contains("POSITION names accessor 0 but there are 0"), "{err}");
+    let json =
+        br#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#;
+    let err =
+        load::load_mesh(&scratch("position.gltf", json), &MeshOptions::default()).unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("POSITION names accessor 0 but there are 0"),
+        "{err}"
+    );
     // The same inside a .glb (the fuzzer's form): header, JSON chunk, no BIN chunk.
     let mut chunk = json.to_vec();
     chunk.resize(chunk.len().div_ceil(4) * 4, b' ');
@@ -36,14 +43,19 @@ fn gltf_position_accessor_out_of_range_is_an_error() {
 }
 
 fn corpus(target: &str) -> Vec<(PathBuf, Vec<u8>)> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus").join(target);
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fuzz/corpus")
+        .join(target);
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
         .map(|e| e.unwrap().path())
         .collect();
     files.sort();
     assert!(!files.is_empty(), "{} is empty", dir.display());
-    files.into_iter().map(|p| (p.clone(), std::fs::read(&p).unwrap())).collect()
+    files
+        .into_iter()
+        .map(|p| (p.clone(), std::fs::read(&p).unwrap()))
+        .collect()
 }
 
 #[test]
@@ -52,7 +64,10 @@ fn prism_table_corpus_decodes_or_fails_cleanly() {
     for (_, bytes) in corpus("prism_table") {
         ok += prism_file::decode(&bytes).is_ok() as usize;
     }
-    assert!(ok > 0, "the corpus keeps at least one valid table (the seeds)");
+    assert!(
+        ok > 0,
+        "the corpus keeps at least one valid table (the seeds)"
+    );
 }
 
 #[test]
@@ -64,7 +79,11 @@ fn prism_table_every_truncation_of_a_baked_table_fails_cleanly() {
         .min_by_key(|(_, b)| b.len())
         .unwrap();
     for n in 0..bytes.len() {
-        assert!(prism_file::decode(&bytes[..n]).is_err(), "{}: prefix of {n} bytes decoded", path.display());
+        assert!(
+            prism_file::decode(&bytes[..n]).is_err(),
+            "{}: prefix of {n} bytes decoded",
+            path.display()
+        );
     }
 }
 
@@ -76,15 +95,21 @@ fn replay_files(target: &str, ext: &str, load: impl Fn(&Path)) {
 
 #[test]
 fn obj_corpus_loads_or_fails_cleanly() {
-    replay_files("obj", "obj", |p| drop(load::load_mesh(p, &MeshOptions::default())));
+    replay_files("obj", "obj", |p| {
+        drop(load::load_mesh(p, &MeshOptions::default()))
+    });
 }
 
 #[test]
 fn glb_corpus_loads_or_fails_cleanly() {
-    replay_files("glb", "glb", |p| drop(load::load_mesh(p, &MeshOptions::default())));
+    replay_files("glb", "glb", |p| {
+        drop(load::load_mesh(p, &MeshOptions::default()))
+    });
 }
 
 #[test]
 fn height_png_corpus_loads_or_fails_cleanly() {
-    replay_files("height_png", "png", |p| drop(load::load_height_map(p, &MapOptions::default())));
+    replay_files("height_png", "png", |p| {
+        drop(load::load_height_map(p, &MapOptions::default()))
+    });
 }

@@ -65,7 +65,8 @@ impl GpuContext {
     }
 
     async fn new_async() -> Result<GpuContext, GpuError> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
             // A named adapter (case-insensitive substring of its name), as wgpu's own helpers
             // read it, but an error instead of a panic when none matches.
@@ -76,7 +77,11 @@ impl GpuContext {
                 adapters
                     .into_iter()
                     .find(|a| a.get_info().name.to_lowercase().contains(&want))
-                    .ok_or_else(|| GpuError::NoAdapter(format!("WGPU_ADAPTER_NAME={want} matches none of {names:?}")))?
+                    .ok_or_else(|| {
+                        GpuError::NoAdapter(format!(
+                            "WGPU_ADAPTER_NAME={want} matches none of {names:?}"
+                        ))
+                    })?
             }
             Err(_) => {
                 let options = wgpu::RequestAdapterOptions {
@@ -108,7 +113,12 @@ impl GpuContext {
                 ..Default::default()
             })
             .await
-            .map_err(|e| GpuError::Device(format!("{} ({:?}): {e}", adapter_info.name, adapter_info.backend)))?;
+            .map_err(|e| {
+                GpuError::Device(format!(
+                    "{} ({:?}): {e}",
+                    adapter_info.name, adapter_info.backend
+                ))
+            })?;
 
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),

@@ -5,14 +5,20 @@ use crate::context::GpuContext;
 use crate::render::render_aovs;
 use crate::scene::GpuScene;
 use prismbake::accel::Scene;
-use prismbake::render::job::{base_camera, load_input, prepare_out_dir, FrameStats, Method, RenderJob, RenderSummary};
+use prismbake::render::job::{
+    base_camera, load_input, prepare_out_dir, FrameStats, Method, RenderJob, RenderSummary,
+};
 use prismbake::render::output;
 use prismbake::trace::pdm::PdmOptions;
 use prismbake::{Error, Result};
 use std::time::Instant;
 
 /// Run `job` on `ctx`'s adapter; `progress(frame_index, rows_done)` reports progress.
-pub fn run(ctx: &GpuContext, job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<RenderSummary> {
+pub fn run(
+    ctx: &GpuContext,
+    job: &RenderJob,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderSummary> {
     job.validate()?;
     if job.method.method != Method::Pdm {
         return Err(Error::Param(
@@ -59,8 +65,10 @@ pub fn run(ctx: &GpuContext, job: &RenderJob, progress: &(dyn Fn(usize, usize) +
             _ => cam0,
         };
         let t = Instant::now();
-        let img =
-            render_aovs(ctx, &gpu_scene, &cam, &job.settings, &opts, &|rows| progress(i, rows)).map_err(gpu_err)?;
+        let img = render_aovs(ctx, &gpu_scene, &cam, &job.settings, &opts, &|rows| {
+            progress(i, rows)
+        })
+        .map_err(gpu_err)?;
         let seconds = t.elapsed().as_secs_f64();
         summary
             .files

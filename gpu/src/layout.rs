@@ -140,7 +140,15 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 texel_world
             }
         ),
-        layout!("Vertex", GpuVertex { position, u, normal, v }),
+        layout!(
+            "Vertex",
+            GpuVertex {
+                position,
+                u,
+                normal,
+                v
+            }
+        ),
         layout!(
             "BvhNode",
             GpuBvhNode {

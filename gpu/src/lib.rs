@@ -38,7 +38,11 @@ pub enum GpuError {
     #[error("shader or pipeline rejected by wgpu: {0}")]
     Shader(String),
     #[error("{what}: {bytes} bytes exceed this GPU's storage-binding limit of {limit} bytes; use --device cpu or a smaller asset")]
-    TooLarge { what: &'static str, bytes: u64, limit: u64 },
+    TooLarge {
+        what: &'static str,
+        bytes: u64,
+        limit: u64,
+    },
     #[error("not supported on the GPU: {0}")]
     Unsupported(String),
 }

@@ -90,10 +90,13 @@ pub fn render_aovs(
                 tile_size: [tw, th],
                 ..base
             };
-            ctx.queue.write_buffer(&ctx.frame_buffer, 0, bytemuck::bytes_of(&frame));
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("aov tile"),
-            });
+            ctx.queue
+                .write_buffer(&ctx.frame_buffer, 0, bytemuck::bytes_of(&frame));
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("aov tile"),
+                });
             {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("render_aovs"),

@@ -118,22 +118,26 @@ impl GpuScene {
             } else {
                 data
             };
-            Ok(ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(what),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE,
-            }))
+            Ok(ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(what),
+                    contents,
+                    usage: wgpu::BufferUsages::STORAGE,
+                }))
         };
         let prism_buf = storage("prisms", bytemuck::cast_slice(&prisms))?;
         let vertex_buf = storage("vertices", bytemuck::cast_slice(&vertices))?;
         let node_buf = storage("BVH nodes", bytemuck::cast_slice(&bvh.nodes))?;
         let index_buf = storage("BVH prism indices", bytemuck::cast_slice(&bvh.prim_indices))?;
         let map_buf = storage("height map", bytemuck::cast_slice(&map.data))?;
-        let param_buf = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("scene params"),
-            contents: bytemuck::bytes_of(&params),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
+        let param_buf = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("scene params"),
+                contents: bytemuck::bytes_of(&params),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
         let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
             layout: &ctx.scene_layout,

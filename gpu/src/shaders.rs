@@ -22,7 +22,9 @@ pub const PDM: &str = include_str!("../../shaders/pdm.wgsl");
 pub const AOV: &str = include_str!("../../shaders/aov.wgsl");
 
 /// Every stage but the entry points: what any kernel (AOVs now, beauty later) builds on.
-pub const LIBRARY: [&str; 8] = [COMMON, RNG, CAMERA, HEIGHTMAP, BVH, PRISM_HIT, CANONICAL, PDM];
+pub const LIBRARY: [&str; 8] = [
+    COMMON, RNG, CAMERA, HEIGHTMAP, BVH, PRISM_HIT, CANONICAL, PDM,
+];
 
 /// The AOV module: the library plus `aov.wgsl` (entry point `render_aovs`).
 pub fn aov_module_source() -> String {

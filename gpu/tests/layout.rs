@@ -28,7 +28,10 @@ fn shared_structs_have_the_same_offsets_and_sizes_in_wgsl() {
             .iter()
             .map(|mb| (mb.name.as_deref().unwrap_or("?"), mb.offset as usize))
             .collect();
-        assert_eq!(wgsl, rust_members, "members (name, offset) of {name}: WGSL vs Rust");
+        assert_eq!(
+            wgsl, rust_members,
+            "members (name, offset) of {name}: WGSL vs Rust"
+        );
     }
 }
 
@@ -47,7 +50,10 @@ fn constant(m: &naga::Module, name: &str) -> naga::Literal {
 #[test]
 fn sentinels_and_flags_are_mirrored() {
     let m = module();
-    assert_eq!(constant(&m, "NO_PRISM"), naga::Literal::U32(layout::NO_PRISM));
+    assert_eq!(
+        constant(&m, "NO_PRISM"),
+        naga::Literal::U32(layout::NO_PRISM)
+    );
     assert_eq!(constant(&m, "T_FAR"), naga::Literal::F32(layout::T_FAR));
     assert_eq!(
         constant(&m, "PRISM_FLAT"),

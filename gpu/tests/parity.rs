@@ -41,7 +41,8 @@ fn compare(cpu: &AovImage, gpu: &AovImage) -> Agreement {
         if c != g {
             mismatch += 1;
         } else if c {
-            depth.push(((gpu.depth[i] - cpu.depth[i]).abs() / cpu.depth[i].abs().max(1e-12)) as f64);
+            depth
+                .push(((gpu.depth[i] - cpu.depth[i]).abs() / cpu.depth[i].abs().max(1e-12)) as f64);
             let cos = gpu.normal[i].dot(cpu.normal[i]).clamp(-1.0, 1.0);
             normal.push((cos as f64).acos().to_degrees());
         }
@@ -71,7 +72,9 @@ fn check_asset(rel: &str, spp: u32) {
         .table
         .positions
         .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
     let cam = Camera::frame_bounds(lo, hi, loaded.up_axis, 40.0, 1.0);
     let scene = Scene::new(loaded.table, loaded.map);
     let opts = PdmOptions::default();

@@ -40,7 +40,10 @@ fn run_probe(cases: &[[u32; 6]]) -> Vec<[u32; 3]> {
         compilation_options: Default::default(),
         cache: None,
     });
-    let data: Vec<u32> = cases.iter().flat_map(|c| c.iter().copied().chain([0, 0, 0])).collect();
+    let data: Vec<u32> = cases
+        .iter()
+        .flat_map(|c| c.iter().copied().chain([0, 0, 0]))
+        .collect();
     let bytes = (data.len() * 4) as u64;
     let io = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some("io"),
@@ -70,8 +73,12 @@ fn run_probe(cases: &[[u32; 6]]) -> Vec<[u32; 3]> {
     }
     enc.copy_buffer_to_buffer(&io, 0, &readback, 0, bytes);
     ctx.queue().submit([enc.finish()]);
-    readback.slice(..).map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-    device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
+    readback
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .expect("poll");
     let view = readback.slice(..).get_mapped_range().expect("mapped");
     let out: &[u32] = bytemuck::cast_slice(&view);
     out.chunks(9).map(|c| [c[6], c[7], c[8]]).collect()
@@ -102,7 +109,14 @@ fn hashes_match_the_cpu_bit_for_bit() {
             h = rng::pcg_hash(h);
             h
         };
-        cases.push([next(), next(), next() % 64, next() % 4, next() % 5 + 1, next()]);
+        cases.push([
+            next(),
+            next(),
+            next() % 64,
+            next() % 4,
+            next() % 5 + 1,
+            next(),
+        ]);
     }
     let gpu = run_probe(&cases);
     assert_eq!(gpu[0][0], 129708002, "pcg_hash(0)");

@@ -18,7 +18,11 @@ pub fn uv_sphere(segments: u32, rings: u32) -> BaseMesh {
         for s in 0..=segments {
             let u = s as f32 / segments as f32;
             let phi = std::f32::consts::TAU * u;
-            positions.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()));
+            positions.push(Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ));
             uvs.push(Vec2::new(u, v));
         }
     }
@@ -58,7 +62,9 @@ pub fn relief_map(size: u32) -> HeightMap {
     let data = (0..size * size)
         .map(|i| {
             let (x, y) = ((i % size) as f32 / n, (i / size) as f32 / n);
-            let smooth = 0.5 + 0.2 * (tau * 3.0 * x).sin() * (tau * 2.0 * y).cos() + 0.1 * (tau * 17.0 * (x + y)).sin();
+            let smooth = 0.5
+                + 0.2 * (tau * 3.0 * x).sin() * (tau * 2.0 * y).cos()
+                + 0.1 * (tau * 17.0 * (x + y)).sin();
             let noise = (prismbake::rng::pcg_hash(i) >> 8) as f32 / (1u32 << 24) as f32;
             (smooth + 0.1 * (noise - 0.5)).clamp(0.0, 1.0)
         })

@@ -1,7 +1,10 @@
 //! Incremental re-bake for a changed height map (`render --watch`): same mesh and
 //! parameters, new map values; only prisms whose stored bounds no longer hold are re-derived.
 
-use super::{footprint_range, lambda_range, mean_normal_lower_bound, texel_world_size, Prism, PrismTable, PRISM_FLAT};
+use super::{
+    footprint_range, lambda_range, mean_normal_lower_bound, texel_world_size, Prism, PrismTable,
+    PRISM_FLAT,
+};
 use crate::heightmap::HeightMap;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -56,7 +59,10 @@ pub fn rebake_for_map(table: &mut PrismTable, map: &HeightMap) -> RebakeStats {
             (q, !holds, grew)
         })
         .collect();
-    let mut stats = RebakeStats { prisms: table.prisms.len(), ..RebakeStats::default() };
+    let mut stats = RebakeStats {
+        prisms: table.prisms.len(),
+        ..RebakeStats::default()
+    };
     for (slot, (q, rebaked, grew)) in table.prisms.iter_mut().zip(updated) {
         stats.prisms_rebaked += rebaked as usize;
         stats.boxes_grown += grew as usize;
@@ -72,8 +78,8 @@ pub fn rebake_for_map(table: &mut PrismTable, map: &HeightMap) -> RebakeStats {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::{bake, BakeOptions};
     use crate::accel::fixtures::*;
+    use crate::bake::{bake, BakeOptions};
 
     /// A local edit of the map re-bakes only the prisms over it; the result bounds the surface
     /// as a fresh bake does (fresh λ range inside the kept one, same d ranges and flags).
@@ -83,7 +89,11 @@ mod tests {
         let map = relief_map(64);
         let mut table = table(&mesh, &map, 0.05);
         let n = table.prisms.len();
-        assert_eq!(rebake_for_map(&mut table.clone(), &map).prisms_rebaked, 0, "same map: nothing to do");
+        assert_eq!(
+            rebake_for_map(&mut table.clone(), &map).prisms_rebaked,
+            0,
+            "same map: nothing to do"
+        );
 
         let mut edited = map.clone();
         for y in 20..24 {
@@ -92,20 +102,46 @@ mod tests {
             }
         }
         let stats = rebake_for_map(&mut table, &edited);
-        let fresh = bake(&mesh, &edited, &BakeOptions { params: table.params });
-        assert!(stats.prisms_rebaked > 0 && stats.prisms_rebaked < n / 4, "{stats:?} of {n}");
+        let fresh = bake(
+            &mesh,
+            &edited,
+            &BakeOptions {
+                params: table.params,
+            },
+        );
+        assert!(
+            stats.prisms_rebaked > 0 && stats.prisms_rebaked < n / 4,
+            "{stats:?} of {n}"
+        );
         assert!(stats.bvh_rebuild_needed && stats.boxes_grown > 0);
         for (got, want) in table.prisms.iter().zip(&fresh.prisms) {
-            assert_eq!((got.d_min, got.d_max, got.flags), (want.d_min, want.d_max, want.flags));
-            assert!(got.lambda_lo <= want.lambda_lo && got.lambda_hi >= want.lambda_hi, "{got:?} vs {want:?}");
+            assert_eq!(
+                (got.d_min, got.d_max, got.flags),
+                (want.d_min, want.d_max, want.flags)
+            );
+            assert!(
+                got.lambda_lo <= want.lambda_lo && got.lambda_hi >= want.lambda_hi,
+                "{got:?} vs {want:?}"
+            );
         }
 
         // The same map again: every bound holds, no BVH work.
         let again = rebake_for_map(&mut table, &edited);
-        assert_eq!((again.prisms_rebaked, again.records_updated, again.bvh_rebuild_needed), (0, 0, false), "{again:?}");
+        assert_eq!(
+            (
+                again.prisms_rebaked,
+                again.records_updated,
+                again.bvh_rebuild_needed
+            ),
+            (0, 0, false),
+            "{again:?}"
+        );
         // Back to the old map: only prisms under the patch can need new bounds (those whose
         // minimum was inside it now reach lower again); the others keep theirs, loose or not.
         let back = rebake_for_map(&mut table, &map);
-        assert!(back.prisms_rebaked <= stats.prisms_rebaked && back.records_updated > 0, "{back:?}");
+        assert!(
+            back.prisms_rebaked <= stats.prisms_rebaked && back.records_updated > 0,
+            "{back:?}"
+        );
     }
 }

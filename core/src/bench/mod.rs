@@ -66,7 +66,17 @@ pub struct RaySet {
 fn trace_all(isect: &dyn Intersector, rays: &[Ray], seed: u32) -> Vec<Option<Hit>> {
     rays.par_iter()
         .enumerate()
-        .map(|(i, r)| isect.intersect(r, &RayContext { pixel: i as u32, sample: 0, bounce: 0, seed }))
+        .map(|(i, r)| {
+            isect.intersect(
+                r,
+                &RayContext {
+                    pixel: i as u32,
+                    sample: 0,
+                    bounce: 0,
+                    seed,
+                },
+            )
+        })
         .collect()
 }
 
@@ -79,7 +89,10 @@ pub fn make_rays(scene: &Scene, cam: &Camera, reference: &Reference, cfg: &Bench
         .collect();
     let primary = rays.len();
     if cfg.secondary_rays > 0 {
-        let hits: Vec<Hit> = trace_all(reference, &rays, cfg.seed).into_iter().flatten().collect();
+        let hits: Vec<Hit> = trace_all(reference, &rays, cfg.seed)
+            .into_iter()
+            .flatten()
+            .collect();
         if !hits.is_empty() {
             let scale = scene_scale(scene);
             for i in 0..cfg.secondary_rays {
@@ -94,7 +107,11 @@ pub fn make_rays(scene: &Scene, cam: &Camera, reference: &Reference, cfg: &Bench
     }
     let leak_start = rays.len();
     rays.extend(leak_rays(scene, cfg.leak_rays, cfg.seed));
-    RaySet { rays, primary, leak_start }
+    RaySet {
+        rays,
+        primary,
+        leak_start,
+    }
 }
 
 fn scene_scale(scene: &Scene) -> f32 {
@@ -129,7 +146,8 @@ pub fn leak_rays(scene: &Scene, n: usize, seed: u32) -> Vec<Ray> {
     (0..n as u32)
         .map(|i| {
             let r = |k: u32| rng::random(i, k, 1, Purpose::Bench, seed);
-            let p = &t.prisms[candidates[(rng::pcg_hash(i ^ seed.rotate_left(7)) as usize) % candidates.len()]];
+            let p = &t.prisms
+                [candidates[(rng::pcg_hash(i ^ seed.rotate_left(7)) as usize) % candidates.len()]];
             let (v, nrm) = t.prism_corners(p);
             let (mut a, mut b) = (r(0), r(1));
             if a + b > 1.0 {
@@ -148,7 +166,12 @@ pub fn leak_rays(scene: &Scene, n: usize, seed: u32) -> Vec<Ray> {
             let origin = centre + (target - centre) + dir * radius;
             let d = target - origin;
             let len = d.length();
-            Ray { origin, dir: d / len, t_min: 0.0, t_max: len }
+            Ray {
+                origin,
+                dir: d / len,
+                t_min: 0.0,
+                t_max: len,
+            }
         })
         .collect()
 }
@@ -167,7 +190,12 @@ fn angle_deg(a: Vec3, b: Vec3) -> f64 {
 }
 
 /// Compare `hits` with the reference's on the same rays.
-fn compare(scene: &Scene, set: &RaySet, hits: &[Option<Hit>], truth: &[Option<Hit>]) -> (f64, f64, f64, f64, f64, usize) {
+fn compare(
+    scene: &Scene,
+    set: &RaySet,
+    hits: &[Option<Hit>],
+    truth: &[Option<Hit>],
+) -> (f64, f64, f64, f64, f64, usize) {
     let mut mismatches = 0usize;
     let mut depth = Vec::new();
     let mut normal = Vec::new();
@@ -199,7 +227,13 @@ fn compare(scene: &Scene, set: &RaySet, hits: &[Option<Hit>], truth: &[Option<Hi
 }
 
 /// Run every setting on the same rays; the reference is traced first (and reported too).
-pub fn run_bench(asset: &str, scene: &Scene, cam: &Camera, cfg: &BenchConfig, log: &dyn Fn(&str)) -> Vec<BenchRow> {
+pub fn run_bench(
+    asset: &str,
+    scene: &Scene,
+    cam: &Camera,
+    cfg: &BenchConfig,
+    log: &dyn Fn(&str),
+) -> Vec<BenchRow> {
     let reference = Reference::new(&scene.table, &scene.map, cfg.ref_density);
     let set = make_rays(scene, cam, &reference, cfg);
     let truth = trace_all(&reference, &set.rays, cfg.seed);
@@ -218,7 +252,12 @@ pub fn run_bench(asset: &str, scene: &Scene, cam: &Camera, cfg: &BenchConfig, lo
         let steps: u64 = hits.iter().flatten().map(|h| h.steps as u64).sum();
         let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, &set, &hits, &truth);
         let rays = set.rays.len();
-        let memory = isect.memory_bytes() + if method == Method::Reference { 0 } else { base_bytes };
+        let memory = isect.memory_bytes()
+            + if method == Method::Reference {
+                0
+            } else {
+                base_bytes
+            };
         let row = BenchRow {
             asset: asset.to_string(),
             method,
@@ -239,10 +278,19 @@ pub fn run_bench(asset: &str, scene: &Scene, cam: &Camera, cfg: &BenchConfig, lo
             memory_bytes: memory,
             bytes_per_triangle: memory as f64 / triangles,
         };
-        log(&format!("{asset}: {} {label}: {:.2} Mrays/s, depth err median {:.4} texels", method_name(method), row.rays_per_s / 1e6, dmed));
+        log(&format!(
+            "{asset}: {} {label}: {:.2} Mrays/s, depth err median {:.4} texels",
+            method_name(method),
+            row.rays_per_s / 1e6,
+            dmed
+        ));
         rows.push(row);
     };
-    time_it(&format!("k={}", cfg.ref_density), Method::Reference, &reference);
+    time_it(
+        &format!("k={}", cfg.ref_density),
+        Method::Reference,
+        &reference,
+    );
     for (label, mc) in &cfg.settings {
         if mc.method == Method::Reference {
             continue;
@@ -253,7 +301,10 @@ pub fn run_bench(asset: &str, scene: &Scene, cam: &Camera, cfg: &BenchConfig, lo
 }
 
 pub fn method_name(m: Method) -> String {
-    serde_json::to_value(m).ok().and_then(|v| v.as_str().map(str::to_string)).unwrap_or_default()
+    serde_json::to_value(m)
+        .ok()
+        .and_then(|v| v.as_str().map(str::to_string))
+        .unwrap_or_default()
 }
 
 pub fn to_csv(rows: &[BenchRow]) -> String {
@@ -272,10 +323,25 @@ pub fn to_csv(rows: &[BenchRow]) -> String {
 pub fn to_table(rows: &[BenchRow]) -> String {
     let mut s = format!(
         "{:<10} {:<10} {:<12} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>9}\n",
-        "asset", "method", "setting", "Mray/s", "Mray/s/c", "steps", "mismatch", "d_med_tx", "d_p99_tx", "n_med°", "n_p99°", "leaks", "B/tri"
+        "asset",
+        "method",
+        "setting",
+        "Mray/s",
+        "Mray/s/c",
+        "steps",
+        "mismatch",
+        "d_med_tx",
+        "d_p99_tx",
+        "n_med°",
+        "n_p99°",
+        "leaks",
+        "B/tri"
     );
     for r in rows {
-        let name = std::path::Path::new(&r.asset).file_stem().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = std::path::Path::new(&r.asset)
+            .file_stem()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
         s.push_str(&format!(
             "{:<10} {:<10} {:<12} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>9.0}\n",
             name, method_name(r.method), r.setting, r.rays_per_s / 1e6, r.rays_per_s_per_core / 1e6, r.steps_per_ray,

@@ -29,12 +29,18 @@ fn register_font() {
 pub fn write_plot(path: &Path, title: &str, rows: &[BenchRow]) -> Result<()> {
     register_font();
     // The reference is the zero of the error axis: give its time in the title instead.
-    let reference_ns = rows.iter().find(|r| r.method == Method::Reference).map(|r| r.ns_per_ray);
+    let reference_ns = rows
+        .iter()
+        .find(|r| r.method == Method::Reference)
+        .map(|r| r.ns_per_ray);
     let title = match reference_ns {
         Some(ns) => format!("{title} (reference: {ns:.0} ns/ray)"),
         None => title.to_string(),
     };
-    let rows: Vec<&BenchRow> = rows.iter().filter(|r| r.method != Method::Reference).collect();
+    let rows: Vec<&BenchRow> = rows
+        .iter()
+        .filter(|r| r.method != Method::Reference)
+        .collect();
     let pts: Vec<(f64, f64)> = rows
         .iter()
         .map(|r| (r.ns_per_ray, r.depth_err_median_texels.max(1e-6)))
@@ -81,7 +87,9 @@ pub fn write_plot(path: &Path, title: &str, rows: &[BenchRow]) -> Result<()> {
                 .draw_series(LineSeries::new(series.clone(), colour.stroke_width(2)))
                 .map_err(|e| draw(&e))?
                 .label(m.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3)));
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(3))
+                });
             chart
                 .draw_series(series.iter().map(|&p| Circle::new(p, 4, colour.filled())))
                 .map_err(|e| draw(&e))?;

@@ -58,13 +58,16 @@ fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
     let invalid = |what: String| {
         Error::invalid(
             path,
-            format!("is not valid glTF 2.0: {what} (the file is truncated or corrupt; re-export it)"),
+            format!(
+                "is not valid glTF 2.0: {what} (the file is truncated or corrupt; re-export it)"
+            ),
         )
     };
     let unchecked =
         ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| invalid(e.to_string()))?;
     let root = unchecked.document.as_json();
-    let position = ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
+    let position =
+        ::gltf::json::validation::Checked::Valid(::gltf::json::mesh::Semantic::Positions);
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {
             if let Some(a) = primitive.attributes.get(&position) {

@@ -5,9 +5,9 @@
 pub mod gltf;
 pub mod image;
 pub mod obj;
-pub mod usd;
 #[cfg(test)]
 mod tests;
+pub mod usd;
 
 use crate::error::{Error, Result};
 use crate::heightmap::{HeightMap, Wrap};

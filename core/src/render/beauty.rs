@@ -17,7 +17,9 @@
 
 use super::camera::Camera;
 use super::env::{env_pdf, env_radiance, env_radiance_smooth, env_sample, EnvMap};
-use super::shading::{self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material};
+use super::shading::{
+    self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material,
+};
 use super::RenderSettings;
 use crate::rng::{self, Purpose};
 use crate::trace::{Hit, Intersector, Ray, RayContext};
@@ -42,8 +44,15 @@ impl KeyLight {
     pub fn from_angles(azimuth_deg: f32, elevation_deg: f32, irradiance: f32, z_up: bool) -> Self {
         let (az, el) = (azimuth_deg.to_radians(), elevation_deg.to_radians());
         let (x, up, front) = (az.sin() * el.cos(), el.sin(), az.cos() * el.cos());
-        let dir = if z_up { Vec3::new(x, -front, up) } else { Vec3::new(x, up, front) };
-        KeyLight { dir: dir.normalize(), irradiance }
+        let dir = if z_up {
+            Vec3::new(x, -front, up)
+        } else {
+            Vec3::new(x, up, front)
+        };
+        KeyLight {
+            dir: dir.normalize(),
+            irradiance,
+        }
     }
 }
 
@@ -133,7 +142,12 @@ fn rand2(ctx: &RayContext, bounce: u32, k: u32, purpose: Purpose) -> Vec2 {
 
 #[inline]
 fn shadow_ray(origin: Vec3, dir: Vec3) -> Ray {
-    Ray { origin, dir, t_min: 0.0, t_max: f32::INFINITY }
+    Ray {
+        origin,
+        dir,
+        t_min: 0.0,
+        t_max: f32::INFINITY,
+    }
 }
 
 /// Distance along `ray` to the ground plane, if it is in front and the ray goes down to it.
@@ -149,7 +163,13 @@ pub fn ground_hit(g: &Ground, ray: &Ray) -> Option<f32> {
 
 /// Light reaching a ground point with and without the asset in the way (luminance):
 /// (lit, unshadowed). Their ratio is the catcher's visibility.
-fn ground_light(isect: &dyn Intersector, s: &BeautyScene, p: Vec3, ctx: &RayContext, n: &mut BeautyCounters) -> (f32, f32) {
+fn ground_light(
+    isect: &dyn Intersector,
+    s: &BeautyScene,
+    p: Vec3,
+    ctx: &RayContext,
+    n: &mut BeautyCounters,
+) -> (f32, f32) {
     let Some(g) = s.ground else { return (0.0, 0.0) };
     let origin = p + g.up * s.eps;
     let (mut lit, mut all) = (0.0, 0.0);
@@ -179,7 +199,14 @@ fn ground_light(isect: &dyn Intersector, s: &BeautyScene, p: Vec3, ctx: &RayCont
 }
 
 /// Radiance leaving a camera hit towards the camera: the path tracer proper.
-fn surface_radiance(isect: &dyn Intersector, s: &BeautyScene, first: Hit, first_dir: Vec3, ctx: &RayContext, n: &mut BeautyCounters) -> Vec3 {
+fn surface_radiance(
+    isect: &dyn Intersector,
+    s: &BeautyScene,
+    first: Hit,
+    first_dir: Vec3,
+    ctx: &RayContext,
+    n: &mut BeautyCounters,
+) -> Vec3 {
     let m = &s.material;
     let mut hit = first;
     let mut dir = first_dir;
@@ -198,14 +225,24 @@ fn surface_radiance(isect: &dyn Intersector, s: &BeautyScene, first: Hit, first_
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
         let p = hit.position;
-        let bctx = RayContext { bounce: bounce + 1, ..*ctx };
+        let bctx = RayContext {
+            bounce: bounce + 1,
+            ..*ctx
+        };
 
         if let Some(k) = s.key {
             let wi_l = shading::to_local(k.dir, t, b, ns);
-            let f = if k.dir.dot(ng) > 0.0 { bsdf_eval(m, wo_l, wi_l) } else { Vec3::ZERO };
+            let f = if k.dir.dot(ng) > 0.0 {
+                bsdf_eval(m, wo_l, wi_l)
+            } else {
+                Vec3::ZERO
+            };
             if f.max_element() > 0.0 {
                 n.key_shadow_rays += 1;
-                if !isect.occluded(&shadow_ray(offset_origin(p, ng, k.dir, s.eps), k.dir), &bctx) {
+                if !isect.occluded(
+                    &shadow_ray(offset_origin(p, ng, k.dir, s.eps), k.dir),
+                    &bctx,
+                ) {
                     radiance += throughput * f * k.irradiance;
                 }
             }
@@ -217,7 +254,10 @@ fn surface_radiance(isect: &dyn Intersector, s: &BeautyScene, first: Hit, first_
                 let f = bsdf_eval(m, wo_l, wi_l);
                 if f.max_element() > 0.0 {
                     n.env_shadow_rays += 1;
-                    if !isect.occluded(&shadow_ray(offset_origin(p, ng, es.dir, s.eps), es.dir), &bctx) {
+                    if !isect.occluded(
+                        &shadow_ray(offset_origin(p, ng, es.dir, s.eps), es.dir),
+                        &bctx,
+                    ) {
                         let w = power_heuristic(es.pdf, bsdf_pdf(m, wo_l, wi_l));
                         radiance += throughput * f * env_radiance(s.env, es.dir) * (w / es.pdf);
                     }
@@ -225,15 +265,29 @@ fn surface_radiance(isect: &dyn Intersector, s: &BeautyScene, first: Hit, first_
             }
         }
 
-        let u_lobe = rng::random(ctx.pixel, ctx.sample, bounce * DIMS + 2, Purpose::Bsdf, ctx.seed);
-        let Some(bs) = bsdf_sample(m, wo_l, u_lobe, rand2(ctx, bounce, 3, Purpose::Bsdf)) else { break };
+        let u_lobe = rng::random(
+            ctx.pixel,
+            ctx.sample,
+            bounce * DIMS + 2,
+            Purpose::Bsdf,
+            ctx.seed,
+        );
+        let Some(bs) = bsdf_sample(m, wo_l, u_lobe, rand2(ctx, bounce, 3, Purpose::Bsdf)) else {
+            break;
+        };
         let wi = shading::from_local(bs.wi, t, b, ns);
         if wi.dot(ng) <= 0.0 {
             break;
         }
         throughput *= bs.weight;
         let ray = shadow_ray(offset_origin(p, ng, wi, s.eps), wi);
-        let env_weight = |s: &BeautyScene| if bs.delta { 1.0 } else { power_heuristic(bs.pdf, env_pdf(s.env, wi)) };
+        let env_weight = |s: &BeautyScene| {
+            if bs.delta {
+                1.0
+            } else {
+                power_heuristic(bs.pdf, env_pdf(s.env, wi))
+            }
+        };
         if bounce + 1 == s.bounces {
             // Last event: only whether the ray escapes matters.
             if s.env_lights {
@@ -261,20 +315,31 @@ fn surface_radiance(isect: &dyn Intersector, s: &BeautyScene, first: Hit, first_
     radiance
 }
 
-fn trace_sample(isect: &dyn Intersector, s: &BeautyScene, ray: &Ray, ctx: &RayContext, n: &mut BeautyCounters) -> SampleResult {
+fn trace_sample(
+    isect: &dyn Intersector,
+    s: &BeautyScene,
+    ray: &Ray,
+    ctx: &RayContext,
+    n: &mut BeautyCounters,
+) -> SampleResult {
     n.rays += 1;
     let hit = isect.intersect(ray, ctx);
     let ground_t = s.ground.as_ref().and_then(|g| ground_hit(g, ray));
     match (hit, ground_t) {
-        (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => {
-            SampleResult { radiance: surface_radiance(isect, s, h, ray.dir, ctx, n), surface: true, ..Default::default() }
-        }
+        (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => SampleResult {
+            radiance: surface_radiance(isect, s, h, ray.dir, ctx, n),
+            surface: true,
+            ..Default::default()
+        },
         (_, Some(gt)) => SampleResult {
             background: env_radiance_smooth(s.env, ray.dir),
             ground: Some(ground_light(isect, s, ray.at(gt), ctx, n)),
             ..Default::default()
         },
-        _ => SampleResult { background: env_radiance_smooth(s.env, ray.dir), ..Default::default() },
+        _ => SampleResult {
+            background: env_radiance_smooth(s.env, ray.dir),
+            ..Default::default()
+        },
     }
 }
 
@@ -287,7 +352,11 @@ pub fn render_beauty(
     scene: &BeautyScene,
     progress: &(dyn Fn(usize) + Sync),
 ) -> BeautyImage {
-    let (w, h, spp) = (settings.width as usize, settings.height as usize, settings.spp);
+    let (w, h, spp) = (
+        settings.width as usize,
+        settings.height as usize,
+        settings.spp,
+    );
     let mut sums = vec![PixelSums::default(); w * h];
     let mut counters = BeautyCounters::default();
     let done = AtomicUsize::new(0);
@@ -308,7 +377,12 @@ pub fn render_beauty(
                         )
                     };
                     let ray = cam.ray(Vec2::new(x as f32, y as f32) + jitter, w as u32, h as u32);
-                    let ctx = RayContext { pixel, sample, bounce: 0, seed: settings.seed };
+                    let ctx = RayContext {
+                        pixel,
+                        sample,
+                        bounce: 0,
+                        seed: settings.seed,
+                    };
                     let r = trace_sample(isect, scene, &ray, &ctx, &mut n);
                     acc.radiance += r.radiance;
                     acc.surface += r.surface as u32 as f32;
@@ -335,14 +409,24 @@ pub fn render_beauty(
     let (rgba, background) = sums
         .iter()
         .map(|a| {
-            let shadow = if a.ground_unshadowed > 0.0 { (1.0 - a.ground_lit / a.ground_unshadowed).clamp(0.0, 1.0) } else { 0.0 };
+            let shadow = if a.ground_unshadowed > 0.0 {
+                (1.0 - a.ground_lit / a.ground_unshadowed).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             let alpha = (a.surface + a.ground_samples * shadow) * k;
             let c = a.radiance * k;
             let bg = (a.background + a.ground_background * (1.0 - shadow)) * k;
             ([c.x, c.y, c.z, alpha], bg)
         })
         .unzip();
-    BeautyImage { width: w as u32, height: h as u32, rgba, background, counters }
+    BeautyImage {
+        width: w as u32,
+        height: h as u32,
+        rgba,
+        background,
+        counters,
+    }
 }
 
 /// The sRGB preview: radiance plus the background where the asset does not cover the pixel,
@@ -352,7 +436,10 @@ pub fn beauty_preview(img: &BeautyImage) -> Vec<u8> {
     for (c, bg) in img.rgba.iter().zip(&img.background) {
         let lin = Vec3::new(c[0], c[1], c[2]) + *bg;
         let t = shading::tonemap_filmic(lin);
-        rgb.extend(t.to_array().map(|v| (shading::linear_to_srgb(v) * 255.0).round() as u8));
+        rgb.extend(
+            t.to_array()
+                .map(|v| (shading::linear_to_srgb(v) * 255.0).round() as u8),
+        );
     }
     rgb
 }

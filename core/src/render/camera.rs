@@ -16,7 +16,12 @@ pub struct Camera {
 
 impl Camera {
     pub fn from_scene(c: &SceneCamera) -> Self {
-        Camera { from: c.from, to: c.to, up: c.up, yfov_deg: c.yfov_deg }
+        Camera {
+            from: c.from,
+            to: c.to,
+            up: c.up,
+            yfov_deg: c.yfov_deg,
+        }
     }
 
     /// Look at the centre of the bounds from the front, a little above, just far enough that
@@ -28,7 +33,12 @@ impl Camera {
             UpAxis::Z => (Vec3::Z, -Vec3::Y),
         };
         let dir = (front + up * 0.35).normalize();
-        let mut cam = Camera { from: centre + dir, to: centre, up, yfov_deg };
+        let mut cam = Camera {
+            from: centre + dir,
+            to: centre,
+            up,
+            yfov_deg,
+        };
         let (right, cam_up, back) = cam.basis();
         let tan_y = (yfov_deg.to_radians() * 0.5).tan() / 1.1;
         let tan_x = tan_y * aspect;
@@ -40,7 +50,9 @@ impl Camera {
                 if i & 4 == 0 { lo.z } else { hi.z },
             ) - centre;
             let z = corner.dot(back);
-            dist = dist.max(z + corner.dot(right).abs() / tan_x).max(z + corner.dot(cam_up).abs() / tan_y);
+            dist = dist
+                .max(z + corner.dot(right).abs() / tan_x)
+                .max(z + corner.dot(cam_up).abs() / tan_y);
         }
         cam.from = centre + dir * dist;
         cam
@@ -53,7 +65,10 @@ impl Camera {
         }
         let angle = std::f32::consts::TAU * frame as f32 / n as f32;
         let rot = Quat::from_axis_angle(self.up.normalize(), angle);
-        Camera { from: self.to + rot * (self.from - self.to), ..*self }
+        Camera {
+            from: self.to + rot * (self.from - self.to),
+            ..*self
+        }
     }
 
     /// Orthonormal basis (right, up, back) of the view.
@@ -84,11 +99,20 @@ mod tests {
 
     #[test]
     fn centre_ray_looks_at_target_and_turntable_orbits() {
-        let c = Camera { from: Vec3::new(0.0, 0.0, 5.0), to: Vec3::ZERO, up: Vec3::Y, yfov_deg: 40.0 };
+        let c = Camera {
+            from: Vec3::new(0.0, 0.0, 5.0),
+            to: Vec3::ZERO,
+            up: Vec3::Y,
+            yfov_deg: 40.0,
+        };
         let r = c.ray(Vec2::new(50.0, 50.0), 100, 100);
         assert!((r.dir - -Vec3::Z).length() < 1e-6);
         let q = c.turntable(1, 4);
-        assert!((q.from - Vec3::new(5.0, 0.0, 0.0)).length() < 1e-4, "{:?}", q.from);
+        assert!(
+            (q.from - Vec3::new(5.0, 0.0, 0.0)).length() < 1e-4,
+            "{:?}",
+            q.from
+        );
         // Top of the image looks up.
         assert!(c.ray(Vec2::new(50.0, 0.0), 100, 100).dir.y > 0.0);
     }
@@ -98,7 +122,13 @@ mod tests {
         // Every corner of the box projects inside the image (with the 10% margin) for a wide
         // and a tall image; breaks if the framing ignores the aspect ratio or a corner.
         for aspect in [1.0f32, 2.0, 0.5] {
-            let c = Camera::frame_bounds(Vec3::new(-1.0, -0.2, -3.0), Vec3::new(1.0, 0.2, 3.0), UpAxis::Y, 40.0, aspect);
+            let c = Camera::frame_bounds(
+                Vec3::new(-1.0, -0.2, -3.0),
+                Vec3::new(1.0, 0.2, 3.0),
+                UpAxis::Y,
+                40.0,
+                aspect,
+            );
             let (right, up, back) = c.basis();
             let tan_y = (20f32).to_radians().tan();
             for i in 0..8 {
@@ -111,7 +141,10 @@ mod tests {
                 assert!(depth > 0.0);
                 let x = p.dot(right) / (depth * tan_y * aspect);
                 let y = p.dot(up) / (depth * tan_y);
-                assert!(x.abs() <= 1.0 / 1.1 + 1e-4 && y.abs() <= 1.0 / 1.1 + 1e-4, "aspect {aspect} corner {i}: {x} {y}");
+                assert!(
+                    x.abs() <= 1.0 / 1.1 + 1e-4 && y.abs() <= 1.0 / 1.1 + 1e-4,
+                    "aspect {aspect} corner {i}: {x} {y}"
+                );
             }
         }
     }

@@ -17,7 +17,10 @@ pub fn grid(n: usize) -> (u32, u32) {
 /// Tile RGB8 frames of `w`×`h` into one sheet; returns (width, height, pixels).
 pub fn contact_sheet(frames: &[Vec<u8>], w: u32, h: u32) -> (u32, u32, Vec<u8>) {
     let (cols, rows) = grid(frames.len());
-    let step = (cols * w).div_ceil(MAX_SHEET_SIDE).max((rows * h).div_ceil(MAX_SHEET_SIDE)).max(1);
+    let step = (cols * w)
+        .div_ceil(MAX_SHEET_SIDE)
+        .max((rows * h).div_ceil(MAX_SHEET_SIDE))
+        .max(1);
     let (tw, th) = (w.div_ceil(step), h.div_ceil(step));
     let (sw, sh) = (cols * tw, rows * th);
     let mut sheet = vec![0u8; (sw * sh * 3) as usize];

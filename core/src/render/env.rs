@@ -83,7 +83,11 @@ pub fn env_dir_to_uv(d: Vec3) -> Vec2 {
 pub fn env_uv_to_dir(uv: Vec2) -> Vec3 {
     let phi = (uv.x - 0.5) * 2.0 * PI;
     let theta = uv.y * PI;
-    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
+    Vec3::new(
+        theta.sin() * phi.sin(),
+        theta.cos(),
+        -theta.sin() * phi.cos(),
+    )
 }
 
 #[inline]
@@ -138,17 +142,28 @@ pub fn env_sample(env: &EnvMap, u: Vec2) -> EnvSample {
     let (w, h) = (env.width as usize, env.height as usize);
     let y = find_interval(&env.marginal_cdf, u.y).min(h - 1);
     let (c0, c1) = (env.marginal_cdf[y], env.marginal_cdf[y + 1]);
-    let fy = if c1 > c0 { ((u.y - c0) / (c1 - c0)).clamp(0.0, 1.0) } else { 0.5 };
+    let fy = if c1 > c0 {
+        ((u.y - c0) / (c1 - c0)).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
     let row = &env.conditional_cdf[y * (w + 1)..(y + 1) * (w + 1)];
     let x = find_interval(row, u.x).min(w - 1);
     let (r0, r1) = (row[x], row[x + 1]);
-    let fx = if r1 > r0 { ((u.x - r0) / (r1 - r0)).clamp(0.0, 1.0) } else { 0.5 };
+    let fx = if r1 > r0 {
+        ((u.x - r0) / (r1 - r0)).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
     let uv = Vec2::new((x as f32 + fx) / w as f32, (y as f32 + fy) / h as f32);
     let dir = env_to_world(env_uv_to_dir(uv), env.frame);
     // The density of the texel `dir` maps back to, as `env_pdf` and `env_radiance` see it: on a
     // texel edge float rounding may pick the neighbour, and radiance / pdf must come from the
     // same texel there.
-    EnvSample { dir, pdf: env_pdf(env, dir) }
+    EnvSample {
+        dir,
+        pdf: env_pdf(env, dir),
+    }
 }
 
 #[inline]
@@ -158,7 +173,10 @@ fn pdf_of_texel(env: &EnvMap, x: usize, y: usize, v: f32) -> f32 {
         return 0.0;
     }
     // p(u, v) = (row share × height) × (texel share × width); dω = 2π² sin θ du dv.
-    let p_uv = env.row_weight[y] * env.height as f32 * env.texel_weight[y * env.width as usize + x] * env.width as f32;
+    let p_uv = env.row_weight[y]
+        * env.height as f32
+        * env.texel_weight[y * env.width as usize + x]
+        * env.width as f32;
     p_uv / (2.0 * PI * PI * sin_theta)
 }
 
@@ -197,7 +215,16 @@ impl EnvMap {
             }
         }
         let total: f32 = row_sums.iter().sum();
-        let row_weight: Vec<f32> = row_sums.iter().map(|s| if total > 0.0 { s / total } else { 1.0 / h as f32 }).collect();
+        let row_weight: Vec<f32> = row_sums
+            .iter()
+            .map(|s| {
+                if total > 0.0 {
+                    s / total
+                } else {
+                    1.0 / h as f32
+                }
+            })
+            .collect();
         let mut marginal_cdf = Vec::with_capacity(h + 1);
         marginal_cdf.push(0.0);
         let mut acc = 0.0f32;
@@ -205,7 +232,17 @@ impl EnvMap {
             acc += r;
             marginal_cdf.push(if y + 1 == h { 1.0 } else { acc });
         }
-        EnvMap { width, height, texels, marginal_cdf, conditional_cdf, row_weight, texel_weight, total_weight: total, frame }
+        EnvMap {
+            width,
+            height,
+            texels,
+            marginal_cdf,
+            conditional_cdf,
+            row_weight,
+            texel_weight,
+            total_weight: total,
+            frame,
+        }
     }
 
     /// The built-in neutral studio sky: a soft grey gradient (cooler and darker towards the
@@ -238,14 +275,24 @@ impl EnvMap {
     /// Read an equirect EXR (R, G, B; or a single channel as grey), scaled by `intensity`.
     pub fn load_exr(path: &Path, intensity: f32, frame: EnvFrame) -> Result<Self> {
         if super::super::load::extension(path) != "exr" {
-            return Err(Error::invalid(path, "--env needs an equirectangular .exr (linear HDR) map"));
+            return Err(Error::invalid(
+                path,
+                "--env needs an equirectangular .exr (linear HDR) map",
+            ));
         }
         let (w, h, names, data) = super::output::read_exr(path)?;
         if w == 0 || h == 0 || w > MAX_ENV_SIDE || h > MAX_ENV_SIDE {
-            return Err(Error::invalid(path, format!("environment is {w}x{h}; each side must be 1..={MAX_ENV_SIDE}")));
+            return Err(Error::invalid(
+                path,
+                format!("environment is {w}x{h}; each side must be 1..={MAX_ENV_SIDE}"),
+            ));
         }
         let k = names.len();
-        let find = |n: &str| names.iter().position(|c| c == n || c.ends_with(&format!(".{n}")));
+        let find = |n: &str| {
+            names
+                .iter()
+                .position(|c| c == n || c.ends_with(&format!(".{n}")))
+        };
         let idx = match (find("R"), find("G"), find("B")) {
             (Some(r), Some(g), Some(b)) => [r, g, b],
             _ => {
@@ -255,10 +302,17 @@ impl EnvMap {
         };
         let mut texels = Vec::with_capacity((w * h) as usize);
         for i in 0..(w * h) as usize {
-            let c = Vec3::new(data[i * k + idx[0]], data[i * k + idx[1]], data[i * k + idx[2]]);
+            let c = Vec3::new(
+                data[i * k + idx[0]],
+                data[i * k + idx[1]],
+                data[i * k + idx[2]],
+            );
             if !c.is_finite() {
                 let (x, y) = (i as u32 % w, i as u32 / w);
-                return Err(Error::invalid(path, format!("texel ({x}, {y}) is NaN or infinite; clamp the HDR before using it")));
+                return Err(Error::invalid(
+                    path,
+                    format!("texel ({x}, {y}) is NaN or infinite; clamp the HDR before using it"),
+                ));
             }
             texels.push(c.max(Vec3::ZERO) * intensity);
         }
@@ -277,21 +331,37 @@ mod tests {
         let texels = (0..w * h)
             .map(|i| {
                 let (x, y) = (i % w, i / w);
-                if (x, y) == (20, 7) { Vec3::new(200.0, 150.0, 100.0) } else { Vec3::splat(0.1 + 0.05 * x as f32 / w as f32) }
+                if (x, y) == (20, 7) {
+                    Vec3::new(200.0, 150.0, 100.0)
+                } else {
+                    Vec3::splat(0.1 + 0.05 * x as f32 / w as f32)
+                }
             })
             .collect();
         EnvMap::new(w, h, texels, frame)
     }
 
     fn frames() -> [EnvFrame; 2] {
-        [EnvFrame { z_up: false, rotation: 0.0 }, EnvFrame { z_up: true, rotation: 1.1 }]
+        [
+            EnvFrame {
+                z_up: false,
+                rotation: 0.0,
+            },
+            EnvFrame {
+                z_up: true,
+                rotation: 1.1,
+            },
+        ]
     }
 
     #[test]
     fn direction_and_uv_round_trip() {
         for f in frames() {
             for i in 0..100 {
-                let uv = Vec2::new(random(i, 0, 0, Purpose::Bench, 1), 0.02 + 0.96 * random(i, 0, 1, Purpose::Bench, 1));
+                let uv = Vec2::new(
+                    random(i, 0, 0, Purpose::Bench, 1),
+                    0.02 + 0.96 * random(i, 0, 1, Purpose::Bench, 1),
+                );
                 let d = env_to_world(env_uv_to_dir(uv), f);
                 let back = env_dir_to_uv(world_to_env(d, f));
                 assert!((back - uv).abs().max_element() < 1e-4, "{uv:?} -> {back:?}");
@@ -325,8 +395,17 @@ mod tests {
             let (w, h) = (env.width as usize, env.height as usize);
             let mut hist = vec![0u32; w * h];
             for i in 0..n {
-                let s = env_sample(&env, Vec2::new(random(i, 0, 0, Purpose::Light, 5), random(i, 0, 1, Purpose::Light, 5)));
-                assert!((s.pdf - env_pdf(&env, s.dir)).abs() <= 1e-3 * s.pdf.max(1.0), "sample pdf disagrees with env_pdf");
+                let s = env_sample(
+                    &env,
+                    Vec2::new(
+                        random(i, 0, 0, Purpose::Light, 5),
+                        random(i, 0, 1, Purpose::Light, 5),
+                    ),
+                );
+                assert!(
+                    (s.pdf - env_pdf(&env, s.dir)).abs() <= 1e-3 * s.pdf.max(1.0),
+                    "sample pdf disagrees with env_pdf"
+                );
                 let (x, y) = texel_index(&env, env_dir_to_uv(world_to_env(s.dir, f)));
                 hist[y * w + x] += 1;
             }
@@ -335,7 +414,10 @@ mod tests {
                     let expected = env.row_weight[y] as f64 * env.texel_weight[y * w + x] as f64;
                     let got = hist[y * w + x] as f64 / n as f64;
                     let sigma = (expected / n as f64).sqrt();
-                    assert!((got - expected).abs() < 5.0 * sigma + 1e-5, "texel ({x}, {y}): {got} vs {expected}");
+                    assert!(
+                        (got - expected).abs() < 5.0 * sigma + 1e-5,
+                        "texel ({x}, {y}): {got} vs {expected}"
+                    );
                 }
             }
             // The spot dominates sampling.
@@ -350,11 +432,22 @@ mod tests {
         let env = EnvMap::constant(Vec3::ONE, frames()[0]);
         let n = 100_000;
         let mean: f64 = (0..n)
-            .map(|i| env_sample(&env, Vec2::new(random(i, 0, 0, Purpose::Light, 2), random(i, 0, 1, Purpose::Light, 2))))
+            .map(|i| {
+                env_sample(
+                    &env,
+                    Vec2::new(
+                        random(i, 0, 0, Purpose::Light, 2),
+                        random(i, 0, 1, Purpose::Light, 2),
+                    ),
+                )
+            })
             // Directions within ~1e-4 rad of a pole round to it (pdf 0, skipped by the renderer).
             .map(|s| if s.pdf > 0.0 { 1.0 / s.pdf as f64 } else { 0.0 })
             .sum::<f64>()
             / n as f64;
-        assert!((mean / (4.0 * PI as f64) - 1.0).abs() < 0.01, "E[1/pdf] = {mean}");
+        assert!(
+            (mean / (4.0 * PI as f64) - 1.0).abs() < 0.01,
+            "E[1/pdf] = {mean}"
+        );
     }
 }

@@ -10,8 +10,8 @@ use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
 use crate::mesh::{SceneCamera, UpAxis};
 use crate::repair::RepairOptions;
-use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
+use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
 use crate::trace::rmip::{Rmip, RmipOptions};
 use crate::trace::{Intersector, NormalMode};
@@ -37,7 +37,9 @@ impl std::str::FromStr for Method {
             "reference" => Ok(Method::Reference),
             "rmip" => Ok(Method::Rmip),
             "nonlinear" => Ok(Method::Nonlinear),
-            _ => Err(format!("unknown method '{s}' (expected pdm, reference or rmip)")),
+            _ => Err(format!(
+                "unknown method '{s}' (expected pdm, reference or rmip)"
+            )),
         }
     }
 }
@@ -46,7 +48,11 @@ impl std::str::FromStr for Method {
 #[derive(Clone, Debug)]
 pub enum Input {
     Asset(AssetSpec),
-    Table { path: PathBuf, disp: Option<PathBuf>, channel: Option<String> },
+    Table {
+        path: PathBuf,
+        disp: Option<PathBuf>,
+        channel: Option<String>,
+    },
 }
 
 /// Camera overrides from the command line.
@@ -71,7 +77,14 @@ pub struct MethodConfig {
 
 impl Default for MethodConfig {
     fn default() -> Self {
-        MethodConfig { method: Method::Pdm, normal_mode: NormalMode::Smooth, pdm: PdmOptions::default(), ref_density: 2.0, nonlinear: NonlinearOptions::default(), rmip: RmipOptions::default() }
+        MethodConfig {
+            method: Method::Pdm,
+            normal_mode: NormalMode::Smooth,
+            pdm: PdmOptions::default(),
+            ref_density: 2.0,
+            nonlinear: NonlinearOptions::default(),
+            rmip: RmipOptions::default(),
+        }
     }
 }
 
@@ -97,21 +110,32 @@ impl RenderJob {
     pub fn validate(&self) -> Result<()> {
         let s = &self.settings;
         if s.width == 0 || s.height == 0 || s.width > MAX_RES || s.height > MAX_RES {
-            return Err(Error::Param(format!("--res {}x{}: each side must be 1..={MAX_RES}", s.width, s.height)));
+            return Err(Error::Param(format!(
+                "--res {}x{}: each side must be 1..={MAX_RES}",
+                s.width, s.height
+            )));
         }
         if s.spp == 0 || s.spp > MAX_SPP {
-            return Err(Error::Param(format!("--spp {}: must be 1..={MAX_SPP}", s.spp)));
+            return Err(Error::Param(format!(
+                "--spp {}: must be 1..={MAX_SPP}",
+                s.spp
+            )));
         }
         if self.aovs.is_empty() {
             return Err(Error::Param("--aov: name at least one AOV".into()));
         }
         if let Some(n) = self.turntable {
             if n == 0 || n > 100_000 {
-                return Err(Error::Param(format!("--turntable {n}: must be 1..=100000 frames")));
+                return Err(Error::Param(format!(
+                    "--turntable {n}: must be 1..=100000 frames"
+                )));
             }
             if let Some((a, b)) = self.frames {
                 if a > b || b >= n {
-                    return Err(Error::Param(format!("--frames {a}-{b}: must lie within 0-{} of the turntable", n - 1)));
+                    return Err(Error::Param(format!(
+                        "--frames {a}-{b}: must lie within 0-{} of the turntable",
+                        n - 1
+                    )));
                 }
             }
         } else if self.frames.is_some() {
@@ -119,28 +143,42 @@ impl RenderJob {
         }
         if let Some(f) = self.camera.fov_deg {
             if !(f > 0.0 && f < 179.0) {
-                return Err(Error::Param(format!("--fov {f}: must be between 0 and 179 degrees")));
+                return Err(Error::Param(format!(
+                    "--fov {f}: must be between 0 and 179 degrees"
+                )));
             }
         }
         for v in [self.camera.from, self.camera.to].into_iter().flatten() {
             if !v.is_finite() {
-                return Err(Error::Param("--camera-from/--camera-to must be finite".into()));
+                return Err(Error::Param(
+                    "--camera-from/--camera-to must be finite".into(),
+                ));
             }
         }
         if let (Some(a), Some(b)) = (self.camera.from, self.camera.to) {
             if (a - b).length() == 0.0 {
-                return Err(Error::Param("--camera-from and --camera-to are the same point".into()));
+                return Err(Error::Param(
+                    "--camera-from and --camera-to are the same point".into(),
+                ));
             }
         }
         let rmip = &self.method.rmip;
         if !(rmip.marching_scale > 0.0 && rmip.marching_scale.is_finite()) {
-            return Err(Error::Param(format!("--marching-scale {}: must be a positive number of texels", rmip.marching_scale)));
+            return Err(Error::Param(format!(
+                "--marching-scale {}: must be a positive number of texels",
+                rmip.marching_scale
+            )));
         }
         if rmip.resolution == Some(0) {
-            return Err(Error::Param("--rmip-res 0: the pyramid needs at least one cell".into()));
+            return Err(Error::Param(
+                "--rmip-res 0: the pyramid needs at least one cell".into(),
+            ));
         }
         if !(self.method.ref_density > 0.0 && self.method.ref_density <= 64.0) {
-            return Err(Error::Param(format!("--ref-density {}: must be in (0, 64]", self.method.ref_density)));
+            return Err(Error::Param(format!(
+                "--ref-density {}: must be in (0, 64]",
+                self.method.ref_density
+            )));
         }
         Ok(())
     }
@@ -173,9 +211,18 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
                 map: p.map,
             })
         }
-        Input::Table { path, disp, channel } => {
+        Input::Table {
+            path,
+            disp,
+            channel,
+        } => {
             let (table, map) = asset::load_table(path, disp.as_deref(), channel.clone())?;
-            Ok(Loaded { table, map, scene_camera: None, up_axis: UpAxis::Y })
+            Ok(Loaded {
+                table,
+                map,
+                scene_camera: None,
+                up_axis: UpAxis::Y,
+            })
         }
     }
 }
@@ -224,16 +271,38 @@ pub struct RenderSummary {
 }
 
 /// Build the intersector a config names and call `f` with it.
-pub fn with_intersector<R>(cfg: &MethodConfig, scene: &Scene, f: impl FnOnce(&dyn Intersector) -> R) -> R {
+pub fn with_intersector<R>(
+    cfg: &MethodConfig,
+    scene: &Scene,
+    f: impl FnOnce(&dyn Intersector) -> R,
+) -> R {
     match cfg.method {
-        Method::Pdm => f(&Pdm::new(scene, PdmOptions { normal_mode: cfg.normal_mode, ..cfg.pdm })),
+        Method::Pdm => f(&Pdm::new(
+            scene,
+            PdmOptions {
+                normal_mode: cfg.normal_mode,
+                ..cfg.pdm
+            },
+        )),
         Method::Reference => {
             let mut r = Reference::new(&scene.table, &scene.map, cfg.ref_density);
             r.normal_mode = cfg.normal_mode;
             f(&r)
         }
-        Method::Nonlinear => f(&Nonlinear::new(scene, NonlinearOptions { normal_mode: cfg.normal_mode, ..cfg.nonlinear })),
-        Method::Rmip => f(&Rmip::new(scene, RmipOptions { normal_mode: cfg.normal_mode, ..cfg.rmip })),
+        Method::Nonlinear => f(&Nonlinear::new(
+            scene,
+            NonlinearOptions {
+                normal_mode: cfg.normal_mode,
+                ..cfg.nonlinear
+            },
+        )),
+        Method::Rmip => f(&Rmip::new(
+            scene,
+            RmipOptions {
+                normal_mode: cfg.normal_mode,
+                ..cfg.rmip
+            },
+        )),
     }
 }
 
@@ -243,7 +312,11 @@ pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
     let loaded = load_input(&job.input, &job.repair)?;
-    let cam0 = base_camera(&loaded, &job.camera, job.settings.width as f32 / job.settings.height as f32);
+    let cam0 = base_camera(
+        &loaded,
+        &job.camera,
+        job.settings.width as f32 / job.settings.height as f32,
+    );
     let scene = Scene::new(loaded.table, loaded.map);
     let frames: Vec<Option<u32>> = match job.turntable {
         None => vec![None],
@@ -271,7 +344,9 @@ pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<
             let t = Instant::now();
             let img = render_aovs(isect, &cam, &job.settings, &|rows| progress(i, rows));
             let seconds = t.elapsed().as_secs_f64();
-            summary.files.extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
+            summary
+                .files
+                .extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
             summary.frames.push(FrameStats {
                 frame: *frame,
                 seconds,

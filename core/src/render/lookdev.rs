@@ -10,7 +10,10 @@
 use super::beauty::{self, BeautyCounters, BeautyScene, Ground, KeyLight};
 use super::camera::Camera;
 use super::env::{EnvFrame, EnvMap};
-use super::job::{base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob, RenderSummary};
+use super::job::{
+    base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob,
+    RenderSummary,
+};
 use super::shading::Material;
 use super::{contact_sheet, output, render_aovs, Aov};
 use crate::accel::Scene;
@@ -78,10 +81,16 @@ impl LookdevOptions {
         unit("--metallic", self.metallic)?;
         unit("--specular", self.specular)?;
         if !(1..=4).contains(&self.bounces) {
-            return Err(Error::Param(format!("--bounces {}: must be 1..=4", self.bounces)));
+            return Err(Error::Param(format!(
+                "--bounces {}: must be 1..=4",
+                self.bounces
+            )));
         }
         if !(self.env_intensity >= 0.0 && self.env_intensity.is_finite()) {
-            return Err(Error::Param(format!("--env-intensity {}: must be a finite number >= 0", self.env_intensity)));
+            return Err(Error::Param(format!(
+                "--env-intensity {}: must be a finite number >= 0",
+                self.env_intensity
+            )));
         }
         if !self.env_rotate_deg.is_finite() {
             return Err(Error::Param("--env-rotate must be finite".into()));
@@ -95,7 +104,9 @@ impl LookdevOptions {
         }
         if let Some(c) = self.base_color {
             if !(c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0) {
-                return Err(Error::Param("--base-color: each component must be in [0, 1]".into()));
+                return Err(Error::Param(
+                    "--base-color: each component must be in [0, 1]".into(),
+                ));
             }
         }
         Ok(())
@@ -139,7 +150,11 @@ struct Session {
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
 fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option<Vec3>, CacheUse)> {
     let Input::Asset(spec) = &job.input else {
-        return Ok((super::job::load_input(&job.input, &job.repair)?, None, CacheUse::Off));
+        return Ok((
+            super::job::load_input(&job.input, &job.repair)?,
+            None,
+            CacheUse::Off,
+        ));
     };
     let (mesh, map) = asset::load(spec)?;
     let base_color = mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2]));
@@ -150,11 +165,26 @@ fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option
     };
     if let (Some(dir), Some(h)) = (&opts.cache_dir, &hash) {
         if let Some((table, path)) = table_cache::load(dir, h, &map) {
-            return Ok((Loaded { table, map, scene_camera, up_axis }, base_color, CacheUse::Reused(path)));
+            return Ok((
+                Loaded {
+                    table,
+                    map,
+                    scene_camera,
+                    up_axis,
+                },
+                base_color,
+                CacheUse::Reused(path),
+            ));
         }
     }
     let (mesh, _report) = repair::repair(mesh, &job.repair);
-    let mut table = bake::bake(&mesh, &map, &BakeOptions { params: spec.params });
+    let mut table = bake::bake(
+        &mesh,
+        &map,
+        &BakeOptions {
+            params: spec.params,
+        },
+    );
     let cache = match (&opts.cache_dir, hash) {
         (Some(dir), Some(h)) => {
             table.input_hash = h;
@@ -165,7 +195,16 @@ fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option
         }
         _ => CacheUse::Off,
     };
-    Ok((Loaded { table, map, scene_camera, up_axis }, base_color, cache))
+    Ok((
+        Loaded {
+            table,
+            map,
+            scene_camera,
+            up_axis,
+        },
+        base_color,
+        cache,
+    ))
 }
 
 fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
@@ -174,10 +213,17 @@ fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
     let (loaded, base_color, cache) = load_cached(job, opts)?;
-    let cam0 = base_camera(&loaded, &job.camera, job.settings.width as f32 / job.settings.height as f32);
+    let cam0 = base_camera(
+        &loaded,
+        &job.camera,
+        job.settings.width as f32 / job.settings.height as f32,
+    );
     let up_axis = loaded.up_axis;
     let env = if job.aovs.contains(&Aov::Beauty) {
-        let frame = EnvFrame { z_up: up_axis == UpAxis::Z, rotation: opts.env_rotate_deg.to_radians() };
+        let frame = EnvFrame {
+            z_up: up_axis == UpAxis::Z,
+            rotation: opts.env_rotate_deg.to_radians(),
+        };
         Some(match &opts.env {
             Some(p) => EnvMap::load_exr(p, opts.env_intensity, frame)?,
             None => EnvMap::default_sky(opts.env_intensity, frame),
@@ -186,7 +232,15 @@ fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         None
     };
     let scene = Scene::new(loaded.table, loaded.map);
-    Ok(Session { scene, cam0, up_axis, base_color, env, setup_seconds: t0.elapsed().as_secs_f64(), cache })
+    Ok(Session {
+        scene,
+        cam0,
+        up_axis,
+        base_color,
+        env,
+        setup_seconds: t0.elapsed().as_secs_f64(),
+        cache,
+    })
 }
 
 fn up_vector(up: UpAxis) -> Vec3 {
@@ -199,8 +253,17 @@ fn up_vector(up: UpAxis) -> Vec3 {
 /// Bounds of the displaced surface: the base positions grown by the largest |D|. Tighter than
 /// the prism boxes, whose λ ranges grow as 1/m_lo on prisms with nearly opposed normals.
 fn surface_bounds(t: &crate::bake::PrismTable) -> (Vec3, Vec3) {
-    let d = t.prisms.iter().map(|p| p.d_min.abs().max(p.d_max.abs())).fold(0.0f32, f32::max);
-    let (lo, hi) = t.positions.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| (a.min(p), b.max(p)));
+    let d = t
+        .prisms
+        .iter()
+        .map(|p| p.d_min.abs().max(p.d_max.abs()))
+        .fold(0.0f32, f32::max);
+    let (lo, hi) = t
+        .positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
     (lo - d, hi + d)
 }
 
@@ -216,9 +279,19 @@ pub fn frame_list(job: &RenderJob) -> Vec<Option<u32>> {
 }
 
 /// Render every frame of the job from a loaded session and write its files.
-fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<LookdevSummary> {
+fn render_all(
+    job: &RenderJob,
+    opts: &LookdevOptions,
+    s: &Session,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
     let frames = frame_list(job);
-    let aov_list: Vec<Aov> = job.aovs.iter().copied().filter(|a| *a != Aov::Beauty).collect();
+    let aov_list: Vec<Aov> = job
+        .aovs
+        .iter()
+        .copied()
+        .filter(|a| *a != Aov::Beauty)
+        .collect();
     let want_beauty = job.aovs.contains(&Aov::Beauty);
     let (lo, hi) = surface_bounds(&s.scene.table);
     let up = up_vector(s.up_axis);
@@ -232,16 +305,27 @@ fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(d
     let env = match &s.env {
         Some(e) => e,
         None => {
-            env_fallback = EnvMap::constant(Vec3::ZERO, EnvFrame { z_up: false, rotation: 0.0 });
+            env_fallback = EnvMap::constant(
+                Vec3::ZERO,
+                EnvFrame {
+                    z_up: false,
+                    rotation: 0.0,
+                },
+            );
             &env_fallback
         }
     };
     let bscene = BeautyScene {
         env,
         env_lights: env.total_weight > 0.0,
-        key: opts.key_light.map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
+        key: opts
+            .key_light
+            .map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
         material,
-        ground: opts.ground.then(|| Ground { up, height: lo.dot(up).min(hi.dot(up)) }),
+        ground: opts.ground.then(|| Ground {
+            up,
+            height: lo.dot(up).min(hi.dot(up)),
+        }),
         bounces: opts.bounces,
         eps: beauty::scene_epsilon(lo, hi),
     };
@@ -261,7 +345,8 @@ fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(d
             shadow_rays: 0,
             contact_sheets: vec![],
         };
-        let mut previews: Vec<(Aov, Vec<Vec<u8>>)> = job.aovs.iter().map(|a| (*a, Vec::new())).collect();
+        let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
+            job.aovs.iter().map(|a| (*a, Vec::new())).collect();
         let (w, h) = (job.settings.width, job.settings.height);
         for (i, frame) in frames.iter().enumerate() {
             let cam = match (frame, job.turntable) {
@@ -271,9 +356,18 @@ fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(d
             let t = Instant::now();
             let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
             if !aov_list.is_empty() {
-                let report = |rows: usize| if !want_beauty { progress(i, rows) };
+                let report = |rows: usize| {
+                    if !want_beauty {
+                        progress(i, rows)
+                    }
+                };
                 let img = render_aovs(isect, &cam, &job.settings, &report);
-                summary.render.files.extend(output::write_frame(&job.out_dir, &img, &aov_list, *frame)?);
+                summary.render.files.extend(output::write_frame(
+                    &job.out_dir,
+                    &img,
+                    &aov_list,
+                    *frame,
+                )?);
                 rays += img.rays;
                 steps += img.total_steps;
                 coverage = img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64;
@@ -284,11 +378,17 @@ fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(d
                 }
             }
             if want_beauty {
-                let img = beauty::render_beauty(isect, &cam, &job.settings, &bscene, &|rows| progress(i, rows));
-                summary.render.files.extend(output::write_beauty(&job.out_dir, &img, *frame)?);
+                let img = beauty::render_beauty(isect, &cam, &job.settings, &bscene, &|rows| {
+                    progress(i, rows)
+                });
+                summary
+                    .render
+                    .files
+                    .extend(output::write_beauty(&job.out_dir, &img, *frame)?);
                 rays += img.counters.rays + img.counters.shadow_rays();
                 if aov_list.is_empty() {
-                    coverage = img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
+                    coverage =
+                        img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
                 }
                 summary.beauty_rays.rays += img.counters.rays;
                 summary.beauty_rays.key_shadow_rays += img.counters.key_shadow_rays;
@@ -312,7 +412,9 @@ fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(d
         summary.shadow_rays = summary.beauty_rays.shadow_rays();
         if job.turntable.is_some() {
             for (aov, list) in &previews {
-                let path = job.out_dir.join(format!("{}_contact_sheet.png", aov.name()));
+                let path = job
+                    .out_dir
+                    .join(format!("{}_contact_sheet.png", aov.name()));
                 contact_sheet::write_contact_sheet(&path, list, w, h)?;
                 summary.contact_sheets.push(path);
             }
@@ -322,7 +424,11 @@ fn render_all(job: &RenderJob, opts: &LookdevOptions, s: &Session, progress: &(d
 }
 
 /// Run a job once.
-pub fn run(job: &RenderJob, opts: &LookdevOptions, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<LookdevSummary> {
+pub fn run(
+    job: &RenderJob,
+    opts: &LookdevOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
     let session = open(job, opts)?;
     render_all(job, opts, &session, progress)
 }
@@ -331,16 +437,30 @@ pub fn run(job: &RenderJob, opts: &LookdevOptions, progress: &(dyn Fn(usize, usi
 pub fn map_source(input: &Input) -> Result<(PathBuf, MapOptions)> {
     match input {
         Input::Asset(spec) => Ok((spec.require_disp()?.to_path_buf(), spec.map_options())),
-        Input::Table { path, disp, channel } => {
+        Input::Table {
+            path,
+            disp,
+            channel,
+        } => {
             let table = crate::prism_file::read(path)?;
             let map = match disp {
                 Some(d) => d.clone(),
                 None => {
                     let p = PathBuf::from(&table.map_path);
-                    if p.is_absolute() { p } else { path.parent().unwrap_or(Path::new("")).join(p) }
+                    if p.is_absolute() {
+                        p
+                    } else {
+                        path.parent().unwrap_or(Path::new("")).join(p)
+                    }
                 }
             };
-            Ok((map, MapOptions { channel: channel.clone(), wrap: table.wrap }))
+            Ok((
+                map,
+                MapOptions {
+                    channel: channel.clone(),
+                    wrap: table.wrap,
+                },
+            ))
         }
     }
 }
@@ -382,7 +502,10 @@ pub fn watch(
     let mut last = stamp(&map_path);
     let mut session = open(job, opts)?;
     let mut summary = render_all(job, opts, &session, progress)?;
-    log(&format!("watching {} for changes (Ctrl-C to stop)", map_path.display()));
+    log(&format!(
+        "watching {} for changes (Ctrl-C to stop)",
+        map_path.display()
+    ));
     let mut count = 0;
     while max_rerenders.is_none_or(|m| count < m) {
         std::thread::sleep(WATCH_POLL);
@@ -395,7 +518,10 @@ pub fn watch(
         let map: HeightMap = match load::load_height_map(&map_path, &map_opts) {
             Ok(m) if m.first_non_finite().is_none() => m,
             Ok(_) => {
-                log(&format!("{}: has NaN or infinite texels; waiting for the next change", map_path.display()));
+                log(&format!(
+                    "{}: has NaN or infinite texels; waiting for the next change",
+                    map_path.display()
+                ));
                 continue;
             }
             Err(e) => {
@@ -414,7 +540,12 @@ pub fn watch(
         let rebake_ms = detected.elapsed().as_secs_f64() * 1e3;
         summary = render_all(job, opts, &session, progress)?;
         count += 1;
-        let event = WatchEvent { rebake, bvh, latency_ms: detected.elapsed().as_secs_f64() * 1e3, rebake_ms };
+        let event = WatchEvent {
+            rebake,
+            bvh,
+            latency_ms: detected.elapsed().as_secs_f64() * 1e3,
+            rebake_ms,
+        };
         on_event(&event, &summary);
     }
     Ok(summary)

@@ -35,7 +35,15 @@ pub enum Aov {
 }
 
 impl Aov {
-    pub const ALL: [Aov; 7] = [Aov::Depth, Aov::Normal, Aov::Mask, Aov::Uv, Aov::Steps, Aov::Prism, Aov::Beauty];
+    pub const ALL: [Aov; 7] = [
+        Aov::Depth,
+        Aov::Normal,
+        Aov::Mask,
+        Aov::Uv,
+        Aov::Steps,
+        Aov::Prism,
+        Aov::Beauty,
+    ];
     pub fn name(self) -> &'static str {
         match self {
             Aov::Depth => "depth",
@@ -64,7 +72,11 @@ impl std::str::FromStr for Aov {
             .iter()
             .find(|a| a.name() == s)
             .copied()
-            .ok_or_else(|| format!("unknown AOV '{s}' (expected depth, normal, mask, uv, steps, prism or beauty)"))
+            .ok_or_else(|| {
+                format!(
+                    "unknown AOV '{s}' (expected depth, normal, mask, uv, steps, prism or beauty)"
+                )
+            })
     }
 }
 
@@ -143,7 +155,12 @@ pub fn render_aovs(
                             )
                         };
                         let ray = cam.ray(Vec2::new(x as f32, y as f32) + jitter, w, h);
-                        let ctx = RayContext { pixel, sample, bounce: 0, seed: s.seed };
+                        let ctx = RayContext {
+                            pixel,
+                            sample,
+                            bounce: 0,
+                            seed: s.seed,
+                        };
                         if let Some(hit) = intersector.intersect(&ray, &ctx) {
                             acc.hits += 1;
                             acc.depth += hit.t;
@@ -177,7 +194,8 @@ pub fn render_aovs(
     };
     for acc in rows.into_iter().flatten() {
         let k = acc.hits.max(1) as f32;
-        img.depth.push(if acc.hits > 0 { acc.depth / k } else { 0.0 });
+        img.depth
+            .push(if acc.hits > 0 { acc.depth / k } else { 0.0 });
         img.normal.push(acc.normal.normalize_or_zero());
         img.mask.push(acc.hits as f32 / s.spp as f32);
         img.uv.push(acc.uv / k);

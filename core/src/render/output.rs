@@ -9,7 +9,10 @@ use exr::prelude::*;
 use std::path::{Path, PathBuf};
 
 fn tmp_path(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
 }
 
@@ -66,8 +69,13 @@ pub fn exr_channels(aov: Aov) -> &'static [&'static str] {
 
 /// A perceptual heat map (black → blue → magenta → orange → yellow-white) for `t` in [0, 1].
 pub fn heat(t: f32) -> [u8; 3] {
-    const STOPS: [[f32; 3]; 5] =
-        [[0.0, 0.0, 0.0], [0.1, 0.1, 0.6], [0.7, 0.1, 0.6], [1.0, 0.55, 0.1], [1.0, 1.0, 0.75]];
+    const STOPS: [[f32; 3]; 5] = [
+        [0.0, 0.0, 0.0],
+        [0.1, 0.1, 0.6],
+        [0.7, 0.1, 0.6],
+        [1.0, 0.55, 0.1],
+        [1.0, 1.0, 0.75],
+    ];
     let x = t.clamp(0.0, 1.0) * 4.0;
     let i = (x.floor() as usize).min(3);
     let f = x - i as f32;
@@ -86,31 +94,53 @@ pub fn preview(img: &AovImage, aov: Aov) -> Vec<u8> {
     match aov {
         Aov::Normal => {
             for (i, nrm) in img.normal.iter().enumerate() {
-                let c = if img.mask[i] > 0.0 { *nrm * 0.5 + 0.5 } else { glam::Vec3::ZERO };
+                let c = if img.mask[i] > 0.0 {
+                    *nrm * 0.5 + 0.5
+                } else {
+                    glam::Vec3::ZERO
+                };
                 rgb.extend(c.to_array().map(to_u8));
             }
         }
         Aov::Depth => {
-            let hits = || img.depth.iter().zip(&img.mask).filter(|(_, m)| **m > 0.0).map(|(d, _)| *d);
+            let hits = || {
+                img.depth
+                    .iter()
+                    .zip(&img.mask)
+                    .filter(|(_, m)| **m > 0.0)
+                    .map(|(d, _)| *d)
+            };
             let lo = hits().fold(f32::INFINITY, f32::min);
             let hi = hits().fold(f32::NEG_INFINITY, f32::max);
             let span = (hi - lo).max(1e-12);
             for (d, m) in img.depth.iter().zip(&img.mask) {
-                let v = if *m > 0.0 { 1.0 - 0.85 * (d - lo) / span } else { 0.0 };
+                let v = if *m > 0.0 {
+                    1.0 - 0.85 * (d - lo) / span
+                } else {
+                    0.0
+                };
                 rgb.extend([to_u8(v); 3]);
             }
         }
         Aov::Mask => rgb.extend(img.mask.iter().flat_map(|m| [to_u8(*m); 3])),
         Aov::Uv => {
             for (uv, m) in img.uv.iter().zip(&img.mask) {
-                let c = if *m > 0.0 { [uv.x.rem_euclid(1.0), uv.y.rem_euclid(1.0), 0.0] } else { [0.0; 3] };
+                let c = if *m > 0.0 {
+                    [uv.x.rem_euclid(1.0), uv.y.rem_euclid(1.0), 0.0]
+                } else {
+                    [0.0; 3]
+                };
                 rgb.extend(c.map(to_u8));
             }
         }
         Aov::Steps => {
             let mut sorted: Vec<f32> = img.steps.clone();
             sorted.sort_by(|a, b| a.total_cmp(b));
-            let p99 = sorted.get((sorted.len() * 99) / 100).copied().unwrap_or(1.0).max(1.0);
+            let p99 = sorted
+                .get((sorted.len() * 99) / 100)
+                .copied()
+                .unwrap_or(1.0)
+                .max(1.0);
             rgb.extend(img.steps.iter().flat_map(|s| heat(s / p99)));
         }
         // Written by `beauty::beauty_preview` from a `BeautyImage`, never from AOVs.
@@ -119,7 +149,11 @@ pub fn preview(img: &AovImage, aov: Aov) -> Vec<u8> {
             for p in &img.prism {
                 let c = if *p > 0.0 {
                     let h = crate::rng::pcg_hash(*p as u32);
-                    [(h & 0xff) as u8 / 2 + 64, ((h >> 8) & 0xff) as u8 / 2 + 64, ((h >> 16) & 0xff) as u8 / 2 + 64]
+                    [
+                        (h & 0xff) as u8 / 2 + 64,
+                        ((h >> 8) & 0xff) as u8 / 2 + 64,
+                        ((h >> 16) & 0xff) as u8 / 2 + 64,
+                    ]
                 } else {
                     [0, 0, 0]
                 };
@@ -140,12 +174,23 @@ pub fn stem(aov: Aov, frame: Option<u32>) -> String {
 
 /// Write `DIR/<stem>.exr` and `DIR/<stem>.png` for every requested AOV; returns the paths.
 /// `Beauty` is skipped: `write_beauty` writes it.
-pub fn write_frame(dir: &Path, img: &AovImage, aovs: &[Aov], frame: Option<u32>) -> Result<Vec<PathBuf>> {
+pub fn write_frame(
+    dir: &Path,
+    img: &AovImage,
+    aovs: &[Aov],
+    frame: Option<u32>,
+) -> Result<Vec<PathBuf>> {
     let mut written = Vec::new();
     for &aov in aovs.iter().filter(|a| **a != Aov::Beauty) {
         let stem = stem(aov, frame);
         let exr_path = dir.join(format!("{stem}.exr"));
-        write_exr(&exr_path, img.width, img.height, exr_channels(aov), &img.channel_data(aov))?;
+        write_exr(
+            &exr_path,
+            img.width,
+            img.height,
+            exr_channels(aov),
+            &img.channel_data(aov),
+        )?;
         let png_path = dir.join(format!("{stem}.png"));
         write_png_rgb(&png_path, img.width, img.height, &preview(img, aov))?;
         written.push(exr_path);
@@ -156,23 +201,47 @@ pub fn write_frame(dir: &Path, img: &AovImage, aovs: &[Aov], frame: Option<u32>)
 
 /// Write `DIR/beauty[_NNNN].exr` (linear premultiplied RGBA) and `.png` (the tonemapped
 /// preview over the environment); returns the paths.
-pub fn write_beauty(dir: &Path, img: &super::beauty::BeautyImage, frame: Option<u32>) -> Result<Vec<PathBuf>> {
+pub fn write_beauty(
+    dir: &Path,
+    img: &super::beauty::BeautyImage,
+    frame: Option<u32>,
+) -> Result<Vec<PathBuf>> {
     let stem = stem(Aov::Beauty, frame);
     let exr_path = dir.join(format!("{stem}.exr"));
     let data: Vec<f32> = img.rgba.iter().flatten().copied().collect();
-    write_exr(&exr_path, img.width, img.height, exr_channels(Aov::Beauty), &data)?;
+    write_exr(
+        &exr_path,
+        img.width,
+        img.height,
+        exr_channels(Aov::Beauty),
+        &data,
+    )?;
     let png_path = dir.join(format!("{stem}.png"));
-    write_png_rgb(&png_path, img.width, img.height, &super::beauty::beauty_preview(img))?;
+    write_png_rgb(
+        &png_path,
+        img.width,
+        img.height,
+        &super::beauty::beauty_preview(img),
+    )?;
     Ok(vec![exr_path, png_path])
 }
 
 /// Read the first channels of an EXR back (tests, comparisons): (width, height, names, data
 /// interleaved in the order of `names`).
 pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<String>, Vec<f32>)> {
-    let image = read_all_flat_layers_from_file(path).map_err(|e| Error::invalid(path, format!("could not read EXR: {e}")))?;
-    let layer = image.layer_data.first().ok_or_else(|| Error::invalid(path, "EXR has no layers"))?;
+    let image = read_all_flat_layers_from_file(path)
+        .map_err(|e| Error::invalid(path, format!("could not read EXR: {e}")))?;
+    let layer = image
+        .layer_data
+        .first()
+        .ok_or_else(|| Error::invalid(path, "EXR has no layers"))?;
     let size = layer.size;
-    let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    let names: Vec<String> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
     let n = size.0 * size.1;
     let k = names.len();
     let mut data = vec![0f32; n * k];

@@ -33,7 +33,12 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Material { base_color: Vec3::splat(0.8), roughness: 0.5, metallic: 0.0, specular: 0.04 }
+        Material {
+            base_color: Vec3::splat(0.8),
+            roughness: 0.5,
+            metallic: 0.0,
+            specular: 0.04,
+        }
     }
 }
 
@@ -49,7 +54,10 @@ pub fn onb(n: Vec3) -> (Vec3, Vec3) {
     let sign = 1.0f32.copysign(n.z);
     let a = -1.0 / (sign + n.z);
     let b = n.x * n.y * a;
-    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
 }
 
 #[inline]
@@ -145,7 +153,11 @@ pub fn ggx_pdf(wo: Vec3, wi: Vec3, alpha: f32) -> f32 {
 pub fn ggx_sample(wo: Vec3, alpha: f32, u: Vec2) -> Vec3 {
     let vh = Vec3::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
     let lensq = vh.x * vh.x + vh.y * vh.y;
-    let t1 = if lensq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3::X };
+    let t1 = if lensq > 0.0 {
+        Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt()
+    } else {
+        Vec3::X
+    };
     let t2 = vh.cross(t1);
     let r = u.x.sqrt();
     let phi = 2.0 * PI * u.y;
@@ -242,14 +254,28 @@ pub fn bsdf_sample(m: &Material, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfS
     if specular && is_mirror(m) {
         let wi = Vec3::new(-wo.x, -wo.y, wo.z);
         let weight = fresnel_schlick(specular_f0(m), wo.z) / ps;
-        return Some(BsdfSample { wi, weight, pdf: 0.0, delta: true });
+        return Some(BsdfSample {
+            wi,
+            weight,
+            pdf: 0.0,
+            delta: true,
+        });
     }
-    let wi = if specular { ggx_sample(wo, ggx_alpha(m.roughness), u) } else { cosine_sample(u) };
+    let wi = if specular {
+        ggx_sample(wo, ggx_alpha(m.roughness), u)
+    } else {
+        cosine_sample(u)
+    };
     let pdf = bsdf_pdf(m, wo, wi);
     if wi.z <= 0.0 || pdf <= 0.0 {
         return None;
     }
-    Some(BsdfSample { wi, weight: bsdf_eval(m, wo, wi) / pdf, pdf, delta: false })
+    Some(BsdfSample {
+        wi,
+        weight: bsdf_eval(m, wo, wi) / pdf,
+        pdf,
+        delta: false,
+    })
 }
 
 /// Veach's power heuristic (β = 2) for a sample of density `a` against a rival density `b`.
@@ -301,16 +327,29 @@ mod tests {
     use crate::rng::{random, Purpose};
 
     fn rand2(i: u32, k: u32) -> Vec2 {
-        Vec2::new(random(i, k, 0, Purpose::Bench, 11), random(i, k, 1, Purpose::Bench, 11))
+        Vec2::new(
+            random(i, k, 0, Purpose::Bench, 11),
+            random(i, k, 1, Purpose::Bench, 11),
+        )
     }
 
     fn dir_from_angle(theta: f32, phi: f32) -> Vec3 {
-        Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.sin() * phi.sin(),
+            theta.cos(),
+        )
     }
 
     #[test]
     fn onb_is_orthonormal_for_every_hemisphere() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.81).normalize(), Vec3::new(1e-7, 0.0, -1.0).normalize()] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.81).normalize(),
+            Vec3::new(1e-7, 0.0, -1.0).normalize(),
+        ] {
             let (t, b) = onb(n);
             assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
             assert!(t.dot(b).abs() < 1e-5 && t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5);
@@ -325,17 +364,37 @@ mod tests {
     #[test]
     fn ggx_sample_weight_matches_eval_over_pdf() {
         for (k, rough) in [0.05f32, 0.3, 0.7, 1.0].into_iter().enumerate() {
-            let m = Material { roughness: rough, metallic: 0.5, ..Material::default() };
+            let m = Material {
+                roughness: rough,
+                metallic: 0.5,
+                ..Material::default()
+            };
             for i in 0..2000u32 {
-                let wo = dir_from_angle(1.5 * random(i, k as u32, 2, Purpose::Bench, 3), 6.0 * random(i, 0, 3, Purpose::Bench, 3));
-                let Some(s) = bsdf_sample(&m, wo, random(i, k as u32, 4, Purpose::Bench, 3), rand2(i, k as u32)) else { continue };
+                let wo = dir_from_angle(
+                    1.5 * random(i, k as u32, 2, Purpose::Bench, 3),
+                    6.0 * random(i, 0, 3, Purpose::Bench, 3),
+                );
+                let Some(s) = bsdf_sample(
+                    &m,
+                    wo,
+                    random(i, k as u32, 4, Purpose::Bench, 3),
+                    rand2(i, k as u32),
+                ) else {
+                    continue;
+                };
                 let want = bsdf_eval(&m, wo, s.wi) / bsdf_pdf(&m, wo, s.wi);
-                assert!((s.weight - want).length() <= 1e-4 * want.length().max(1.0), "rough {rough}: {:?} vs {want:?}", s.weight);
+                assert!(
+                    (s.weight - want).length() <= 1e-4 * want.length().max(1.0),
+                    "rough {rough}: {:?} vs {want:?}",
+                    s.weight
+                );
                 // The GGX lobe alone: its pdf is D_v(h) / (4 wo·h), written as G1 D / (4 cos θo).
                 let a = ggx_alpha(rough);
                 let h = (wo + s.wi).normalize();
                 let dv = smith_g1(wo, a) * wo.dot(h).max(0.0) * ggx_d(h, a) / wo.z;
-                assert!((ggx_pdf(wo, s.wi, a) - dv / (4.0 * wo.dot(h))).abs() <= 1e-3 * dv.max(1.0));
+                assert!(
+                    (ggx_pdf(wo, s.wi, a) - dv / (4.0 * wo.dot(h))).abs() <= 1e-3 * dv.max(1.0)
+                );
             }
         }
     }
@@ -371,7 +430,10 @@ mod tests {
         }
         // The pdf's mass above the horizon is exactly the share of samples that land there.
         let above: f64 = hist.iter().sum();
-        assert!((above - integral).abs() < 0.005, "{above} of the samples above the horizon, ∫ pdf = {integral}");
+        assert!(
+            (above - integral).abs() < 0.005,
+            "{above} of the samples above the horizon, ∫ pdf = {integral}"
+        );
         for (h, b) in hist.iter().zip(&bins) {
             assert!((h - b).abs() < 0.01, "histogram {hist:?} vs pdf {bins:?}");
         }
@@ -379,14 +441,32 @@ mod tests {
 
     #[test]
     fn lambert_white_furnace_and_mirror() {
-        let m = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0, specular: 0.0 };
+        let m = Material {
+            base_color: Vec3::ONE,
+            roughness: 1.0,
+            metallic: 0.0,
+            specular: 0.0,
+        };
         let wo = dir_from_angle(0.8, 0.1);
         let n = 50_000;
-        let mean: Vec3 = (0..n).filter_map(|i| bsdf_sample(&m, wo, 0.5, rand2(i, 1))).map(|s| s.weight).sum::<Vec3>() / n as f32;
+        let mean: Vec3 = (0..n)
+            .filter_map(|i| bsdf_sample(&m, wo, 0.5, rand2(i, 1)))
+            .map(|s| s.weight)
+            .sum::<Vec3>()
+            / n as f32;
         assert!((mean - Vec3::ONE).abs().max_element() < 1e-3, "{mean:?}");
-        let mirror = Material { roughness: 0.0, metallic: 1.0, base_color: Vec3::ONE, ..m };
+        let mirror = Material {
+            roughness: 0.0,
+            metallic: 1.0,
+            base_color: Vec3::ONE,
+            ..m
+        };
         let s = bsdf_sample(&mirror, wo, 0.3, Vec2::ZERO).unwrap();
-        assert!(s.delta && (s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6 && (s.weight - Vec3::ONE).length() < 1e-5);
+        assert!(
+            s.delta
+                && (s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6
+                && (s.weight - Vec3::ONE).length() < 1e-5
+        );
     }
 
     #[test]

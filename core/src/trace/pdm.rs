@@ -184,7 +184,10 @@ fn level_at(c: &LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> O
         let (f, df) = if c.deflate {
             (b + l * (q + l * c.d3), q + l * 2.0 * c.d3)
         } else {
-            (a + l * (b + l * (q + l * c.d3)), b + l * (2.0 * q + l * 3.0 * c.d3))
+            (
+                a + l * (b + l * (q + l * c.d3)),
+                b + l * (2.0 * q + l * 3.0 * c.d3),
+            )
         };
         step = f / df;
         if !step.is_finite() {
@@ -208,7 +211,11 @@ impl Local {
         let t = &scene.table;
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
         let origin = t.positions[i0];
-        let v = [Vec3::ZERO, t.positions[i1] - origin, t.positions[i2] - origin];
+        let v = [
+            Vec3::ZERO,
+            t.positions[i1] - origin,
+            t.positions[i2] - origin,
+        ];
         let n = [t.normals[i0], t.normals[i1], t.normals[i2]];
         let uv = [t.uvs[i0], t.uvs[i1], t.uvs[i2]];
         let ng = v[1].cross(v[2]).normalize_or_zero();
@@ -249,7 +256,12 @@ impl LevelTrack {
         let span = 0.5 * (p.lambda_hi - p.lambda_lo) + 1e-3 * local.scale;
         let base = ro + d * t0;
         LevelTrack {
-            cubic: level_cubic(&local.geom, p.lambda_lo.abs().max(p.lambda_hi.abs()), base, d),
+            cubic: level_cubic(
+                &local.geom,
+                p.lambda_lo.abs().max(p.lambda_hi.abs()),
+                base,
+                d,
+            ),
             base,
             t0,
             tol: 1e-6 * local.scale,
@@ -321,8 +333,12 @@ impl<'a> Pdm<'a> {
             self.flat_hit(&local, p.d_min, ro, ray)?
         } else {
             match self.opts.construction {
-                Construction::SharedWall => self.march_levels(&local, p, prism, ro, ray, ctx, steps)?,
-                Construction::ParallelOffset => self.march_scan(&local, p, prism, ro, ray, ctx, steps)?,
+                Construction::SharedWall => {
+                    self.march_levels(&local, p, prism, ro, ray, ctx, steps)?
+                }
+                Construction::ParallelOffset => {
+                    self.march_scan(&local, p, prism, ro, ray, ctx, steps)?
+                }
             }
         };
         Some(Hit {
@@ -416,9 +432,7 @@ impl<'a> Pdm<'a> {
         let (lo, hi) = (lo.map(|c| c - local.origin), hi.map(|c| c - local.origin));
         let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, &lo, &hi)?;
         let (te, tx) = (iv.t_enter, iv.t_exit);
-        let dt = self
-            .step_size(p, local)
-            .max((tx - te) / MAX_STEPS as f32);
+        let dt = self.step_size(p, local).max((tx - te) / MAX_STEPS as f32);
         let inside = |b: Vec3| b.min_element() >= -EDGE_TOL;
 
         // Entry sample and the scanning triangle at its height.
@@ -505,7 +519,14 @@ impl<'a> Pdm<'a> {
     /// level triangle `T(λ)` (the scanning triangle made exact), and `g = λ|m(b)| − D(uv(b))`:
     /// positive above the canonical surface, negative below.
     #[inline]
-    fn level_sample(&self, local: &Local, lt: &LevelTrack, d: Vec3, t: f32, guess: f32) -> Option<Sample> {
+    fn level_sample(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        d: Vec3,
+        t: f32,
+        guess: f32,
+    ) -> Option<Sample> {
         let u = t - lt.t0;
         let l = level_at(&lt.cubic, u, guess, lt.tol, lt.lo, lt.hi)
             .or_else(|| level_at(&lt.cubic, u, lt.mid, lt.tol, lt.lo, lt.hi))?;
@@ -542,9 +563,7 @@ impl<'a> Pdm<'a> {
         let pad = INTERVAL_PAD * local.scale;
         let te = (iv.t_enter - pad).max(ray.t_min);
         let tx = (iv.t_exit + pad).min(ray.t_max);
-        let dt = self
-            .step_size(p, local)
-            .max((tx - te) / MAX_STEPS as f32);
+        let dt = self.step_size(p, local).max((tx - te) / MAX_STEPS as f32);
         let lt = LevelTrack::new(local, p, ro, d, te);
         let inside = |b: Vec3| b.min_element() >= -DETECT_TOL;
 
@@ -560,7 +579,9 @@ impl<'a> Pdm<'a> {
                 if inside(cur.b) {
                     if let Some(pv) = prev {
                         if (pv.g > 0.0) != (cur.g > 0.0) {
-                            if let Some(hit) = self.level_crossing(local, &lt, ro, ray, pv, cur, te, tx) {
+                            if let Some(hit) =
+                                self.level_crossing(local, &lt, ro, ray, pv, cur, te, tx)
+                            {
                                 *steps += n;
                                 return Some(hit);
                             }
@@ -572,7 +593,12 @@ impl<'a> Pdm<'a> {
             if t >= tx || n >= MAX_STEPS {
                 break;
             }
-            t = if n == 1 && r > 0.0 { t + r * dt } else { t + dt }.min(tx);
+            t = if n == 1 && r > 0.0 {
+                t + r * dt
+            } else {
+                t + dt
+            }
+            .min(tx);
         }
         *steps += n;
         None
@@ -614,7 +640,14 @@ impl<'a> Pdm<'a> {
     /// Illinois regula falsi on the exact canonical `g(t)` in the bracket `[a, b]` (a sign
     /// change, so there is always a root); returns the end sample with the smaller `|g|`.
     #[allow(clippy::too_many_arguments)]
-    fn refine_levels(&self, local: &Local, lt: &LevelTrack, d: Vec3, a: Sample, b: Sample) -> Sample {
+    fn refine_levels(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        d: Vec3,
+        a: Sample,
+        b: Sample,
+    ) -> Sample {
         let (mut s0, mut s1) = (a, b);
         let (mut g0, mut g1) = (a.g, b.g);
         let tol_g = 1e-6 * local.scale;
@@ -721,9 +754,9 @@ impl Intersector for Pdm<'_> {
 
     fn intersect(&self, ray: &Ray, ctx: &RayContext) -> Option<Hit> {
         let mut steps = 0;
-        let mut hit = self
-            .scene
-            .closest_hit(ray, |r, prism| self.intersect_prism(r, ctx, prism, &mut steps))?;
+        let mut hit = self.scene.closest_hit(ray, |r, prism| {
+            self.intersect_prism(r, ctx, prism, &mut steps)
+        })?;
         hit.steps = steps;
         self.fill_surface(&mut hit);
         Some(hit)
@@ -731,8 +764,9 @@ impl Intersector for Pdm<'_> {
 
     fn occluded(&self, ray: &Ray, ctx: &RayContext) -> bool {
         let mut steps = 0;
-        self.scene
-            .any_hit(ray, |r, prism| self.intersect_prism(r, ctx, prism, &mut steps).is_some())
+        self.scene.any_hit(ray, |r, prism| {
+            self.intersect_prism(r, ctx, prism, &mut steps).is_some()
+        })
     }
 
     /// BVH nodes and leaf indices, plus the prism records the march reads (base mesh and
@@ -746,8 +780,8 @@ impl Intersector for Pdm<'_> {
 mod tests {
     use super::*;
     use crate::accel::fixtures::*;
-    use crate::canonical::project_to_prism;
     use crate::bake::PRISM_FLAT;
+    use crate::canonical::project_to_prism;
     use crate::heightmap::{HeightMap, Wrap};
     use crate::mesh::BaseMesh;
     use crate::rng::{pcg_hash, to_unit_float};
@@ -832,7 +866,9 @@ mod tests {
         for s in [&scene, &forced] {
             let pdm = Pdm::new(s, PdmOptions::default());
             for (i, ray) in rays_through_centre(2000, 1.0, 11).iter().enumerate() {
-                let hit = pdm.intersect(ray, &ctx(i as u32, 0)).expect("closed sphere");
+                let hit = pdm
+                    .intersect(ray, &ctx(i as u32, 0))
+                    .expect("closed sphere");
                 let g = PrismGeom::new(&s.table, &s.table.prisms[hit.prism as usize]);
                 let base = g.position(hit.bary);
                 let x = ray.at(hit.t);
@@ -946,7 +982,12 @@ mod tests {
             assert!(worst < 1e-2, "size {size}: {worst}");
             stats.push(reached as f32 / total as f32);
         }
-        assert!(stats.iter().all(|&r| (r - stats[0]).abs() < 0.02 && r > 0.9), "{stats:?}");
+        assert!(
+            stats
+                .iter()
+                .all(|&r| (r - stats[0]).abs() < 0.02 && r > 0.9),
+            "{stats:?}"
+        );
     }
 
     /// A unit plane (two triangles, normals +z, uv = xy) over a 32² clamp map at midlevel
@@ -1022,7 +1063,10 @@ mod tests {
             );
             let errs: Vec<f32> = rays
                 .iter()
-                .filter_map(|r| pdm.intersect(r, &ctx(0, 0)).map(|h| canonical_error_texels(&scene, r, &h)))
+                .filter_map(|r| {
+                    pdm.intersect(r, &ctx(0, 0))
+                        .map(|h| canonical_error_texels(&scene, r, &h))
+                })
                 .collect();
             assert!(errs.len() > rays.len() * 99 / 100);
             errs.iter().sum::<f32>() / errs.len() as f32
@@ -1097,7 +1141,13 @@ mod tests {
                     let p = &t.prisms[f];
                     let g = PrismGeom::new(t, p);
                     let b = Vec3::from_array(p.tri.map(|i| {
-                        if i == *va { 1.0 - w } else if i == *vb { w } else { 0.0 }
+                        if i == *va {
+                            1.0 - w
+                        } else if i == *vb {
+                            w
+                        } else {
+                            0.0
+                        }
                     }));
                     let sp = surface_point(&g, &scene.map, &t.params, b);
                     canon[slot] = sp.position;
@@ -1129,13 +1179,22 @@ mod tests {
         let scene = Scene::new(table(&mesh, &map, 0.15), map);
         let pdm = Pdm::new(&scene, PdmOptions::default());
         let rays = [
-            (25760, Vec3::new(-1.8905144, -0.36751714, 2.3001924), Vec3::new(0.66299117, 0.05766392, -0.7464032)),
-            (49137, Vec3::new(2.0083191, 0.41006666, -2.1905475), Vec3::new(-0.7008182, -0.21714243, 0.67948735)),
+            (
+                25760,
+                Vec3::new(-1.8905144, -0.36751714, 2.3001924),
+                Vec3::new(0.66299117, 0.05766392, -0.7464032),
+            ),
+            (
+                49137,
+                Vec3::new(2.0083191, 0.41006666, -2.1905475),
+                Vec3::new(-0.7008182, -0.21714243, 0.67948735),
+            ),
         ];
         for (pixel, o, d) in rays {
-            let hit = pdm.intersect(&Ray::new(o, d), &ctx(pixel, 0)).expect("closed surface");
+            let hit = pdm
+                .intersect(&Ray::new(o, d), &ctx(pixel, 0))
+                .expect("closed surface");
             assert!(hit.t < 2.7, "ray {pixel} passed the surface: t = {}", hit.t);
         }
     }
 }
-

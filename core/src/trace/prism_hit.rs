@@ -198,7 +198,8 @@ pub fn point_in_prism(x: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> bool {
             let tol = 1e-5;
             return b0 >= -tol && b1 >= -tol && b2 >= -tol && (-tol..=1.0 + tol).contains(&s);
         }
-        let jac = glam::Mat3::from_cols(c(1) - c(0), c(2) - c(0), e[0] * b0 + e[1] * b1 + e[2] * b2);
+        let jac =
+            glam::Mat3::from_cols(c(1) - c(0), c(2) - c(0), e[0] * b0 + e[1] * b1 + e[2] * b2);
         if jac.determinant().abs() < 1e-30 {
             return false;
         }
@@ -218,7 +219,9 @@ fn box_exit(o: Vec3, d: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> f32 {
     let (mn, mx) = lo
         .iter()
         .chain(hi.iter())
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| (a.min(c), b.max(c)));
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &c| {
+            (a.min(c), b.max(c))
+        });
     let inv = d.recip();
     let t0 = (mn - o) * inv;
     let t1 = (mx - o) * inv;
@@ -232,7 +235,14 @@ fn box_exit(o: Vec3, d: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> f32 {
 /// prism only if the other cap's corners are on its inner side (walls lie in the hull of
 /// their corners); a flipped cap or folded prism is simply not culled by that plane.
 #[inline]
-fn cap_planes_reject(o: Vec3, d: Vec3, t_min: f32, t_max: f32, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> bool {
+fn cap_planes_reject(
+    o: Vec3,
+    d: Vec3,
+    t_min: f32,
+    t_max: f32,
+    lo: &[Vec3; 3],
+    hi: &[Vec3; 3],
+) -> bool {
     let extent = (hi[0] - lo[0]).length() + (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length();
     for (cap, other, sign) in [(hi, lo, 1.0f32), (lo, hi, -1.0)] {
         // Outward normal of this cap (counter-clockwise base: `hi` up, `lo` down).
@@ -313,7 +323,11 @@ mod tests {
         }
         fn unit(&mut self) -> Vec3 {
             loop {
-                let v = Vec3::new(self.range(-1., 1.), self.range(-1., 1.), self.range(-1., 1.));
+                let v = Vec3::new(
+                    self.range(-1., 1.),
+                    self.range(-1., 1.),
+                    self.range(-1., 1.),
+                );
                 if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
                     return v.normalize();
                 }
@@ -353,9 +367,8 @@ mod tests {
     fn inside(g: &PrismGeom, lo: f32, hi: f32, x: Vec3) -> bool {
         let start = [Vec3::splat(1.0 / 3.0), Vec3::X, Vec3::Y, Vec3::Z];
         start.iter().any(|&b0| {
-            project_to_prism(g, x, b0, 0.5 * (lo + hi)).is_some_and(|(b, l)| {
-                b.min_element() >= 0.0 && l >= lo && l <= hi
-            })
+            project_to_prism(g, x, b0, 0.5 * (lo + hi))
+                .is_some_and(|(b, l)| b.min_element() >= 0.0 && l >= lo && l <= hi)
         })
     }
 
@@ -427,7 +440,10 @@ mod tests {
         let (r0, r1) = quadratic(1e-30, 1.0, -1.0).unwrap();
         assert!((r0 - 1.0).abs() < 1e-6 || (r1 - 1.0).abs() < 1e-6);
         let (r0, r1) = quadratic(1.0, -2e4, 1.0).unwrap();
-        assert!((r0 - 5e-5).abs() < 1e-9 && (r1 - 2e4).abs() < 1.0, "{r0} {r1}");
+        assert!(
+            (r0 - 5e-5).abs() < 1e-9 && (r1 - 2e4).abs() < 1.0,
+            "{r0} {r1}"
+        );
         assert_eq!(quadratic(1.0, 0.0, 1.0), None);
     }
 
@@ -491,6 +507,9 @@ mod tests {
         let hi: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + a[i] * 0.2);
         let p = g.position(Vec3::splat(1.0 / 3.0));
         let iv = ray_prism_interval(p + ng * 1.0, -ng, 0.0, f32::INFINITY, &lo, &hi).unwrap();
-        assert!((iv.t_enter - 0.8).abs() < 1e-5 && (iv.t_exit - 1.1).abs() < 1e-5, "{iv:?}");
+        assert!(
+            (iv.t_enter - 0.8).abs() < 1e-5 && (iv.t_exit - 1.1).abs() < 1e-5,
+            "{iv:?}"
+        );
     }
 }

@@ -91,7 +91,6 @@ fn agreement(
     }
 }
 
-
 /// Rays per second of `isect` over `rays` (one thread).
 fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
     let t0 = Instant::now();

@@ -230,7 +230,11 @@ mod tests {
 
     /// A curved prism (diverging normals) with a skewed UV triangle, and a ray across it.
     fn frame() -> (Frame, PrismGeom, Vec3, Vec3) {
-        let v = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.1), Vec3::new(0.2, 0.9, -0.05)];
+        let v = [
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 0.1),
+            Vec3::new(0.2, 0.9, -0.05),
+        ];
         let n = [
             Vec3::new(-0.5, -0.4, 1.0).normalize(),
             Vec3::new(0.6, -0.2, 1.0).normalize(),

@@ -132,9 +132,12 @@ impl<'a> Rmip<'a> {
                 *steps += tr.steps;
                 r?
             }
-            Setup::Degenerate { local, te, tx, geom } => {
-                march_degenerate(self, p, &local, te, tx, &geom, steps)?
-            }
+            Setup::Degenerate {
+                local,
+                te,
+                tx,
+                geom,
+            } => march_degenerate(self, p, &local, te, tx, &geom, steps)?,
         };
         Some(Hit {
             t,
@@ -180,8 +183,9 @@ impl Intersector for Rmip<'_> {
 
     fn occluded(&self, ray: &Ray, _ctx: &RayContext) -> bool {
         let mut steps = 0;
-        self.scene
-            .any_hit(ray, |r, prism| self.intersect_prism(r, prism, &mut steps).is_some())
+        self.scene.any_hit(ray, |r, prism| {
+            self.intersect_prism(r, prism, &mut steps).is_some()
+        })
     }
 
     /// The pyramid, BVH nodes and leaf indices, and the prism records.

@@ -102,7 +102,10 @@ impl Pyramid {
                     continue;
                 }
                 let (src, shift) = if p > 0 {
-                    (((q * lx + p - 1) as usize) * layer, (1usize << (p - 1), 0usize))
+                    (
+                        ((q * lx + p - 1) as usize) * layer,
+                        (1usize << (p - 1), 0usize),
+                    )
                 } else {
                     (((q - 1) * lx) as usize * layer, (0, 1usize << (q - 1)))
                 };
@@ -160,7 +163,11 @@ impl Pyramid {
                 let s = t0.rem_euclid(n);
                 let e = s + (t1 - t0);
                 let cs = s / c;
-                let ce = if e < n { e / c } else { cn as i64 + (e - n) / c };
+                let ce = if e < n {
+                    e / c
+                } else {
+                    cn as i64 + (e - n) / c
+                };
                 let count = ce - cs + 1;
                 if count >= cn as i64 {
                     (0, cn)
@@ -296,7 +303,10 @@ mod tests {
         // of memory the paper's compression reaches), and cell 1 is the full N²(1+log₂N)².
         for (w, h) in [(256, 256), (1024, 1024), (512, 300), (1000, 1000)] {
             let cell = auto_cell(w, h);
-            assert!(entries_for_cell(w, h, cell) <= w as u64 * h as u64, "{w}x{h}");
+            assert!(
+                entries_for_cell(w, h, cell) <= w as u64 * h as u64,
+                "{w}x{h}"
+            );
             assert!(cell == 1 || entries_for_cell(w, h, cell / 2) > w as u64 * h as u64);
         }
         assert_eq!(entries_for_cell(256, 256, 1), 256 * 256 * 81);

@@ -2,11 +2,11 @@
 
 use super::*;
 use crate::accel::fixtures::*;
+use crate::bake::PrismTable;
 use crate::canonical::project_to_prism;
 use crate::heightmap::HeightMap;
-use crate::rng::{pcg_hash, to_unit_float};
-use crate::bake::PrismTable;
 use crate::render::camera::Camera;
+use crate::rng::{pcg_hash, to_unit_float};
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
 use std::time::Instant;
@@ -72,7 +72,11 @@ fn flat_map_hits_the_analytic_sphere() {
         let g = PrismGeom::new(&scene.table, &scene.table.prisms[hit.prism as usize]);
         let base = g.position(hit.bary);
         let want = base.normalize() * (base.length() + dval);
-        assert!((ray.at(hit.t) - want).length() < 1e-4, "{} vs {want}", ray.at(hit.t));
+        assert!(
+            (ray.at(hit.t) - want).length() < 1e-4,
+            "{} vs {want}",
+            ray.at(hit.t)
+        );
         assert!(hit.shading_normal.dot(want.normalize()) > 0.999);
     }
 }
@@ -96,16 +100,35 @@ fn closed_displaced_sphere_does_not_leak() {
         let scene = Scene::new(table(&mesh, &map, scale), map);
         for opts in [
             RmipOptions::default(),
-            RmipOptions { marching_scale: 1.0, ..Default::default() },
-            RmipOptions { inversion: false, resolution: Some(64), ..Default::default() },
+            RmipOptions {
+                marching_scale: 1.0,
+                ..Default::default()
+            },
+            RmipOptions {
+                inversion: false,
+                resolution: Some(64),
+                ..Default::default()
+            },
         ] {
             let rmip = Rmip::new(&scene, opts);
             let n = leaks(&rmip, &rays);
             let occl = rays
                 .iter()
-                .filter(|(ray, t_inner)| !rmip.occluded(&Ray { t_max: *t_inner, ..*ray }, &ctx()))
+                .filter(|(ray, t_inner)| {
+                    !rmip.occluded(
+                        &Ray {
+                            t_max: *t_inner,
+                            ..*ray
+                        },
+                        &ctx(),
+                    )
+                })
                 .count();
-            eprintln!("{} faces, {opts:?}: {n} leaks, {occl} unoccluded / {}", scene.table.prisms.len(), rays.len());
+            eprintln!(
+                "{} faces, {opts:?}: {n} leaks, {occl} unoccluded / {}",
+                scene.table.prisms.len(),
+                rays.len()
+            );
             assert_eq!((n, occl), (0, 0));
         }
     }
@@ -123,7 +146,8 @@ fn grazing_rays_keep_their_relative_error_across_scales() {
         let mut rng = Rng(21);
         let (mut worst, mut reached, mut total) = (0.0_f32, 0, 0);
         for _ in 0..3000u32 {
-            let prism = (rng.next() * scene.table.prisms.len() as f32) as usize % scene.table.prisms.len();
+            let prism =
+                (rng.next() * scene.table.prisms.len() as f32) as usize % scene.table.prisms.len();
             let g = PrismGeom::new(&scene.table, &scene.table.prisms[prism]);
             let b = Vec3::new(rng.next() + 0.05, rng.next() + 0.05, rng.next() + 0.05);
             let b = b / (b.x + b.y + b.z);
@@ -136,7 +160,9 @@ fn grazing_rays_keep_their_relative_error_across_scales() {
             let ray = Ray::new(sp.position - d * dist, d);
             total += 1;
             if let Some(hit) = rmip.intersect(&ray, &ctx()) {
-                assert!(hit.t.is_finite() && hit.position.is_finite() && hit.shading_normal.is_finite());
+                assert!(
+                    hit.t.is_finite() && hit.position.is_finite() && hit.shading_normal.is_finite()
+                );
                 worst = worst.max(canonical_error_texels(&scene, &ray, &hit));
                 if hit.t <= dist * (1.0 + 1e-3) {
                     reached += 1;
@@ -147,7 +173,12 @@ fn grazing_rays_keep_their_relative_error_across_scales() {
         assert!(worst < 1e-2, "size {size}: {worst}");
         stats.push(reached as f32 / total as f32);
     }
-    assert!(stats.iter().all(|&r| (r - stats[0]).abs() < 0.02 && r > 0.9), "{stats:?}");
+    assert!(
+        stats
+            .iter()
+            .all(|&r| (r - stats[0]).abs() < 0.02 && r > 0.9),
+        "{stats:?}"
+    );
 }
 
 #[test]
@@ -176,14 +207,35 @@ fn every_setting_finds_the_same_hits_as_pdm() {
     // every setting hits where PDM (refined on the same canonical surface) does.
     let scene = sphere_scene(3, relief_map(128), 0.12, 1.0);
     let rays = rays_to_inner_points(3000, 1.0, 5);
-    let pdm = Pdm::new(&scene, PdmOptions { jitter: false, ..Default::default() });
-    let want: Vec<Option<f32>> = rays.iter().map(|(r, _)| pdm.intersect(r, &ctx()).map(|h| h.t)).collect();
+    let pdm = Pdm::new(
+        &scene,
+        PdmOptions {
+            jitter: false,
+            ..Default::default()
+        },
+    );
+    let want: Vec<Option<f32>> = rays
+        .iter()
+        .map(|(r, _)| pdm.intersect(r, &ctx()).map(|h| h.t))
+        .collect();
     for opts in [
         RmipOptions::default(),
-        RmipOptions { marching_scale: 0.5, ..Default::default() },
-        RmipOptions { marching_scale: 64.0, ..Default::default() },
-        RmipOptions { resolution: Some(128), ..Default::default() },
-        RmipOptions { inversion: false, ..Default::default() },
+        RmipOptions {
+            marching_scale: 0.5,
+            ..Default::default()
+        },
+        RmipOptions {
+            marching_scale: 64.0,
+            ..Default::default()
+        },
+        RmipOptions {
+            resolution: Some(128),
+            ..Default::default()
+        },
+        RmipOptions {
+            inversion: false,
+            ..Default::default()
+        },
     ] {
         let rmip = Rmip::new(&scene, opts);
         let mut differ = 0;
@@ -200,8 +252,6 @@ fn every_setting_finds_the_same_hits_as_pdm() {
     }
 }
 
-
-
 /// `n × n` primary rays through pixel centres of the camera framing the table's bounds.
 fn camera_rays(table: &PrismTable, n: u32) -> Vec<Ray> {
     let (lo, hi) = table.bounds();
@@ -213,11 +263,19 @@ fn camera_rays(table: &PrismTable, n: u32) -> Vec<Ray> {
 
 /// Hit/miss mismatches and the median / 95th percentile of |t − t_ref| in texels of the
 /// reference hit's prism.
-fn agreement(isect: &dyn Intersector, reference: &Reference, table: &PrismTable, rays: &[Ray]) -> (usize, f32, f32) {
+fn agreement(
+    isect: &dyn Intersector,
+    reference: &Reference,
+    table: &PrismTable,
+    rays: &[Ray],
+) -> (usize, f32, f32) {
     let mut errs = vec![];
     let mut mismatches = 0;
     for ray in rays {
-        match (isect.intersect(ray, &ctx()), reference.intersect(ray, &ctx())) {
+        match (
+            isect.intersect(ray, &ctx()),
+            reference.intersect(ray, &ctx()),
+        ) {
             (Some(a), Some(b)) => {
                 assert!(a.t.is_finite() && a.position.is_finite() && a.shading_normal.is_finite());
                 errs.push((a.t - b.t).abs() / table.prisms[b.prism as usize].texel_world)
@@ -227,14 +285,21 @@ fn agreement(isect: &dyn Intersector, reference: &Reference, table: &PrismTable,
         }
     }
     errs.sort_by(f32::total_cmp);
-    let at = |q: f32| errs.get(((errs.len() as f32 * q) as usize).min(errs.len().saturating_sub(1))).copied().unwrap_or(0.0);
+    let at = |q: f32| {
+        errs.get(((errs.len() as f32 * q) as usize).min(errs.len().saturating_sub(1)))
+            .copied()
+            .unwrap_or(0.0)
+    };
     (mismatches, at(0.5), at(0.95))
 }
 
 /// Rays per second over `rays`, one thread.
 fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
     let t0 = Instant::now();
-    let hits = rays.iter().filter(|r| isect.intersect(r, &ctx()).is_some()).count();
+    let hits = rays
+        .iter()
+        .filter(|r| isect.intersect(r, &ctx()).is_some())
+        .count();
     std::hint::black_box(hits);
     rays.len() as f64 / t0.elapsed().as_secs_f64()
 }
@@ -251,7 +316,13 @@ fn agrees_with_reference_on_the_example_assets() {
         let rays = camera_rays(table, 96);
         let rmip = Rmip::new(scene, RmipOptions::default());
         let (mis, median, p95) = agreement(&rmip, reference, table, &rays);
-        let pdm = Pdm::new(scene, PdmOptions { jitter: false, ..Default::default() });
+        let pdm = Pdm::new(
+            scene,
+            PdmOptions {
+                jitter: false,
+                ..Default::default()
+            },
+        );
         let (pmis, pmedian, _) = agreement(&pdm, reference, table, &rays);
         let (rps, pdm_rps) = (rays_per_second(&rmip, &rays), rays_per_second(&pdm, &rays));
         eprintln!(
@@ -288,11 +359,19 @@ fn closed_sphere_scaled_by_1e_minus_3_and_1e4_keeps_its_relative_error() {
         let rays = camera_rays(&scene.table, 64);
         let rmip = Rmip::new(&scene, RmipOptions::default());
         let (mis, median, p95) = agreement(&rmip, &reference, &scene.table, &rays);
-        eprintln!("size {size}: mismatches {mis}/{}, median {median:.4} p95 {p95:.4} texel", rays.len());
+        eprintln!(
+            "size {size}: mismatches {mis}/{}, median {median:.4} p95 {p95:.4} texel",
+            rays.len()
+        );
         let (m0, med0, p0) = *base.get_or_insert((mis, median, p95));
-        assert!(mis.abs_diff(m0) as f32 <= 0.001 * rays.len() as f32 + 1.0, "size {size}: {mis} vs {m0}");
-        assert!((median - med0).abs() <= 0.01 && (p95 - p0).abs() <= 0.05, "size {size}: {median} {p95} vs {med0} {p0}");
+        assert!(
+            mis.abs_diff(m0) as f32 <= 0.001 * rays.len() as f32 + 1.0,
+            "size {size}: {mis} vs {m0}"
+        );
+        assert!(
+            (median - med0).abs() <= 0.01 && (p95 - p0).abs() <= 0.05,
+            "size {size}: {median} {p95} vs {med0} {p0}"
+        );
         assert!(median <= 0.5);
     }
 }
-

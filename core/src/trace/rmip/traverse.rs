@@ -57,7 +57,12 @@ impl Bound {
 /// texture-space parametrisation) a plain march over the prism interval.
 pub(super) enum Setup<'r, 'a> {
     Traverse(PrismTrace<'r, 'a>),
-    Degenerate { local: Ray, te: f32, tx: f32, geom: PrismGeom },
+    Degenerate {
+        local: Ray,
+        te: f32,
+        tx: f32,
+        geom: PrismGeom,
+    },
 }
 
 /// One ray in one prism.
@@ -89,10 +94,18 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let t = &rmip.scene.table;
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
         let origin = t.positions[i0];
-        let v = [Vec3::ZERO, t.positions[i1] - origin, t.positions[i2] - origin];
+        let v = [
+            Vec3::ZERO,
+            t.positions[i1] - origin,
+            t.positions[i2] - origin,
+        ];
         let n = [t.normals[i0], t.normals[i1], t.normals[i2]];
         let s = [t.uvs[i0], t.uvs[i1], t.uvs[i2]].map(|uv| rmip.scene.map.texel_coords(uv));
-        let scale = v[1].length().max(v[2].length()).max((v[2] - v[1]).length()).max(f32::MIN_POSITIVE);
+        let scale = v[1]
+            .length()
+            .max(v[2].length())
+            .max((v[2] - v[1]).length())
+            .max(f32::MIN_POSITIVE);
         let lo: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_lo);
         let hi: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_hi);
         let ro = ray.origin - origin;
@@ -100,11 +113,20 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let pad = INTERVAL_PAD * scale;
         let te = (iv.t_enter - pad).max(ray.t_min);
         let tx = (iv.t_exit + pad).min(ray.t_max);
-        let geom = PrismGeom { v, n, uv: [Vec2::ZERO; 3] };
+        let geom = PrismGeom {
+            v,
+            n,
+            uv: [Vec2::ZERO; 3],
+        };
         let local = Ray { origin: ro, ..*ray };
         let srel = s.map(|x| x - s[0]);
         let Some(mut frame) = Frame::new(&v, &n, &srel, ro + ray.dir * te, ray.dir) else {
-            return Some(Setup::Degenerate { local, te, tx, geom });
+            return Some(Setup::Degenerate {
+                local,
+                te,
+                tx,
+                geom,
+            });
         };
         let slack = 0.01 * (p.lambda_hi - p.lambda_lo) as f64 + 1e-3 * scale as f64;
         frame.lambda_range = (p.lambda_lo as f64 - slack, p.lambda_hi as f64 + slack);
@@ -155,7 +177,13 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let mut stack = [Bound::default(); STACK];
         let mut sp = 0;
         for k in (0..=ntp).rev() {
-            stack[sp] = Bound { t0: pts[k].0, t1: pts[k + 1].0, p0: pts[k].1, p1: pts[k + 1].1, depth: 0 };
+            stack[sp] = Bound {
+                t0: pts[k].0,
+                t1: pts[k + 1].0,
+                p0: pts[k].1,
+                p1: pts[k + 1].1,
+                depth: 0,
+            };
             sp += 1;
         }
         let opts = &self.rmip.opts;
@@ -238,7 +266,11 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let mut found = None;
         for p in &pts[..n] {
             let c = if axis == 1 { p.y } else { p.x };
-            let (a, b) = if axis == 1 { (lo.y, hi.y) } else { (lo.x, hi.x) };
+            let (a, b) = if axis == 1 {
+                (lo.y, hi.y)
+            } else {
+                (lo.x, hi.x)
+            };
             if c < a - tol || c > b + tol {
                 continue;
             }
@@ -259,14 +291,33 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         };
         let depth = bd.depth + 1;
         Some((
-            Bound { t0: bd.t0, t1: tm, p0: bd.p0, p1: pm, depth },
-            Bound { t0: tm, t1: bd.t1, p0: pm, p1: bd.p1, depth },
+            Bound {
+                t0: bd.t0,
+                t1: tm,
+                p0: bd.p0,
+                p1: pm,
+                depth,
+            },
+            Bound {
+                t0: tm,
+                t1: bd.t1,
+                p0: pm,
+                p1: bd.p1,
+                depth,
+            },
         ))
     }
 
     /// The ray interval inside the box that bounds the displaced surface over the bound's
     /// rectangle ∩ the base triangle, clipped to the bound's own interval.
-    fn box_interval(&self, bd: &Bound, lo: DVec2, hi: DVec2, dlo: f64, dhi: f64) -> Option<(f64, f64)> {
+    fn box_interval(
+        &self,
+        bd: &Bound,
+        lo: DVec2,
+        hi: DVec2,
+        dlo: f64,
+        dhi: f64,
+    ) -> Option<(f64, f64)> {
         let (poly, n) = clip_triangle_to_rect(&self.frame.tri, lo, hi);
         if n < 3 {
             return None;
@@ -313,8 +364,16 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let f = &self.frame;
         let dir = (bd.p1 - bd.p0).signum();
         let dir = DVec2::new(
-            if (bd.p1.x - bd.p0.x).abs() > 0.0 { dir.x } else { 0.0 },
-            if (bd.p1.y - bd.p0.y).abs() > 0.0 { dir.y } else { 0.0 },
+            if (bd.p1.x - bd.p0.x).abs() > 0.0 {
+                dir.x
+            } else {
+                0.0
+            },
+            if (bd.p1.y - bd.p0.y).abs() > 0.0 {
+                dir.y
+            } else {
+                0.0
+            },
         );
         let (lo, hi) = bd.rect();
         // Index of the next cell edge (absolute texel coordinate k + 0.5) in each direction.
@@ -346,13 +405,21 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
                 } else {
                     (DVec2::new(0.0, line), DVec2::X)
                 };
-                let within = if axis == 0 { line >= lo.x && line <= hi.x } else { line >= lo.y && line <= hi.y };
+                let within = if axis == 0 {
+                    line >= lo.x && line <= hi.x
+                } else {
+                    line >= lo.y && line <= hi.y
+                };
                 if !within {
                     continue;
                 }
                 let (pts, n) = f.conic.on_line(p_line, u);
                 for q in &pts[..n] {
-                    let other_ok = if axis == 0 { q.y >= lo.y && q.y <= hi.y } else { q.x >= lo.x && q.x <= hi.x };
+                    let other_ok = if axis == 0 {
+                        q.y >= lo.y && q.y <= hi.y
+                    } else {
+                        q.x >= lo.x && q.x <= hi.x
+                    };
                     if !other_ok {
                         continue;
                     }
@@ -430,7 +497,11 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
                 side = 1;
             }
         }
-        let (t, q) = if g0.abs() <= g1.abs() { (t0, q0) } else { (t1, q1) };
+        let (t, q) = if g0.abs() <= g1.abs() {
+            (t0, q0)
+        } else {
+            (t1, q1)
+        };
         let b = self.frame.bary(q);
         let t_abs = self.t_entry + t as f32;
         let ok = b.min_element() >= -EDGE_TOL && t_abs >= self.ray.t_min && t_abs <= self.ray.t_max;
@@ -494,18 +565,34 @@ fn clip_triangle_to_rect(tri: &[DVec2; 3], lo: DVec2, hi: DVec2) -> ([DVec2; 8],
 /// Fallback for prisms without a texture-space parametrisation (UV-degenerate faces):
 /// march the prism interval in `t` at half a texel (or 1/16 of the thickness), sign changes
 /// refined on the canonical surface as above.
-pub(super) fn march_degenerate(rmip: &Rmip, p: &Prism, local: &Ray, te: f32, tx: f32, geom: &PrismGeom, steps: &mut u32) -> Option<(f32, Vec3)> {
+pub(super) fn march_degenerate(
+    rmip: &Rmip,
+    p: &Prism,
+    local: &Ray,
+    te: f32,
+    tx: f32,
+    geom: &PrismGeom,
+    steps: &mut u32,
+) -> Option<(f32, Vec3)> {
     let table = &rmip.scene.table;
     let (m0, m1) = (te, tx);
     let thick = (p.lambda_hi - p.lambda_lo).abs().max(1e-12);
-    let dt = if p.texel_world > 0.0 { 0.5 * p.texel_world } else { thick / 16.0 }.max((m1 - m0) / 4096.0);
+    let dt = if p.texel_world > 0.0 {
+        0.5 * p.texel_world
+    } else {
+        thick / 16.0
+    }
+    .max((m1 - m0) / 4096.0);
     let uv = table.prism_uvs(p);
     let g_at = |t: f32, guess: Vec3| -> Option<(f32, Vec3)> {
         let x = local.origin + local.dir * t;
         let (b, l) = project_to_prism(geom, x, guess, 0.5 * (p.lambda_lo + p.lambda_hi))?;
         let m = geom.normal_dir(b).length();
         let uvb = uv[0] * b.x + uv[1] * b.y + uv[2] * b.z;
-        Some((l * m - table.params.displacement(rmip.scene.map.sample(uvb)), b))
+        Some((
+            l * m - table.params.displacement(rmip.scene.map.sample(uvb)),
+            b,
+        ))
     };
     let mut prev: Option<(f32, f32, Vec3)> = None;
     let mut t = m0;
