@@ -151,3 +151,22 @@ pub(crate) fn example_with_reference(
     map.insert(name.to_string(), entry);
     entry
 }
+
+/// A tiny deterministic random stream for tests (PCG hash chain).
+pub(crate) struct Rng(pub u32);
+
+impl Rng {
+    pub fn next(&mut self) -> f32 {
+        self.0 = pcg_hash(self.0);
+        crate::rng::to_unit_float(self.0)
+    }
+    /// A random unit vector (rejection sampling in the unit ball).
+    pub fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE;
+            if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
+                return v.normalize();
+            }
+        }
+    }
+}

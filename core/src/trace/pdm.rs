@@ -784,23 +784,8 @@ mod tests {
     use crate::canonical::project_to_prism;
     use crate::heightmap::{HeightMap, Wrap};
     use crate::mesh::BaseMesh;
-    use crate::rng::{pcg_hash, to_unit_float};
 
-    struct Rng(u32);
-    impl Rng {
-        fn next(&mut self) -> f32 {
-            self.0 = pcg_hash(self.0);
-            to_unit_float(self.0)
-        }
-        fn unit(&mut self) -> Vec3 {
-            loop {
-                let v = Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE;
-                if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
-                    return v.normalize();
-                }
-            }
-        }
-    }
+    use crate::test_util::Rng;
 
     fn ctx(pixel: u32, sample: u32) -> RayContext {
         RayContext {

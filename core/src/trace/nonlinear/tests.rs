@@ -7,26 +7,11 @@ use crate::accel::fixtures::*;
 use crate::bake::PrismTable;
 use crate::mesh::{BaseMesh, UpAxis};
 use crate::render::camera::Camera;
-use crate::rng::{pcg_hash, to_unit_float};
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
 use std::time::Instant;
 
-struct Rng(u32);
-impl Rng {
-    fn next(&mut self) -> f32 {
-        self.0 = pcg_hash(self.0);
-        to_unit_float(self.0)
-    }
-    fn unit(&mut self) -> Vec3 {
-        loop {
-            let v = Vec3::new(self.next(), self.next(), self.next()) * 2.0 - Vec3::ONE;
-            if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
-                return v.normalize();
-            }
-        }
-    }
-}
+use crate::test_util::Rng;
 
 fn ctx() -> RayContext {
     RayContext::default()
