@@ -221,7 +221,6 @@ pub(crate) mod fixtures {
     use crate::mesh::BaseMesh;
     use crate::rng::{pcg_hash, to_unit_float};
     use glam::{Vec2, Vec3};
-    use std::collections::HashMap;
 
     /// Icosphere of radius 1 after `subdiv` 4-to-1 splits, every vertex moved tangentially by
     /// up to `jitter` (× edge length) so that no two faces are congruent (a regular mesh hides
@@ -229,49 +228,7 @@ pub(crate) mod fixtures {
     /// projection of the position, so a continuous function without seams: with a repeat map
     /// the displaced surface is closed.
     pub fn sphere_mesh(subdiv: u32, jitter: f32) -> BaseMesh {
-        let phi = (1.0 + 5.0_f32.sqrt()) / 2.0;
-        let mut pos: Vec<Vec3> = [
-            (-1.0, phi, 0.0),
-            (1.0, phi, 0.0),
-            (-1.0, -phi, 0.0),
-            (1.0, -phi, 0.0),
-            (0.0, -1.0, phi),
-            (0.0, 1.0, phi),
-            (0.0, -1.0, -phi),
-            (0.0, 1.0, -phi),
-            (phi, 0.0, -1.0),
-            (phi, 0.0, 1.0),
-            (-phi, 0.0, -1.0),
-            (-phi, 0.0, 1.0),
-        ]
-        .iter()
-        .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
-        .collect();
-        #[rustfmt::skip]
-        let mut tris: Vec<[u32; 3]> = vec![
-            [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-            [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-            [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
-        ];
-        for _ in 0..subdiv {
-            let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-            let mut next = Vec::with_capacity(tris.len() * 4);
-            for t in &tris {
-                let mut m = [0u32; 3];
-                for k in 0..3 {
-                    let (a, b) = (t[k], t[(k + 1) % 3]);
-                    m[k] = *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                        pos.push(((pos[a as usize] + pos[b as usize]) * 0.5).normalize());
-                        pos.len() as u32 - 1
-                    });
-                }
-                next.push([t[0], m[0], m[2]]);
-                next.push([t[1], m[1], m[0]]);
-                next.push([t[2], m[2], m[1]]);
-                next.push([m[0], m[1], m[2]]);
-            }
-            tris = next;
-        }
+        let (mut pos, tris) = crate::test_util::icosphere(subdiv, 1.0);
         let edge = 1.1 / (1 << subdiv) as f32;
         let mut h = 0x1234_5678u32;
         let mut rnd = || {
