@@ -137,10 +137,11 @@ fn bad_prism_tables() {
     run(&["bake", s(&example("torus/torus.obj")), "-o", s(&good)]).assert_success();
     let bytes = std::fs::read(&good).unwrap();
 
-    let mut v2 = bytes.clone();
-    v2[8] = 2;
-    let p = write(&dir, "v2.prisms", &v2);
-    run(&["inspect", s(&p)]).assert_error(&["v2.prisms", "version 2", "re-bake"]);
+    // A table from another format version (version 1 had no seam records).
+    let mut v1 = bytes.clone();
+    v1[8] = 1;
+    let p = write(&dir, "v1.prisms", &v1);
+    run(&["inspect", s(&p)]).assert_error(&["v1.prisms", "version 1", "re-bake"]);
 
     let p = write(&dir, "cut.prisms", &bytes[..bytes.len() - 7]);
     run(&["inspect", s(&p)]).assert_error(&["cut.prisms", "truncated"]);

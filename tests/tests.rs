@@ -6,4 +6,5 @@ mod bad_input;
 mod bake;
 mod beauty;
 mod render;
+mod seams;
 mod validate;

@@ -15,12 +15,24 @@ fn quad_obj(normal_z: f32) -> String {
 }
 
 #[test]
-fn examples_are_clean_and_exit_zero() {
+fn examples_fail_only_on_their_seam_jumps() {
+    // The sphere's pole fans and the rock's box-projected islands sample different texels on
+    // the two sides of their UV seams (the torus's seams are whole map periods apart): that
+    // is the one problem validate reports on the examples; renders stitch it by default.
     let r = run(&["validate", s(&example("")), "--format", "json"]);
-    r.assert_success();
+    r.assert_code(1);
     let j = r.json();
     assert_eq!(j["summary"]["assets"], 3, "{j}");
-    assert_eq!(j["summary"]["failed"], 0, "{j}");
+    assert_eq!(j["summary"]["failed"], 2, "{j}");
+    for asset in j["assets"].as_array().unwrap() {
+        let name = asset["asset"].as_str().unwrap();
+        for check in asset["checks"].as_array().unwrap() {
+            let failed = check["status"] == "fail";
+            let seam = check["name"] == "seam-jump";
+            let expect_fail = seam && !name.contains("torus");
+            assert_eq!(failed, expect_fail, "{name}: {check}");
+        }
+    }
 }
 
 #[test]
@@ -56,7 +68,7 @@ fn problems_exit_one_and_name_faces_in_every_format() {
         .descendants()
         .filter(|n| n.has_tag_name("testcase"))
         .collect();
-    assert_eq!(cases.len(), 2 * 9, "one test case per asset × check");
+    assert_eq!(cases.len(), 2 * 10, "one test case per asset × check");
     let failures = doc
         .descendants()
         .filter(|n| n.has_tag_name("failure"))

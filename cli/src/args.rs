@@ -88,6 +88,11 @@ pub struct RenderArgs {
     pub no_jitter: bool,
     #[arg(long, value_enum, default_value = "smooth")]
     pub normal: NormalArg,
+    /// UV seams: `stitch` makes the displaced surface continuous across them (one agreed
+    /// height on the edge, fading out over about a texel); `open` traces each face's own UVs,
+    /// cracks and all.
+    #[arg(long, default_value = "stitch", value_parser = ["stitch", "open"])]
+    pub seams: String,
     /// Reference tessellation density, in micro-edges per texel.
     #[arg(long, default_value_t = 2.0)]
     pub ref_density: f32,
@@ -279,6 +284,10 @@ pub struct ValidateArgs {
     pub disp: DispArgs,
     #[command(flatten)]
     pub repair: RepairArgs,
+    /// Largest height jump across a UV seam, as a fraction of |scale| (default 0.02);
+    /// overrides the sidecar's `max_seam_jump`.
+    #[arg(long, value_name = "FRACTION", allow_hyphen_values = true)]
+    pub max_seam_jump: Option<f32>,
     /// Largest |displacement| allowed (world units); overrides the sidecar's `max_disp`.
     #[arg(long, value_name = "D")]
     pub max_disp: Option<f32>,
@@ -318,6 +327,10 @@ pub struct BenchArgs {
     /// Rays aimed from outside at points inside the object (leak test).
     #[arg(long, default_value_t = 100_000)]
     pub leak_rays: usize,
+    /// UV seam treatments to bench, each on its own scene: stitch, open or both
+    /// (`stitch,open` measures what stitching costs and what it closes, in one run).
+    #[arg(long, default_value = "stitch", value_delimiter = ',')]
+    pub seams: Vec<String>,
     #[arg(long, default_value_t = 2.0)]
     pub ref_density: f32,
     /// Timed repetitions per setting (the fastest counts).

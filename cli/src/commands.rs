@@ -14,6 +14,7 @@ use prismbake::render::job::{
 use prismbake::render::lookdev::{self, CacheUse, LookdevOptions, LookdevSummary, WatchEvent};
 use prismbake::render::{Aov, RenderSettings};
 use prismbake::repair::RepairOptions;
+use prismbake::seam::SeamMode;
 use prismbake::trace::nonlinear::NonlinearOptions;
 use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
 use prismbake::trace::rmip::RmipOptions;
@@ -42,6 +43,7 @@ pub fn overrides(d: &DispArgs, max_disp: Option<f32>) -> Overrides {
         channel: d.channel.clone(),
         uv_set: d.uv_set,
         max_disp,
+        max_seam_jump: None,
     }
 }
 
@@ -153,7 +155,17 @@ fn validate(a: ValidateArgs) -> Result<ExitCode> {
         )));
     }
     let pb = progress::bar(meshes.len() as u64, "validating");
-    let flags = overrides(&a.disp, a.max_disp);
+    if let Some(j) = a.max_seam_jump {
+        if !(j.is_finite() && j >= 0.0) {
+            return Err(Error::Param(format!(
+                "--max-seam-jump {j}: give a fraction of |scale| ≥ 0 (e.g. 0.02)"
+            )));
+        }
+    }
+    let flags = Overrides {
+        max_seam_jump: a.max_seam_jump,
+        ..overrides(&a.disp, a.max_disp)
+    };
     let reports: Vec<report::AssetReport> = meshes
         .iter()
         .map(|m| {
@@ -346,6 +358,7 @@ fn render_job_for(
                 resolution: a.rmip_res,
                 ..RmipOptions::default()
             },
+            seams: a.seams.parse().map_err(Error::Param)?,
         },
         settings: RenderSettings {
             width: a.res.0,
@@ -591,6 +604,14 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             cfg.width, cfg.height
         )));
     }
+    let seam_modes: Vec<SeamMode> = a
+        .seams
+        .iter()
+        .map(|m| {
+            m.parse()
+                .map_err(|e: String| Error::Param(format!("--seams: {e}")))
+        })
+        .collect::<Result<_>>()?;
     let meshes = asset::expand_paths(&a.assets)?;
     render_job::prepare_out_dir(&a.output)?;
     let pool = rayon::ThreadPoolBuilder::new()
@@ -607,11 +628,15 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             &CameraOverride::default(),
             cfg.width as f32 / cfg.height as f32,
         );
-        let scene = prismbake::accel::Scene::new(loaded.table, loaded.map);
         let name = mesh.display().to_string();
-        let asset_rows = pool.install(|| {
-            prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}"))
-        });
+        let mut asset_rows = Vec::new();
+        for &mode in &seam_modes {
+            let scene = prismbake::accel::Scene::new(loaded.table.clone(), loaded.map.clone())
+                .with_seam_mode(mode);
+            asset_rows.extend(pool.install(|| {
+                prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}"))
+            }));
+        }
         let stem = mesh
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())

@@ -12,7 +12,9 @@
 //! reinsertion and collapse), both built with obvhs's `medium_build` preset.
 
 use crate::bake::PrismTable;
+use crate::canonical::Surface;
 use crate::heightmap::HeightMap;
+use crate::seam::{PrismDisplacement, SeamMode, StitchField};
 use crate::trace::{Hit, Ray};
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -64,6 +66,9 @@ pub struct Scene {
     /// `None` for a table without prisms (every ray misses).
     bvh: Option<Bvh>,
     kind: BvhKind,
+    seam_mode: SeamMode,
+    /// The seam stitch data when `seam_mode` is `Stitch` (empty otherwise).
+    stitch: StitchField,
 }
 
 impl Scene {
@@ -82,12 +87,59 @@ impl Scene {
                 BvhKind::Wide => Bvh::Wide(build_cwbvh(&aabbs, params, &mut build_time)),
             }
         });
+        let stitch = StitchField::build(&table, &map);
         Scene {
             table,
             map,
             bvh,
             kind,
+            seam_mode: SeamMode::Stitch,
+            stitch,
         }
+    }
+
+    /// Trace the stitched surface (the default) or the raw one with its seam cracks. The
+    /// prism boxes bound both (the bake includes the stitch bands), so the BVH stays.
+    pub fn with_seam_mode(mut self, mode: SeamMode) -> Self {
+        self.seam_mode = mode;
+        self.stitch = match mode {
+            SeamMode::Stitch => StitchField::build(&self.table, &self.map),
+            SeamMode::Open => StitchField::default(),
+        };
+        self
+    }
+
+    /// A new version of the height map over the same prisms (`render --watch`, after
+    /// `bake::rebake_for_map` kept every box): the stitch bands' ranges are re-read.
+    pub fn replace_map(&mut self, map: HeightMap) {
+        self.map = map;
+        if self.seam_mode == SeamMode::Stitch {
+            self.stitch = StitchField::build(&self.table, &self.map);
+        }
+    }
+
+    pub fn seam_mode(&self) -> SeamMode {
+        self.seam_mode
+    }
+
+    pub fn stitch(&self) -> &StitchField {
+        &self.stitch
+    }
+
+    /// The displaced surface this scene traces (table, map, seam treatment).
+    pub fn surface(&self) -> Surface<'_> {
+        Surface {
+            table: &self.table,
+            map: &self.map,
+            mode: self.seam_mode,
+            stitch: &self.stitch,
+        }
+    }
+
+    /// How every method evaluates the height of prism `prism`.
+    #[inline]
+    pub fn prism_displacement(&self, prism: u32) -> PrismDisplacement<'_> {
+        self.surface().prism_displacement(prism)
     }
 
     pub fn bvh_kind(&self) -> BvhKind {

@@ -27,6 +27,9 @@ pub struct Sidecar {
     pub uv_set: Option<u32>,
     /// Largest |D| allowed by `validate` (world units).
     pub max_disp: Option<f32>,
+    /// Largest height jump across a UV seam allowed by `validate`, as a fraction of the
+    /// displacement scale.
+    pub max_seam_jump: Option<f32>,
 }
 
 /// Settings given on the command line; `None` = take the sidecar's (or the default).
@@ -42,6 +45,7 @@ pub struct AssetSpec {
     pub channel: Option<String>,
     pub uv_set: u32,
     pub max_disp: Option<f32>,
+    pub max_seam_jump: Option<f32>,
     /// The sidecar that was read, if any.
     pub sidecar: Option<PathBuf>,
 }
@@ -120,6 +124,7 @@ pub fn resolve(mesh: &Path, flags: &Overrides) -> Result<AssetSpec> {
         channel: flags.channel.clone().or(side.channel),
         uv_set: flags.uv_set.or(side.uv_set).unwrap_or(0),
         max_disp: flags.max_disp.or(side.max_disp),
+        max_seam_jump: flags.max_seam_jump.or(side.max_seam_jump),
         sidecar,
     };
     if !spec.params.scale.is_finite() || !spec.params.midlevel.is_finite() {

@@ -17,7 +17,8 @@
 //! max(dmax, dmax/m_lo)]` bounds the surface for any `D ∈ [dmin, dmax]`.
 
 use crate::heightmap::{DisplaceParams, HeightMap, Wrap};
-use crate::mesh::{BaseMesh, FACE_INSERTED};
+use crate::mesh::{BaseMesh, SeamEdge, FACE_INSERTED};
+use crate::seam::StitchField;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -70,6 +71,8 @@ pub struct PrismTable {
     /// Path of the height map relative to the table file (as written), for standalone renders.
     pub map_path: String,
     pub wrap: crate::heightmap::Wrap,
+    /// UV seams (repair's `SeamEdge`, faces = prisms): what stitching needs, on disk.
+    pub seams: Vec<SeamEdge>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -309,24 +312,15 @@ pub fn texel_world_size(map: &HeightMap, pos: &[Vec3; 3], uv: &[Vec2; 3]) -> f32
     }
 }
 
-/// Bake one prism record for triangle `t` of `mesh`.
+/// Bake one prism record for triangle `t` of `mesh` (its own footprint; `bake` widens the
+/// range of stitched prisms afterwards).
 pub fn bake_prism(mesh: &BaseMesh, map: &HeightMap, params: &DisplaceParams, t: usize) -> Prism {
     let tri = mesh.triangles[t];
     let pos = mesh.corners(t);
     let n = mesh.corner_normals(t);
     let uv = mesh.corner_uvs(t);
     let (hmin, hmax) = footprint_range(map, &uv);
-    let (d_min, d_max) = params.displacement_range(hmin, hmax);
-    let raw_m_lo = {
-        let c = (n[0] + n[1] + n[2]).normalize_or_zero();
-        n.iter().map(|ni| ni.dot(c)).fold(f32::INFINITY, f32::min)
-    };
-    let m_lo = mean_normal_lower_bound(&n);
-    let (lambda_lo, lambda_hi) = lambda_range(d_min, d_max, m_lo);
     let mut flags = 0;
-    if d_min == d_max {
-        flags |= PRISM_FLAT;
-    }
     if mesh
         .face_flags
         .get(t)
@@ -334,27 +328,66 @@ pub fn bake_prism(mesh: &BaseMesh, map: &HeightMap, params: &DisplaceParams, t: 
     {
         flags |= PRISM_INSERTED;
     }
-    if raw_m_lo < M_LO_FLOOR {
-        flags |= PRISM_DEGENERATE_NORMALS;
-    }
-    Prism {
+    let p = Prism {
         tri,
-        d_min,
-        d_max,
-        lambda_lo,
-        lambda_hi,
         texel_world: texel_world_size(map, &pos, &uv),
         flags,
+        ..Prism::default()
+    };
+    with_height_range(p, &n, params, hmin, hmax)
+}
+
+/// `p` with its displacement range set from the raw map range `[hmin, hmax]`: `d` range,
+/// λ range from the normals `n`, and the flat / degenerate-normal flags.
+pub fn with_height_range(
+    mut p: Prism,
+    n: &[Vec3; 3],
+    params: &DisplaceParams,
+    hmin: f32,
+    hmax: f32,
+) -> Prism {
+    let (d_min, d_max) = params.displacement_range(hmin, hmax);
+    let raw_m_lo = {
+        let c = (n[0] + n[1] + n[2]).normalize_or_zero();
+        n.iter().map(|ni| ni.dot(c)).fold(f32::INFINITY, f32::min)
+    };
+    let m_lo = mean_normal_lower_bound(n);
+    (p.lambda_lo, p.lambda_hi) = lambda_range(d_min, d_max, m_lo);
+    (p.d_min, p.d_max) = (d_min, d_max);
+    p.flags &= !(PRISM_FLAT | PRISM_DEGENERATE_NORMALS);
+    if d_min == d_max {
+        p.flags |= PRISM_FLAT;
+    }
+    if raw_m_lo < M_LO_FLOOR {
+        p.flags |= PRISM_DEGENERATE_NORMALS;
+    }
+    p
+}
+
+/// The raw map range prism `i` of `table` must bound: its own UV footprint, and with
+/// stitched edges the neighbours' band footprints too (`seam::band_footprint_range`).
+pub fn prism_height_range(
+    table: &PrismTable,
+    field: &StitchField,
+    map: &HeightMap,
+    i: usize,
+) -> (f32, f32) {
+    let (lo, hi) = footprint_range(map, &table.prism_uvs(&table.prisms[i]));
+    match field.get(i as u32) {
+        Some(s) => (lo.min(s.band_h.0), hi.max(s.band_h.1)),
+        None => (lo, hi),
     }
 }
 
-/// Bake every prism (in parallel; the result does not depend on the thread count).
+/// Bake every prism (in parallel; the result does not depend on the thread count). The
+/// ranges of prisms next to stitched seams include what stitching reads across them, so one
+/// table serves `--seams stitch` and `--seams open`.
 pub fn bake(mesh: &BaseMesh, map: &HeightMap, opts: &BakeOptions) -> PrismTable {
     let prisms = (0..mesh.triangle_count())
         .into_par_iter()
         .map(|t| bake_prism(mesh, map, &opts.params, t))
         .collect();
-    PrismTable {
+    let mut table = PrismTable {
         positions: mesh.positions.clone(),
         normals: mesh.normals.clone(),
         uvs: mesh.uvs.clone(),
@@ -365,7 +398,17 @@ pub fn bake(mesh: &BaseMesh, map: &HeightMap, opts: &BakeOptions) -> PrismTable 
         input_hash: [0; 32],
         map_path: map.source.to_string_lossy().into_owned(),
         wrap: map.wrap,
+        seams: mesh.seams.clone(),
+    };
+    let field = StitchField::build(&table, map);
+    for i in 0..table.prisms.len() {
+        if field.get(i as u32).is_some() {
+            let (hmin, hmax) = prism_height_range(&table, &field, map, i);
+            let (_, n) = table.prism_corners(&table.prisms[i]);
+            table.prisms[i] = with_height_range(table.prisms[i], &n, &opts.params, hmin, hmax);
+        }
     }
+    table
 }
 
 #[cfg(test)]

@@ -5,7 +5,8 @@
 //! method on `F(b1, b2, λ) = P(b) + λ m(b) − x` (RMIP §4.1's inverse displacement).
 
 use crate::bake::{Prism, PrismTable};
-use crate::heightmap::{DisplaceParams, HeightMap};
+use crate::heightmap::HeightMap;
+use crate::seam::{PrismDisplacement, SeamMode, StitchField};
 use glam::{Mat3, Vec2, Vec3};
 
 /// Base data of one prism, gathered once per ray-prism test.
@@ -45,6 +46,42 @@ impl PrismGeom {
     }
 }
 
+/// The displaced surface of a table as every method evaluates it: the table, its map, and how
+/// UV seams are treated (the stitch data; empty for `SeamMode::Open`).
+#[derive(Clone, Copy)]
+pub struct Surface<'a> {
+    pub table: &'a PrismTable,
+    pub map: &'a HeightMap,
+    pub mode: SeamMode,
+    pub stitch: &'a StitchField,
+}
+
+static NO_STITCH: StitchField = StitchField::empty();
+
+impl<'a> Surface<'a> {
+    /// The raw canonical surface (no seam stitching).
+    pub fn open(table: &'a PrismTable, map: &'a HeightMap) -> Self {
+        Surface {
+            table,
+            map,
+            mode: SeamMode::Open,
+            stitch: &NO_STITCH,
+        }
+    }
+
+    /// The height of prism `prism`, stitched where it has stitched seam edges.
+    #[inline]
+    pub fn prism_displacement(&self, prism: u32) -> PrismDisplacement<'a> {
+        let p = &self.table.prisms[prism as usize];
+        PrismDisplacement {
+            map: self.map,
+            params: self.table.params,
+            uv: self.table.prism_uvs(p),
+            stitch: self.stitch.get(prism),
+        }
+    }
+}
+
 /// Full surface data at barycentrics `b` of a prism.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfacePoint {
@@ -60,28 +97,21 @@ pub struct SurfacePoint {
     pub base_normal: Vec3,
 }
 
-/// Evaluate `S(b)` and its normals.
-pub fn surface_point(
-    g: &PrismGeom,
-    map: &HeightMap,
-    params: &DisplaceParams,
-    b: Vec3,
-) -> SurfacePoint {
+/// Evaluate `S(b)` and its normals, the height from `disp` (the map, or the stitched height
+/// next to UV seams: `seam::PrismDisplacement`).
+pub fn surface_point(g: &PrismGeom, disp: &PrismDisplacement, b: Vec3) -> SurfacePoint {
     let p = g.position(b);
     let m = g.normal_dir(b);
     let len = m.length().max(1e-12);
     let mh = m / len;
     let uv = g.uv(b);
-    let (h, grad_h) = map.sample_grad(uv);
-    let d = params.displacement(h);
-    let grad_d = grad_h * params.scale;
-    // Derivatives with respect to (b1, b2), b0 = 1 − b1 − b2.
+    // Height and its derivatives with respect to (b1, b2), b0 = 1 − b1 − b2.
+    let (d, dd) = disp.at_grad(b);
     let dp = [g.v[1] - g.v[0], g.v[2] - g.v[0]];
     let dm = [g.n[1] - g.n[0], g.n[2] - g.n[0]];
-    let duv = [g.uv[1] - g.uv[0], g.uv[2] - g.uv[0]];
     let ds = |k: usize| {
         let dmh = (dm[k] - mh * mh.dot(dm[k])) / len;
-        dp[k] + mh * grad_d.dot(duv[k]) + dmh * d
+        dp[k] + mh * dd[k] + dmh * d
     };
     let ng = g.base_normal();
     let mut ns = ds(0).cross(ds(1)).normalize_or_zero();

@@ -18,6 +18,7 @@ pub mod render;
 pub mod repair;
 pub mod report;
 pub mod rng;
+pub mod seam;
 pub mod table_cache;
 pub mod tessellate;
 pub mod trace;

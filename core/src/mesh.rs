@@ -43,6 +43,29 @@ pub struct BaseMesh {
     pub missing_uvs: bool,
     /// Base colour of the first material, linear RGBA, when the file has one.
     pub base_color: Option<[f32; 4]>,
+    /// UV seams found by repair (empty straight from a loader): pairs of triangle edges with
+    /// the same positions and normals but different UVs.
+    pub seams: Vec<SeamEdge>,
+}
+
+/// A UV seam: edge `edges[0]` of triangle `faces[0]` and edge `edges[1]` of `faces[1]` lie on
+/// the same positions with the same normals, but their vertex records carry different UVs.
+/// Edge `k` of a triangle is the one opposite its corner `k` (corners `k+1 → k+2`, mod 3); the
+/// two edges run in opposite directions, so corner `k0+1` of face 0 sits where corner `k1+2`
+/// of face 1 does, and `k0+2` where `k1+1` does. Triangles and prisms are numbered alike,
+/// so the prism table stores the same records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct SeamEdge {
+    pub faces: [u32; 2],
+    pub edges: [u8; 2],
+}
+
+impl SeamEdge {
+    /// The two corners of face `side`'s edge, in that face's order (`k+1`, `k+2`).
+    pub fn corners(&self, side: usize) -> [usize; 2] {
+        let k = self.edges[side] as usize;
+        [(k + 1) % 3, (k + 2) % 3]
+    }
 }
 
 impl Default for UpAxis {

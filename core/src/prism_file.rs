@@ -8,17 +8,20 @@
 use crate::bake::{Prism, PrismTable};
 use crate::error::{Error, Result};
 use crate::heightmap::{DisplaceParams, Wrap};
+use crate::mesh::SeamEdge;
 use glam::{Vec2, Vec3};
 use std::io::Write;
 use std::path::Path;
 
 pub const MAGIC: [u8; 8] = *b"PRISMBK\0";
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Bytes per vertex record: position, normal (3 f32 each), uv (2 f32).
 pub const VERTEX_BYTES: usize = 32;
 /// Bytes per prism record: 3 u32 indices, d_min, d_max, lambda_lo, lambda_hi, texel_world, flags.
 pub const PRISM_BYTES: usize = 36;
-const FIXED_HEADER: usize = 8 + 4 + 2 * 8 + 4 * 6 + 32 + 4;
+/// Bytes per seam record: 2 u32 prism indices, 2 u8 edge slots, 2 reserved bytes.
+pub const SEAM_BYTES: usize = 12;
+const FIXED_HEADER: usize = 8 + 4 + 3 * 8 + 4 * 6 + 32 + 4;
 const CHECKSUM_BYTES: usize = 32;
 const MAX_MAP_PATH: usize = 4096;
 /// Refuse tables beyond this many prisms (far above any base mesh PDM is meant for).
@@ -29,12 +32,14 @@ pub fn encode(table: &PrismTable) -> Vec<u8> {
     let mut out = Vec::with_capacity(encoded_len(
         table.positions.len(),
         table.prisms.len(),
+        table.seams.len(),
         path.len(),
     ));
     out.extend_from_slice(&MAGIC);
     put_u32(&mut out, VERSION);
     put_u64(&mut out, table.positions.len() as u64);
     put_u64(&mut out, table.prisms.len() as u64);
+    put_u64(&mut out, table.seams.len() as u64);
     put_u32(&mut out, table.map_width);
     put_u32(&mut out, table.map_height);
     put_u32(
@@ -69,13 +74,23 @@ pub fn encode(table: &PrismTable) -> Vec<u8> {
         }
         put_u32(&mut out, p.flags);
     }
+    for seam in &table.seams {
+        put_u32(&mut out, seam.faces[0]);
+        put_u32(&mut out, seam.faces[1]);
+        out.extend_from_slice(&[seam.edges[0], seam.edges[1], 0, 0]);
+    }
     let sum = blake3::hash(&out);
     out.extend_from_slice(sum.as_bytes());
     out
 }
 
-pub fn encoded_len(vertices: usize, prisms: usize, path_len: usize) -> usize {
-    FIXED_HEADER + path_len + vertices * VERTEX_BYTES + prisms * PRISM_BYTES + CHECKSUM_BYTES
+pub fn encoded_len(vertices: usize, prisms: usize, seams: usize, path_len: usize) -> usize {
+    FIXED_HEADER
+        + path_len
+        + vertices * VERTEX_BYTES
+        + prisms * PRISM_BYTES
+        + seams * SEAM_BYTES
+        + CHECKSUM_BYTES
 }
 
 /// Write atomically: a temp file in the same folder, then rename.
@@ -170,8 +185,9 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
     }
     let nv = r.u64()?;
     let np = r.u64()?;
-    if np > MAX_PRISMS || nv > 3 * MAX_PRISMS {
-        return Err(format!("prism table claims {np} prisms and {nv} vertices, more than the limit of {MAX_PRISMS}: the file is corrupt"));
+    let ns = r.u64()?;
+    if np > MAX_PRISMS || nv > 3 * MAX_PRISMS || ns > 3 * MAX_PRISMS {
+        return Err(format!("prism table claims {np} prisms, {nv} vertices and {ns} seams, more than the limit of {MAX_PRISMS} prisms: the file is corrupt"));
     }
     let map_width = r.u32()?;
     let map_height = r.u32()?;
@@ -201,11 +217,12 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         .checked_add(path_len as u64)
         .and_then(|s| s.checked_add(nv.checked_mul(VERTEX_BYTES as u64)?))
         .and_then(|s| s.checked_add(np.checked_mul(PRISM_BYTES as u64)?))
+        .and_then(|s| s.checked_add(ns.checked_mul(SEAM_BYTES as u64)?))
         .and_then(|s| s.checked_add(CHECKSUM_BYTES as u64))
         .ok_or("prism table counts overflow: the file is corrupt")?;
     if expected != bytes.len() as u64 {
         return Err(format!(
-            "prism table is {} bytes but its header ({nv} vertices, {np} prisms) implies {expected}: the file is truncated or corrupt (re-bake it)",
+            "prism table is {} bytes but its header ({nv} vertices, {np} prisms, {ns} seams) implies {expected}: the file is truncated or corrupt (re-bake it)",
             bytes.len()
         ));
     }
@@ -250,6 +267,19 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         }
         prisms.push(p);
     }
+    let mut seams = Vec::with_capacity(ns as usize);
+    for i in 0..ns as usize {
+        let faces = [r.u32()?, r.u32()?];
+        let e = r.take(4)?;
+        let edges = [e[0], e[1]];
+        if faces.iter().any(|&f| f as usize >= np)
+            || edges.iter().any(|&k| k > 2)
+            || faces[0] == faces[1]
+        {
+            return Err(format!("seam {i} names prisms {faces:?}, edges {edges:?}, but the table has {np} prisms and edges 0..2 (corrupt; re-bake)"));
+        }
+        seams.push(SeamEdge { faces, edges });
+    }
     if let Some(v) = (0..nv)
         .find(|&v| !(positions[v].is_finite() && normals[v].is_finite() && uvs[v].is_finite()))
     {
@@ -268,6 +298,7 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         input_hash,
         map_path,
         wrap,
+        seams,
     })
 }
 
@@ -314,14 +345,32 @@ mod tests {
             input_hash: [7; 32],
             map_path: "maps/h.png".into(),
             wrap: Wrap::Clamp,
+            seams: vec![],
         }
+    }
+
+    /// Two prisms sharing a seam edge (edge 0 of each).
+    fn seamed_table() -> PrismTable {
+        let mut t = small_table();
+        t.positions.push(Vec3::ONE);
+        t.normals.push(Vec3::Z);
+        t.uvs.push(Vec2::ONE);
+        t.prisms.push(Prism {
+            tri: [3, 2, 1],
+            ..t.prisms[0]
+        });
+        t.seams = vec![SeamEdge {
+            faces: [0, 1],
+            edges: [0, 0],
+        }];
+        t
     }
 
     #[test]
     fn round_trip() {
         let t = small_table();
         let bytes = encode(&t);
-        assert_eq!(bytes.len(), encoded_len(3, 1, 10));
+        assert_eq!(bytes.len(), encoded_len(3, 1, 0, 10));
         let back = decode(&bytes).unwrap();
         assert_eq!(back.prisms, t.prisms);
         assert_eq!(back.positions, t.positions);
@@ -329,6 +378,20 @@ mod tests {
         assert_eq!(back.map_path, t.map_path);
         assert_eq!(back.wrap, Wrap::Clamp);
         assert_eq!(back.input_hash, t.input_hash);
+        let t = seamed_table();
+        let bytes = encode(&t);
+        assert_eq!(bytes.len(), encoded_len(4, 2, 1, 10));
+        assert_eq!(decode(&bytes).unwrap().seams, t.seams);
+    }
+
+    #[test]
+    fn rejects_seams_naming_missing_prisms_or_edges() {
+        for (faces, edges) in [([0, 2], [0, 0]), ([0, 1], [3, 0]), ([1, 1], [0, 1])] {
+            let mut t = seamed_table();
+            t.seams[0] = SeamEdge { faces, edges };
+            let err = decode(&encode(&t)).unwrap_err();
+            assert!(err.contains("seam 0"), "{err}");
+        }
     }
 
     /// Frozen header bytes: a change to the layout must bump VERSION and the doc.
@@ -336,13 +399,17 @@ mod tests {
     fn frozen_header() {
         let bytes = encode(&small_table());
         assert_eq!(&bytes[..8], b"PRISMBK\0");
-        assert_eq!(&bytes[8..12], &[1, 0, 0, 0]); // version
+        assert_eq!(&bytes[8..12], &[2, 0, 0, 0]); // version
         assert_eq!(
-            &bytes[12..28],
-            &[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]
-        ); // counts
-        assert_eq!(&bytes[28..36], &[64, 0, 0, 0, 32, 0, 0, 0]); // map size
-        assert_eq!(&bytes[36..40], &[1, 0, 0, 0]); // clamp
+            &bytes[12..36],
+            &[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+        ); // counts: vertices, prisms, seams
+        assert_eq!(&bytes[36..44], &[64, 0, 0, 0, 32, 0, 0, 0]); // map size
+        assert_eq!(&bytes[44..48], &[1, 0, 0, 0]); // clamp
+                                                   // A seam record: two prism indices, two edge slots, two reserved bytes.
+        let bytes = encode(&seamed_table());
+        let n = bytes.len() - 32;
+        assert_eq!(&bytes[n - 12..n], &[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
     }
 
     #[test]
@@ -356,8 +423,8 @@ mod tests {
     #[test]
     fn rejects_other_version_bad_checksum_and_absurd_counts() {
         let mut b = encode(&small_table());
-        b[8] = 2;
-        assert!(decode(&b).unwrap_err().contains("version 2"));
+        b[8] = 1;
+        assert!(decode(&b).unwrap_err().contains("version 1"));
         let mut b = encode(&small_table());
         let n = b.len();
         b[n - 40] ^= 1;

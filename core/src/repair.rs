@@ -17,6 +17,9 @@
 //! 5. `stitch` — close hard edges (same positions, different normals) with zero-area triangles
 //!    (`FACE_INSERTED`), and the k-gon holes where k ≥ 3 copies meet (cube corners). The result
 //!    is closed up to UV seams: every edge is shared by two triangles or has a seam twin.
+//! 6. `seams` — find the UV seams (same positions and normals, other UVs), record them in the
+//!    mesh for the bake (and the stitched surface, `crate::seam`), and snap each group of seam
+//!    twins to one position and normal bit for bit.
 //!
 //! Why stitch and not only split (the paper inserts triangles; a plain normal split is the
 //! other option DESIGN.md names): the canonical displaced surface
@@ -32,13 +35,14 @@
 
 mod crease;
 mod report;
+mod seams;
 mod stitch;
 mod weld;
 
 #[cfg(test)]
 mod tests;
 
-pub use report::{CornerFan, CornerFinding, RepairReport, StitchedEdge, VertexSplit};
+pub use report::{CornerFan, CornerFinding, RepairReport, SeamFinding, StitchedEdge, VertexSplit};
 
 use crate::mesh::BaseMesh;
 use glam::{Vec2, Vec3};
@@ -110,6 +114,7 @@ pub fn repair(mesh: BaseMesh, opts: &RepairOptions) -> (BaseMesh, RepairReport) 
     crease::report_inverted_corners(&work, &mut report);
     crease::split_creases(&mut work, &quant, opts.crease_threshold, &mut report);
     stitch::stitch(&mut work, &quant, opts.stitch_hard_edges, &mut report);
+    let seams = seams::find_seams(&mut work, &quant, &mut report);
     report.output_vertices = work.positions.len();
     report.output_triangles = work.triangles.len();
     let out = BaseMesh {
@@ -119,6 +124,7 @@ pub fn repair(mesh: BaseMesh, opts: &RepairOptions) -> (BaseMesh, RepairReport) 
         triangles: work.triangles,
         face_group: work.face_group,
         face_flags: work.face_flags,
+        seams,
         ..mesh
     };
     (out, report)

@@ -14,10 +14,18 @@
 //!   near the corners (a boundary point can move by half a coarse segment);
 //! * edge vertices are evaluated once, from the canonical orientation (lower vertex index
 //!   first), and shared by index; corners are the base vertices themselves.
+//!
+//! On a stitched surface (`SeamMode::Stitch`) the two sides of a UV seam are one edge: seam
+//! twins (records linked by seams) share one representative index, so a seam edge has one
+//! segment count and one set of points, evaluated through the first face that has it (both
+//! faces agree there: `seam`'s construction); a twin group's corner is one micro-vertex at the
+//! mean of its records' heights (the stitched surface pinches there, so any one height closes
+//! it).
 
 use crate::bake::{Prism, PrismTable};
-use crate::canonical::{surface_point, PrismGeom};
+use crate::canonical::{surface_point, PrismGeom, Surface};
 use crate::heightmap::HeightMap;
+use crate::seam::SeamMode;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
@@ -96,6 +104,7 @@ fn edge_segments_wanted(
 fn edge_segment_counts(
     table: &PrismTable,
     map: &HeightMap,
+    rep: &[u32],
     k: f32,
 ) -> (BTreeMap<(u32, u32), u32>, usize) {
     let mut wanted: BTreeMap<(u32, u32), f32> = BTreeMap::new();
@@ -104,7 +113,9 @@ fn edge_segment_counts(
             let (a, b) = (p.tri[e], p.tri[(e + 1) % 3]);
             let w = edge_segments_wanted(table, map, p, a, b, k);
             let w = if w.is_nan() { 1.0 } else { w };
-            let slot = wanted.entry(edge_key(a, b)).or_insert(1.0);
+            let slot = wanted
+                .entry(edge_key(rep[a as usize], rep[b as usize]))
+                .or_insert(1.0);
             *slot = slot.max(w);
         }
     }
@@ -119,6 +130,26 @@ fn edge_segment_counts(
         })
         .collect();
     (counts, capped)
+}
+
+/// The raw displacement along the edge `a`–`b` (slots as in `edge_geom`).
+fn edge_displacement<'a>(
+    surface: &Surface<'a>,
+    a: u32,
+    b: u32,
+) -> crate::seam::PrismDisplacement<'a> {
+    let uv = &surface.table.uvs;
+    crate::seam::PrismDisplacement {
+        map: surface.map,
+        params: surface.table.params,
+        uv: [uv[a as usize], uv[b as usize], uv[a as usize]],
+        stitch: None,
+    }
+}
+
+/// The raw height `D(uv)` at vertex record `v`.
+fn surface_raw_height(surface: &Surface, v: u32) -> f32 {
+    edge_displacement(surface, v, v).raw(surface.table.uvs[v as usize])
 }
 
 /// A degenerate prism geometry whose every barycentric combination of slots 0 and 1 is the
@@ -145,9 +176,47 @@ enum FaceLayout {
     Fan,
 }
 
+/// Per vertex, the representative of its seam-twin group (the smallest record linked to it
+/// by seams, itself if none); the identity on an open surface.
+fn seam_representatives(surface: &Surface) -> Vec<u32> {
+    let table = surface.table;
+    let mut rep: Vec<u32> = (0..table.positions.len() as u32).collect();
+    if surface.mode != SeamMode::Stitch {
+        return rep;
+    }
+    fn root(rep: &mut [u32], mut v: u32) -> u32 {
+        while rep[v as usize] != v {
+            let up = rep[rep[v as usize] as usize];
+            rep[v as usize] = up;
+            v = up;
+        }
+        v
+    }
+    for seam in &table.seams {
+        let [i0, j0] = seam.corners(0);
+        let [i1, j1] = seam.corners(1);
+        let (t0, t1) = (
+            table.prisms[seam.faces[0] as usize].tri,
+            table.prisms[seam.faces[1] as usize].tri,
+        );
+        for (a, b) in [(t0[i0], t1[j1]), (t0[j0], t1[i1])] {
+            let (ra, rb) = (root(&mut rep, a), root(&mut rep, b));
+            if ra != rb {
+                rep[ra.max(rb) as usize] = ra.min(rb);
+            }
+        }
+    }
+    for v in 0..rep.len() as u32 {
+        rep[v as usize] = root(&mut rep, v);
+    }
+    rep
+}
+
 /// One face's segmentation and where its vertices live.
 struct FaceGrid<'a> {
     prism: &'a Prism,
+    /// The prism's corners as micro-vertex indices (seam representatives).
+    corners: [u32; 3],
     n: u32,
     /// Per edge `e` (slot `e` → slot `e + 1`): its split and whether slot `e` is the lower index.
     edges: [(EdgeSplit, bool); 3],
@@ -159,7 +228,12 @@ struct FaceGrid<'a> {
 type Corner = (u32, Vec3);
 
 impl FaceGrid<'_> {
-    fn new(prism: &Prism, edges: [(EdgeSplit, bool); 3], interior_start: u32) -> FaceGrid<'_> {
+    fn new(
+        prism: &Prism,
+        corners: [u32; 3],
+        edges: [(EdgeSplit, bool); 3],
+        interior_start: u32,
+    ) -> FaceGrid<'_> {
         let n = edges.iter().map(|(s, _)| s.n).max().unwrap_or(1);
         let layout = if edges.iter().all(|(s, _)| s.n == n) {
             FaceLayout::Grid
@@ -170,6 +244,7 @@ impl FaceGrid<'_> {
         };
         FaceGrid {
             prism,
+            corners,
             n,
             edges,
             layout,
@@ -199,9 +274,9 @@ impl FaceGrid<'_> {
         bary[lo] = 1.0 - s;
         bary[hi] = s;
         let index = if j == 0 {
-            self.prism.tri[lo]
+            self.corners[lo]
         } else if j == split.n {
-            self.prism.tri[hi]
+            self.corners[hi]
         } else {
             split.start + j - 1
         };
@@ -282,10 +357,11 @@ struct FaceTess {
     bary: Vec<[Vec3; 3]>,
 }
 
-fn tessellate_face(table: &PrismTable, map: &HeightMap, grid: &FaceGrid) -> FaceTess {
+fn tessellate_face(surface: &Surface, prism: u32, grid: &FaceGrid) -> FaceTess {
     let n = grid.n;
-    let geom = PrismGeom::new(table, grid.prism);
-    let eval = |w: Vec3| surface_point(&geom, map, &table.params, w).position;
+    let geom = PrismGeom::new(surface.table, grid.prism);
+    let disp = surface.prism_displacement(prism);
+    let eval = |w: Vec3| surface_point(&geom, &disp, w).position;
     let mut interior = Vec::with_capacity(grid.interior_count());
     if grid.layout == FaceLayout::Fan {
         interior.push(eval(Vec3::splat(1.0 / 3.0)));
@@ -353,11 +429,13 @@ fn tessellate_face(table: &PrismTable, map: &HeightMap, grid: &FaceGrid) -> Face
     }
 }
 
-/// Tessellate every prism of `table` at `k`× the texel rate (see the module doc). The output
-/// does not depend on the thread count. Warns on stderr when an edge needs more than
+/// Tessellate every prism of `surface` at `k`× the texel rate (see the module doc). The
+/// output does not depend on the thread count. Warns on stderr when an edge needs more than
 /// `MAX_SEGMENTS` segments (the count is also in `capped_edges`).
-pub fn tessellate(table: &PrismTable, map: &HeightMap, k: f32) -> TessMesh {
-    let (counts, capped_edges) = edge_segment_counts(table, map, k);
+pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
+    let (table, map) = (surface.table, surface.map);
+    let rep = seam_representatives(surface);
+    let (counts, capped_edges) = edge_segment_counts(table, map, &rep, k);
     if capped_edges > 0 {
         eprintln!(
             "warning: tessellate: {capped_edges} base edges need more than {MAX_SEGMENTS} \
@@ -365,13 +443,46 @@ pub fn tessellate(table: &PrismTable, map: &HeightMap, k: f32) -> TessMesh {
         );
     }
 
-    // Base vertices keep their indices.
+    // Base vertices keep their indices; a seam-twin group is one vertex at the mean height.
+    let mut group_height: HashMap<u32, (f32, u32)> = HashMap::new();
+    for v in 0..rep.len() as u32 {
+        let r = rep[v as usize];
+        if r != v {
+            let slot = group_height
+                .entry(r)
+                .or_insert_with(|| (surface_raw_height(surface, r), 1));
+            slot.0 += surface_raw_height(surface, v);
+            slot.1 += 1;
+        }
+    }
     let mut positions: Vec<Vec3> = (0..table.positions.len() as u32)
         .into_par_iter()
-        .map(|v| surface_point(&edge_geom(table, v, v), map, &table.params, Vec3::X).position)
+        .map(|v| match group_height.get(&v) {
+            Some(&(sum, count)) => {
+                let (p, n) = (table.positions[v as usize], table.normals[v as usize]);
+                p + n.normalize_or_zero() * (sum / count as f32)
+            }
+            None => {
+                let raw = Surface::open(table, map);
+                surface_point(
+                    &edge_geom(table, v, v),
+                    &edge_displacement(&raw, v, v),
+                    Vec3::X,
+                )
+                .position
+            }
+        })
         .collect();
 
-    // Edge interiors, in key order, evaluated from the lower vertex index.
+    // Edge interiors, in key order, evaluated from the lower representative through the
+    // first face that has the edge.
+    let mut owner: HashMap<(u32, u32), (u32, usize)> = HashMap::with_capacity(counts.len());
+    for (i, p) in table.prisms.iter().enumerate() {
+        for e in 0..3 {
+            let key = edge_key(rep[p.tri[e] as usize], rep[p.tri[(e + 1) % 3] as usize]);
+            owner.entry(key).or_insert((i as u32, e));
+        }
+    }
     let mut splits: HashMap<(u32, u32), EdgeSplit> = HashMap::with_capacity(counts.len());
     let mut edge_list = Vec::with_capacity(counts.len());
     let mut next = positions.len() as u32;
@@ -382,11 +493,23 @@ pub fn tessellate(table: &PrismTable, map: &HeightMap, k: f32) -> TessMesh {
     }
     let edge_points: Vec<Vec3> = edge_list
         .par_iter()
-        .flat_map_iter(|&((lo, hi), n)| {
-            let geom = edge_geom(table, lo, hi);
+        .flat_map_iter(|&(key, n)| {
+            let (prism, e) = owner[&key];
+            let p = &table.prisms[prism as usize];
+            let geom = PrismGeom::new(table, p);
+            let disp = surface.prism_displacement(prism);
+            let (from, to) = (e, (e + 1) % 3);
+            let (lo, hi) = if rep[p.tri[from] as usize] == key.0 {
+                (from, to)
+            } else {
+                (to, from)
+            };
             (1..n).map(move |j| {
                 let s = j as f32 / n as f32;
-                surface_point(&geom, map, &table.params, Vec3::new(1.0 - s, s, 0.0)).position
+                let mut b = [0.0f32; 3];
+                b[lo] = 1.0 - s;
+                b[hi] = s;
+                surface_point(&geom, &disp, Vec3::from(b)).position
             })
         })
         .collect();
@@ -396,17 +519,19 @@ pub fn tessellate(table: &PrismTable, map: &HeightMap, k: f32) -> TessMesh {
     let mut grids = Vec::with_capacity(table.prisms.len());
     let mut next = positions.len() as u32;
     for prism in &table.prisms {
+        let corners = prism.tri.map(|v| rep[v as usize]);
         let edges: [(EdgeSplit, bool); 3] = std::array::from_fn(|e| {
-            let (a, b) = (prism.tri[e], prism.tri[(e + 1) % 3]);
+            let (a, b) = (corners[e], corners[(e + 1) % 3]);
             (splits[&edge_key(a, b)], a <= b)
         });
-        let grid = FaceGrid::new(prism, edges, next);
+        let grid = FaceGrid::new(prism, corners, edges, next);
         next += grid.interior_count() as u32;
         grids.push(grid);
     }
     let faces: Vec<FaceTess> = grids
         .par_iter()
-        .map(|g| tessellate_face(table, map, g))
+        .enumerate()
+        .map(|(i, g)| tessellate_face(surface, i as u32, g))
         .collect();
 
     let tri_total = faces.iter().map(|f| f.triangles.len()).sum();
@@ -432,6 +557,10 @@ mod tests {
     use super::*;
     use crate::test_util::test_sphere_table;
 
+    fn identity(table: &PrismTable) -> Vec<u32> {
+        (0..table.positions.len() as u32).collect()
+    }
+
     /// Undirected edge → how many micro-triangles use it, plus directed-edge uniqueness.
     fn edge_use(mesh: &TessMesh) -> (HashMap<(u32, u32), u32>, bool) {
         let mut undirected = HashMap::new();
@@ -452,7 +581,7 @@ mod tests {
         // Breaks if an edge split leaves a T-junction, a crack or a fold between two faces.
         let (table, map) = test_sphere_table(2, 32, 0.15);
         for k in [0.3, 1.0, 2.0, 3.7] {
-            let mesh = tessellate(&table, &map, k);
+            let mesh = tessellate(&Surface::open(&table, &map), k);
             let (undirected, consistent) = edge_use(&mesh);
             let open: Vec<_> = undirected.iter().filter(|(_, &c)| c != 2).take(5).collect();
             assert!(
@@ -478,7 +607,7 @@ mod tests {
         // every micro-triangle must have positive area and together exactly the face's 1/2.
         let (table, map) = test_sphere_table(2, 32, 0.15);
         for k in [0.3, 1.0, 2.5, 3.7] {
-            let mesh = tessellate(&table, &map, k);
+            let mesh = tessellate(&Surface::open(&table, &map), k);
             let mut area = vec![0.0f64; table.prisms.len()];
             for (t, b) in mesh.tri_bary.iter().enumerate() {
                 let d1 = (b[1] - b[0]).as_dvec3();
@@ -500,13 +629,18 @@ mod tests {
     fn micro_barycentrics_reproduce_vertex_positions() {
         // Breaks if tri_bary does not describe where each micro-corner sits in its base face.
         let (table, map) = test_sphere_table(1, 16, 0.1);
-        let mesh = tessellate(&table, &map, 2.0);
+        let mesh = tessellate(&Surface::open(&table, &map), 2.0);
         for (t, tri) in mesh.triangles.iter().enumerate() {
             let prism = &table.prisms[mesh.tri_prism[t] as usize];
             let geom = PrismGeom::new(&table, prism);
             for (c, (&b, &v)) in mesh.tri_bary[t].iter().zip(tri).enumerate() {
                 assert!((b.x + b.y + b.z - 1.0).abs() < 1e-6 && b.min_element() >= 0.0);
-                let want = surface_point(&geom, &map, &table.params, b).position;
+                let want = surface_point(
+                    &geom,
+                    &Surface::open(&table, &map).prism_displacement(mesh.tri_prism[t]),
+                    b,
+                )
+                .position;
                 let got = mesh.positions[v as usize];
                 assert!(
                     (want - got).length() < 1e-5,
@@ -521,7 +655,7 @@ mod tests {
         // Breaks if the resolution is not k× the texel rate along every edge.
         let (table, map) = test_sphere_table(1, 16, 0.1);
         for k in [1.0, 2.0, 4.0] {
-            let (counts, capped) = edge_segment_counts(&table, &map, k);
+            let (counts, capped) = edge_segment_counts(&table, &map, &identity(&table), k);
             assert_eq!(capped, 0);
             for (&(a, b), &n) in &counts {
                 let texels = ((table.uvs[b as usize] - table.uvs[a as usize]) * 16.0).length();
@@ -531,15 +665,15 @@ mod tests {
                 );
             }
         }
-        let (_, capped) = edge_segment_counts(&table, &map, 1e6);
+        let (_, capped) = edge_segment_counts(&table, &map, &identity(&table), 1e6);
         assert!(capped > 0);
     }
 
     #[test]
     fn output_is_deterministic() {
         let (table, map) = test_sphere_table(2, 32, 0.15);
-        let a = tessellate(&table, &map, 2.0);
-        let b = tessellate(&table, &map, 2.0);
+        let a = tessellate(&Surface::open(&table, &map), 2.0);
+        let b = tessellate(&Surface::open(&table, &map), 2.0);
         assert_eq!(a.triangles, b.triangles);
         assert_eq!(a.positions, b.positions);
     }

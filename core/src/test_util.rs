@@ -143,7 +143,16 @@ pub(crate) fn example_with_reference(
     let p = crate::asset::prepare(&spec, &Default::default()).expect("example prepares");
     let base: &'static (PrismTable, HeightMap) =
         Box::leak(Box::new((p.table.clone(), p.map.clone())));
-    let reference = crate::trace::reference::Reference::new(&base.0, &base.1, EXAMPLE_REFERENCE_K);
+    // The reference traces the scene's (stitched) surface.
+    let stitch: &'static crate::seam::StitchField =
+        Box::leak(Box::new(crate::seam::StitchField::build(&base.0, &base.1)));
+    let surface = crate::canonical::Surface {
+        table: &base.0,
+        map: &base.1,
+        mode: crate::seam::SeamMode::Stitch,
+        stitch,
+    };
+    let reference = crate::trace::reference::Reference::new(surface, EXAMPLE_REFERENCE_K);
     let entry: Entry = Box::leak(Box::new((
         crate::accel::Scene::new(p.table, p.map),
         reference,

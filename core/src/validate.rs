@@ -2,7 +2,8 @@
 //!
 //! Checks (one JUnit test case each): `mesh` (readable, finite, in range), `uvs` (present),
 //! `uv-range` (inside [0, 1] when the map is clamped), `degenerate-faces`, `inverted-normals`,
-//! `sharp-creases`, `map` (readable), `finite-values` (no NaN/Inf texels), `max-displacement`.
+//! `sharp-creases`, `map` (readable), `finite-values` (no NaN/Inf texels), `max-displacement`,
+//! `seam-jump` (the height map's jump across UV seams, which `--seams open` renders as cracks).
 
 use crate::asset::{self, AssetSpec, Overrides};
 use crate::bake::PrismTable;
@@ -13,11 +14,12 @@ use crate::mesh::BaseMesh;
 use crate::prism_file;
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
+use crate::seam::{measure_seams, SeamReport};
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 use std::path::Path;
 
-pub const CHECKS: [&str; 9] = [
+pub const CHECKS: [&str; 10] = [
     "mesh",
     "uvs",
     "uv-range",
@@ -27,7 +29,16 @@ pub const CHECKS: [&str; 9] = [
     "map",
     "finite-values",
     "max-displacement",
+    "seam-jump",
 ];
+
+/// `seam-jump` fails above this jump, as a fraction of `|scale|` (`max_seam_jump` in the
+/// sidecar, `--max-seam-jump` on the command line): 2% of the scale is a step a lookdev
+/// render shows as a line wherever seams are left open, and a map painted or baked with
+/// seam-aware padding stays far below it.
+pub const DEFAULT_MAX_SEAM_JUMP: f32 = 0.02;
+/// Worst seam edges listed by the check.
+const WORST_SEAMS: usize = 10;
 
 fn skip_rest(checks: &mut Vec<Check>, why: &str) {
     for name in CHECKS.iter().skip(checks.len()) {
@@ -87,9 +98,14 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
         Check::pass("uvs", "present")
     });
     checks.push(uv_range_check(&mesh, spec.wrap));
-    let (_, report) = repair::repair(mesh.clone(), ropts);
+    let (repaired, report) = repair::repair(mesh.clone(), ropts);
     checks.extend(repair_checks(&report));
-    checks.extend(map_checks(&spec));
+    let (map_results, map) = map_checks(&spec);
+    checks.extend(map_results);
+    checks.push(match &map {
+        Some(map) => seam_check(&spec, &repaired, &report, map),
+        None => Check::skipped("seam-jump", "no map"),
+    });
     AssetReport {
         asset: name,
         checks,
@@ -193,25 +209,31 @@ fn repair_checks(r: &RepairReport) -> Vec<Check> {
     out
 }
 
-fn map_checks(spec: &AssetSpec) -> Vec<Check> {
+fn map_checks(spec: &AssetSpec) -> (Vec<Check>, Option<HeightMap>) {
     let disp = match spec.require_disp() {
         Ok(d) => d.to_path_buf(),
         Err(e) => {
-            return vec![
-                Check::fail("map", e.to_string()),
-                Check::skipped("finite-values", "no map"),
-                Check::skipped("max-displacement", "no map"),
-            ]
+            return (
+                vec![
+                    Check::fail("map", e.to_string()),
+                    Check::skipped("finite-values", "no map"),
+                    Check::skipped("max-displacement", "no map"),
+                ],
+                None,
+            )
         }
     };
     let map = match load::load_height_map(&disp, &spec.map_options()) {
         Ok(m) => m,
         Err(e) => {
-            return vec![
-                Check::fail("map", e.to_string()),
-                Check::skipped("finite-values", "the map could not be read"),
-                Check::skipped("max-displacement", "the map could not be read"),
-            ]
+            return (
+                vec![
+                    Check::fail("map", e.to_string()),
+                    Check::skipped("finite-values", "the map could not be read"),
+                    Check::skipped("max-displacement", "the map could not be read"),
+                ],
+                None,
+            )
         }
     };
     let mut out = vec![Check::pass(
@@ -232,7 +254,70 @@ fn map_checks(spec: &AssetSpec) -> Vec<Check> {
         None => Check::pass("finite-values", "all texels finite"),
     });
     out.push(max_disp_check(spec, &map));
-    out
+    (out, Some(map))
+}
+
+/// The height jump across every UV seam of the repaired mesh (`seam::measure_seams`).
+fn seam_check(spec: &AssetSpec, mesh: &BaseMesh, report: &RepairReport, map: &HeightMap) -> Check {
+    if mesh.seams.is_empty() {
+        return Check::pass("seam-jump", "no UV seams");
+    }
+    let m = measure_seams(
+        &mesh.uvs,
+        &mesh.triangles,
+        &mesh.seams,
+        &spec.params,
+        map,
+        spec.wrap,
+        WORST_SEAMS,
+    );
+    let limit = spec.max_seam_jump.unwrap_or(DEFAULT_MAX_SEAM_JUMP);
+    let summary = format!(
+        "{} seam edges ({} wrap seams), height jump max {:.6} ({:.2}% of |scale|), RMS {:.6}",
+        m.seam_edges,
+        m.wrap_seams,
+        m.max_jump,
+        100.0 * m.max_jump_rel,
+        m.rms_jump
+    );
+    let worst: Vec<String> = m
+        .worst
+        .iter()
+        .map(|&(i, j)| {
+            let f = report.seams[i].faces;
+            let name = |x: u32| {
+                if x == u32::MAX {
+                    "an inserted face".to_string()
+                } else {
+                    format!("face {x}")
+                }
+            };
+            format!("{} | {}: {j:.6}", name(f[0]), name(f[1]))
+        })
+        .collect();
+    // The input faces of the worst edges, for the add-on to select.
+    let mut faces: Vec<u32> = m
+        .worst
+        .iter()
+        .flat_map(|&(i, _)| report.seams[i].faces)
+        .filter(|&f| f != u32::MAX)
+        .collect();
+    faces.sort_unstable();
+    faces.dedup();
+    if m.max_jump_rel > limit {
+        Check::fail(
+            "seam-jump",
+            format!(
+                "{summary}, above the limit of {:.2}%: the map is not seam-safe (worst edges: {}); \
+                 bake or paint the map with seam padding, or render with --seams stitch (the default)",
+                100.0 * limit,
+                worst.join(", ")
+            ),
+        )
+        .with_faces(faces)
+    } else {
+        Check::pass("seam-jump", format!("{summary} ≤ {:.2}%", 100.0 * limit))
+    }
 }
 
 fn max_disp_check(spec: &AssetSpec, map: &HeightMap) -> Check {
@@ -293,6 +378,9 @@ pub struct InspectInfo {
     pub vertices_after_repair: usize,
     pub estimated_table_bytes: usize,
     pub map: Option<MapInfo>,
+    /// UV seams of the repaired mesh and their height jump (with a map).
+    pub seam_edges: usize,
+    pub seams: Option<SeamReport>,
 }
 
 impl InspectInfo {
@@ -313,6 +401,13 @@ impl InspectInfo {
                 "map       {} {}x{} channel {}, values {:.4} .. {:.4}, displacement {:.5} .. {:.5}\n",
                 m.path, m.width, m.height, m.channel, m.value_min, m.value_max, m.displacement_min, m.displacement_max
             ));
+        }
+        match &self.seams {
+            Some(j) => s.push_str(&format!(
+                "seams     {} UV seam edges ({} wrap), height jump max {:.6} ({:.2}% of |scale|), RMS {:.6}\n",
+                j.seam_edges, j.wrap_seams, j.max_jump, 100.0 * j.max_jump_rel, j.rms_jump
+            )),
+            None => s.push_str(&format!("seams     {} UV seam edges\n", self.seam_edges)),
         }
         s
     }
@@ -357,11 +452,21 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         })
         .count();
     let (repaired, report) = repair::repair(mesh.clone(), ropts);
+    let mut seams = None;
     let map = match &spec.disp {
         Some(d) => {
             let m = load::load_height_map(d, &spec.map_options())?;
             let (vmin, vmax) = finite_range(&m);
             let (dmin, dmax) = spec.params.displacement_range(vmin, vmax);
+            seams = Some(measure_seams(
+                &repaired.uvs,
+                &repaired.triangles,
+                &repaired.seams,
+                &spec.params,
+                &m,
+                spec.wrap,
+                WORST_SEAMS,
+            ));
             Some(MapInfo {
                 path: d.display().to_string(),
                 width: m.width,
@@ -398,9 +503,12 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         estimated_table_bytes: prism_file::encoded_len(
             repaired.vertex_count(),
             repaired.triangle_count(),
+            repaired.seams.len(),
             path_len,
         ),
         map,
+        seam_edges: repaired.seams.len(),
+        seams,
     })
 }
 
@@ -424,7 +532,12 @@ pub struct TableSummary {
 }
 
 pub fn table_summary(t: &PrismTable, path: &Path, reused: bool) -> TableSummary {
-    let bytes = prism_file::encoded_len(t.positions.len(), t.prisms.len(), t.map_path.len());
+    let bytes = prism_file::encoded_len(
+        t.positions.len(),
+        t.prisms.len(),
+        t.seams.len(),
+        t.map_path.len(),
+    );
     let (lo, hi) = t.bounds();
     let lo = if t.prisms.is_empty() { Vec3::ZERO } else { lo };
     let hi = if t.prisms.is_empty() { Vec3::ZERO } else { hi };

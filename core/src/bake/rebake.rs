@@ -1,11 +1,9 @@
 //! Incremental re-bake for a changed height map (`render --watch`): same mesh and
 //! parameters, new map values; only prisms whose stored bounds no longer hold are re-derived.
 
-use super::{
-    footprint_range, lambda_range, mean_normal_lower_bound, texel_world_size, Prism, PrismTable,
-    PRISM_FLAT,
-};
+use super::{prism_height_range, texel_world_size, with_height_range, Prism, PrismTable};
 use crate::heightmap::HeightMap;
+use crate::seam::StitchField;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -32,21 +30,31 @@ pub struct RebakeStats {
 pub fn rebake_for_map(table: &mut PrismTable, map: &HeightMap) -> RebakeStats {
     let resized = (map.width, map.height) != (table.map_width, table.map_height);
     let params = table.params;
+    let before = table.prisms.clone();
+    if resized {
+        // Texel sizes first: the stitch bands (one texel wide) follow them.
+        for i in 0..table.prisms.len() {
+            let p = table.prisms[i];
+            let (pos, _) = table.prism_corners(&p);
+            table.prisms[i].texel_world = texel_world_size(map, &pos, &table.prism_uvs(&p));
+        }
+    }
     let view: &PrismTable = table;
+    let field = StitchField::build(view, map);
     let updated: Vec<(Prism, bool, bool)> = view
         .prisms
         .par_iter()
-        .map(|p| {
-            let uv = view.prism_uvs(p);
-            let (pos, n) = view.prism_corners(p);
-            let (hmin, hmax) = footprint_range(map, &uv);
-            let (d_min, d_max) = params.displacement_range(hmin, hmax);
-            let (lo, hi) = lambda_range(d_min, d_max, mean_normal_lower_bound(&n));
-            let mut q = Prism { d_min, d_max, ..*p };
-            q.flags = (p.flags & !PRISM_FLAT) | if d_min == d_max { PRISM_FLAT } else { 0 };
-            if resized {
-                q.texel_world = texel_world_size(map, &pos, &uv);
-            }
+        .enumerate()
+        .map(|(i, p)| {
+            let (_, n) = view.prism_corners(p);
+            let (hmin, hmax) = prism_height_range(view, &field, map, i);
+            let fresh = with_height_range(*p, &n, &params, hmin, hmax);
+            let (lo, hi) = (fresh.lambda_lo, fresh.lambda_hi);
+            let mut q = Prism {
+                lambda_lo: p.lambda_lo,
+                lambda_hi: p.lambda_hi,
+                ..fresh
+            };
             let holds = lo >= p.lambda_lo && hi <= p.lambda_hi;
             let mut grew = false;
             if !holds {
@@ -63,10 +71,10 @@ pub fn rebake_for_map(table: &mut PrismTable, map: &HeightMap) -> RebakeStats {
         prisms: table.prisms.len(),
         ..RebakeStats::default()
     };
-    for (slot, (q, rebaked, grew)) in table.prisms.iter_mut().zip(updated) {
+    for ((slot, old), (q, rebaked, grew)) in table.prisms.iter_mut().zip(&before).zip(updated) {
         stats.prisms_rebaked += rebaked as usize;
         stats.boxes_grown += grew as usize;
-        stats.records_updated += (*slot != q) as usize;
+        stats.records_updated += (*old != q) as usize;
         *slot = q;
     }
     stats.bvh_rebuild_needed = stats.boxes_grown > 0;

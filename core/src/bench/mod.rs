@@ -13,6 +13,7 @@ use crate::accel::Scene;
 use crate::render::camera::Camera;
 use crate::render::job::{with_intersector, Method, MethodConfig};
 use crate::rng::{self, Purpose};
+use crate::seam::SeamMode;
 use crate::trace::reference::Reference;
 use crate::trace::{Hit, Intersector, Ray, RayContext};
 use glam::{Vec2, Vec3};
@@ -39,6 +40,8 @@ pub struct BenchRow {
     pub asset: String,
     pub method: Method,
     pub setting: String,
+    /// UV seams stitched or open (the reference traces the same surface).
+    pub seams: SeamMode,
     pub rays: usize,
     pub seconds: f64,
     pub rays_per_s: f64,
@@ -51,7 +54,12 @@ pub struct BenchRow {
     pub normal_err_median_deg: f64,
     pub normal_err_p99_deg: f64,
     pub leak_rays: usize,
+    /// Leak rays the reference hits and this method misses.
     pub leaks: usize,
+    /// Leak rays with no hit at all before their target inside the closed object: they
+    /// passed through the surface (a crack, or a hole of the method), whatever the reference
+    /// does.
+    pub through: usize,
     pub memory_bytes: usize,
     pub bytes_per_triangle: f64,
 }
@@ -234,7 +242,7 @@ pub fn run_bench(
     cfg: &BenchConfig,
     log: &dyn Fn(&str),
 ) -> Vec<BenchRow> {
-    let reference = Reference::new(&scene.table, &scene.map, cfg.ref_density);
+    let reference = Reference::new(scene.surface(), cfg.ref_density);
     let set = make_rays(scene, cam, &reference, cfg);
     let truth = trace_all(&reference, &set.rays, cfg.seed);
     let triangles = scene.table.prisms.len().max(1) as f64;
@@ -251,6 +259,10 @@ pub fn run_bench(
         }
         let steps: u64 = hits.iter().flatten().map(|h| h.steps as u64).sum();
         let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, &set, &hits, &truth);
+        let through = hits[set.leak_start..]
+            .iter()
+            .filter(|h| h.is_none())
+            .count();
         let rays = set.rays.len();
         let memory = isect.memory_bytes()
             + if method == Method::Reference {
@@ -262,6 +274,7 @@ pub fn run_bench(
             asset: asset.to_string(),
             method,
             setting: label.to_string(),
+            seams: scene.seam_mode(),
             rays,
             seconds: best,
             rays_per_s: rays as f64 / best,
@@ -275,12 +288,14 @@ pub fn run_bench(
             normal_err_p99_deg: np99,
             leak_rays: set.rays.len() - set.leak_start,
             leaks,
+            through,
             memory_bytes: memory,
             bytes_per_triangle: memory as f64 / triangles,
         };
         log(&format!(
-            "{asset}: {} {label}: {:.2} Mrays/s, depth err median {:.4} texels",
+            "{asset}: {} {label} (seams {}): {:.2} Mrays/s, depth err median {:.4} texels",
             method_name(method),
+            scene.seam_mode().name(),
             row.rays_per_s / 1e6,
             dmed
         ));
@@ -308,13 +323,13 @@ pub fn method_name(m: Method) -> String {
 }
 
 pub fn to_csv(rows: &[BenchRow]) -> String {
-    let mut s = String::from("asset,method,setting,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,memory_bytes,bytes_per_triangle\n");
+    let mut s = String::from("asset,method,setting,seams,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,through,memory_bytes,bytes_per_triangle\n");
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{:.1}\n",
-            r.asset, method_name(r.method), r.setting, r.rays, r.seconds, r.rays_per_s, r.rays_per_s_per_core, r.ns_per_ray,
+            "{},{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{},{:.1}\n",
+            r.asset, method_name(r.method), r.setting, r.seams.name(), r.rays, r.seconds, r.rays_per_s, r.rays_per_s_per_core, r.ns_per_ray,
             r.steps_per_ray, r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
-            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.memory_bytes, r.bytes_per_triangle
+            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.through, r.memory_bytes, r.bytes_per_triangle
         ));
     }
     s
@@ -322,10 +337,11 @@ pub fn to_csv(rows: &[BenchRow]) -> String {
 
 pub fn to_table(rows: &[BenchRow]) -> String {
     let mut s = format!(
-        "{:<10} {:<10} {:<12} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>9}\n",
+        "{:<10} {:<10} {:<12} {:<6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>7} {:>9}\n",
         "asset",
         "method",
         "setting",
+        "seams",
         "Mray/s",
         "Mray/s/c",
         "steps",
@@ -335,6 +351,7 @@ pub fn to_table(rows: &[BenchRow]) -> String {
         "n_med°",
         "n_p99°",
         "leaks",
+        "through",
         "B/tri"
     );
     for r in rows {
@@ -343,10 +360,10 @@ pub fn to_table(rows: &[BenchRow]) -> String {
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default();
         s.push_str(&format!(
-            "{:<10} {:<10} {:<12} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>9.0}\n",
-            name, method_name(r.method), r.setting, r.rays_per_s / 1e6, r.rays_per_s_per_core / 1e6, r.steps_per_ray,
+            "{:<10} {:<10} {:<12} {:<6} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>7} {:>9.0}\n",
+            name, method_name(r.method), r.setting, r.seams.name(), r.rays_per_s / 1e6, r.rays_per_s_per_core / 1e6, r.steps_per_ray,
             100.0 * r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
-            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.bytes_per_triangle
+            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.through, r.bytes_per_triangle
         ));
     }
     s

@@ -6,10 +6,14 @@ use crate::render::job::Method;
 
 /// The curve a row belongs to: its method, with the paper-exact PDM as a curve of its own.
 fn series_name(r: &BenchRow) -> String {
-    if r.setting == "paper" {
+    let name = if r.setting == "paper" {
         format!("{} (paper prism)", method_name(r.method))
     } else {
         method_name(r.method)
+    };
+    match r.seams {
+        crate::seam::SeamMode::Stitch => name,
+        crate::seam::SeamMode::Open => format!("{name}, open seams"),
     }
 }
 use crate::error::{Error, Result};

@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
 use crate::mesh::{SceneCamera, UpAxis};
 use crate::repair::RepairOptions;
+use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
@@ -73,6 +74,8 @@ pub struct MethodConfig {
     pub ref_density: f32,
     pub nonlinear: NonlinearOptions,
     pub rmip: RmipOptions,
+    /// How UV seams are traced (stitched by default).
+    pub seams: SeamMode,
 }
 
 impl Default for MethodConfig {
@@ -84,6 +87,7 @@ impl Default for MethodConfig {
             ref_density: 2.0,
             nonlinear: NonlinearOptions::default(),
             rmip: RmipOptions::default(),
+            seams: SeamMode::Stitch,
         }
     }
 }
@@ -285,7 +289,7 @@ pub fn with_intersector<R>(
             },
         )),
         Method::Reference => {
-            let mut r = Reference::new(&scene.table, &scene.map, cfg.ref_density);
+            let mut r = Reference::new(scene.surface(), cfg.ref_density);
             r.normal_mode = cfg.normal_mode;
             f(&r)
         }
@@ -317,7 +321,7 @@ pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<
         &job.camera,
         job.settings.width as f32 / job.settings.height as f32,
     );
-    let scene = Scene::new(loaded.table, loaded.map);
+    let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
     let frames: Vec<Option<u32>> = match job.turntable {
         None => vec![None],
         Some(n) => {

@@ -231,7 +231,7 @@ fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     } else {
         None
     };
-    let scene = Scene::new(loaded.table, loaded.map);
+    let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
     Ok(Session {
         scene,
         cam0,
@@ -531,10 +531,12 @@ pub fn watch(
         };
         let rebake = bake::rebake_for_map(&mut session.scene.table, &map);
         let bvh = if rebake.bvh_rebuild_needed {
-            session.scene = Scene::new(std::mem::take(&mut session.scene.table), map);
+            let mode = session.scene.seam_mode();
+            session.scene =
+                Scene::new(std::mem::take(&mut session.scene.table), map).with_seam_mode(mode);
             "rebuilt"
         } else {
-            session.scene.map = map;
+            session.scene.replace_map(map);
             "kept"
         };
         let rebake_ms = detected.elapsed().as_secs_f64() * 1e3;

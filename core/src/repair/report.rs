@@ -37,6 +37,15 @@ pub struct StitchedEdge {
     pub inserted: Vec<u32>,
 }
 
+/// A UV seam edge (same positions and normals on both sides, different UVs).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct SeamFinding {
+    /// Input faces on the two sides (`u32::MAX` for a triangle inserted by repair).
+    pub faces: [u32; 2],
+    /// Input vertices at the two ends, as the first face has them.
+    pub vertices: [u32; 2],
+}
+
 /// A k-gon hole (k ≥ 3 copies of one position, e.g. a cube corner) closed by a fan.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct CornerFan {
@@ -85,8 +94,10 @@ pub struct RepairReport {
     /// Hard edges found but left open because `stitch_hard_edges` was off.
     pub unstitched_hard_edges: usize,
     /// Edges whose positions and normals match another face's edge but whose UVs differ:
-    /// the displaced surface can tear there by the height jump (not stitched here).
+    /// the displaced surface can tear there by the height jump (`seams` lists them; the
+    /// trace stage stitches them, `crate::seam`).
     pub uv_seam_edges: usize,
+    pub seams: Vec<SeamFinding>,
     /// Edges of the output that still have one face: the mesh's own border, UV seams, and
     /// hard edges left unstitched.
     pub open_boundary_edges: usize,

@@ -725,8 +725,12 @@ fn knife_edge_crossing_a_uv_seam_is_split_and_stitched() {
     assert_eq!(rep.stitched_edges.len(), rim);
     assert_eq!(rep.unclosed_corners, 0, "{}", rep.to_text());
     assert!(rep.corner_fans.is_empty());
-    // The cap seam's two edges stay plain UV seams: their twins keep equal normals.
-    assert_eq!(rep.uv_seam_edges, 2, "{}", rep.to_text());
+    // The cap seam's two edges stay plain UV seams (their twins keep equal normals), and where
+    // the seam crosses the rim the crease wall has one too: the zero-length edge between the
+    // two top islands' copies and the bottom record, once per crossing.
+    assert_eq!(rep.uv_seam_edges, 4, "{}", rep.to_text());
+    assert_eq!(out.seams.len(), 4);
+    assert_eq!(rep.open_boundary_edges, 2 * rep.uv_seam_edges);
     assert_eq!(open_edges_not_seams(&out), vec![], "{}", rep.to_text());
     assert_eq!(max_displaced_gap(&out, D), 0.0);
     for t in 0..out.triangles.len() {

@@ -38,6 +38,7 @@ use crate::accel::Scene;
 use crate::bake::Prism;
 use crate::canonical::{surface_point, PrismGeom};
 use crate::rng::{self, Purpose};
+use crate::seam::PrismDisplacement;
 use crate::trace::prism_hit::ray_prism_interval;
 use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
 use glam::{Mat3, Vec2, Vec3};
@@ -113,8 +114,10 @@ pub struct Pdm<'a> {
 
 /// One prism in a local frame (origin at `V_0`), so that f32 keeps its precision at any
 /// distance from the world origin.
-struct Local {
+struct Local<'s> {
     origin: Vec3,
+    /// The prism's height: the map, or the stitched height next to UV seams.
+    disp: PrismDisplacement<'s>,
     /// Base triangle relative to `origin`, normals and UVs (for `project_to_prism`).
     geom: PrismGeom,
     /// Scanning directions `n_i / (n_i·N_g)`: the level-`h` triangle is `v_i + h a_i`.
@@ -205,9 +208,9 @@ fn level_at(c: &LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> O
     (step.abs() <= 1e3 * tol).then_some(l)
 }
 
-impl Local {
+impl<'s> Local<'s> {
     #[inline]
-    fn new(scene: &Scene, p: &Prism) -> Self {
+    fn new(scene: &'s Scene, p: &Prism, prism: u32) -> Self {
         let t = &scene.table;
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
         let origin = t.positions[i0];
@@ -228,6 +231,7 @@ impl Local {
             .max(f32::MIN_POSITIVE);
         Local {
             origin,
+            disp: scene.prism_displacement(prism),
             geom: PrismGeom { v, n, uv },
             a,
             ng,
@@ -309,14 +313,6 @@ impl<'a> Pdm<'a> {
         &self.opts
     }
 
-    #[inline]
-    fn displacement(&self, uv: Vec2) -> f32 {
-        self.scene
-            .table
-            .params
-            .displacement(self.scene.map.sample(uv))
-    }
-
     /// The cheap hit record for one prism (t, prism, barycentrics, steps; surface data not
     /// filled). `steps` accumulates the samples taken, hit or miss.
     pub fn intersect_prism(
@@ -327,7 +323,7 @@ impl<'a> Pdm<'a> {
         steps: &mut u32,
     ) -> Option<Hit> {
         let p = &self.scene.table.prisms[prism as usize];
-        let local = Local::new(self.scene, p);
+        let local = Local::new(self.scene, p, prism);
         let ro = ray.origin - local.origin;
         let (t, b) = if p.is_flat() {
             self.flat_hit(&local, p.d_min, ro, ray)?
@@ -357,7 +353,7 @@ impl<'a> Pdm<'a> {
     pub fn fill_surface(&self, hit: &mut Hit) {
         let table = &self.scene.table;
         let g = PrismGeom::new(table, &table.prisms[hit.prism as usize]);
-        let sp = surface_point(&g, &self.scene.map, &table.params, hit.bary);
+        let sp = surface_point(&g, &self.scene.prism_displacement(hit.prism), hit.bary);
         hit.uv = sp.uv;
         if self.opts.construction == Construction::SharedWall {
             // The paper-exact mode keeps the ray point: its hit is on the paper's surface.
@@ -388,10 +384,9 @@ impl<'a> Pdm<'a> {
     fn scan(&self, local: &Local, t: f32, s: Vec3, c: &[Vec3; 3], h: f32) -> Sample {
         let b = triangle_barycentric(s, c);
         let a = local.a[0] * b.x + local.a[1] * b.y + local.a[2] * b.z;
-        let uv = local.geom.uv(b);
         Sample {
             t,
-            g: h * a.length() - self.displacement(uv),
+            g: h * a.length() - local.disp.at(b),
             b,
             lambda: 0.0,
         }
@@ -535,7 +530,7 @@ impl<'a> Pdm<'a> {
         let b = triangle_barycentric(lt.base + d * u, &c);
         Some(Sample {
             t,
-            g: l * g.normal_dir(b).length() - self.displacement(g.uv(b)),
+            g: l * g.normal_dir(b).length() - local.disp.at(b),
             b,
             lambda: l,
         })
@@ -946,7 +941,7 @@ mod tests {
                 let g = PrismGeom::new(&scene.table, &scene.table.prisms[prism]);
                 let b = Vec3::new(rng.next() + 0.05, rng.next() + 0.05, rng.next() + 0.05);
                 let b = b / (b.x + b.y + b.z);
-                let sp = surface_point(&g, &scene.map, &scene.table.params, b);
+                let sp = surface_point(&g, &scene.prism_displacement(prism as u32), b);
                 let up = sp.base_normal;
                 let tangent = up.cross(rng.unit()).normalize();
                 let elev = (rng.next() * 2.0 - 1.0).to_radians();
@@ -1134,7 +1129,7 @@ mod tests {
                             0.0
                         }
                     }));
-                    let sp = surface_point(&g, &scene.map, &t.params, b);
+                    let sp = surface_point(&g, &scene.prism_displacement(f as u32), b);
                     canon[slot] = sp.position;
                     let ng = g.base_normal();
                     let a = g.n.map(|n| n / n.dot(ng));

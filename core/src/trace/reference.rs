@@ -24,9 +24,7 @@
 //! (see `DEFAULT_ACCEL`); the faster is the default.
 
 use super::{Hit, Intersector, NormalMode, Ray, RayContext};
-use crate::bake::PrismTable;
-use crate::canonical::{surface_point, PrismGeom};
-use crate::heightmap::HeightMap;
+use crate::canonical::{surface_point, PrismGeom, Surface};
 use crate::tessellate::{tessellate, TessMesh};
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -62,10 +60,10 @@ enum Accel {
     CwBvh(CwBvh),
 }
 
-/// Ground-truth intersector over one prism table and its map (borrowed, not copied).
+/// Ground-truth intersector over one displaced surface (table, map and seam treatment,
+/// borrowed, not copied).
 pub struct Reference<'a> {
-    pub table: &'a PrismTable,
-    pub map: &'a HeightMap,
+    pub surface: Surface<'a>,
     pub k: f32,
     pub normal_mode: NormalMode,
     accel: Accel,
@@ -78,23 +76,17 @@ pub struct Reference<'a> {
 }
 
 impl<'a> Reference<'a> {
-    pub fn new(table: &'a PrismTable, map: &'a HeightMap, k: f32) -> Self {
-        Self::with_accel(table, map, k, DEFAULT_ACCEL)
+    pub fn new(surface: Surface<'a>, k: f32) -> Self {
+        Self::with_accel(surface, k, DEFAULT_ACCEL)
     }
 
-    pub fn with_accel(table: &'a PrismTable, map: &'a HeightMap, k: f32, kind: AccelKind) -> Self {
-        let mesh = tessellate(table, map, k);
-        Self::from_mesh(table, map, k, &mesh, kind)
+    pub fn with_accel(surface: Surface<'a>, k: f32, kind: AccelKind) -> Self {
+        let mesh = tessellate(&surface, k);
+        Self::from_mesh(surface, k, &mesh, kind)
     }
 
     /// Trace an already tessellated surface (e.g. to compare BVH kinds on one mesh).
-    pub fn from_mesh(
-        table: &'a PrismTable,
-        map: &'a HeightMap,
-        k: f32,
-        mesh: &TessMesh,
-        kind: AccelKind,
-    ) -> Self {
+    pub fn from_mesh(surface: Surface<'a>, k: f32, mesh: &TessMesh, kind: AccelKind) -> Self {
         let tris: Vec<[Vec3A; 3]> = mesh
             .triangles
             .iter()
@@ -129,8 +121,7 @@ impl<'a> Reference<'a> {
             }
         };
         Reference {
-            table,
-            map,
+            surface,
             k,
             normal_mode: NormalMode::default(),
             accel,
@@ -190,8 +181,9 @@ impl Intersector for Reference<'_> {
         let corners = &self.tri_bary[id];
         let bary = corners[0] * w[0] + corners[1] * w[1] + corners[2] * w[2];
         let prism = self.tri_prism[id];
-        let geom = PrismGeom::new(self.table, &self.table.prisms[prism as usize]);
-        let sp = surface_point(&geom, self.map, &self.table.params, bary);
+        let table = self.surface.table;
+        let geom = PrismGeom::new(table, &table.prisms[prism as usize]);
+        let sp = surface_point(&geom, &self.surface.prism_displacement(prism), bary);
         Some(Hit {
             t,
             prism,
@@ -390,9 +382,9 @@ mod tests {
     #[test]
     fn both_bvh_kinds_agree() {
         let (table, map) = test_sphere_table(1, 16, 0.1);
-        let mesh = tessellate(&table, &map, 2.0);
-        let a = Reference::from_mesh(&table, &map, 2.0, &mesh, AccelKind::Bvh2);
-        let b = Reference::from_mesh(&table, &map, 2.0, &mesh, AccelKind::CwBvh);
+        let mesh = tessellate(&Surface::open(&table, &map), 2.0);
+        let a = Reference::from_mesh(Surface::open(&table, &map), 2.0, &mesh, AccelKind::Bvh2);
+        let b = Reference::from_mesh(Surface::open(&table, &map), 2.0, &mesh, AccelKind::CwBvh);
         for ray in random_rays(2000) {
             let (ha, hb) = (a.intersect(&ray, &ctx()), b.intersect(&ray, &ctx()));
             assert_eq!(ha.is_some(), hb.is_some(), "{ray:?}");
@@ -407,7 +399,7 @@ mod tests {
     #[test]
     fn t_interval_is_respected() {
         let (table, map) = test_sphere_table(1, 16, 0.1);
-        let r = Reference::new(&table, &map, 1.0);
+        let r = Reference::new(Surface::open(&table, &map), 1.0);
         let ray = Ray::new(Vec3::new(0.0, 0.0, 3.0), Vec3::new(0.0, 0.0, -1.0));
         let near = r.intersect(&ray, &ctx()).expect("front hit");
         let mut beyond = ray;
@@ -424,8 +416,9 @@ mod tests {
         // Breaks if the tessellation has a crack or the triangle / box tests let a ray slip
         // between two micro-triangles: every ray aimed at a point of a closed surface hits it.
         let (table, map) = test_sphere_table(2, 32, 0.15);
-        let mesh = tessellate(&table, &map, 2.0);
-        let reference = Reference::from_mesh(&table, &map, 2.0, &mesh, DEFAULT_ACCEL);
+        let mesh = tessellate(&Surface::open(&table, &map), 2.0);
+        let reference =
+            Reference::from_mesh(Surface::open(&table, &map), 2.0, &mesh, DEFAULT_ACCEL);
         let mut targets: Vec<Vec3> = mesh.positions.clone();
         for t in &mesh.triangles {
             let p = t.map(|i| mesh.positions[i as usize]);
@@ -487,7 +480,7 @@ mod tests {
         for ray in rays {
             match (coarse.intersect(ray, &ctx()), fine.intersect(ray, &ctx())) {
                 (Some(c), Some(f)) => {
-                    let texel = fine.table.prisms[f.prism as usize].texel_world;
+                    let texel = fine.surface.table.prisms[f.prism as usize].texel_world;
                     errs.push((c.t - f.t).abs() / texel);
                 }
                 (None, None) => {}
@@ -503,10 +496,16 @@ mod tests {
         // Breaks if the reference is not a convergent discretisation of the canonical surface.
         let (table, map) = test_sphere_table(2, 32, 0.15);
         let rays = random_rays(2000);
-        let fine = Reference::new(&table, &map, 8.0);
+        let fine = Reference::new(Surface::open(&table, &map), 8.0);
         let errs: Vec<(f32, usize)> = [1.0, 2.0, 4.0]
             .iter()
-            .map(|&k| median_depth_error(&Reference::new(&table, &map, k), &fine, &rays))
+            .map(|&k| {
+                median_depth_error(
+                    &Reference::new(Surface::open(&table, &map), k),
+                    &fine,
+                    &rays,
+                )
+            })
             .collect();
         eprintln!(
             "median |Δt| / texel vs k = 8 (and hit/miss mismatches): k=1 {:?}, k=2 {:?}, k=4 {:?}",
@@ -524,14 +523,18 @@ mod tests {
         let rays = random_rays(1000);
         let mut worst = Vec::new();
         for k in [1.0, 2.0, 4.0] {
-            let r = Reference::new(&table, &map, k);
+            let r = Reference::new(Surface::open(&table, &map), k);
             let mut max_err = 0.0f32;
             for ray in &rays {
                 let Some(h) = r.intersect(ray, &ctx()) else {
                     continue;
                 };
                 let p = &table.prisms[h.prism as usize];
-                let sp = surface_point(&PrismGeom::new(&table, p), &map, &table.params, h.bary);
+                let sp = surface_point(
+                    &PrismGeom::new(&table, p),
+                    &Surface::open(&table, &map).prism_displacement(h.prism),
+                    h.bary,
+                );
                 assert!(h.bary.min_element() > -1e-5, "{:?}", h.bary);
                 assert!((sp.uv - h.uv).length() < 1e-6 && h.position == ray.at(h.t));
                 assert!(h.shading_normal.is_normalized() && h.geometric_normal.is_normalized());

@@ -47,6 +47,11 @@
 //!   `M = [E_0(λ), E_1(λ), m(b)]` and `F = λ|m(b)| − D`, the `|m|` term differentiated too,
 //!   so it is the canonical surface's normal without a matrix inverse.
 //!
+//! * next to stitched UV seams (`seam`) the height is the stitched `D*`: a mipmap node that
+//!   reaches a seam band has its range widened by the band's (`PrismStitch::band_h`), and a
+//!   leaf there is searched on the exact `λ|m(b)| − D*(b)` (`stitched_leaf`) instead of the
+//!   cell's two planes.
+//!
 //! UV-degenerate base triangles (the paper's Fig. 4) need nothing special: `b(λ)` comes from
 //! world-space geometry and `(x, y)` is only its affine image, so a triangle whose UVs
 //! collapse to a line or a point still yields a curve (on that line or point) and roots.
@@ -64,6 +69,7 @@ mod tests;
 use crate::accel::Scene;
 use crate::bake::{lambda_range, mean_normal_lower_bound, Prism};
 use crate::canonical::{surface_point, PrismGeom};
+use crate::seam::{PrismDisplacement, PrismStitch};
 use crate::trace::prism_hit::ray_prism_interval;
 use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
 use cubic::cubic_roots;
@@ -164,9 +170,35 @@ struct Node<T> {
     h: (f32, f32),
 }
 
+/// The stitched height of a prism next to UV seams (`seam`): its evaluator, its bands, and
+/// the affine map from local texel coordinates to barycentrics (`None` for UV-degenerate
+/// faces, where every box counts as reaching a band).
+struct StitchRay<'s> {
+    disp: PrismDisplacement<'s>,
+    rec: &'s PrismStitch,
+    to_b: Option<[f64; 6]>,
+}
+
+impl StitchRay<'_> {
+    /// Some point of the texel box `bx × by` may lie in a band (affine `b`: box corners).
+    fn touches<T: Real>(&self, bx: (T, T), by: (T, T)) -> bool {
+        let Some(m) = self.to_b else { return true };
+        [(bx.0, by.0), (bx.1, by.0), (bx.0, by.1), (bx.1, by.1)]
+            .iter()
+            .any(|&(x, y)| {
+                let (x, y) = (x.to_f64(), y.to_f64());
+                let b1 = m[0] * x + m[1] * y + m[2];
+                let b2 = m[3] * x + m[4] * y + m[5];
+                self.rec
+                    .in_band(Vec3::new((1.0 - b1 - b2) as f32, b1 as f32, b2 as f32))
+            })
+    }
+}
+
 /// Per-prism, per-ray state.
-struct PrismRay<T> {
+struct PrismRay<'s, T> {
     curve: Curve<T>,
+    stitch: Option<StitchRay<'s>>,
     /// Footprint bbox in local texel coordinates, and its origin cell (absolute).
     fx: (T, T),
     fy: (T, T),
@@ -244,8 +276,32 @@ impl<'a> Nonlinear<'a> {
         let cell1 = (xmax.floor() as i64, ymax.floor() as i64);
         let tex = tex_abs.map(|t| (t.0 - cell0.0 as f64, t.1 - cell0.1 as f64));
         let lam_pad = T::of32(1e-5 * scale + 1e-4 * (p.lambda_hi - p.lambda_lo));
+        let stitch = self.scene.stitch().get(prism).map(|rec| {
+            let (e1, e2) = (
+                (tex[1].0 - tex[0].0, tex[1].1 - tex[0].1),
+                (tex[2].0 - tex[0].0, tex[2].1 - tex[0].1),
+            );
+            let det = e1.0 * e2.1 - e2.0 * e1.1;
+            let to_b = (det.abs() > 1e-12).then(|| {
+                let (a, b, c, d) = (e2.1 / det, -e2.0 / det, -e1.1 / det, e1.0 / det);
+                [
+                    a,
+                    b,
+                    -(a * tex[0].0 + b * tex[0].1),
+                    c,
+                    d,
+                    -(c * tex[0].0 + d * tex[0].1),
+                ]
+            });
+            StitchRay {
+                disp: self.scene.prism_displacement(prism),
+                rec,
+                to_b,
+            }
+        });
         let pr = PrismRay {
             curve: Curve::new(ro, ray.dir, &v, &n, &tex),
+            stitch,
             fx: (T::of(xmin - cell0.0 as f64), T::of(xmax - cell0.0 as f64)),
             fy: (T::of(ymin - cell0.1 as f64), T::of(ymax - cell0.1 as f64)),
             cell0,
@@ -328,7 +384,12 @@ impl<'a> Nonlinear<'a> {
         if !(bx.0 <= bx.1 && by.0 <= by.1) {
             return None;
         }
-        let h = self.mip.range(k as usize, ix, iy);
+        let mut h = self.mip.range(k as usize, ix, iy);
+        if let Some(st) = &pr.stitch {
+            if st.touches(bx, by) {
+                h = (h.0.min(st.rec.band_h.0), h.1.max(st.rec.band_h.1));
+            }
+        }
         let (dmin, dmax) = self.scene.table.params.displacement_range(h.0, h.1);
         let (la, lb) = lambda_range(dmin, dmax, pr.m_lo);
         let l0 = (T::of32(la) - pr.lam_pad).max(pr.lam.0);
@@ -373,6 +434,12 @@ impl<'a> Nonlinear<'a> {
             T::of((node.ix - pr.cell0.0) as f64),
             T::of((node.iy - pr.cell0.1) as f64),
         );
+        if let Some(st) = &pr.stitch {
+            let one = T::ONE;
+            if st.touches((cell.0, cell.0 + one), (cell.1, cell.1 + one)) {
+                return self.stitched_leaf(pr, st, node, cell, best_t, steps);
+            }
+        }
         let (d, halves): ([T; 4], &[Option<bool>]) = if node.h.0 == node.h.1 {
             ([self.disp(node.h.0); 4], &[None])
         } else {
@@ -426,6 +493,155 @@ impl<'a> Nonlinear<'a> {
             }
         }
         best
+    }
+
+    /// A leaf that reaches a seam band: the detection surface there is the micro-triangles
+    /// stitched like the canonical height (`PrismDisplacement::at_by` over `micro_height`), so
+    /// it meets the plain micro-triangles of the neighbouring cells and prisms without a slit.
+    /// Each curve span is searched for a sign change of `λ|m(b)| − D*_micro(b)` at its ends,
+    /// refined by Illinois regula falsi (a span that enters and leaves the surface inside one
+    /// cell is missed, as in RMIP's march), then moved onto the exact stitched surface by the
+    /// same secant step as `refine`.
+    #[allow(clippy::too_many_arguments)]
+    fn stitched_leaf<T: Real>(
+        &self,
+        pr: &PrismRay<T>,
+        st: &StitchRay,
+        node: &Node<T>,
+        cell: (T, T),
+        best_t: T,
+        steps: &mut u32,
+    ) -> Option<Cand<T>> {
+        let micro = |uv: Vec2| self.micro_height(uv);
+        let g = |l: T| {
+            let b = pr.curve.bary(l);
+            let bv = Vec3::new(b[0].to_f32(), b[1].to_f32(), b[2].to_f32());
+            l * pr.curve.m_len(&b) - T::of32(st.disp.at_by(bv, micro))
+        };
+        let mut best: Option<Cand<T>> = None;
+        let mut best_t = best_t;
+        for &(a, b) in &node.iv.iv[..node.iv.n] {
+            *steps += 1;
+            let (mut l0, mut l1) = (a, b);
+            let (mut g0, mut g1) = (g(l0), g(l1));
+            if (g0 < T::ZERO) == (g1 < T::ZERO) || !(g0.is_finite() && g1.is_finite()) {
+                continue;
+            }
+            let tol = (b - a).abs() * T::EPS * T::of(64.0);
+            let mut side = 0;
+            for _ in 0..60 {
+                if (l1 - l0).abs() <= tol {
+                    break;
+                }
+                let mut l = (l0 * g1 - l1 * g0) / (g1 - g0);
+                if !(l > l0.min(l1) && l < l0.max(l1)) {
+                    l = T::HALF * (l0 + l1);
+                }
+                let gl = g(l);
+                if gl == T::ZERO {
+                    (l0, l1) = (l, l);
+                    break;
+                }
+                if (gl < T::ZERO) == (g1 < T::ZERO) {
+                    (l1, g1) = (l, gl);
+                    if side == -1 {
+                        g0 = g0 * T::HALF;
+                    }
+                    side = -1;
+                } else {
+                    (l0, g0) = (l, gl);
+                    if side == 1 {
+                        g1 = g1 * T::HALF;
+                    }
+                    side = 1;
+                }
+            }
+            let c = Cand {
+                t: T::ZERO,
+                b: [T::ZERO; 3],
+                l: T::ZERO,
+                d: [T::ZERO; 4],
+                cell,
+                lower: None,
+                f: (T::ZERO, T::ZERO),
+            };
+            if let Some(h) = self.accept(pr, &c, T::HALF * (l0 + l1), best_t) {
+                let h = if self.opts.refine {
+                    self.refine_stitched(pr, st, h).unwrap_or(h)
+                } else {
+                    h
+                };
+                best_t = h.t;
+                best = Some(h);
+            }
+        }
+        best
+    }
+
+    /// The map as the micro-triangles see it (displacement at `uv`): each texel cell of the
+    /// shifted texel grid split along its diagonal into the two planes of `plane`.
+    fn micro_height(&self, uv: Vec2) -> f32 {
+        let map = &self.scene.map;
+        let x = uv.x as f64 * map.width as f64 - 0.5;
+        let y = (1.0 - uv.y as f64) * map.height as f64 - 0.5;
+        if !(x.is_finite() && y.is_finite()) {
+            return self.disp::<f32>(map.texel(0, 0));
+        }
+        let (cx, cy) = (x.floor().clamp(-1e9, 1e9), y.floor().clamp(-1e9, 1e9));
+        let (fx, fy) = ((x - cx) as f32, (y - cy) as f32);
+        let (ix, iy) = (cx as i64, cy as i64);
+        let d00 = self.disp::<f32>(map.texel(ix, iy));
+        let d10 = self.disp::<f32>(map.texel(ix + 1, iy));
+        let d01 = self.disp::<f32>(map.texel(ix, iy + 1));
+        let d11 = self.disp::<f32>(map.texel(ix + 1, iy + 1));
+        if fx >= fy {
+            d00 + (d10 - d00) * fx + (d11 - d10) * fy
+        } else {
+            d00 + (d11 - d01) * fx + (d01 - d00) * fy
+        }
+    }
+
+    /// `refine` for a stitched leaf's hit: secant steps on `λ|m(b)| − D*(b)` with the exact
+    /// (bilinear) stitched height; `None` (keep the detection hit) if it wanders off.
+    fn refine_stitched<T: Real>(
+        &self,
+        pr: &PrismRay<T>,
+        st: &StitchRay,
+        c: Cand<T>,
+    ) -> Option<Cand<T>> {
+        let g = |l: T| {
+            let b = pr.curve.bary(l);
+            let bv = Vec3::new(b[0].to_f32(), b[1].to_f32(), b[2].to_f32());
+            l * pr.curve.m_len(&b) - T::of32(st.disp.at(bv))
+        };
+        let span = (pr.lam.1 - pr.lam.0).abs().max(pr.lam_pad);
+        let tol = span * T::EPS * T::of(16.0);
+        let (mut l0, mut l1) = (c.l, c.l + span * T::of(1e-3));
+        let (mut g0, mut g1) = (g(l0), g(l1));
+        for _ in 0..8 {
+            if g1 == g0 {
+                break;
+            }
+            let l2 = l1 - g1 * (l1 - l0) / (g1 - g0);
+            if !l2.is_finite() {
+                return None;
+            }
+            (l0, g0) = (l1, g1);
+            l1 = l2;
+            g1 = g(l1);
+            if (l1 - l0).abs() <= tol {
+                break;
+            }
+        }
+        if !((l1 - c.l).abs() <= span * T::of(0.25)) {
+            return None;
+        }
+        self.accept(
+            pr,
+            &c,
+            l1,
+            pr.t_range.1 + (pr.t_range.1 - pr.t_range.0) * T::of(1e-3),
+        )
     }
 
     /// The plane of one cell half in `(x, y, D)`: `D = D00 + a (x − cx) + c (y − cy)`.
@@ -742,13 +958,15 @@ impl<'a> Nonlinear<'a> {
         let p = &table.prisms[hit.prism as usize];
         let sp = surface_point(
             &PrismGeom::new(table, p),
-            &self.scene.map,
-            &table.params,
+            &self.scene.prism_displacement(hit.prism),
             hit.bary,
         );
         hit.uv = sp.uv;
         let (geo, smooth) = match (self.opts.normals, extra) {
-            (NormalSource::Adjugate, Some((prism, c))) if prism == hit.prism => {
+            // The adjugate form differentiates the cell's planes: not the stitched height.
+            (NormalSource::Adjugate, Some((prism, c)))
+                if prism == hit.prism && self.scene.stitch().get(prism).is_none() =>
+            {
                 let ng = PrismGeom::new(table, p).base_normal();
                 let na = self.adjugate_normal(p, &c);
                 let na = if na == Vec3::ZERO {

@@ -224,7 +224,7 @@ fn grazing_rays_at_three_scales_are_finite_and_on_the_surface() {
                 let g = PrismGeom::new(&scene.table, &scene.table.prisms[prism]);
                 let b = Vec3::new(rng.next() + 0.05, rng.next() + 0.05, rng.next() + 0.05);
                 let b = b / b.element_sum();
-                let sp = surface_point(&g, &scene.map, &scene.table.params, b);
+                let sp = surface_point(&g, &scene.prism_displacement(prism as u32), b);
                 let up = sp.base_normal;
                 let tangent = up.cross(rng.unit()).normalize();
                 let elev = (rng.next() * 2.0 - 1.0).to_radians();
@@ -321,7 +321,7 @@ fn uv_degenerate_triangles_are_traced() {
     // method needs the UV inverse and fails there; ours must hit them and agree with the
     // reference (which evaluates S(b) directly), in both precisions.
     let (scene, degenerate) = uv_degenerate_scene();
-    let reference = Reference::new(&scene.table, &scene.map, 2.0);
+    let reference = Reference::new(scene.surface(), 2.0);
     let mut rng = Rng(77);
     let rays: Vec<Ray> = (0..4000)
         .map(|_| {
@@ -383,8 +383,7 @@ fn hit_record_is_complete_and_adjugate_normals_match_canonical() {
         assert!((h.position - ray.at(h.t)).length() < 1e-5);
         let sp = surface_point(
             &PrismGeom::new(&scene.table, &scene.table.prisms[h.prism as usize]),
-            &scene.map,
-            &scene.table.params,
+            &scene.prism_displacement(h.prism),
             h.bary,
         );
         assert!((sp.uv - h.uv).length() < 1e-6);

@@ -37,6 +37,10 @@
 //!   first corner), so the method is scale-free; Newton stays in f32 like `canonical`.
 //! * UV-degenerate faces have no texture-space parametrisation; they are marched in `t` at
 //!   half a texel.
+//! * Next to stitched UV seams (`seam`) the height is the stitched `D*`, not the map's: where
+//!   a rectangle reaches a seam band its pyramid range is widened by the band's range
+//!   (`PrismStitch::band_h`), and the march and refinement evaluate `D*` at the point's
+//!   barycentrics. Everything else is unchanged.
 //!
 //! Open: on `examples/rock` the bench's leak rays (aimed half a texel below the surface)
 //! find 29 / 20 000 misses where the reference hits (PDM: 73). Most are in repair's inserted
@@ -126,7 +130,7 @@ impl<'a> Rmip<'a> {
     /// popped plus texels marched.
     pub fn intersect_prism(&self, ray: &Ray, prism: u32, steps: &mut u32) -> Option<Hit> {
         let p: &Prism = &self.scene.table.prisms[prism as usize];
-        let (t, bary) = match PrismTrace::new(self, ray, p)? {
+        let (t, bary) = match PrismTrace::new(self, ray, p, prism)? {
             Setup::Traverse(mut tr) => {
                 let r = tr.run();
                 *steps += tr.steps;
@@ -137,7 +141,7 @@ impl<'a> Rmip<'a> {
                 te,
                 tx,
                 geom,
-            } => march_degenerate(self, p, &local, te, tx, &geom, steps)?,
+            } => march_degenerate(self, p, prism, &local, te, tx, &geom, steps)?,
         };
         Some(Hit {
             t,
@@ -155,7 +159,7 @@ impl<'a> Rmip<'a> {
     pub fn fill_surface(&self, hit: &mut Hit) {
         let table = &self.scene.table;
         let g = PrismGeom::new(table, &table.prisms[hit.prism as usize]);
-        let sp = surface_point(&g, &self.scene.map, &table.params, hit.bary);
+        let sp = surface_point(&g, &self.scene.prism_displacement(hit.prism), hit.bary);
         hit.uv = sp.uv;
         hit.position = sp.position;
         hit.geometric_normal = sp.geometric_normal;

@@ -136,7 +136,7 @@ fn grazing_rays_keep_their_relative_error_across_scales() {
             let g = PrismGeom::new(&scene.table, &scene.table.prisms[prism]);
             let b = Vec3::new(rng.next() + 0.05, rng.next() + 0.05, rng.next() + 0.05);
             let b = b / (b.x + b.y + b.z);
-            let sp = surface_point(&g, &scene.map, &scene.table.params, b);
+            let sp = surface_point(&g, &scene.prism_displacement(prism as u32), b);
             let up = sp.base_normal;
             let tangent = up.cross(rng.unit()).normalize();
             let elev = (rng.next() * 2.0 - 1.0).to_radians();
@@ -340,7 +340,7 @@ fn closed_sphere_scaled_by_1e_minus_3_and_1e4_keeps_its_relative_error() {
     let mut base = None;
     for size in [1.0f32, 1e-3, 1e4] {
         let scene = sphere_scene(2, relief_map(64), 0.15, size);
-        let reference = Reference::new(&scene.table, &scene.map, 2.0);
+        let reference = Reference::new(scene.surface(), 2.0);
         let rays = camera_rays(&scene.table, 64);
         let rmip = Rmip::new(&scene, RmipOptions::default());
         let (mis, median, p95) = agreement(&rmip, &reference, &scene.table, &rays);

@@ -8,6 +8,7 @@ use super::curve::Frame;
 use super::Rmip;
 use crate::bake::{Prism, M_LO_FLOOR};
 use crate::canonical::{project_to_prism, PrismGeom};
+use crate::seam::{PrismDisplacement, PrismStitch};
 use crate::trace::prism_hit::ray_prism_interval;
 use crate::trace::Ray;
 use glam::{DVec2, DVec3, Vec2, Vec3};
@@ -81,6 +82,8 @@ pub(super) struct PrismTrace<'r, 'a> {
     span: f64,
     scale: f64,
     ray: Ray,
+    /// The stitched height where the prism has stitched seam edges (`seam`), else `None`.
+    stitch: Option<(PrismDisplacement<'a>, &'a PrismStitch)>,
     pub steps: u32,
 }
 
@@ -90,7 +93,7 @@ fn d2(v: Vec2) -> DVec2 {
 
 impl<'r, 'a> PrismTrace<'r, 'a> {
     /// Set up the traversal of `ray` in prism `p`, or `None` if the ray misses the prism.
-    pub fn new(rmip: &'r Rmip<'a>, ray: &Ray, p: &Prism) -> Option<Setup<'r, 'a>> {
+    pub fn new(rmip: &'r Rmip<'a>, ray: &Ray, p: &Prism, prism: u32) -> Option<Setup<'r, 'a>> {
         let t = &rmip.scene.table;
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
         let origin = t.positions[i0];
@@ -142,12 +145,23 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
             span: (tx - te) as f64,
             scale: scale as f64,
             ray: *ray,
+            stitch: rmip
+                .scene
+                .stitch()
+                .get(prism)
+                .map(|s| (rmip.scene.prism_displacement(prism), s)),
             steps: 0,
         }))
     }
 
     #[inline]
     fn disp(&self, p: DVec2) -> f64 {
+        if let Some((d, s)) = &self.stitch {
+            let b = self.frame.bary(p);
+            if s.in_band(b) {
+                return d.at(b) as f64;
+            }
+        }
         let q = self.s0 + p;
         let h = sample_texel(&self.rmip.scene.map, q);
         self.rmip.scene.table.params.displacement(h) as f64
@@ -199,7 +213,14 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
                 continue;
             }
             let (lo, hi) = bd.rect();
-            let (hmin, hmax) = self.rmip.pyramid.sample_range(self.s0 + lo, self.s0 + hi);
+            let (mut hmin, mut hmax) = self.rmip.pyramid.sample_range(self.s0 + lo, self.s0 + hi);
+            if let Some((_, s)) = &self.stitch {
+                let corners = [lo, hi, DVec2::new(lo.x, hi.y), DVec2::new(hi.x, lo.y)];
+                if corners.iter().any(|&c| s.in_band(self.frame.bary(c))) {
+                    hmin = hmin.min(s.band_h.0);
+                    hmax = hmax.max(s.band_h.1);
+                }
+            }
             let (dlo, dhi) = self.rmip.scene.table.params.displacement_range(hmin, hmax);
             let Some((ta, tb)) = self.box_interval(&bd, lo, hi, dlo as f64, dhi as f64) else {
                 continue;
@@ -565,16 +586,18 @@ fn clip_triangle_to_rect(tri: &[DVec2; 3], lo: DVec2, hi: DVec2) -> ([DVec2; 8],
 /// Fallback for prisms without a texture-space parametrisation (UV-degenerate faces):
 /// march the prism interval in `t` at half a texel (or 1/16 of the thickness), sign changes
 /// refined on the canonical surface as above.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn march_degenerate(
     rmip: &Rmip,
     p: &Prism,
+    prism: u32,
     local: &Ray,
     te: f32,
     tx: f32,
     geom: &PrismGeom,
     steps: &mut u32,
 ) -> Option<(f32, Vec3)> {
-    let table = &rmip.scene.table;
+    let disp = rmip.scene.prism_displacement(prism);
     let (m0, m1) = (te, tx);
     let thick = (p.lambda_hi - p.lambda_lo).abs().max(1e-12);
     let dt = if p.texel_world > 0.0 {
@@ -583,16 +606,11 @@ pub(super) fn march_degenerate(
         thick / 16.0
     }
     .max((m1 - m0) / 4096.0);
-    let uv = table.prism_uvs(p);
     let g_at = |t: f32, guess: Vec3| -> Option<(f32, Vec3)> {
         let x = local.origin + local.dir * t;
         let (b, l) = project_to_prism(geom, x, guess, 0.5 * (p.lambda_lo + p.lambda_hi))?;
         let m = geom.normal_dir(b).length();
-        let uvb = uv[0] * b.x + uv[1] * b.y + uv[2] * b.z;
-        Some((
-            l * m - table.params.displacement(rmip.scene.map.sample(uvb)),
-            b,
-        ))
+        Some((l * m - disp.at(b), b))
     };
     let mut prev: Option<(f32, f32, Vec3)> = None;
     let mut t = m0;
