@@ -129,10 +129,13 @@ def bake_args(binary: str, mesh: str, disp: Displacement, out: str, force: bool 
     return argv
 
 
-def validate_args(binary: str, mesh: str, disp: Displacement, max_disp: float = 0.0) -> list[str]:
+def validate_args(binary: str, mesh: str, disp: Displacement, max_disp: float = 0.0,
+                  max_seam_jump: Optional[float] = None) -> list[str]:
     argv = [binary, "validate", mesh, *disp.args(), "--format", "json"]
     if max_disp > 0:
         argv += ["--max-disp", _num(max_disp)]
+    if max_seam_jump is not None:
+        argv += ["--max-seam-jump", _num(max_seam_jump)]
     return argv
 
 
@@ -230,6 +233,8 @@ class Problem:
     status: str
     message: str
     faces: list[int]
+    # Seam edges, as the pair of triangles on their two sides (the `seam-jump` check).
+    seam_edges: list[tuple[int, int]] = dataclasses.field(default_factory=list)
 
 
 @dataclasses.dataclass
@@ -241,10 +246,16 @@ class ValidateReport:
 
     @property
     def faces(self) -> list[int]:
+        """Faces of every problem except those only named as the sides of a seam edge."""
         out: set[int] = set()
         for p in self.problems:
-            out.update(p.faces)
+            if not p.seam_edges:
+                out.update(p.faces)
         return sorted(out)
+
+    @property
+    def seam_edges(self) -> list[tuple[int, int]]:
+        return [e for p in self.problems for e in p.seam_edges]
 
 
 def parse_validate(data: dict) -> ValidateReport:
@@ -259,7 +270,8 @@ def parse_validate(data: dict) -> ValidateReport:
             else:
                 problems.append(Problem(str(asset.get("asset", "")), name, status,
                                         str(c.get("message", "")),
-                                        [int(f) for f in c.get("faces") or []]))
+                                        [int(f) for f in c.get("faces") or []],
+                                        [(int(a), int(b)) for a, b in c.get("seam_edges") or []]))
     failed = int((data.get("summary") or {}).get("failed", 0))
     return ValidateReport(problems, passed, failed, mesh_triangles=tris)
 
@@ -278,6 +290,21 @@ def triangles_to_polygons(faces: Sequence[int], tri_to_poly: Sequence[int]) -> t
         else:
             outside.append(f)
     return sorted(polys), outside
+
+
+def seam_edges_to_polygon_pairs(edges: Sequence[tuple[int, int]],
+                                tri_to_poly: Sequence[int]) -> tuple[list[tuple[int, int]], list[int]]:
+    """Polygon pairs of the CLI's seam edges (pairs of triangles), and the triangle indices
+    that fall outside the map. Pairs inside one polygon cannot be seams and are dropped."""
+    pairs, outside = [], []
+    for a, b in edges:
+        if not (0 <= a < len(tri_to_poly) and 0 <= b < len(tri_to_poly)):
+            outside += [f for f in (a, b) if not 0 <= f < len(tri_to_poly)]
+            continue
+        pa, pb = tri_to_poly[a], tri_to_poly[b]
+        if pa != pb and (pa, pb) not in pairs:
+            pairs.append((pa, pb))
+    return pairs, outside
 
 
 # --- running -------------------------------------------------------------------------------

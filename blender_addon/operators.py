@@ -210,27 +210,34 @@ class PRISMBAKE_OT_validate(jobs.JobOperator, bpy.types.Operator):
         obj = context.active_object
         self._tmp = _temp_dir("prismbake-validate-")
         self._export = _export(context, obj, info, self._tmp)
+        settings = context.scene.prismbake
         return cli_bridge.validate_args(binary, self._export.path, info.displacement(),
-                                        max_disp=context.scene.prismbake.max_disp)
+                                        max_disp=settings.max_disp,
+                                        max_seam_jump=settings.max_seam_jump)
 
     def finish(self, context, result):
         report = cli_bridge.parse_validate(result.json())
         tri_to_poly = self._export.tri_to_poly
         polys, outside = cli_bridge.triangles_to_polygons(report.faces, tri_to_poly)
-        mapped = report.mesh_triangles in (None, len(tri_to_poly)) and not outside
+        seams, seams_outside = cli_bridge.seam_edges_to_polygon_pairs(report.seam_edges, tri_to_poly)
+        mapped = report.mesh_triangles in (None, len(tri_to_poly)) and not (outside or seams_outside)
+        obj = context.view_layer.objects[self._object_name]
+        edges = shared_edges(obj, seams) if mapped else []
         jobs.remember(self._object_name, "validate", {
             "problems": [dataclasses.asdict(p) for p in report.problems],
-            "passed": report.passed, "polygons": polys if mapped else []})
+            "passed": report.passed, "polygons": polys if mapped else [],
+            "seam_edges": edges})
         if not report.problems:
             self.report({"INFO"}, f"{self._object_name}: all {len(report.passed)} checks pass")
             return {"FINISHED"}
         for p in report.problems:
             self.report({"WARNING"}, f"{p.check}: {p.message}")
-        if polys and mapped:
-            select_polygons(context, context.view_layer.objects[self._object_name], polys)
-        elif polys:
+        if (polys or edges) and mapped:
+            select_polygons(context, obj, polys, edges)
+        elif polys or seams:
             self.report({"WARNING"}, "the report's face indices do not match the export; nothing selected")
-        popup_problems(context, self._object_name, report, len(polys) if mapped else 0)
+        popup_problems(context, self._object_name, report,
+                       len(polys) if mapped else 0, len(edges))
         return {"FINISHED"}
 
     def cleanup(self):
@@ -238,8 +245,25 @@ class PRISMBAKE_OT_validate(jobs.JobOperator, bpy.types.Operator):
             shutil.rmtree(self._tmp, ignore_errors=True)
 
 
-def select_polygons(context, obj, polygons) -> None:
-    """Edit Mode on `obj` with exactly `polygons` selected, in face select mode."""
+def shared_edges(obj, polygon_pairs) -> list[int]:
+    """Mesh edges shared by each pair of polygons (a UV seam edge between the two), in order."""
+    me = obj.data
+    index = {tuple(sorted(e.vertices)): e.index for e in me.edges}
+    out = []
+    for a, b in polygon_pairs:
+        if a >= len(me.polygons) or b >= len(me.polygons):
+            continue
+        common = set(me.polygons[a].edge_keys) & set(me.polygons[b].edge_keys)
+        for key in sorted(common):
+            e = index.get(tuple(sorted(key)))
+            if e is not None and e not in out:
+                out.append(e)
+    return out
+
+
+def select_polygons(context, obj, polygons, edges=()) -> None:
+    """Edit Mode on `obj` with exactly `polygons` (and the seam `edges`) selected, in face
+    select mode (edge and face mode when edges are selected: an edge alone would not show)."""
     if context.mode != "OBJECT":
         bpy.ops.object.mode_set(mode="OBJECT")
     for o in list(context.view_layer.objects.selected):
@@ -247,18 +271,23 @@ def select_polygons(context, obj, polygons) -> None:
     obj.select_set(True)
     context.view_layer.objects.active = obj
     bpy.ops.object.mode_set(mode="EDIT")
-    context.tool_settings.mesh_select_mode = (False, False, True)
+    context.tool_settings.mesh_select_mode = (False, bool(edges), True)
     bm = bmesh.from_edit_mesh(obj.data)
     bm.faces.ensure_lookup_table()
+    bm.edges.ensure_lookup_table()
     for f in bm.faces:
         f.select_set(False)
+    for e in bm.edges:
+        e.select_set(False)
     for i in polygons:
         bm.faces[i].select_set(True)
+    for i in edges:
+        bm.edges[i].select_set(True)
     bm.select_flush_mode()
     bmesh.update_edit_mesh(obj.data)
 
 
-def popup_problems(context, name, report, selected: int) -> None:
+def popup_problems(context, name, report, selected: int, seam_edges: int = 0) -> None:
     if bpy.app.background or context.window is None:  # bpy-as-a-module has a window, no screen
         return
 
@@ -268,6 +297,9 @@ def popup_problems(context, name, report, selected: int) -> None:
             col.label(text=f"{p.check}: {p.message}", icon="ERROR")
         if selected:
             col.label(text=f"{selected} faces selected in Edit Mode", icon="RESTRICT_SELECT_OFF")
+        if seam_edges:
+            col.label(text=f"{seam_edges} worst seam edges selected in Edit Mode",
+                      icon="RESTRICT_SELECT_OFF")
 
     context.window_manager.popup_menu(draw, title=f"prismbake validate: {name}", icon="ERROR")
 

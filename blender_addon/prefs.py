@@ -85,6 +85,11 @@ class PrismbakeSceneSettings(bpy.types.PropertyGroup):
         name="Max displacement",
         description="Validate fails when |displacement| can exceed this (world units); 0: no limit",
         default=0.0, min=0.0, soft_max=10.0, unit="LENGTH")
+    max_seam_jump: FloatProperty(
+        name="Max seam jump",
+        description="Validate fails when the height map jumps across a UV seam by more than this "
+                    "fraction of the displacement scale (renders stitch seams either way)",
+        default=0.02, min=0.0, soft_max=1.0)
 
 
 CLASSES = (PrismbakePreferences, PrismbakeSceneSettings)

@@ -45,6 +45,7 @@ def draw_panel(layout, context) -> None:
     col.prop(settings, "usd_path")
     col.operator(operators.PRISMBAKE_OT_export_usd.bl_idname, icon="EXPORT")
     layout.prop(settings, "max_disp")
+    layout.prop(settings, "max_seam_jump")
     _draw_results(layout, jobs.RESULTS.get(obj.name, {}))
 
 

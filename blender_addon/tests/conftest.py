@@ -98,6 +98,8 @@ def scene(bpy_module, addon, prefs, tmp_path):
     scene.prismbake.turntable_dir = str(tmp_path / "turntable")
     scene.prismbake.prisms_path = str(tmp_path / "sphere.prisms")
     scene.prismbake.usd_path = str(tmp_path / "sphere.usda")
+    scene.prismbake.max_disp = 0.0
+    scene.prismbake.max_seam_jump = 0.02
     addon.jobs.RESULTS.clear()
     addon.jobs.RUNNING.clear()
     yield sphere

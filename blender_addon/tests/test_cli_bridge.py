@@ -51,6 +51,7 @@ def test_other_commands_args(cb):
         "p", "bake", "m.glb", "--disp", "h.exr", "--scale", "1.0", "--midlevel", "0.0", "-o", "o.prisms", "--json"]
     assert cb.validate_args("p", "m.glb", disp, max_disp=0.2)[-4:] == ["--format", "json", "--max-disp", "0.2"]
     assert cb.validate_args("p", "m.glb", disp)[-2:] == ["--format", "json"]
+    assert cb.validate_args("p", "m.glb", disp, max_seam_jump=0.05)[-2:] == ["--max-seam-jump", "0.05"]
     assert cb.export_usd_args("p", "m.glb", disp, "o.usda")[-2:] == ["--usd", "o.usda"]
 
 
@@ -128,6 +129,23 @@ def test_parse_validate_collects_failures_and_faces(cb):
     assert [p.check for p in r.problems] == ["sharp-creases", "degenerate-faces"]
     assert r.faces == [3, 347, 348, 413]
     assert r.passed == ["mesh", "uvs"] and r.failed_assets == 1 and r.mesh_triangles == 960
+
+
+def test_parse_validate_keeps_seam_edges_apart_from_faces(cb):
+    data = {"assets": [{"asset": "a.glb", "checks": [
+        {"name": "seam-jump", "status": "fail", "message": "78 seam edges", "faces": [1, 2, 14, 15],
+         "seam_edges": [[1, 2], [14, 15]]},
+        {"name": "degenerate-faces", "status": "fail", "message": "1 zero-area", "faces": [3]}]}],
+        "summary": {"assets": 1, "failed": 1}}
+    r = cb.parse_validate(data)
+    assert r.seam_edges == [(1, 2), (14, 15)]
+    assert r.faces == [3], "a seam's faces are selected as its edge, not as faces"
+
+
+def test_seam_edges_map_back_to_polygon_pairs(cb):
+    tri_to_poly = [0, 0, 1, 2, 2]
+    assert cb.seam_edges_to_polygon_pairs([(1, 2), (2, 3), (0, 1)], tri_to_poly) == ([(0, 1), (1, 2)], [])
+    assert cb.seam_edges_to_polygon_pairs([(1, 7)], tri_to_poly) == ([], [7])
 
 
 def test_triangles_map_back_to_polygons(cb):

@@ -149,10 +149,38 @@ def test_bake_next_to_the_blend(bpy_module, scene, tmp_path):
 
 
 def test_validate_clean_sphere_passes(bpy_module, addon, scene):
+    # The UV sphere's pole fans are UV seams the map jumps across (the next test); with the
+    # seam limit relaxed, nothing else is wrong with it.
+    bpy_module.context.scene.prismbake.max_seam_jump = 1.0
     assert bpy_module.ops.prismbake.validate() == {"FINISHED"}
     result = addon.jobs.RESULTS["Sphere"]["validate"]
     assert result["problems"] == [] and "uvs" in result["passed"]
+    assert "seam-jump" in result["passed"]
     assert bpy_module.context.mode == "OBJECT"
+
+
+def test_validate_selects_the_worst_seam_edges(bpy_module, addon, scene):
+    """Blender's UV sphere gives every pole triangle its own UV at the pole, so the map
+    jumps across the pole fans' edges: validate fails `seam-jump` at the default limit and
+    selects those edges (each shared by the two polygons the report names) in Edit Mode."""
+    bpy = bpy_module
+    me = scene.data
+    assert bpy.ops.prismbake.validate() == {"FINISHED"}
+    result = addon.jobs.RESULTS["Sphere"]["validate"]
+    assert [p["check"] for p in result["problems"]] == ["seam-jump"]
+    assert result["problems"][0]["seam_edges"], result["problems"][0]
+    edges = result["seam_edges"]
+    assert 1 <= len(edges) <= 10, edges
+    assert result["polygons"] == []
+    assert bpy.context.mode == "EDIT_MESH"
+    assert tuple(bpy.context.tool_settings.mesh_select_mode) == (False, True, True)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    assert sorted(e.index for e in me.edges if e.select) == sorted(edges)
+    # Each is a pole-fan edge: one end at a pole (the sphere's top or bottom vertex).
+    zs = [v.co.z for v in me.vertices]
+    for e in edges:
+        ends = [me.vertices[i].co.z for i in me.edges[e].vertices]
+        assert max(zs) in ends or min(zs) in ends, ends
 
 
 def test_validate_selects_the_faces_it_names(bpy_module, addon, scene):
@@ -162,6 +190,7 @@ def test_validate_selects_the_faces_it_names(bpy_module, addon, scene):
     bpy = bpy_module
     me = scene.data
     bad = [100, 301]
+    bpy.context.scene.prismbake.max_seam_jump = 1.0
     uv = me.uv_layers["UVMap"].data
     for p in bad:
         for li in me.polygons[p].loop_indices:
@@ -178,6 +207,7 @@ def test_validate_selects_the_faces_it_names(bpy_module, addon, scene):
 
 
 def test_validate_max_displacement(bpy_module, addon, scene):
+    bpy_module.context.scene.prismbake.max_seam_jump = 1.0
     bpy_module.context.scene.prismbake.max_disp = 0.001
     assert bpy_module.ops.prismbake.validate() == {"FINISHED"}
     checks = [p["check"] for p in addon.jobs.RESULTS["Sphere"]["validate"]["problems"]]

@@ -24,6 +24,10 @@ pub struct Check {
     /// Faces the check names (indices into the file's triangles, after triangulation).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub faces: Vec<u32>,
+    /// Seam edges the check names, as the pair of faces on their two sides (same indices as
+    /// `faces`), worst first (`seam-jump`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub seam_edges: Vec<[u32; 2]>,
 }
 
 impl Check {
@@ -33,6 +37,7 @@ impl Check {
             status: Status::Pass,
             message: message.into(),
             faces: vec![],
+            seam_edges: vec![],
         }
     }
     pub fn warn(name: &'static str, message: impl Into<String>) -> Self {
@@ -41,6 +46,7 @@ impl Check {
             status: Status::Warn,
             message: message.into(),
             faces: vec![],
+            seam_edges: vec![],
         }
     }
     pub fn fail(name: &'static str, message: impl Into<String>) -> Self {
@@ -49,6 +55,7 @@ impl Check {
             status: Status::Fail,
             message: message.into(),
             faces: vec![],
+            seam_edges: vec![],
         }
     }
     pub fn skipped(name: &'static str, why: impl Into<String>) -> Self {
@@ -57,10 +64,15 @@ impl Check {
             status: Status::Skipped,
             message: why.into(),
             faces: vec![],
+            seam_edges: vec![],
         }
     }
     pub fn with_faces(mut self, faces: Vec<u32>) -> Self {
         self.faces = faces;
+        self
+    }
+    pub fn with_seam_edges(mut self, edges: Vec<[u32; 2]>) -> Self {
+        self.seam_edges = edges;
         self
     }
 }

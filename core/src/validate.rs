@@ -304,6 +304,12 @@ fn seam_check(spec: &AssetSpec, mesh: &BaseMesh, report: &RepairReport, map: &He
         .collect();
     faces.sort_unstable();
     faces.dedup();
+    let edges: Vec<[u32; 2]> = m
+        .worst
+        .iter()
+        .map(|&(i, _)| report.seams[i].faces)
+        .filter(|f| f[0] != u32::MAX && f[1] != u32::MAX)
+        .collect();
     if m.max_jump_rel > limit {
         Check::fail(
             "seam-jump",
@@ -315,6 +321,7 @@ fn seam_check(spec: &AssetSpec, mesh: &BaseMesh, report: &RepairReport, map: &He
             ),
         )
         .with_faces(faces)
+        .with_seam_edges(edges)
     } else {
         Check::pass("seam-jump", format!("{summary} ≤ {:.2}%", 100.0 * limit))
     }
