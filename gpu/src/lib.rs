@@ -17,6 +17,7 @@
 //! `intersect` (pdm) and `render_aovs`
 //! (render). Parity is tested image against image (`tests/parity.rs`); see docs/gpu.md.
 
+pub mod beauty;
 pub mod context;
 pub mod job;
 pub mod layout;
@@ -24,6 +25,7 @@ pub mod render;
 pub mod scene;
 pub mod shaders;
 
+pub use beauty::{render_beauty, GpuBeautyScene};
 pub use context::GpuContext;
 pub use render::render_aovs;
 pub use scene::GpuScene;
@@ -37,11 +39,15 @@ pub enum GpuError {
     Device(String),
     #[error("shader or pipeline rejected by wgpu: {0}")]
     Shader(String),
-    #[error("{what}: {bytes} bytes exceed this GPU's storage-binding limit of {limit} bytes; use --device cpu or a smaller asset")]
+    #[error(
+        "{what}: {bytes} bytes exceed this GPU's storage-binding limit of {limit} bytes; {fix}"
+    )]
     TooLarge {
         what: &'static str,
         bytes: u64,
         limit: u64,
+        /// What to do about it.
+        fix: &'static str,
     },
     #[error("not supported on the GPU: {0}")]
     Unsupported(String),

@@ -51,7 +51,7 @@ pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> Gpu
             NormalMode::Smooth => 0,
             NormalMode::Geometric => 1,
         },
-        _pad: 0,
+        sample_index: 0,
     }
 }
 
@@ -66,17 +66,7 @@ pub fn render_aovs(
     opts: &PdmOptions,
     progress: &dyn Fn(usize),
 ) -> Result<AovImage, GpuError> {
-    if opts.construction != Construction::SharedWall {
-        return Err(GpuError::Unsupported(
-            "the parallel-offset PDM construction is a CPU-only measurement mode".into(),
-        ));
-    }
-    if s.width == 0 || s.height == 0 || s.spp == 0 {
-        return Err(GpuError::Unsupported(format!(
-            "empty render {}x{} at {} spp",
-            s.width, s.height, s.spp
-        )));
-    }
+    check_render(s, opts)?;
     let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
     let (w, h) = (s.width, s.height);
     let n = (w * h) as usize;
@@ -108,7 +98,7 @@ pub fn render_aovs(
                 pass.dispatch_workgroups(tw.div_ceil(WORKGROUP), th.div_ceil(WORKGROUP), 1);
             }
             let bytes = (tw * th) as u64 * std::mem::size_of::<GpuAovPixel>() as u64;
-            ctx.read_back(encoder, bytes, |data| {
+            ctx.read_back(encoder, &ctx.aov_buffer, bytes, |data| {
                 let tile: &[GpuAovPixel] = bytemuck::cast_slice(data);
                 for row in 0..th {
                     let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
@@ -120,6 +110,22 @@ pub fn render_aovs(
         }
     }
     Ok(to_image(&pixels, s))
+}
+
+/// What every GPU render refuses: the CPU-only PDM construction and an empty image.
+pub(crate) fn check_render(s: &RenderSettings, opts: &PdmOptions) -> Result<(), GpuError> {
+    if opts.construction != Construction::SharedWall {
+        return Err(GpuError::Unsupported(
+            "the parallel-offset PDM construction is a CPU-only measurement mode".into(),
+        ));
+    }
+    if s.width == 0 || s.height == 0 || s.spp == 0 {
+        return Err(GpuError::Unsupported(format!(
+            "empty render {}x{} at {} spp",
+            s.width, s.height, s.spp
+        )));
+    }
+    Ok(())
 }
 
 /// Unpack kernel output into the CPU's `AovImage` (steps divided by spp as the CPU does).
