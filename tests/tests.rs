@@ -5,5 +5,6 @@ mod util;
 mod bad_input;
 mod bake;
 mod beauty;
+mod gpu;
 mod render;
 mod validate;
