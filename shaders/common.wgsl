@@ -71,15 +71,15 @@ struct Frame {
     jitter: u32,
     refine: u32,
     normal_mode: u32,    // 0 smooth, 1 geometric
-    sample_index: u32,   // the one sample a beauty dispatch renders (AOVs: unused)
+    sample_index: u32,   // the one sample a dispatch renders
 }
 
-// GpuAovPixel, 48 bytes.
+// GpuAovPixel, 48 bytes: one pixel's AOV sums over the samples rendered so far.
 struct AovPixel {
-    normal: vec3f,
-    depth: f32,
-    uv: vec2f,
-    mask: f32,
+    normal_sum: vec3f,
+    depth_sum: f32,
+    uv_sum: vec2f,
+    hits: f32,
     steps_sum: f32,
     prism: u32,          // prism id + 1 of the first hit, 0 = miss
     _pad: array<u32, 3>,

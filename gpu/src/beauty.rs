@@ -11,9 +11,9 @@
 //! One sample per dispatch keeps an invocation's loop iterations (BVH walk, march, Newton)
 //! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
 
-use crate::context::{GpuContext, MAX_TILE};
-use crate::layout::{GpuBeautySums, GpuFrame, GpuLighting, WORKGROUP};
-use crate::render::frame_uniform;
+use crate::context::GpuContext;
+use crate::layout::{GpuBeautySums, GpuLighting};
+use crate::render::{frame_uniform, render_samples, Kernel};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
@@ -191,70 +191,21 @@ pub fn render_beauty(
     crate::render::check_render(s, opts)?;
     let kernel = ctx.beauty_kernel()?;
     let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-    let (w, h) = (s.width, s.height);
-    let mut sums = vec![GpuBeautySums::default(); (w * h) as usize];
-    let base = frame_uniform(cam, s, opts);
-    let tiles: Vec<(u32, u32)> = (0..h)
-        .step_by(MAX_TILE as usize)
-        .flat_map(|ty| (0..w).step_by(MAX_TILE as usize).map(move |tx| (tx, ty)))
-        .collect();
-    let passes = tiles.len() as u64 * s.spp as u64;
-    let mut done = 0u64;
-    for &(tx, ty) in &tiles {
-        let (tw, th) = ((w - tx).min(MAX_TILE), (h - ty).min(MAX_TILE));
-        let bytes = (tw * th) as u64 * std::mem::size_of::<GpuBeautySums>() as u64;
-        let mut encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("clear beauty sums"),
-            });
-        encoder.clear_buffer(&kernel.sums_buffer, 0, Some(bytes));
-        ctx.queue.submit([encoder.finish()]);
-        for sample in 0..s.spp {
-            let frame = GpuFrame {
-                tile_origin: [tx, ty],
-                tile_size: [tw, th],
-                sample_index: sample,
-                ..base
-            };
-            // Written before the next submission, so each dispatch sees its own sample.
-            ctx.queue
-                .write_buffer(&ctx.frame_buffer, 0, bytemuck::bytes_of(&frame));
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("beauty sample"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("render_beauty"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&kernel.pipeline);
-                pass.set_bind_group(0, &scene.group, &[]);
-                pass.set_bind_group(1, &kernel.group, &[]);
-                pass.set_bind_group(2, &lighting.group, &[]);
-                pass.dispatch_workgroups(tw.div_ceil(WORKGROUP), th.div_ceil(WORKGROUP), 1);
-            }
-            ctx.queue.submit([encoder.finish()]);
-            ctx.wait()?;
-            done += 1;
-            progress((done * h as u64 / passes) as usize);
-        }
-        let encoder = ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("beauty read-back"),
-            });
-        ctx.read_back(encoder, &kernel.sums_buffer, bytes, |data| {
-            let tile: &[GpuBeautySums] = bytemuck::cast_slice(data);
-            for row in 0..th {
-                let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
-                let dst = ((ty + row) * w + tx) as usize;
-                sums[dst..dst + tw as usize].copy_from_slice(src);
-            }
-        })?;
-    }
+    let mut sums = vec![GpuBeautySums::default(); (s.width * s.height) as usize];
+    let dispatch = Kernel {
+        pipeline: &kernel.pipeline,
+        groups: &[&kernel.group, &lighting.group],
+        output: &kernel.sums_buffer,
+        label: "render_beauty",
+    };
+    render_samples(
+        ctx,
+        scene,
+        &dispatch,
+        frame_uniform(cam, s, opts),
+        &mut sums,
+        progress,
+    )?;
     Ok(to_image(&sums, s))
 }
 

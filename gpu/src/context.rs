@@ -186,7 +186,9 @@ impl GpuContext {
         let aov_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("aov tile"),
             size: tile_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let beauty_tile_bytes =

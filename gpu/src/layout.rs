@@ -90,19 +90,20 @@ pub struct GpuFrame {
     pub refine: u32,
     /// 0 = smooth, 1 = geometric (`NormalMode`).
     pub normal_mode: u32,
-    /// The one sample a beauty dispatch renders (the AOV kernel renders all `spp`).
+    /// The one sample a dispatch renders (both kernels accumulate over dispatches).
     pub sample_index: u32,
 }
 
-/// One pixel of AOVs as the kernel writes it, 48 bytes. `steps_sum` is the sum over samples
-/// (the CPU's accumulator); the host divides by spp.
+/// One pixel of AOV sums over the samples rendered so far, 48 bytes (the CPU's per-pixel
+/// accumulator); the host divides and normalises them as the CPU does.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuAovPixel {
-    pub normal: [f32; 3],
-    pub depth: f32,
-    pub uv: [f32; 2],
-    pub mask: f32,
+    pub normal_sum: [f32; 3],
+    pub depth_sum: f32,
+    pub uv_sum: [f32; 2],
+    /// Samples that hit (the CPU's `hits`; a float, exact below 2^24).
+    pub hits: f32,
     pub steps_sum: f32,
     /// Prism id + 1 of the first sample that hit, 0 = miss (the `prism` AOV's convention).
     pub prism: u32,
@@ -252,10 +253,10 @@ pub fn shared_layouts() -> Vec<StructLayout> {
         layout!(
             "AovPixel",
             GpuAovPixel {
-                normal,
-                depth,
-                uv,
-                mask,
+                normal_sum,
+                depth_sum,
+                uv_sum,
+                hits,
                 steps_sum,
                 prism,
                 _pad
@@ -321,7 +322,7 @@ mod tests {
         assert_eq!(offset_of!(GpuFrame, tile_origin), 64);
         assert_eq!(offset_of!(GpuFrame, spp), 80);
         assert_eq!(offset_of!(GpuFrame, jitter), 96);
-        assert_eq!(offset_of!(GpuAovPixel, uv), 16);
+        assert_eq!(offset_of!(GpuAovPixel, uv_sum), 16);
         assert_eq!(offset_of!(GpuAovPixel, prism), 32);
         assert_eq!(offset_of!(GpuPrism, texel_world), 32);
         assert_eq!(offset_of!(GpuLighting, base_color), 16);

@@ -123,4 +123,3 @@ fn jittered_samples_match_the_cpu() {
     // spp > 1: the hashed pixel jitter and the per-sample march jitter must be the CPU's.
     check_asset("sphere/sphere.glb", 3);
 }
-
