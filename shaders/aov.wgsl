@@ -1,7 +1,9 @@
 // aov.wgsl — the AOV kernel, the mirror of prismbake::render::render_aovs: one invocation per
-// pixel of a tile, spp camera rays with the CPU's pixel jitter, PDM's closest hit, and the
-// CPU's accumulation (mean depth/uv over hits, summed-then-normalised normal, coverage mask,
-// summed steps, prism id + 1 of the first hit).
+// pixel of a tile renders ONE sample (`frame.sample_index`, with the CPU's pixel jitter),
+// PDM's closest hit, and adds it to the pixel's sums (the CPU's `PixelAcc`: depth, normal,
+// uv, steps, hit count, prism id + 1 of the first hit). Samples accumulate across dispatches
+// in the CPU's order, so an invocation's loop iterations stay below lavapipe's cap at any
+// spp (docs/gpu.md); the host divides and normalises the sums as the CPU does.
 
 @group(1) @binding(1) var<storage, read_write> aov_out: array<AovPixel>;
 
@@ -14,35 +16,22 @@ fn render_aovs(@builtin(global_invocation_id) gid: vec3<u32>) {
     let x = frame.tile_origin.x + gid.x;
     let y = frame.tile_origin.y + gid.y;
     let pixel = y * frame.width + x;
-    var hits = 0u;
-    var depth = 0.0;
-    var normal = vec3f(0.0);
-    var uv = vec2f(0.0);
-    var steps = 0.0;
-    var prism = 0u;
-    for (var sample = 0u; sample < frame.spp; sample++) {
-        let jitter = pixel_jitter(pixel, sample);
-        let ray = camera_ray(vec2f(f32(x), f32(y)) + jitter);
-        let ctx = RayContext(pixel, sample, 0u, frame.seed);
-        let hit = intersect(ray, ctx);
-        if (hit.prism != NO_PRISM) {
-            hits += 1u;
-            depth += hit.t;
-            normal += hit.shading_normal;
-            uv += hit.uv;
-            steps += f32(hit.steps);
-            if (hits == 1u) {
-                prism = hit.prism + 1u;
-            }
+    let sample = frame.sample_index;
+    let jitter = pixel_jitter(pixel, sample);
+    let ray = camera_ray(vec2f(f32(x), f32(y)) + jitter);
+    let ctx = RayContext(pixel, sample, 0u, frame.seed);
+    let hit = intersect(ray, ctx);
+    let i = gid.y * frame.tile_size.x + gid.x;
+    if (hit.prism != NO_PRISM) {
+        var acc = aov_out[i];
+        acc.hits += 1.0;
+        acc.depth_sum += hit.t;
+        acc.normal_sum += hit.shading_normal;
+        acc.uv_sum += hit.uv;
+        acc.steps_sum += f32(hit.steps);
+        if (acc.hits == 1.0) {
+            acc.prism = hit.prism + 1u;
         }
+        aov_out[i] = acc;
     }
-    let k = f32(max(hits, 1u));
-    var out: AovPixel;
-    out.normal = normalize_or_zero(normal);
-    out.depth = select(0.0, depth / k, hits > 0u);
-    out.uv = uv / k;
-    out.mask = f32(hits) / f32(frame.spp);
-    out.steps_sum = steps;
-    out.prism = prism;
-    aov_out[gid.y * frame.tile_size.x + gid.x] = out;
 }

@@ -29,6 +29,19 @@ fn safe_inverse(d: vec3f) -> vec3f {
 
 // Scene::closest_hit with PDM's intersect_prism as the per-prism test.
 fn closest_hit(ray: Ray, ctx: RayContext) -> Hit {
+    return traverse(ray, ctx, false);
+}
+
+// Scene::any_hit: does any prism report a hit in [t_min, t_max] (shadow rays)?
+fn any_hit(ray: Ray, ctx: RayContext) -> bool {
+    return traverse(ray, ctx, true).prism != NO_PRISM;
+}
+
+// The traversal behind both: the closest hit, or with `stop_at_first` the first hit found
+// (the CPU's any_hit gives each prism the whole ray and stops at the first that reports a
+// hit; before any hit the clipped ray here is the whole ray, so the answer is the same).
+// A kernel that traces both kinds calls this once (Mesa inlines every call site).
+fn traverse(ray: Ray, ctx: RayContext, stop_at_first: bool) -> Hit {
     var best = no_hit();
     var steps = 0u;
     if (scene.node_count == 0u) {
@@ -70,9 +83,13 @@ fn closest_hit(ray: Ray, ctx: RayContext) -> Hit {
                     let prism = prim_indices[node.first_index + i];
                     let clipped = Ray(ray.origin, ray.dir, ray.t_min, t_best);
                     let h = intersect_prism(clipped, ctx, prism, &steps);
-                    if (h.prism != NO_PRISM && h.t < t_best) {
+                    if (h.prism != NO_PRISM && (stop_at_first || h.t < t_best)) {
                         best = h;
                         t_best = h.t;
+                        if (stop_at_first) {
+                            best.steps = steps;
+                            return best;
+                        }
                     }
                 }
             }

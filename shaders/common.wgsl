@@ -71,18 +71,59 @@ struct Frame {
     jitter: u32,
     refine: u32,
     normal_mode: u32,    // 0 smooth, 1 geometric
-    _pad: u32,
+    sample_index: u32,   // the one sample a dispatch renders
 }
 
-// GpuAovPixel, 48 bytes.
+// GpuAovPixel, 48 bytes: one pixel's AOV sums over the samples rendered so far.
 struct AovPixel {
-    normal: vec3f,
-    depth: f32,
-    uv: vec2f,
-    mask: f32,
+    normal_sum: vec3f,
+    depth_sum: f32,
+    uv_sum: vec2f,
+    hits: f32,
     steps_sum: f32,
     prism: u32,          // prism id + 1 of the first hit, 0 = miss
     _pad: array<u32, 3>,
+}
+
+// GpuLighting, 112 bytes: everything beauty needs besides the scene and the environment
+// tables (render::beauty::BeautyScene; the material is shading::Material).
+struct Lighting {
+    key_dir: vec3f,
+    key_irradiance: f32,
+    base_color: vec3f,
+    roughness: f32,
+    ground_up: vec3f,
+    ground_height: f32,
+    metallic: f32,
+    specular: f32,
+    eps: f32,            // ray origin offset (beauty::scene_epsilon)
+    bounces: u32,
+    has_key: u32,
+    has_ground: u32,
+    env_lights: u32,     // 0: black environment, no environment rays
+    env_z_up: u32,
+    env_width: u32,
+    env_height: u32,
+    env_total_weight: f32,
+    env_to_sin: f32,     // sin, cos of −rotation (world_to_env)
+    env_to_cos: f32,
+    env_from_sin: f32,   // sin, cos of +rotation (env_to_world)
+    env_from_cos: f32,
+    _pad: u32,
+}
+
+// GpuBeautySums, 64 bytes: beauty::PixelSums of one pixel plus its ray counts.
+struct BeautySums {
+    radiance: vec3f,
+    surface: f32,
+    background: vec3f,
+    ground_samples: f32,
+    ground_background: vec3f,
+    ground_lit: f32,
+    ground_unshadowed: f32,
+    rays: u32,
+    key_shadow_rays: u32,
+    env_shadow_rays: u32,
 }
 
 // Group 0: the scene (GpuScene), shared by every kernel.

@@ -143,6 +143,11 @@ fn intersect(ray: Ray, ctx: RayContext) -> Hit {
     return hit;
 }
 
+// Pdm::occluded: any hit (shadow rays), no surface data.
+fn occluded(ray: Ray, ctx: RayContext) -> bool {
+    return any_hit(ray, ctx);
+}
+
 // Pdm::step_size.
 fn step_size(p: Prism, local: Local) -> f32 {
     var dt = frame.dt_value;
@@ -252,9 +257,13 @@ fn level_at(c: LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> Le
     return Level(abs(step) <= 1e3 * tol, l);
 }
 
-// pdm::LevelTrack: the level cubic, Newton tolerance and a generous λ range per ray and prism.
+// pdm::LevelTrack: the level cubic along the ray rebased at its entry point base = o + t0 d
+// (its coefficients are then of the prism's size and rounding stays far below the Newton
+// tolerance), the tolerance, and a padded λ range (a root outside it is another branch).
 struct LevelTrack {
     cubic: LevelCubic,
+    base: vec3f,
+    t0: f32,
     tol: f32,
     lo: f32,
     hi: f32,
@@ -262,10 +271,13 @@ struct LevelTrack {
 }
 
 // LevelTrack::new.
-fn level_track(local: Local, p: Prism, ro: vec3f, d: vec3f) -> LevelTrack {
-    let span = p.lambda_hi - p.lambda_lo + local.scale;
+fn level_track(local: Local, p: Prism, ro: vec3f, d: vec3f, t0: f32) -> LevelTrack {
+    let span = 0.5 * (p.lambda_hi - p.lambda_lo) + 1e-3 * local.scale;
+    let base = ro + d * t0;
     return LevelTrack(
-        level_cubic(local.geom, max(abs(p.lambda_lo), abs(p.lambda_hi)), ro, d),
+        level_cubic(local.geom, max(abs(p.lambda_lo), abs(p.lambda_hi)), base, d),
+        base,
+        t0,
         1e-6 * local.scale,
         p.lambda_lo - span,
         p.lambda_hi + span,
@@ -289,10 +301,11 @@ fn scan_level_estimate(local: Local, x: vec3f) -> f32 {
 
 // Pdm::level_sample: the exact canonical sample at t — level λ (Newton from `guess`, retried
 // from the middle of the prism), barycentrics in T(λ), g = λ|m(b)| − D(uv(b)).
-fn level_sample(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, t: f32, guess: f32) -> Sample {
-    var lv = level_at(lt.cubic, t, guess, lt.tol, lt.lo, lt.hi);
+fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
+    let u = t - lt.t0;
+    var lv = level_at(lt.cubic, u, guess, lt.tol, lt.lo, lt.hi);
     if (!lv.ok) {
-        lv = level_at(lt.cubic, t, lt.mid, lt.tol, lt.lo, lt.hi);
+        lv = level_at(lt.cubic, u, lt.mid, lt.tol, lt.lo, lt.hi);
         if (!lv.ok) {
             return Sample(false, t, 0.0, vec3f(0.0), 0.0);
         }
@@ -300,7 +313,7 @@ fn level_sample(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, t: f32, guess
     let l = lv.l;
     let g = local.geom;
     let c = array<vec3f, 3>(g.v[0] + g.n[0] * l, g.v[1] + g.n[1] * l, g.v[2] + g.n[2] * l);
-    let b = triangle_barycentric(ro + d * t, c);
+    let b = triangle_barycentric(lt.base + d * u, c);
     return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement(geom_uv(g, b)), b, l);
 }
 
@@ -322,7 +335,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     let te = max(iv.t_enter - pad, ray.t_min);
     let tx = min(iv.t_exit + pad, ray.t_max);
     let dt = max(step_size(p, local), (tx - te) / f32(MAX_STEPS));
-    let lt = level_track(local, p, ro, d);
+    let lt = level_track(local, p, ro, d, te);
 
     var guess = scan_level_estimate(local, ro + d * te);
     var prev = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
@@ -331,7 +344,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var n = 0u;
     loop {
         n += 1u;
-        let cur = level_sample(local, lt, ro, d, t, guess);
+        let cur = level_sample(local, lt, d, t, guess);
         if (cur.ok) {
             guess = cur.lambda;
             if (inside_detect(cur.b)) {
@@ -364,11 +377,11 @@ fn level_crossing(local: Local, lt: LevelTrack, ro: vec3f, ray: Ray, a: Sample, 
     let d = ray.dir;
     var s: Sample;
     if (frame.refine != 0u) {
-        s = refine_levels(local, lt, ro, d, a, b);
+        s = refine_levels(local, lt, d, a, b);
     } else {
         let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
         let guess = a.lambda + (b.lambda - a.lambda) * ((t - a.t) / (b.t - a.t));
-        s = level_sample(local, lt, ro, d, t, guess);
+        s = level_sample(local, lt, d, t, guess);
         if (!s.ok) {
             return no_prism_hit();
         }
@@ -379,7 +392,7 @@ fn level_crossing(local: Local, lt: LevelTrack, ro: vec3f, ray: Ray, a: Sample, 
 
 // Pdm::refine_levels: Illinois regula falsi on the canonical g(t) in the bracket [a, b];
 // returns the end sample with the smaller |g|.
-fn refine_levels(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, a: Sample, b: Sample) -> Sample {
+fn refine_levels(local: Local, lt: LevelTrack, d: vec3f, a: Sample, b: Sample) -> Sample {
     var s0 = a;
     var s1 = b;
     var g0 = a.g;
@@ -396,7 +409,7 @@ fn refine_levels(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, a: Sample, b
         if (abs(t - s0.t) < abs(t - s1.t)) {
             guess = s0.lambda;
         }
-        let s = level_sample(local, lt, ro, d, t, guess);
+        let s = level_sample(local, lt, d, t, guess);
         if (!s.ok) {
             break;
         }

@@ -145,37 +145,6 @@ fn wall(o: vec3f, d: vec3f, t_min: f32, t_max: f32, a: vec3f, b: vec3f, c: vec3f
     }
 }
 
-// Is x inside the prism? Newton on Σ b_i (lo_i + s (hi_i − lo_i)) = x for (b1, b2, s).
-fn point_in_prism(x: vec3f, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> bool {
-    let e = array<vec3f, 3>(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
-    let scale = length(lo[1] - lo[0]) + length(lo[2] - lo[0]) + length(e[0]);
-    var b1 = 1.0 / 3.0;
-    var b2 = 1.0 / 3.0;
-    var s = 0.5;
-    for (var i = 0; i < 24; i++) {
-        let b0 = 1.0 - b1 - b2;
-        let c0 = lo[0] + e[0] * s;
-        let c1 = lo[1] + e[1] * s;
-        let c2 = lo[2] + e[2] * s;
-        let f = c0 * b0 + c1 * b1 + c2 * b2 - x;
-        if (length(f) <= 1e-6 * scale) {
-            let tol = 1e-5;
-            return b0 >= -tol && b1 >= -tol && b2 >= -tol && s >= -tol && s <= 1.0 + tol;
-        }
-        let sol = solve3(c1 - c0, c2 - c0, e[0] * b0 + e[1] * b1 + e[2] * b2, f);
-        if (!sol.ok) {
-            return false;
-        }
-        b1 -= sol.x.x;
-        b2 -= sol.x.y;
-        s -= sol.x.z;
-        if (!(finite(b1) && finite(b2) && finite(s))) {
-            return false;
-        }
-    }
-    return false;
-}
-
 // Where a ray leaves the box of the six corners. An axis with d = 0 bounds nothing if the
 // origin lies in its slab and excludes everything otherwise (the CPU's ±∞).
 fn box_exit(o: vec3f, d: vec3f, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> f32 {
@@ -199,29 +168,57 @@ fn box_exit(o: vec3f, d: vec3f, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> f32
     return far;
 }
 
-// prism_hit::ray_prism_interval.
+// prism_hit::cap_planes_reject: true if [t_min, t_max] lies wholly outside one cap's plane,
+// on the side away from the prism. A cap plane bounds the prism only if the other cap's
+// corners are on its inner side (walls lie in the hull of their corners).
+fn cap_plane_rejects(o: vec3f, d: vec3f, t_min: f32, t_max: f32, face: array<vec3f, 3>, other: array<vec3f, 3>, sign: f32, extent: f32) -> bool {
+    let n = cross(face[1] - face[0], face[2] - face[0]) * sign;
+    let tol = 1e-5 * length(n) * extent;
+    if (dot(other[0] - face[0], n) > -tol || dot(other[1] - face[0], n) > -tol || dot(other[2] - face[0], n) > -tol) {
+        return false;
+    }
+    let s0 = dot(o - face[0], n);
+    let sd = dot(d, n);
+    // t_max = T_FAR stands for +∞: with sd < 0 the ray comes back inside the plane.
+    return s0 + t_min * sd > tol && (sd >= 0.0 || (t_max < T_FAR && s0 + t_max * sd > tol));
+}
+
+fn cap_planes_reject(o: vec3f, d: vec3f, t_min: f32, t_max: f32, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> bool {
+    let extent = length(hi[0] - lo[0]) + length(lo[1] - lo[0]) + length(lo[2] - lo[0]);
+    // Outward normals: counter-clockwise base, `hi` up, `lo` down (no loop: Mesa's lavapipe
+    // counts every loop iteration of an invocation against one cap, docs/gpu.md).
+    return cap_plane_rejects(o, d, t_min, t_max, hi, lo, 1.0, extent)
+        || cap_plane_rejects(o, d, t_min, t_max, lo, hi, -1.0, extent);
+}
+
+// prism_hit::ray_prism_interval: crossings are gathered on the whole half-line [t_min, ∞)
+// and clipped afterwards, so a ray that starts inside is recognised without a point test.
 fn ray_prism_interval(o: vec3f, d: vec3f, t_min: f32, t_max: f32, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> Interval {
+    if (cap_planes_reject(o, d, t_min, t_max, lo, hi)) {
+        return Interval(false, 0.0, 0.0);
+    }
+    let far = T_FAR;
     var acc = Crossings(T_FAR, -T_FAR, T_FAR, -T_FAR);
-    cap(o, d, t_min, t_max, lo, -1.0, &acc);
-    cap(o, d, t_min, t_max, hi, 1.0, &acc);
-    wall(o, d, t_min, t_max, lo[0], lo[1], hi[0], hi[1], &acc);
-    wall(o, d, t_min, t_max, lo[1], lo[2], hi[1], hi[2], &acc);
-    wall(o, d, t_min, t_max, lo[2], lo[0], hi[2], hi[0], &acc);
+    cap(o, d, t_min, far, lo, -1.0, &acc);
+    cap(o, d, t_min, far, hi, 1.0, &acc);
+    wall(o, d, t_min, far, lo[0], lo[1], hi[0], hi[1], &acc);
+    wall(o, d, t_min, far, lo[1], lo[2], hi[1], hi[2], &acc);
+    wall(o, d, t_min, far, lo[2], lo[0], hi[2], hi[0], &acc);
     if (!(acc.first_entry < T_FAR || acc.first_exit < T_FAR)) {
-        if (t_max >= T_FAR || !point_in_prism(o + d * t_min, lo, hi)) {
-            return Interval(false, 0.0, 0.0);
-        }
-        return Interval(true, t_min, t_max);
+        // A bounded solid is always left again: no crossing on a half-line is a miss.
+        return Interval(false, 0.0, 0.0);
     }
     // First crossing an exit (or no entry): the ray starts inside.
     var t_enter = acc.first_entry;
     if (acc.first_exit < acc.first_entry) {
         t_enter = t_min;
     }
-    // Last crossing an entry (or no exit): the ray ends inside, or an exit was lost.
+    // Last crossing an entry (no exit after it): an exit was lost to rounding; bound it by
+    // the corners' box.
     var t_exit = acc.last_exit;
     if (acc.last_entry > acc.last_exit) {
-        t_exit = min(t_max, max(box_exit(o, d, lo, hi), acc.last_entry));
+        t_exit = max(box_exit(o, d, lo, hi), acc.last_entry);
     }
+    t_exit = min(t_exit, t_max);
     return Interval(t_enter <= t_exit, t_enter, t_exit);
 }

@@ -10,25 +10,6 @@ fn read(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// RGBA pixels of a beauty EXR.
-fn read_rgba(path: &Path) -> Vec<[f32; 4]> {
-    let img = exr::prelude::read_all_flat_layers_from_file(path).unwrap();
-    let layer = &img.layer_data[0];
-    let ch = |name: &str| {
-        layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
-            .unwrap()
-    };
-    let n = layer.size.0 * layer.size.1;
-    let (r, g, b, a) = (ch("R"), ch("G"), ch("B"), ch("A"));
-    (0..n)
-        .map(|i| [r, g, b, a].map(|c| c.sample_data.value_by_flat_index(i).to_f32()))
-        .collect()
-}
-
 /// A constant-radiance equirect EXR.
 fn write_constant_env(path: &Path, radiance: f32) {
     use exr::prelude::*;

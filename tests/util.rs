@@ -113,3 +113,22 @@ pub fn files_in(dir: &Path) -> Vec<String> {
     v.sort();
     v
 }
+
+/// RGBA pixels of a beauty EXR.
+pub fn read_rgba(path: &Path) -> Vec<[f32; 4]> {
+    let img = exr::prelude::read_all_flat_layers_from_file(path).unwrap();
+    let layer = &img.layer_data[0];
+    let ch = |name: &str| {
+        layer
+            .channel_data
+            .list
+            .iter()
+            .find(|c| c.name.to_string() == name)
+            .unwrap()
+    };
+    let n = layer.size.0 * layer.size.1;
+    let (r, g, b, a) = (ch("R"), ch("G"), ch("B"), ch("A"));
+    (0..n)
+        .map(|i| [r, g, b, a].map(|c| c.sample_data.value_by_flat_index(i).to_f32()))
+        .collect()
+}

@@ -56,6 +56,9 @@ pub struct RenderArgs {
     /// Intersection method: pdm, reference or rmip.
     #[arg(long, default_value = "pdm")]
     pub method: String,
+    /// Where to render: cpu; gpu (any wgpu adapter, software Vulkan included; an error without
+    /// one); auto (the GPU if an adapter exists and the job can run there, else the CPU).
+    /// The GPU traces --method pdm, AOVs and beauty, stills, turntables and folders.
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: Device,
     /// Image size WIDTHxHEIGHT.

@@ -215,15 +215,14 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         .map(|s| s.parse::<Aov>())
         .collect::<std::result::Result<Vec<_>, _>>()
         .map_err(Error::Param)?;
-    // The GPU renders PDM AOVs of one input; beauty, --watch, batch folders and the other
-    // methods run on the CPU (`auto` falls back to it, `gpu` says so).
-    let gpu_able =
-        method == Method::Pdm && !aovs.contains(&Aov::Beauty) && !a.watch && !a.input.is_dir();
+    // The GPU renders PDM (AOVs and beauty); --watch and the other methods run on the CPU
+    // (`auto` falls back to it, `gpu` says so).
+    let gpu_able = method == Method::Pdm && !a.watch;
     let gpu = match a.device {
         Device::Cpu => None,
         Device::Gpu if !gpu_able => {
             return Err(Error::Param(
-                "--device gpu renders AOVs (not beauty) of one asset with --method pdm, without --watch; use --device cpu".into(),
+                "--device gpu traces --method pdm and does not --watch; use --device cpu".into(),
             ));
         }
         Device::Gpu => Some(
@@ -247,7 +246,7 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         .build()
         .map_err(|e| Error::Param(format!("--threads: {e}")))?;
     if a.input.is_dir() {
-        return render_batch(&a, method, &aovs, &look, &pool);
+        return render_batch(&a, method, &aovs, &look, &pool, gpu.as_ref());
     }
     let input = if prismbake::load::extension(&a.input) == "prisms" {
         Input::Table {
@@ -283,25 +282,24 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     let pb = progress::bar(frames * rows, "rendering");
-    let summary = match &gpu {
-        Some(ctx) => LookdevSummary {
-            render: prismbake_gpu::job::run(ctx, &job, &|frame, done| {
-                pb.set_position(frame as u64 * rows + done as u64)
-            })?,
-            table_cache: CacheUse::Off,
-            beauty_rays: Default::default(),
-            shadow_rays: 0,
-            contact_sheets: vec![],
-        },
-        None => pool.install(|| {
-            lookdev::run(&job, &look, &|frame, done| {
-                pb.set_position(frame as u64 * rows + done as u64)
-            })
-        })?,
-    };
+    let report = |frame: usize, done: usize| pb.set_position(frame as u64 * rows + done as u64);
+    let summary = pool.install(|| run_lookdev(gpu.as_ref(), &job, &look, &report))?;
     pb.finish_and_clear();
     print_render_summary(&a, &summary);
     Ok(ExitCode::SUCCESS)
+}
+
+/// One lookdev job on the GPU if there is a context, else on the CPU.
+fn run_lookdev(
+    gpu: Option<&prismbake_gpu::GpuContext>,
+    job: &RenderJob,
+    look: &LookdevOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
+    match gpu {
+        Some(ctx) => prismbake_gpu::job::run(ctx, job, look, progress),
+        None => lookdev::run(job, look, progress),
+    }
 }
 
 fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
@@ -438,6 +436,7 @@ fn render_batch(
     aovs: &[Aov],
     look: &LookdevOptions,
     pool: &rayon::ThreadPool,
+    gpu: Option<&prismbake_gpu::GpuContext>,
 ) -> Result<ExitCode> {
     if a.watch {
         return Err(Error::Param(format!(
@@ -489,7 +488,7 @@ fn render_batch(
             })
             .and_then(|job| {
                 pool.install(|| {
-                    lookdev::run(&job, look, &|f, _| {
+                    run_lookdev(gpu, &job, look, &|f, _| {
                         pb.set_position(k as u64 * frames + f as u64)
                     })
                 })

@@ -3,17 +3,26 @@
 //! output, its read-back copy). Dispatches only write the uniform, dispatch and read back.
 //!
 //! Bind groups: group 0 is the scene (`GpuScene`, shared by every kernel), group 1 the
-//! dispatch (frame uniform + the kernel's output). A beauty kernel adds its own pipeline
-//! built from `shaders::LIBRARY` plus its entry file, reusing group 0 and the frame uniform.
+//! dispatch (frame uniform + the kernel's output), group 2 the beauty kernel's lighting
+//! (`GpuLighting`: uniform + environment tables). The beauty pipeline and its buffers are
+//! built on first use, so an AOV-only run never compiles it.
 
-use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
+use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, WORKGROUP};
 use crate::{shaders, GpuError};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 
-/// Largest tile of one dispatch, in pixels per side: bounds the output buffer (512² × 48 B =
-/// 12 MiB, far under the 128 MiB binding cap) and the length of one submission on GPUs with
-/// a watchdog.
+/// Largest tile of one dispatch, in pixels per side: bounds the output buffers (512² × 64 B =
+/// 16 MiB for beauty sums, far under the 128 MiB binding cap) and the length of one
+/// submission on GPUs with a watchdog.
 pub const MAX_TILE: u32 = 512;
+
+/// The beauty kernel: its pipeline, the tile of running sums it accumulates into, and the
+/// group-1 bind group (frame uniform + sums).
+pub(crate) struct BeautyKernel {
+    pub(crate) pipeline: wgpu::ComputePipeline,
+    pub(crate) sums_buffer: wgpu::Buffer,
+    pub(crate) group: wgpu::BindGroup,
+}
 
 pub struct GpuContext {
     pub(crate) adapter_info: wgpu::AdapterInfo,
@@ -23,13 +32,18 @@ pub struct GpuContext {
     pub(crate) aov_pipeline: wgpu::ComputePipeline,
     pub(crate) frame_buffer: wgpu::Buffer,
     pub(crate) aov_buffer: wgpu::Buffer,
-    pub(crate) aov_readback: wgpu::Buffer,
+    /// Read-back copy of one tile of either kernel's output.
+    pub(crate) readback: wgpu::Buffer,
     pub(crate) aov_group: wgpu::BindGroup,
+    /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables).
+    pub(crate) lighting_layout: wgpu::BindGroupLayout,
+    beauty_layout: wgpu::BindGroupLayout,
+    beauty: OnceLock<Result<BeautyKernel, String>>,
     /// The persistent buffers serve one dispatch at a time.
     pub(crate) busy: Mutex<()>,
 }
 
-fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -42,7 +56,7 @@ fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
-fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -139,27 +153,28 @@ impl GpuContext {
             ],
         });
 
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("aov.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shaders::aov_module_source().into()),
+        let beauty_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("beauty dispatch"),
+            entries: &[
+                uniform_entry(0),        // frame: Frame
+                storage_entry(1, false), // beauty_sums: array<BeautySums>
+            ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("aov"),
-            bind_group_layouts: &[Some(&scene_layout), Some(&aov_layout)],
-            immediate_size: 0,
+        let lighting_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("lighting"),
+            entries: &[
+                uniform_entry(0),       // lighting: Lighting
+                storage_entry(1, true), // env_texels: array<f32>
+                storage_entry(2, true), // env_tables: array<f32>
+            ],
         });
-        let aov_pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("render_aovs"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("render_aovs"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        if let Some(e) = scope.pop().await {
-            return Err(GpuError::Shader(e.to_string()));
-        }
+        let aov_pipeline = build_pipeline(
+            &device,
+            "render_aovs",
+            &shaders::aov_module_source(),
+            &[&scene_layout, &aov_layout],
+        )
+        .await?;
 
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
@@ -171,12 +186,16 @@ impl GpuContext {
         let aov_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("aov tile"),
             size: tile_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let aov_readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("aov readback"),
-            size: tile_bytes,
+        let beauty_tile_bytes =
+            (MAX_TILE * MAX_TILE) as u64 * std::mem::size_of::<GpuBeautySums>() as u64;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("tile readback"),
+            size: tile_bytes.max(beauty_tile_bytes),
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -203,8 +222,11 @@ impl GpuContext {
             aov_pipeline,
             frame_buffer,
             aov_buffer,
-            aov_readback,
+            readback,
             aov_group,
+            lighting_layout,
+            beauty_layout,
+            beauty: OnceLock::new(),
             busy: Mutex::new(()),
         })
     }
@@ -240,18 +262,82 @@ impl GpuContext {
         self.device.limits().max_storage_buffer_binding_size
     }
 
+    /// Compile the beauty kernel now rather than with the first beauty frame (so that a job's
+    /// frame times do not include it).
+    pub fn prepare_beauty(&self) -> Result<(), GpuError> {
+        self.beauty_kernel().map(|_| ())
+    }
+
+    /// The beauty kernel, compiled on first use (an AOV-only run never builds it).
+    pub(crate) fn beauty_kernel(&self) -> Result<&BeautyKernel, GpuError> {
+        self.beauty
+            .get_or_init(|| pollster::block_on(self.build_beauty()).map_err(|e| e.to_string()))
+            .as_ref()
+            .map_err(|e| GpuError::Shader(e.clone()))
+    }
+
+    async fn build_beauty(&self) -> Result<BeautyKernel, GpuError> {
+        let pipeline = build_pipeline(
+            &self.device,
+            "render_beauty",
+            &shaders::beauty_module_source(),
+            &[
+                &self.scene_layout,
+                &self.beauty_layout,
+                &self.lighting_layout,
+            ],
+        )
+        .await?;
+        let sums_buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("beauty sums tile"),
+            size: (MAX_TILE * MAX_TILE) as u64 * std::mem::size_of::<GpuBeautySums>() as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_SRC
+                | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("beauty dispatch"),
+            layout: &self.beauty_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.frame_buffer.as_entire_binding(),
+                }, // frame
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: sums_buffer.as_entire_binding(),
+                }, // beauty_sums
+            ],
+        });
+        Ok(BeautyKernel {
+            pipeline,
+            sums_buffer,
+            group,
+        })
+    }
+
+    /// Wait until the GPU has finished everything submitted so far.
+    pub(crate) fn wait(&self) -> Result<(), GpuError> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| GpuError::Device(format!("waiting for the GPU: {e}")))
+    }
+
     /// Copy `size` bytes of `src` to the read-back buffer, submit, wait, and hand the bytes to
     /// `f`. Shared by every kernel's read-back.
     pub(crate) fn read_back<R>(
         &self,
         encoder: wgpu::CommandEncoder,
+        src: &wgpu::Buffer,
         size: u64,
         f: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
         let mut encoder = encoder;
-        encoder.copy_buffer_to_buffer(&self.aov_buffer, 0, &self.aov_readback, 0, size);
+        encoder.copy_buffer_to_buffer(src, 0, &self.readback, 0, size);
         self.queue.submit([encoder.finish()]);
-        let slice = self.aov_readback.slice(0..size);
+        let slice = self.readback.slice(0..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
@@ -268,7 +354,40 @@ impl GpuContext {
                 .map_err(|e| GpuError::Device(format!("read-back: {e}")))?;
             f(&view)
         };
-        self.aov_readback.unmap();
+        self.readback.unmap();
         Ok(out)
     }
+}
+
+/// Compile `source` and build the compute pipeline of `entry` over `layouts` (groups 0, 1, …);
+/// a WGSL or validation error becomes `GpuError::Shader`.
+async fn build_pipeline(
+    device: &wgpu::Device,
+    entry: &str,
+    source: &str,
+    layouts: &[&wgpu::BindGroupLayout],
+) -> Result<wgpu::ComputePipeline, GpuError> {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(entry),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let groups: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(entry),
+        bind_group_layouts: &groups,
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    if let Some(e) = scope.pop().await {
+        return Err(GpuError::Shader(format!("{entry}: {e}")));
+    }
+    Ok(pipeline)
 }

@@ -1,25 +1,108 @@
-//! A render job on the GPU: the counterpart of `prismbake::render::job::run`, sharing its
-//! validation, loading, camera, frame list and output writing; only the frame render differs.
+//! A lookdev job on the GPU: the CPU's own `lookdev::open` (validation, loading through the
+//! prism-table cache, camera, environment) and `lookdev::render_all` (frames, turntables,
+//! files, contact sheets), with `GpuFrames` rendering each frame.
 
+use crate::beauty::{render_beauty, GpuBeautyScene};
 use crate::context::GpuContext;
 use crate::render::render_aovs;
 use crate::scene::GpuScene;
-use prismbake::accel::Scene;
-use prismbake::render::job::{
-    base_camera, load_input, prepare_out_dir, FrameStats, Method, RenderJob, RenderSummary,
-};
-use prismbake::render::output;
+use crate::GpuError;
+use prismbake::render::beauty::{BeautyImage, BeautyScene};
+use prismbake::render::camera::Camera;
+use prismbake::render::job::{Method, RenderJob};
+use prismbake::render::lookdev::{self, FrameRenderer, LookdevOptions, LookdevSummary};
+use prismbake::render::{Aov, AovImage, RenderSettings};
 use prismbake::trace::pdm::PdmOptions;
 use prismbake::{Error, Result};
+use std::path::PathBuf;
+use std::sync::Mutex;
 use std::time::Instant;
 
-/// Run `job` on `ctx`'s adapter; `progress(frame_index, rows_done)` reports progress.
+/// Frames of one job on one adapter: the uploaded scene, the PDM options, and the lighting
+/// (uploaded with the first beauty frame, its environment kept for the following frames).
+pub struct GpuFrames<'a> {
+    ctx: &'a GpuContext,
+    scene: &'a GpuScene,
+    opts: PdmOptions,
+    /// `--env`, for error messages about the environment.
+    env_path: Option<PathBuf>,
+    lighting: Mutex<Option<GpuBeautyScene>>,
+}
+
+impl<'a> GpuFrames<'a> {
+    pub fn new(
+        ctx: &'a GpuContext,
+        scene: &'a GpuScene,
+        opts: PdmOptions,
+        env_path: Option<PathBuf>,
+    ) -> Self {
+        GpuFrames {
+            ctx,
+            scene,
+            opts,
+            env_path,
+            lighting: Mutex::new(None),
+        }
+    }
+}
+
+impl FrameRenderer for GpuFrames<'_> {
+    fn device(&self) -> String {
+        format!("gpu ({})", self.ctx.adapter_description())
+    }
+
+    fn memory_bytes(&self) -> usize {
+        self.scene.method_bytes() as usize
+    }
+
+    fn render_aovs(
+        &self,
+        cam: &Camera,
+        settings: &RenderSettings,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<AovImage> {
+        render_aovs(self.ctx, self.scene, cam, settings, &self.opts, &|r| {
+            progress(r)
+        })
+        .map_err(gpu_err)
+    }
+
+    fn render_beauty(
+        &self,
+        cam: &Camera,
+        settings: &RenderSettings,
+        scene: &BeautyScene,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<BeautyImage> {
+        let mut lighting = self.lighting.lock().unwrap_or_else(|e| e.into_inner());
+        match lighting.as_ref() {
+            Some(l) if l.serves(scene.env) => l.update(self.ctx, scene),
+            _ => {
+                let l =
+                    GpuBeautyScene::upload(self.ctx, scene).map_err(|e| match &self.env_path {
+                        Some(p) => Error::invalid(p, format!("gpu: {e}")),
+                        None => gpu_err(e),
+                    })?;
+                *lighting = Some(l);
+            }
+        }
+        let l = lighting.as_ref().expect("uploaded above");
+        render_beauty(self.ctx, self.scene, l, cam, settings, &self.opts, &|r| {
+            progress(r)
+        })
+        .map_err(gpu_err)
+    }
+}
+
+/// Run a lookdev job (AOVs and/or beauty, stills or turntables) on `ctx`'s adapter;
+/// `progress(frame_index, rows_done)` reports progress. The same outputs as
+/// `lookdev::run` on the CPU, up to float rounding.
 pub fn run(
     ctx: &GpuContext,
     job: &RenderJob,
+    look: &LookdevOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
-) -> Result<RenderSummary> {
-    job.validate()?;
+) -> Result<LookdevSummary> {
     if job.method.method != Method::Pdm {
         return Err(Error::Param(
             format!(
@@ -29,62 +112,24 @@ pub fn run(
             .to_lowercase(),
         ));
     }
-    prepare_out_dir(&job.out_dir)?;
-    let t0 = Instant::now();
-    let loaded = load_input(&job.input, &job.repair)?;
-    let cam0 = base_camera(
-        &loaded,
-        &job.camera,
-        job.settings.width as f32 / job.settings.height as f32,
-    );
-    let scene = Scene::new(loaded.table, loaded.map);
-    let gpu_scene = GpuScene::upload(ctx, &scene).map_err(gpu_err)?;
+    let session = lookdev::open(job, look)?;
+    let t = Instant::now();
+    let scene = GpuScene::upload(ctx, session.scene()).map_err(gpu_err)?;
+    if job.aovs.contains(&Aov::Beauty) {
+        ctx.prepare_beauty().map_err(gpu_err)?;
+    }
+    // Upload and (for beauty) kernel compilation count as setup, as loading and baking do.
+    let upload_seconds = t.elapsed().as_secs_f64();
     let opts = PdmOptions {
         normal_mode: job.method.normal_mode,
         ..job.method.pdm
     };
-    let frames: Vec<Option<u32>> = match job.turntable {
-        None => vec![None],
-        Some(n) => {
-            let (a, b) = job.frames.unwrap_or((0, n - 1));
-            (a..=b).map(Some).collect()
-        }
-    };
-    let mut summary = RenderSummary {
-        method: job.method.method,
-        device: format!("gpu ({})", ctx.adapter_description()),
-        prisms: scene.table.prisms.len(),
-        setup_seconds: t0.elapsed().as_secs_f64(),
-        method_memory_bytes: gpu_scene.method_bytes() as usize,
-        frames: vec![],
-        files: vec![],
-    };
-    for (i, frame) in frames.iter().enumerate() {
-        let cam = match (frame, job.turntable) {
-            (Some(f), Some(n)) => cam0.turntable(*f, n),
-            _ => cam0,
-        };
-        let t = Instant::now();
-        let img = render_aovs(ctx, &gpu_scene, &cam, &job.settings, &opts, &|rows| {
-            progress(i, rows)
-        })
-        .map_err(gpu_err)?;
-        let seconds = t.elapsed().as_secs_f64();
-        summary
-            .files
-            .extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
-        summary.frames.push(FrameStats {
-            frame: *frame,
-            seconds,
-            rays: img.rays,
-            mrays_per_s: img.rays as f64 / seconds / 1e6,
-            steps_per_ray: img.total_steps as f64 / img.rays.max(1) as f64,
-            coverage: img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64,
-        });
-    }
+    let frames = GpuFrames::new(ctx, &scene, opts, look.env.clone());
+    let mut summary = lookdev::render_all(job, look, &session, &frames, progress)?;
+    summary.render.setup_seconds += upload_seconds;
     Ok(summary)
 }
 
-fn gpu_err(e: crate::GpuError) -> Error {
+fn gpu_err(e: GpuError) -> Error {
     Error::Param(format!("gpu: {e}"))
 }

@@ -12,7 +12,7 @@ pub const NO_PRISM: u32 = prismbake::trace::NO_PRISM;
 /// The shaders' stand-in for `f32::INFINITY` (WGSL lets an implementation assume that no
 /// infinities occur at run time, so `t_max = ∞` is this large finite value on the GPU).
 pub const T_FAR: f32 = 3.0e38;
-/// Compute workgroup edge: the AOV kernel runs `@workgroup_size(8, 8)`; the host dispatches
+/// Compute workgroup edge: both kernels run `@workgroup_size(8, 8)`; the host dispatches
 /// `div_ceil(tile, WORKGROUP)` groups per axis.
 pub const WORKGROUP: u32 = 8;
 
@@ -90,22 +90,76 @@ pub struct GpuFrame {
     pub refine: u32,
     /// 0 = smooth, 1 = geometric (`NormalMode`).
     pub normal_mode: u32,
-    pub _pad: u32,
+    /// The one sample a dispatch renders (both kernels accumulate over dispatches).
+    pub sample_index: u32,
 }
 
-/// One pixel of AOVs as the kernel writes it, 48 bytes. `steps_sum` is the sum over samples
-/// (the CPU's accumulator); the host divides by spp.
+/// One pixel of AOV sums over the samples rendered so far, 48 bytes (the CPU's per-pixel
+/// accumulator); the host divides and normalises them as the CPU does.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuAovPixel {
-    pub normal: [f32; 3],
-    pub depth: f32,
-    pub uv: [f32; 2],
-    pub mask: f32,
+    pub normal_sum: [f32; 3],
+    pub depth_sum: f32,
+    pub uv_sum: [f32; 2],
+    /// Samples that hit (the CPU's `hits`; a float, exact below 2^24).
+    pub hits: f32,
     pub steps_sum: f32,
     /// Prism id + 1 of the first sample that hit, 0 = miss (the `prism` AOV's convention).
     pub prism: u32,
     pub _pad: [u32; 3],
+}
+
+/// Everything the beauty kernel needs besides the scene and the environment tables, 112 bytes
+/// (uniform): `prismbake::render::beauty::BeautyScene` with its `Material`, and the
+/// environment's size, total weight and frame (the rotation's sine and cosine computed on the
+/// host, as `env::world_to_env` / `env_to_world` compute them).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLighting {
+    pub key_dir: [f32; 3],
+    pub key_irradiance: f32,
+    pub base_color: [f32; 3],
+    pub roughness: f32,
+    pub ground_up: [f32; 3],
+    pub ground_height: f32,
+    pub metallic: f32,
+    pub specular: f32,
+    /// Ray origin offset (`beauty::scene_epsilon`).
+    pub eps: f32,
+    pub bounces: u32,
+    pub has_key: u32,
+    pub has_ground: u32,
+    /// 0: the environment is black (`BeautyScene::env_lights`), no environment rays.
+    pub env_lights: u32,
+    pub env_z_up: u32,
+    pub env_width: u32,
+    pub env_height: u32,
+    pub env_total_weight: f32,
+    /// `(-rotation).sin_cos()`, for `world_to_env`.
+    pub env_to_sin: f32,
+    pub env_to_cos: f32,
+    /// `rotation.sin_cos()`, for `env_to_world`.
+    pub env_from_sin: f32,
+    pub env_from_cos: f32,
+    pub _pad: u32,
+}
+
+/// One pixel's running beauty sums as the kernel accumulates them over samples, 64 bytes:
+/// `prismbake::render::beauty::PixelSums` plus the pixel's ray counts (`BeautyCounters`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBeautySums {
+    pub radiance: [f32; 3],
+    pub surface: f32,
+    pub background: [f32; 3],
+    pub ground_samples: f32,
+    pub ground_background: [f32; 3],
+    pub ground_lit: f32,
+    pub ground_unshadowed: f32,
+    pub rays: u32,
+    pub key_shadow_rays: u32,
+    pub env_shadow_rays: u32,
 }
 
 const _: () = {
@@ -115,6 +169,8 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
+    assert!(std::mem::size_of::<GpuLighting>() == 112);
+    assert!(std::mem::size_of::<GpuBeautySums>() == 64);
 };
 
 /// One shared struct as the layout test sees it: WGSL name, Rust size, `(member, offset)`s.
@@ -191,19 +247,61 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 jitter,
                 refine,
                 normal_mode,
-                _pad
+                sample_index
             }
         ),
         layout!(
             "AovPixel",
             GpuAovPixel {
-                normal,
-                depth,
-                uv,
-                mask,
+                normal_sum,
+                depth_sum,
+                uv_sum,
+                hits,
                 steps_sum,
                 prism,
                 _pad
+            }
+        ),
+        layout!(
+            "Lighting",
+            GpuLighting {
+                key_dir,
+                key_irradiance,
+                base_color,
+                roughness,
+                ground_up,
+                ground_height,
+                metallic,
+                specular,
+                eps,
+                bounces,
+                has_key,
+                has_ground,
+                env_lights,
+                env_z_up,
+                env_width,
+                env_height,
+                env_total_weight,
+                env_to_sin,
+                env_to_cos,
+                env_from_sin,
+                env_from_cos,
+                _pad
+            }
+        ),
+        layout!(
+            "BeautySums",
+            GpuBeautySums {
+                radiance,
+                surface,
+                background,
+                ground_samples,
+                ground_background,
+                ground_lit,
+                ground_unshadowed,
+                rays,
+                key_shadow_rays,
+                env_shadow_rays
             }
         ),
     ]
@@ -224,8 +322,14 @@ mod tests {
         assert_eq!(offset_of!(GpuFrame, tile_origin), 64);
         assert_eq!(offset_of!(GpuFrame, spp), 80);
         assert_eq!(offset_of!(GpuFrame, jitter), 96);
-        assert_eq!(offset_of!(GpuAovPixel, uv), 16);
+        assert_eq!(offset_of!(GpuAovPixel, uv_sum), 16);
         assert_eq!(offset_of!(GpuAovPixel, prism), 32);
         assert_eq!(offset_of!(GpuPrism, texel_world), 32);
+        assert_eq!(offset_of!(GpuLighting, base_color), 16);
+        assert_eq!(offset_of!(GpuLighting, ground_up), 32);
+        assert_eq!(offset_of!(GpuLighting, metallic), 48);
+        assert_eq!(offset_of!(GpuBeautySums, background), 16);
+        assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
+        assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);
     }
 }

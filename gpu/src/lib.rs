@@ -1,22 +1,30 @@
 //! prismbake on the GPU: wgpu compute kernels that trace the same displaced surface as the CPU
 //! renderer, with the same hit records and the same random numbers.
 //!
-//! * `GpuContext::new()` — adapter, device, pipelines and persistent buffers, built once. Any
-//!   wgpu adapter works, software ones included (Mesa's lavapipe is what CI uses).
+//! * `GpuContext::new()` — adapter, device, the AOV pipeline and persistent buffers, built
+//!   once (the beauty pipeline on first use). Any wgpu adapter works, software ones included
+//!   (Mesa's lavapipe is what CI uses).
 //! * `GpuScene::upload(&ctx, &scene)` — prisms, vertices, a BVH2 over the CPU's prism boxes,
 //!   the height map.
 //! * `render_aovs(&ctx, &gpu_scene, &camera, &settings, &pdm_options, progress)` — one frame of
 //!   AOVs as `prismbake::render::AovImage`, so `render::output::write_frame` writes it.
-//! * `job::run` — a whole `RenderJob` (frames, turntables, files) on the GPU.
+//! * `GpuBeautyScene::upload(&ctx, &beauty_scene)` and `render_beauty(..)` — one beauty frame
+//!   as `prismbake::render::beauty::BeautyImage` (`render::output::write_beauty`).
+//! * `job::run` — a whole lookdev job (AOVs, beauty, turntables, contact sheets, the table
+//!   cache) through `prismbake::render::lookdev`, with `job::GpuFrames` as its renderer.
 //!
 //! The shaders (`shaders/*.wgsl`, one per stage) mirror the CPU function by function under the
 //! same names: `pcg_hash`/`hash_counters` (rng), `camera_ray` (`Camera::ray`), `sample_map`
 //! (`HeightMap::sample`), `surface_point`, `project_to_prism` (canonical),
-//! `ray_prism_interval` (prism_hit), `intersect_prism`, `march_levels`, `level_cubic`,
-//! `level_at`, `level_sample`, `level_crossing`, `refine_levels`, `flat_hit`, `fill_surface`,
-//! `intersect` (pdm) and `render_aovs`
-//! (render). Parity is tested image against image (`tests/parity.rs`); see docs/gpu.md.
+//! `ray_prism_interval`, `cap_planes_reject` (prism_hit), `intersect_prism`, `march_levels`,
+//! `level_cubic`, `level_at`, `level_track`, `level_sample`, `level_crossing`,
+//! `refine_levels`, `flat_hit`, `fill_surface`, `intersect`, `occluded` (pdm),
+//! `closest_hit`, `any_hit` (accel), `env_sample`, `env_pdf`, `env_radiance` (env),
+//! `bsdf_sample`, `bsdf_eval`, `bsdf_pdf`, `power_heuristic` (shading), `trace_sample`,
+//! `ground_hit` (beauty) and the entry points `render_aovs` and `render_beauty`. Parity is
+//! tested image against image (`tests/parity.rs`, `tests/beauty.rs`); see docs/gpu.md.
 
+pub mod beauty;
 pub mod context;
 pub mod job;
 pub mod layout;
@@ -24,6 +32,7 @@ pub mod render;
 pub mod scene;
 pub mod shaders;
 
+pub use beauty::{render_beauty, GpuBeautyScene};
 pub use context::GpuContext;
 pub use render::render_aovs;
 pub use scene::GpuScene;
@@ -37,11 +46,15 @@ pub enum GpuError {
     Device(String),
     #[error("shader or pipeline rejected by wgpu: {0}")]
     Shader(String),
-    #[error("{what}: {bytes} bytes exceed this GPU's storage-binding limit of {limit} bytes; use --device cpu or a smaller asset")]
+    #[error(
+        "{what}: {bytes} bytes exceed this GPU's storage-binding limit of {limit} bytes; {fix}"
+    )]
     TooLarge {
         what: &'static str,
         bytes: u64,
         limit: u64,
+        /// What to do about it.
+        fix: &'static str,
     },
     #[error("not supported on the GPU: {0}")]
     Unsupported(String),

@@ -1,6 +1,7 @@
 //! `render_aovs` on the GPU: the mirror of `prismbake::render::render_aovs`, returning the same
-//! `AovImage`. The image is dispatched in tiles of at most `MAX_TILE`² pixels; each tile
-//! writes its uniform, dispatches `div_ceil(tile, WORKGROUP)` workgroups and reads back.
+//! `AovImage`. Both kernels (AOVs, beauty) render one sample per dispatch into per-pixel sums
+//! (`render_samples`): tiles of at most `MAX_TILE`² pixels, each cleared, dispatched `spp`
+//! times and read back.
 
 use crate::context::{GpuContext, MAX_TILE};
 use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
@@ -51,8 +52,86 @@ pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> Gpu
             NormalMode::Smooth => 0,
             NormalMode::Geometric => 1,
         },
-        _pad: 0,
+        sample_index: 0,
     }
+}
+
+/// One kernel's dispatch over a frame: its pipeline, bind groups 1.. (group 0 is the scene)
+/// and the output buffer its group 1 writes (`T` per pixel of a tile).
+pub(crate) struct Kernel<'a> {
+    pub pipeline: &'a wgpu::ComputePipeline,
+    pub groups: &'a [&'a wgpu::BindGroup],
+    pub output: &'a wgpu::Buffer,
+    pub label: &'static str,
+}
+
+/// Render a frame with a sample-accumulating kernel: per tile of at most `MAX_TILE`², clear
+/// the output, dispatch `div_ceil(tile, WORKGROUP)` workgroups once per sample (the frame
+/// uniform's `sample_index`; written before each submission, so each dispatch sees its own),
+/// read the tile back into `pixels` (row-major, the whole frame). `progress` gets rows
+/// finished, scaled over the samples of every tile.
+pub(crate) fn render_samples<T: bytemuck::Pod>(
+    ctx: &GpuContext,
+    scene: &GpuScene,
+    kernel: &Kernel,
+    base: GpuFrame,
+    pixels: &mut [T],
+    progress: &dyn Fn(usize),
+) -> Result<(), GpuError> {
+    let (w, h, spp) = (base.width, base.height, base.spp);
+    let tiles: Vec<(u32, u32)> = (0..h)
+        .step_by(MAX_TILE as usize)
+        .flat_map(|ty| (0..w).step_by(MAX_TILE as usize).map(move |tx| (tx, ty)))
+        .collect();
+    let passes = tiles.len() as u64 * spp as u64;
+    let mut done = 0u64;
+    let encoder = |label| {
+        ctx.device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
+    };
+    for &(tx, ty) in &tiles {
+        let (tw, th) = ((w - tx).min(MAX_TILE), (h - ty).min(MAX_TILE));
+        let bytes = (tw * th) as u64 * std::mem::size_of::<T>() as u64;
+        let mut clear = encoder("clear tile");
+        clear.clear_buffer(kernel.output, 0, Some(bytes));
+        ctx.queue.submit([clear.finish()]);
+        for sample in 0..spp {
+            let frame = GpuFrame {
+                tile_origin: [tx, ty],
+                tile_size: [tw, th],
+                sample_index: sample,
+                ..base
+            };
+            ctx.queue
+                .write_buffer(&ctx.frame_buffer, 0, bytemuck::bytes_of(&frame));
+            let mut enc = encoder(kernel.label);
+            {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(kernel.label),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(kernel.pipeline);
+                pass.set_bind_group(0, &scene.group, &[]);
+                for (i, g) in kernel.groups.iter().enumerate() {
+                    pass.set_bind_group(i as u32 + 1, *g, &[]);
+                }
+                pass.dispatch_workgroups(tw.div_ceil(WORKGROUP), th.div_ceil(WORKGROUP), 1);
+            }
+            ctx.queue.submit([enc.finish()]);
+            ctx.wait()?;
+            done += 1;
+            progress((done * h as u64 / passes) as usize);
+        }
+        ctx.read_back(encoder("read-back"), kernel.output, bytes, |data| {
+            let tile: &[T] = bytemuck::cast_slice(data);
+            for row in 0..th {
+                let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
+                let dst = ((ty + row) * w + tx) as usize;
+                pixels[dst..dst + tw as usize].copy_from_slice(src);
+            }
+        })?;
+    }
+    Ok(())
 }
 
 /// Render one frame of AOVs with PDM on the GPU (the same image as the CPU's `render_aovs`
@@ -66,6 +145,28 @@ pub fn render_aovs(
     opts: &PdmOptions,
     progress: &dyn Fn(usize),
 ) -> Result<AovImage, GpuError> {
+    check_render(s, opts)?;
+    let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+    let mut pixels = vec![GpuAovPixel::default(); (s.width * s.height) as usize];
+    let kernel = Kernel {
+        pipeline: &ctx.aov_pipeline,
+        groups: &[&ctx.aov_group],
+        output: &ctx.aov_buffer,
+        label: "render_aovs",
+    };
+    render_samples(
+        ctx,
+        scene,
+        &kernel,
+        frame_uniform(cam, s, opts),
+        &mut pixels,
+        progress,
+    )?;
+    Ok(to_image(&pixels, s))
+}
+
+/// What every GPU render refuses: the CPU-only PDM construction and an empty image.
+pub(crate) fn check_render(s: &RenderSettings, opts: &PdmOptions) -> Result<(), GpuError> {
     if opts.construction != Construction::SharedWall {
         return Err(GpuError::Unsupported(
             "the parallel-offset PDM construction is a CPU-only measurement mode".into(),
@@ -77,52 +178,11 @@ pub fn render_aovs(
             s.width, s.height, s.spp
         )));
     }
-    let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-    let (w, h) = (s.width, s.height);
-    let n = (w * h) as usize;
-    let mut pixels = vec![GpuAovPixel::default(); n];
-    let base = frame_uniform(cam, s, opts);
-    for ty in (0..h).step_by(MAX_TILE as usize) {
-        for tx in (0..w).step_by(MAX_TILE as usize) {
-            let (tw, th) = ((w - tx).min(MAX_TILE), (h - ty).min(MAX_TILE));
-            let frame = GpuFrame {
-                tile_origin: [tx, ty],
-                tile_size: [tw, th],
-                ..base
-            };
-            ctx.queue
-                .write_buffer(&ctx.frame_buffer, 0, bytemuck::bytes_of(&frame));
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("aov tile"),
-                });
-            {
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("render_aovs"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(&ctx.aov_pipeline);
-                pass.set_bind_group(0, &scene.group, &[]);
-                pass.set_bind_group(1, &ctx.aov_group, &[]);
-                pass.dispatch_workgroups(tw.div_ceil(WORKGROUP), th.div_ceil(WORKGROUP), 1);
-            }
-            let bytes = (tw * th) as u64 * std::mem::size_of::<GpuAovPixel>() as u64;
-            ctx.read_back(encoder, bytes, |data| {
-                let tile: &[GpuAovPixel] = bytemuck::cast_slice(data);
-                for row in 0..th {
-                    let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
-                    let dst = ((ty + row) * w + tx) as usize;
-                    pixels[dst..dst + tw as usize].copy_from_slice(src);
-                }
-            })?;
-            progress(((ty + th) as usize).min(h as usize));
-        }
-    }
-    Ok(to_image(&pixels, s))
+    Ok(())
 }
 
-/// Unpack kernel output into the CPU's `AovImage` (steps divided by spp as the CPU does).
+/// Turn the kernel's sums into the CPU's `AovImage` exactly as the CPU does (mean depth and
+/// uv over hits, normalised normal sum, hits / spp, steps / spp).
 fn to_image(pixels: &[GpuAovPixel], s: &RenderSettings) -> AovImage {
     let n = pixels.len();
     let mut img = AovImage {
@@ -138,10 +198,13 @@ fn to_image(pixels: &[GpuAovPixel], s: &RenderSettings) -> AovImage {
         total_steps: 0,
     };
     for p in pixels {
-        img.depth.push(p.depth);
-        img.normal.push(Vec3::from_array(p.normal));
-        img.mask.push(p.mask);
-        img.uv.push(Vec2::from_array(p.uv));
+        let k = p.hits.max(1.0);
+        img.depth
+            .push(if p.hits > 0.0 { p.depth_sum / k } else { 0.0 });
+        img.normal
+            .push(Vec3::from_array(p.normal_sum).normalize_or_zero());
+        img.mask.push(p.hits / s.spp as f32);
+        img.uv.push(Vec2::from_array(p.uv_sum) / k);
         img.steps.push(p.steps_sum / s.spp as f32);
         img.total_steps += p.steps_sum as u64;
         img.prism.push(p.prism as f32);

@@ -107,6 +107,7 @@ impl GpuScene {
                     what,
                     bytes: data.len() as u64,
                     limit,
+                    fix: "use --device cpu or a smaller asset",
                 });
             }
             bytes += data.len() as u64;

@@ -20,8 +20,14 @@ pub const CANONICAL: &str = include_str!("../../shaders/canonical.wgsl");
 pub const PDM: &str = include_str!("../../shaders/pdm.wgsl");
 /// The AOV kernel (mirror of `prismbake::render::render_aovs`).
 pub const AOV: &str = include_str!("../../shaders/aov.wgsl");
+/// The environment light (mirror of `prismbake::render::env`).
+pub const ENV: &str = include_str!("../../shaders/env.wgsl");
+/// Material, BSDF sampling, MIS weights (mirror of `prismbake::render::shading`).
+pub const SHADING: &str = include_str!("../../shaders/shading.wgsl");
+/// The beauty kernel (mirror of `prismbake::render::beauty`).
+pub const BEAUTY: &str = include_str!("../../shaders/beauty.wgsl");
 
-/// Every stage but the entry points: what any kernel (AOVs now, beauty later) builds on.
+/// Every stage but the entry points and the lighting: what every kernel builds on.
 pub const LIBRARY: [&str; 8] = [
     COMMON, RNG, CAMERA, HEIGHTMAP, BVH, PRISM_HIT, CANONICAL, PDM,
 ];
@@ -31,5 +37,16 @@ pub fn aov_module_source() -> String {
     let mut s = LIBRARY.join("\n");
     s.push('\n');
     s.push_str(AOV);
+    s
+}
+
+/// The beauty module: the library, the environment, the material and `beauty.wgsl` (entry
+/// point `render_beauty`).
+pub fn beauty_module_source() -> String {
+    let mut s = LIBRARY.join("\n");
+    for part in [ENV, SHADING, BEAUTY] {
+        s.push('\n');
+        s.push_str(part);
+    }
     s
 }

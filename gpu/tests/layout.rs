@@ -1,19 +1,30 @@
 //! The host structs and the WGSL agree byte for byte: naga (wgpu's own copy) parses the shader
-//! module and reports each struct's member offsets and size, which must equal `offset_of!` /
-//! `size_of` on the Rust side; the sentinels must have the same values on both sides; and the
-//! whole module must pass naga's validator. Breaks on any one-sided edit of a shared struct.
+//! modules and reports each struct's member offsets and size, which must equal `offset_of!` /
+//! `size_of` on the Rust side; the sentinels and constants must have the same values on both
+//! sides; and both modules (AOV, beauty) must pass naga's validator. Breaks on any one-sided
+//! edit of a shared struct or constant.
 
 use prismbake_gpu::{layout, shaders};
 use wgpu::naga;
 
+fn parse(src: &str) -> naga::Module {
+    naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(src)))
+}
+
+/// The AOV module (library + aov.wgsl).
 fn module() -> naga::Module {
-    let src = shaders::aov_module_source();
-    naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&src)))
+    parse(&shaders::aov_module_source())
+}
+
+/// The beauty module (library + env, shading, beauty).
+fn beauty_module() -> naga::Module {
+    parse(&shaders::beauty_module_source())
 }
 
 #[test]
 fn shared_structs_have_the_same_offsets_and_sizes_in_wgsl() {
-    let m = module();
+    // The beauty module holds every shared struct (common.wgsl is in both modules).
+    let m = beauty_module();
     for (name, rust_size, rust_members) in layout::shared_layouts() {
         let (_, ty) = m
             .types
@@ -74,18 +85,45 @@ fn sentinels_and_flags_are_mirrored() {
 }
 
 #[test]
-fn module_validates_and_states_the_host_workgroup_size() {
-    let m = module();
-    naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::default(),
-    )
-    .validate(&m)
-    .unwrap_or_else(|e| panic!("{e:?}"));
-    let ep = m
-        .entry_points
-        .iter()
-        .find(|e| e.name == "render_aovs")
-        .expect("entry point render_aovs");
-    assert_eq!(ep.workgroup_size, [layout::WORKGROUP, layout::WORKGROUP, 1]);
+fn beauty_constants_are_mirrored() {
+    let m = beauty_module();
+    use prismbake::render::{beauty, shading};
+    for (name, purpose) in [
+        ("PURPOSE_BSDF", prismbake::rng::Purpose::Bsdf),
+        ("PURPOSE_LIGHT", prismbake::rng::Purpose::Light),
+    ] {
+        assert_eq!(
+            constant(&m, name),
+            naga::Literal::U32(purpose as u32),
+            "{name}"
+        );
+    }
+    assert_eq!(constant(&m, "DIMS"), naga::Literal::U32(beauty::DIMS));
+    assert_eq!(
+        constant(&m, "MIRROR_ROUGHNESS"),
+        naga::Literal::F32(shading::MIRROR_ROUGHNESS)
+    );
+    assert_eq!(constant(&m, "PI"), naga::Literal::F32(shading::PI));
+    assert_eq!(constant(&m, "INV_PI"), naga::Literal::F32(shading::INV_PI));
+}
+
+#[test]
+fn modules_validate_and_state_the_host_workgroup_size() {
+    for (m, entry) in [
+        (module(), "render_aovs"),
+        (beauty_module(), "render_beauty"),
+    ] {
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&m)
+        .unwrap_or_else(|e| panic!("{entry}: {e:?}"));
+        let ep = m
+            .entry_points
+            .iter()
+            .find(|e| e.name == entry)
+            .unwrap_or_else(|| panic!("entry point {entry}"));
+        assert_eq!(ep.workgroup_size, [layout::WORKGROUP, layout::WORKGROUP, 1]);
+    }
 }

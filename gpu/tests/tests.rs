@@ -4,6 +4,7 @@
 
 mod util;
 
+mod beauty;
 mod layout;
 mod parity;
 mod rng;

@@ -28,8 +28,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Random dimensions per bounce: `rng`'s `bounce` counter is `bounce * DIMS + k`.
-const DIMS: u32 = 8;
+/// Random dimensions per bounce: `rng`'s `bounce` counter is `bounce * DIMS + k` (mirrored
+/// in `shaders/beauty.wgsl`).
+pub const DIMS: u32 = 8;
 
 /// A directional light: unit direction towards the light and its irradiance at normal incidence.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -110,16 +111,34 @@ pub struct BeautyImage {
     pub counters: BeautyCounters,
 }
 
-/// Per-pixel running sums over samples.
-#[derive(Clone, Copy, Default)]
-struct PixelSums {
-    radiance: Vec3,
-    surface: f32,
-    background: Vec3,
-    ground_background: Vec3,
-    ground_samples: f32,
-    ground_lit: f32,
-    ground_unshadowed: f32,
+/// Per-pixel running sums over samples (the GPU renderer accumulates the same sums and
+/// resolves them with `resolve`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelSums {
+    pub radiance: Vec3,
+    pub surface: f32,
+    pub background: Vec3,
+    pub ground_background: Vec3,
+    pub ground_samples: f32,
+    pub ground_lit: f32,
+    pub ground_unshadowed: f32,
+}
+
+impl PixelSums {
+    /// The pixel after `spp` samples: premultiplied linear RGBA (alpha = coverage plus the
+    /// catcher's shadow) and the background seen behind it.
+    pub fn resolve(&self, spp: u32) -> ([f32; 4], Vec3) {
+        let k = 1.0 / spp as f32;
+        let shadow = if self.ground_unshadowed > 0.0 {
+            (1.0 - self.ground_lit / self.ground_unshadowed).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let alpha = (self.surface + self.ground_samples * shadow) * k;
+        let c = self.radiance * k;
+        let bg = (self.background + self.ground_background * (1.0 - shadow)) * k;
+        ([c.x, c.y, c.z, alpha], bg)
+    }
 }
 
 /// What one camera sample saw.
@@ -405,21 +424,7 @@ pub fn render_beauty(
             counters.add(c);
         }
     }
-    let k = 1.0 / spp as f32;
-    let (rgba, background) = sums
-        .iter()
-        .map(|a| {
-            let shadow = if a.ground_unshadowed > 0.0 {
-                (1.0 - a.ground_lit / a.ground_unshadowed).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            let alpha = (a.surface + a.ground_samples * shadow) * k;
-            let c = a.radiance * k;
-            let bg = (a.background + a.ground_background * (1.0 - shadow)) * k;
-            ([c.x, c.y, c.z, alpha], bg)
-        })
-        .unzip();
+    let (rgba, background) = sums.iter().map(|a| a.resolve(spp)).unzip();
     BeautyImage {
         width: w as u32,
         height: h as u32,

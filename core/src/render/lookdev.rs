@@ -1,13 +1,17 @@
-//! Lookdev runs on the CPU: a `RenderJob` plus beauty settings → AOV and beauty frames,
-//! contact sheets for turntables, a cached prism table, and `watch` (re-render when the height
-//! map changes, re-baking only the prisms whose bounds no longer hold).
+//! Lookdev: a `RenderJob` plus beauty settings → AOV and beauty frames, contact sheets for
+//! turntables, a cached prism table, and `watch` (re-render when the height map changes,
+//! re-baking only the prisms whose bounds no longer hold).
+//!
+//! Frames are rendered by a `FrameRenderer`: the CPU intersectors here (`run`), or the GPU
+//! renderer (`prismbake-gpu`), which opens the same `Session` (loading, cache, camera,
+//! environment) and hands its renderer to the same `render_all` (frames, files, sheets).
 //!
 //! Only what the outputs need is computed: an AOV-only job builds no environment and shades
 //! nothing; a beauty job without `--key-light` casts no key-light shadow rays and a black
 //! environment casts no environment rays; the bake is skipped when the table cache holds a
 //! table made from the same inputs (`table_cache`, keyed by `asset::input_hash`).
 
-use super::beauty::{self, BeautyCounters, BeautyScene, Ground, KeyLight};
+use super::beauty::{self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight};
 use super::camera::Camera;
 use super::env::{EnvFrame, EnvMap};
 use super::job::{
@@ -15,7 +19,7 @@ use super::job::{
     RenderSummary,
 };
 use super::shading::Material;
-use super::{contact_sheet, output, render_aovs, Aov};
+use super::{contact_sheet, output, render_aovs, Aov, AovImage, RenderSettings};
 use crate::accel::Scene;
 use crate::asset;
 use crate::bake::{self, BakeOptions, RebakeStats};
@@ -25,6 +29,7 @@ use crate::load::{self, MapOptions};
 use crate::mesh::UpAxis;
 use crate::repair;
 use crate::table_cache;
+use crate::trace::Intersector;
 use glam::Vec3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -136,8 +141,63 @@ pub struct LookdevSummary {
     pub contact_sheets: Vec<PathBuf>,
 }
 
-/// A loaded job, kept between renders by `watch`.
-struct Session {
+/// What renders the frames of a lookdev job: the CPU (`CpuFrames`, any intersector) or a GPU.
+/// Both get the same cameras, settings and `BeautyScene` from `render_all`.
+pub trait FrameRenderer {
+    /// "cpu (2 threads)", "gpu (adapter name ...)": the summary's `device`.
+    fn device(&self) -> String;
+    /// Bytes the method holds beyond mesh and map (`Intersector::memory_bytes`).
+    fn memory_bytes(&self) -> usize;
+    /// One frame of AOVs; `progress` gets the rows finished so far.
+    fn render_aovs(
+        &self,
+        cam: &Camera,
+        settings: &RenderSettings,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<AovImage>;
+    /// One beauty frame; `progress` gets the rows finished so far (scaled over the samples).
+    fn render_beauty(
+        &self,
+        cam: &Camera,
+        settings: &RenderSettings,
+        scene: &BeautyScene,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<BeautyImage>;
+}
+
+/// The CPU renderer over any intersector (rayon).
+pub struct CpuFrames<'a>(pub &'a dyn Intersector);
+
+impl FrameRenderer for CpuFrames<'_> {
+    fn device(&self) -> String {
+        format!("cpu ({} threads)", rayon::current_num_threads())
+    }
+    fn memory_bytes(&self) -> usize {
+        self.0.memory_bytes()
+    }
+    fn render_aovs(
+        &self,
+        cam: &Camera,
+        settings: &RenderSettings,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<AovImage> {
+        Ok(render_aovs(self.0, cam, settings, progress))
+    }
+    fn render_beauty(
+        &self,
+        cam: &Camera,
+        settings: &RenderSettings,
+        scene: &BeautyScene,
+        progress: &(dyn Fn(usize) + Sync),
+    ) -> Result<BeautyImage> {
+        Ok(beauty::render_beauty(
+            self.0, cam, settings, scene, progress,
+        ))
+    }
+}
+
+/// A loaded job (scene, camera, environment, cache outcome), kept between renders by `watch`.
+pub struct Session {
     scene: Scene,
     cam0: Camera,
     up_axis: UpAxis,
@@ -207,7 +267,16 @@ fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option
     ))
 }
 
-fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
+impl Session {
+    /// The scene to trace (what a GPU renderer uploads).
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+}
+
+/// Validate the job, prepare the output folder, load the input through the table cache and
+/// build the camera and (for beauty) the environment.
+pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     job.validate()?;
     opts.validate()?;
     prepare_out_dir(&job.out_dir)?;
@@ -278,11 +347,13 @@ pub fn frame_list(job: &RenderJob) -> Vec<Option<u32>> {
     }
 }
 
-/// Render every frame of the job from a loaded session and write its files.
-fn render_all(
+/// Render every frame of the job from a loaded session with `renderer` and write its files
+/// (frames, contact sheets).
+pub fn render_all(
     job: &RenderJob,
     opts: &LookdevOptions,
     s: &Session,
+    renderer: &dyn FrameRenderer,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
     let frames = frame_list(job);
@@ -329,97 +400,106 @@ fn render_all(
         bounces: opts.bounces,
         eps: beauty::scene_epsilon(lo, hi),
     };
-    with_intersector(&job.method, &s.scene, |isect| {
-        let mut summary = LookdevSummary {
-            render: RenderSummary {
-                method: job.method.method,
-                device: format!("cpu ({} threads)", rayon::current_num_threads()),
-                prisms: s.scene.table.prisms.len(),
-                setup_seconds: s.setup_seconds,
-                method_memory_bytes: isect.memory_bytes(),
-                frames: vec![],
-                files: vec![],
-            },
-            table_cache: s.cache.clone(),
-            beauty_rays: BeautyCounters::default(),
-            shadow_rays: 0,
-            contact_sheets: vec![],
+    let mut summary = LookdevSummary {
+        render: RenderSummary {
+            method: job.method.method,
+            device: renderer.device(),
+            prisms: s.scene.table.prisms.len(),
+            setup_seconds: s.setup_seconds,
+            method_memory_bytes: renderer.memory_bytes(),
+            frames: vec![],
+            files: vec![],
+        },
+        table_cache: s.cache.clone(),
+        beauty_rays: BeautyCounters::default(),
+        shadow_rays: 0,
+        contact_sheets: vec![],
+    };
+    let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
+        job.aovs.iter().map(|a| (*a, Vec::new())).collect();
+    let (w, h) = (job.settings.width, job.settings.height);
+    for (i, frame) in frames.iter().enumerate() {
+        let cam = match (frame, job.turntable) {
+            (Some(f), Some(n)) => s.cam0.turntable(*f, n),
+            _ => s.cam0,
         };
-        let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
-            job.aovs.iter().map(|a| (*a, Vec::new())).collect();
-        let (w, h) = (job.settings.width, job.settings.height);
-        for (i, frame) in frames.iter().enumerate() {
-            let cam = match (frame, job.turntable) {
-                (Some(f), Some(n)) => s.cam0.turntable(*f, n),
-                _ => s.cam0,
-            };
-            let t = Instant::now();
-            let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
-            if !aov_list.is_empty() {
-                let report = |rows: usize| {
-                    if !want_beauty {
-                        progress(i, rows)
-                    }
-                };
-                let img = render_aovs(isect, &cam, &job.settings, &report);
-                summary.render.files.extend(output::write_frame(
-                    &job.out_dir,
-                    &img,
-                    &aov_list,
-                    *frame,
-                )?);
-                rays += img.rays;
-                steps += img.total_steps;
-                coverage = img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64;
-                if job.turntable.is_some() {
-                    for (aov, list) in previews.iter_mut().filter(|(a, _)| *a != Aov::Beauty) {
-                        list.push(output::preview(&img, *aov));
-                    }
-                }
-            }
-            if want_beauty {
-                let img = beauty::render_beauty(isect, &cam, &job.settings, &bscene, &|rows| {
+        let t = Instant::now();
+        let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
+        if !aov_list.is_empty() {
+            let report = |rows: usize| {
+                if !want_beauty {
                     progress(i, rows)
-                });
-                summary
-                    .render
-                    .files
-                    .extend(output::write_beauty(&job.out_dir, &img, *frame)?);
-                rays += img.counters.rays + img.counters.shadow_rays();
-                if aov_list.is_empty() {
-                    coverage =
-                        img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
                 }
-                summary.beauty_rays.rays += img.counters.rays;
-                summary.beauty_rays.key_shadow_rays += img.counters.key_shadow_rays;
-                summary.beauty_rays.env_shadow_rays += img.counters.env_shadow_rays;
-                if job.turntable.is_some() {
-                    if let Some((_, list)) = previews.iter_mut().find(|(a, _)| *a == Aov::Beauty) {
-                        list.push(beauty::beauty_preview(&img));
-                    }
+            };
+            let img = renderer.render_aovs(&cam, &job.settings, &report)?;
+            summary.render.files.extend(output::write_frame(
+                &job.out_dir,
+                &img,
+                &aov_list,
+                *frame,
+            )?);
+            rays += img.rays;
+            steps += img.total_steps;
+            coverage = img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64;
+            if job.turntable.is_some() {
+                for (aov, list) in previews.iter_mut().filter(|(a, _)| *a != Aov::Beauty) {
+                    list.push(output::preview(&img, *aov));
                 }
             }
-            let seconds = t.elapsed().as_secs_f64();
-            summary.render.frames.push(FrameStats {
-                frame: *frame,
-                seconds,
-                rays,
-                mrays_per_s: rays as f64 / seconds / 1e6,
-                steps_per_ray: steps as f64 / rays.max(1) as f64,
-                coverage,
-            });
         }
-        summary.shadow_rays = summary.beauty_rays.shadow_rays();
-        if job.turntable.is_some() {
-            for (aov, list) in &previews {
-                let path = job
-                    .out_dir
-                    .join(format!("{}_contact_sheet.png", aov.name()));
-                contact_sheet::write_contact_sheet(&path, list, w, h)?;
-                summary.contact_sheets.push(path);
+        if want_beauty {
+            let img =
+                renderer.render_beauty(&cam, &job.settings, &bscene, &|rows| progress(i, rows))?;
+            summary
+                .render
+                .files
+                .extend(output::write_beauty(&job.out_dir, &img, *frame)?);
+            rays += img.counters.rays + img.counters.shadow_rays();
+            if aov_list.is_empty() {
+                coverage =
+                    img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
+            }
+            summary.beauty_rays.rays += img.counters.rays;
+            summary.beauty_rays.key_shadow_rays += img.counters.key_shadow_rays;
+            summary.beauty_rays.env_shadow_rays += img.counters.env_shadow_rays;
+            if job.turntable.is_some() {
+                if let Some((_, list)) = previews.iter_mut().find(|(a, _)| *a == Aov::Beauty) {
+                    list.push(beauty::beauty_preview(&img));
+                }
             }
         }
-        Ok(summary)
+        let seconds = t.elapsed().as_secs_f64();
+        summary.render.frames.push(FrameStats {
+            frame: *frame,
+            seconds,
+            rays,
+            mrays_per_s: rays as f64 / seconds / 1e6,
+            steps_per_ray: steps as f64 / rays.max(1) as f64,
+            coverage,
+        });
+    }
+    summary.shadow_rays = summary.beauty_rays.shadow_rays();
+    if job.turntable.is_some() {
+        for (aov, list) in &previews {
+            let path = job
+                .out_dir
+                .join(format!("{}_contact_sheet.png", aov.name()));
+            contact_sheet::write_contact_sheet(&path, list, w, h)?;
+            summary.contact_sheets.push(path);
+        }
+    }
+    Ok(summary)
+}
+
+/// Render every frame of a loaded session on the CPU, with the intersector the job names.
+fn render_all_cpu(
+    job: &RenderJob,
+    opts: &LookdevOptions,
+    s: &Session,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
+    with_intersector(&job.method, &s.scene, |isect| {
+        render_all(job, opts, s, &CpuFrames(isect), progress)
     })
 }
 
@@ -430,7 +510,7 @@ pub fn run(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
     let session = open(job, opts)?;
-    render_all(job, opts, &session, progress)
+    render_all_cpu(job, opts, &session, progress)
 }
 
 /// The height map a job's input reads (what `watch` polls).
@@ -501,7 +581,7 @@ pub fn watch(
     // Taken before loading, so that an edit made while the first frame renders is not missed.
     let mut last = stamp(&map_path);
     let mut session = open(job, opts)?;
-    let mut summary = render_all(job, opts, &session, progress)?;
+    let mut summary = render_all_cpu(job, opts, &session, progress)?;
     log(&format!(
         "watching {} for changes (Ctrl-C to stop)",
         map_path.display()
@@ -540,7 +620,7 @@ pub fn watch(
             "kept"
         };
         let rebake_ms = detected.elapsed().as_secs_f64() * 1e3;
-        summary = render_all(job, opts, &session, progress)?;
+        summary = render_all_cpu(job, opts, &session, progress)?;
         count += 1;
         let event = WatchEvent {
             rebake,

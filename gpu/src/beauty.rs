@@ -1,0 +1,240 @@
+//! Beauty on the GPU: the mirror of `prismbake::render::beauty::render_beauty`, returning the
+//! same `BeautyImage` (so `render::output::write_beauty` writes it: linear RGBA EXR, filmic PNG).
+//!
+//! * `GpuBeautyScene::upload` — the lighting uniform (`GpuLighting`, from the CPU's
+//!   `BeautyScene`) and the environment: texels and the CPU's own sampling tables, uploaded as
+//!   they are (`env_tables`), so importance sampling picks the texels the CPU picks.
+//! * `render_beauty` — per tile: clear the running sums, one dispatch per sample (each
+//!   invocation renders one sample of its pixel and adds it to the sums, the CPU's order of
+//!   accumulation), read the sums back and resolve them with `PixelSums::resolve`.
+//!
+//! One sample per dispatch keeps an invocation's loop iterations (BVH walk, march, Newton)
+//! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
+
+use crate::context::GpuContext;
+use crate::layout::{GpuBeautySums, GpuLighting};
+use crate::render::{frame_uniform, render_samples, Kernel};
+use crate::scene::GpuScene;
+use crate::GpuError;
+use glam::Vec3;
+use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, PixelSums};
+use prismbake::render::camera::Camera;
+use prismbake::render::env::EnvMap;
+use prismbake::render::RenderSettings;
+use prismbake::trace::pdm::PdmOptions;
+use wgpu::util::DeviceExt;
+
+/// The lighting uniform of a beauty scene (everything but the environment's tables).
+pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
+    let env = s.env;
+    let (to_sin, to_cos) = (-env.frame.rotation).sin_cos();
+    let (from_sin, from_cos) = env.frame.rotation.sin_cos();
+    let key = s.key;
+    let ground = s.ground;
+    GpuLighting {
+        key_dir: key.map_or([0.0; 3], |k| k.dir.to_array()),
+        key_irradiance: key.map_or(0.0, |k| k.irradiance),
+        base_color: s.material.base_color.to_array(),
+        roughness: s.material.roughness,
+        ground_up: ground.map_or([0.0, 1.0, 0.0], |g| g.up.to_array()),
+        ground_height: ground.map_or(0.0, |g| g.height),
+        metallic: s.material.metallic,
+        specular: s.material.specular,
+        eps: s.eps,
+        bounces: s.bounces,
+        has_key: key.is_some() as u32,
+        has_ground: ground.is_some() as u32,
+        env_lights: s.env_lights as u32,
+        env_z_up: env.frame.z_up as u32,
+        env_width: env.width,
+        env_height: env.height,
+        env_total_weight: env.total_weight,
+        env_to_sin: to_sin,
+        env_to_cos: to_cos,
+        env_from_sin: from_sin,
+        env_from_cos: from_cos,
+        _pad: 0,
+    }
+}
+
+/// The environment as the kernel reads it (`shaders/env.wgsl`): `texels` 3 floats per texel,
+/// rows top to bottom; `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h),
+/// `conditional_cdf` (h (w + 1)) and `texel_weight` (w h), one after the other.
+pub struct EnvTables {
+    pub texels: Vec<f32>,
+    pub tables: Vec<f32>,
+}
+
+pub fn env_tables(env: &EnvMap) -> EnvTables {
+    let texels = env.texels.iter().flat_map(|c| c.to_array()).collect();
+    let mut tables = Vec::with_capacity(
+        env.marginal_cdf.len()
+            + env.row_weight.len()
+            + env.conditional_cdf.len()
+            + env.texel_weight.len(),
+    );
+    tables.extend_from_slice(&env.marginal_cdf);
+    tables.extend_from_slice(&env.row_weight);
+    tables.extend_from_slice(&env.conditional_cdf);
+    tables.extend_from_slice(&env.texel_weight);
+    EnvTables { texels, tables }
+}
+
+/// A `BeautyScene` on the GPU: bind group 2 of the beauty kernel.
+pub struct GpuBeautyScene {
+    pub(crate) group: wgpu::BindGroup,
+    uniform: wgpu::Buffer,
+    /// Address and size of the `EnvMap` the tables came from (what `serves` compares).
+    env_id: (usize, u32, u32),
+    bytes: u64,
+}
+
+impl GpuBeautyScene {
+    /// Upload the lighting and the environment. Fails with `GpuError::TooLarge` if the
+    /// environment's texels or tables exceed one storage binding (128 MiB on WebGPU
+    /// defaults: about 11 M texels, e.g. 4096 × 2048).
+    pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
+        let env = env_tables(s.env);
+        let limit = ctx.max_binding_bytes();
+        let mut bytes = 0u64;
+        let mut storage = |what: &'static str, data: &[f32]| -> Result<wgpu::Buffer, GpuError> {
+            let data: &[u8] = bytemuck::cast_slice(data);
+            if data.len() as u64 > limit {
+                return Err(GpuError::TooLarge {
+                    what,
+                    bytes: data.len() as u64,
+                    limit,
+                    fix: "use a smaller --env map or --device cpu",
+                });
+            }
+            bytes += data.len() as u64;
+            Ok(ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(what),
+                    contents: data,
+                    usage: wgpu::BufferUsages::STORAGE,
+                }))
+        };
+        let texels = storage("environment texels", &env.texels)?;
+        let tables = storage("environment sampling tables", &env.tables)?;
+        let uniform = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("lighting"),
+                contents: bytemuck::bytes_of(&lighting_uniform(s)),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("lighting"),
+            layout: &ctx.lighting_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: uniform.as_entire_binding(),
+                }, // lighting
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: texels.as_entire_binding(),
+                }, // env_texels
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: tables.as_entire_binding(),
+                }, // env_tables
+            ],
+        });
+        Ok(GpuBeautyScene {
+            group,
+            uniform,
+            env_id: env_id(s.env),
+            bytes,
+        })
+    }
+
+    /// Whether these tables were uploaded from `env` (a renderer re-uploads only the uniform
+    /// for the frames of one job).
+    pub fn serves(&self, env: &EnvMap) -> bool {
+        self.env_id == env_id(env)
+    }
+
+    /// Rewrite the lighting uniform (key light, material, ground, bounces) for `s`, whose
+    /// environment must be the one uploaded (`serves`).
+    pub fn update(&self, ctx: &GpuContext, s: &BeautyScene) {
+        debug_assert!(self.serves(s.env));
+        ctx.queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&lighting_uniform(s)));
+    }
+
+    /// Bytes uploaded (environment texels and tables).
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+}
+
+fn env_id(env: &EnvMap) -> (usize, u32, u32) {
+    (env as *const EnvMap as usize, env.width, env.height)
+}
+
+/// Render one beauty frame on the GPU: the CPU's `render_beauty` for the same scene, camera,
+/// settings and seed, up to float rounding. `opts` are the PDM options of the intersector
+/// (as `render_aovs` takes them). `progress` is called with rows finished, scaled over the
+/// samples of every tile.
+pub fn render_beauty(
+    ctx: &GpuContext,
+    scene: &GpuScene,
+    lighting: &GpuBeautyScene,
+    cam: &Camera,
+    s: &RenderSettings,
+    opts: &PdmOptions,
+    progress: &dyn Fn(usize),
+) -> Result<BeautyImage, GpuError> {
+    crate::render::check_render(s, opts)?;
+    let kernel = ctx.beauty_kernel()?;
+    let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+    let mut sums = vec![GpuBeautySums::default(); (s.width * s.height) as usize];
+    let dispatch = Kernel {
+        pipeline: &kernel.pipeline,
+        groups: &[&kernel.group, &lighting.group],
+        output: &kernel.sums_buffer,
+        label: "render_beauty",
+    };
+    render_samples(
+        ctx,
+        scene,
+        &dispatch,
+        frame_uniform(cam, s, opts),
+        &mut sums,
+        progress,
+    )?;
+    Ok(to_image(&sums, s))
+}
+
+/// Resolve the kernel's sums exactly as the CPU resolves its own (`PixelSums::resolve`).
+fn to_image(sums: &[GpuBeautySums], s: &RenderSettings) -> BeautyImage {
+    let mut counters = BeautyCounters::default();
+    let (rgba, background) = sums
+        .iter()
+        .map(|g| {
+            counters.rays += g.rays as u64;
+            counters.key_shadow_rays += g.key_shadow_rays as u64;
+            counters.env_shadow_rays += g.env_shadow_rays as u64;
+            PixelSums {
+                radiance: Vec3::from_array(g.radiance),
+                surface: g.surface,
+                background: Vec3::from_array(g.background),
+                ground_background: Vec3::from_array(g.ground_background),
+                ground_samples: g.ground_samples,
+                ground_lit: g.ground_lit,
+                ground_unshadowed: g.ground_unshadowed,
+            }
+            .resolve(s.spp)
+        })
+        .unzip();
+    BeautyImage {
+        width: s.width,
+        height: s.height,
+        rgba,
+        background,
+        counters,
+    }
+}

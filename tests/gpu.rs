@@ -1,0 +1,149 @@
+//! `render --device gpu|auto` end to end: a beauty turntable on the GPU (frames, contact sheet,
+//! the same picture as the CPU run), `auto` picking the GPU for beauty, and the prism-table
+//! cache shared by both paths. They need a wgpu adapter (lavapipe, Debian
+//! `mesa-vulkan-drivers`, on a machine without a GPU); without one they fail, on purpose.
+
+use crate::util::*;
+use std::path::Path;
+use std::process::Command;
+
+fn luminance(p: &[f32; 4]) -> f64 {
+    (0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]) as f64
+}
+
+/// Mean |Δ| over RGB of two beauty EXRs, relative to the first one's mean covered radiance.
+fn relative_difference(a: &Path, b: &Path) -> f64 {
+    let (a, b) = (read_rgba(a), read_rgba(b));
+    assert_eq!(a.len(), b.len());
+    let covered: Vec<f64> = a.iter().filter(|p| p[3] > 0.5).map(luminance).collect();
+    assert!(!covered.is_empty(), "the asset covers no pixel");
+    let scale = covered.iter().sum::<f64>() / covered.len() as f64;
+    let diff: f64 = a
+        .iter()
+        .zip(&b)
+        .map(|(p, q)| (0..3).map(|k| (p[k] - q[k]).abs() as f64).sum::<f64>())
+        .sum();
+    diff / (3 * a.len()) as f64 / scale
+}
+
+#[test]
+fn gpu_beauty_turntable_writes_every_frame_and_a_contact_sheet() {
+    let dir = temp_dir("gpu-turntable");
+    let sphere = example("sphere/sphere.glb");
+    let render = |device: &str, out: &Path| {
+        run(&[
+            "render",
+            s(&sphere),
+            "--device",
+            device,
+            "--aov",
+            "beauty",
+            "--turntable",
+            "4",
+            "--res",
+            "16x16",
+            "--spp",
+            "2",
+            "--key-light",
+            "30,40,2",
+            "--ground",
+            "--json",
+            "-o",
+            s(out),
+        ])
+        .assert_success()
+        .json()
+    };
+    let (gpu_out, cpu_out) = (dir.join("gpu"), dir.join("cpu"));
+    let gpu = render("gpu", &gpu_out);
+    assert!(
+        gpu["device"].as_str().unwrap().starts_with("gpu ("),
+        "{}",
+        gpu["device"]
+    );
+    let mut want: Vec<String> = (0..4)
+        .flat_map(|f| [format!("beauty_{f:04}.exr"), format!("beauty_{f:04}.png")])
+        .collect();
+    want.push("beauty_contact_sheet.png".into());
+    want.sort();
+    assert_eq!(files_in(&gpu_out), want);
+    let sheet = image::open(gpu_out.join("beauty_contact_sheet.png")).unwrap();
+    assert_eq!(
+        (sheet.width(), sheet.height()),
+        (32, 32),
+        "4 frames in a 2x2 grid"
+    );
+    assert_eq!(gpu["frames"].as_array().unwrap().len(), 4);
+    assert!(gpu["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
+    assert!(gpu["beauty_rays"]["env_shadow_rays"].as_u64().unwrap() > 0);
+
+    // The CPU renders the same job: the same ray counts (within 1%: a sample whose decision
+    // flips on rounding may trace other rays) and the same pictures up to float rounding
+    // (gpu/tests/beauty.rs measures ~1e-5; 1e-3 leaves room, a real divergence is ≫ 1%).
+    let cpu = render("cpu", &cpu_out);
+    assert_eq!(files_in(&cpu_out), want);
+    for kind in ["rays", "key_shadow_rays", "env_shadow_rays"] {
+        let (c, g) = (
+            cpu["beauty_rays"][kind].as_u64().unwrap() as f64,
+            gpu["beauty_rays"][kind].as_u64().unwrap() as f64,
+        );
+        assert!((c - g).abs() <= 0.01 * c, "{kind}: cpu {c} gpu {g}");
+    }
+    for f in 0..4 {
+        let name = format!("beauty_{f:04}.exr");
+        let d = relative_difference(&cpu_out.join(&name), &gpu_out.join(&name));
+        assert!(d <= 1e-3, "{name}: GPU vs CPU mean |Δ| {d:.2e}");
+    }
+    // Frames of a turntable see the asset from different sides.
+    assert!(
+        relative_difference(
+            &gpu_out.join("beauty_0000.exr"),
+            &gpu_out.join("beauty_0001.exr")
+        ) > 1e-3
+    );
+}
+
+#[test]
+fn auto_renders_beauty_on_the_gpu_from_the_cpu_table_cache() {
+    let dir = temp_dir("gpu-cache");
+    let cache = dir.join("cache");
+    let torus = example("torus/torus.obj");
+    let render = |device: &str, aov: &str| {
+        let out = dir.join(device);
+        let o = Command::new(env!("CARGO_BIN_EXE_prismbake"))
+            .args([
+                "render",
+                s(&torus),
+                "--device",
+                device,
+                "--aov",
+                aov,
+                "--res",
+                "12x12",
+                "--json",
+                "-o",
+                s(&out),
+            ])
+            .env("XDG_CACHE_HOME", &cache)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{stderr}");
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        (json, stderr)
+    };
+    let (cpu, _) = render("cpu", "mask");
+    assert_eq!(cpu["table_cache"]["cache"], "stored", "{cpu}");
+    let (auto, stderr) = render("auto", "beauty");
+    assert!(
+        stderr.contains("device: gpu ("),
+        "auto takes the adapter for beauty: {stderr}"
+    );
+    assert!(auto["device"].as_str().unwrap().starts_with("gpu ("));
+    assert_eq!(
+        auto["table_cache"]["cache"], "reused",
+        "the GPU path reuses the table the CPU path baked: {auto}"
+    );
+    assert_eq!(auto["table_cache"]["path"], cpu["table_cache"]["path"]);
+    assert!(dir.join("auto").join("beauty.exr").is_file());
+}
