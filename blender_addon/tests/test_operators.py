@@ -161,10 +161,12 @@ def test_validate_clean_sphere_passes(bpy_module, addon, scene):
 
 def test_validate_selects_the_worst_seam_edges(bpy_module, addon, scene):
     """Blender's UV sphere gives every pole triangle its own UV at the pole, so the map
-    jumps across the pole fans' edges: validate fails `seam-jump` at the default limit and
-    selects those edges (each shared by the two polygons the report names) in Edit Mode."""
+    jumps across the pole fans' edges: shaded smooth (flat shading makes every edge a hard
+    edge, not a seam), validate fails `seam-jump` at the default limit and selects those
+    edges (each shared by the two polygons the report names) in Edit Mode."""
     bpy = bpy_module
     me = scene.data
+    bpy.ops.object.shade_smooth()
     assert bpy.ops.prismbake.validate() == {"FINISHED"}
     result = addon.jobs.RESULTS["Sphere"]["validate"]
     assert [p["check"] for p in result["problems"]] == ["seam-jump"]

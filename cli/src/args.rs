@@ -319,6 +319,16 @@ pub struct BenchArgs {
         allow_hyphen_values = true
     )]
     pub dt: Vec<String>,
+    /// RMIP marching scales to sweep (texels below which a bound is texel-marched).
+    #[arg(long, default_value = "2,8,32", value_delimiter = ',')]
+    pub marching_scale: Vec<f32>,
+    /// RMIP pyramid resolutions to sweep: auto (the N²-sized pyramid) or cells along the map's
+    /// longer side.
+    #[arg(long, default_value = "auto", value_delimiter = ',')]
+    pub rmip_res: Vec<String>,
+    /// Nonlinear-ray precisions to sweep: f32 (with FMA), f64.
+    #[arg(long, default_value = "f32,f64", value_delimiter = ',')]
+    pub precision: Vec<String>,
     /// Also run the paper-exact parallel-offset PDM (the before-fix watertightness numbers).
     #[arg(long)]
     pub paper_pdm: bool,

@@ -542,8 +542,14 @@ fn render_batch(
     Ok(ExitCode::from(1))
 }
 
-fn bench(a: BenchArgs) -> Result<ExitCode> {
+/// Every method × its own knob, as (label, config): dt for PDM, marching scale × RMIP
+/// resolution for RMIP, f32/f64 for nonlinear; the paper-exact PDM when asked.
+fn bench_settings(a: &BenchArgs) -> Result<Vec<(String, MethodConfig)>> {
     let mut settings = Vec::new();
+    let with = |method: Method| MethodConfig {
+        method,
+        ..MethodConfig::default()
+    };
     for m in &a.methods {
         let method: Method = m.parse().map_err(Error::Param)?;
         match method {
@@ -556,20 +562,61 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
                     settings.push((
                         format!("dt={dt}"),
                         MethodConfig {
-                            method,
                             pdm,
-                            ..MethodConfig::default()
+                            ..with(method)
                         },
                     ));
                 }
             }
-            _ => settings.push((
-                m.clone(),
-                MethodConfig {
-                    method,
-                    ..MethodConfig::default()
-                },
-            )),
+            Method::Rmip => {
+                for &ms in &a.marching_scale {
+                    if !(ms.is_finite() && ms > 0.0) {
+                        return Err(Error::Param(format!(
+                            "--marching-scale {ms}: give texels > 0 (e.g. 2,8,32)"
+                        )));
+                    }
+                    for res in &a.rmip_res {
+                        let resolution = match res.as_str() {
+                            "auto" => None,
+                            r => Some(r.parse::<u32>().ok().filter(|&n| n > 0).ok_or_else(|| {
+                                Error::Param(format!(
+                                    "--rmip-res {r}: give auto or cells along the map's longer side (> 0)"
+                                ))
+                            })?),
+                        };
+                        let rmip = RmipOptions {
+                            marching_scale: ms,
+                            resolution,
+                            ..RmipOptions::default()
+                        };
+                        settings.push((
+                            format!("ms={ms},res={res}"),
+                            MethodConfig {
+                                rmip,
+                                ..with(method)
+                            },
+                        ));
+                    }
+                }
+            }
+            Method::Nonlinear => {
+                for p in &a.precision {
+                    let nonlinear = NonlinearOptions {
+                        precision: p
+                            .parse()
+                            .map_err(|e: String| Error::Param(format!("--precision: {e}")))?,
+                        ..NonlinearOptions::default()
+                    };
+                    settings.push((
+                        p.clone(),
+                        MethodConfig {
+                            nonlinear,
+                            ..with(method)
+                        },
+                    ));
+                }
+            }
+            Method::Reference => settings.push((m.clone(), with(method))),
         }
     }
     if a.paper_pdm {
@@ -581,12 +628,16 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         settings.push((
             "paper".to_string(),
             MethodConfig {
-                method: Method::Pdm,
                 pdm,
-                ..MethodConfig::default()
+                ..with(Method::Pdm)
             },
         ));
     }
+    Ok(settings)
+}
+
+fn bench(a: BenchArgs) -> Result<ExitCode> {
+    let settings = bench_settings(&a)?;
     let cfg = BenchConfig {
         width: a.res.0,
         height: a.res.1,

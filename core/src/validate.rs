@@ -526,6 +526,8 @@ pub struct TableSummary {
     pub prisms: usize,
     pub flat_prisms: usize,
     pub inserted_prisms: usize,
+    /// UV seam edges recorded in the table (stitched by default when traced).
+    pub seam_edges: usize,
     pub vertices: usize,
     pub bytes: usize,
     pub bytes_per_prism: f32,
@@ -558,6 +560,7 @@ pub fn table_summary(t: &PrismTable, path: &Path, reused: bool) -> TableSummary 
             .iter()
             .filter(|p| p.flags & crate::bake::PRISM_INSERTED != 0)
             .count(),
+        seam_edges: t.seams.len(),
         vertices: t.positions.len(),
         bytes,
         bytes_per_prism: bytes as f32 / t.prisms.len().max(1) as f32,
