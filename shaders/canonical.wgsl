@@ -49,27 +49,25 @@ struct SurfacePoint {
 }
 
 // canonical::surface_point: S(b), its analytic normal and the paper's smoothed normal
-// N's = Ns − Ng + N' (§5.1).
-fn surface_point(g: PrismGeom, b: vec3f) -> SurfacePoint {
+// N's = Ns − Ng + N' (§5.1), the height from `disp` (the map, or the stitched height next to
+// UV seams: seam.wgsl).
+fn surface_point(g: PrismGeom, disp: PrismDisplacement, b: vec3f) -> SurfacePoint {
     let p = geom_position(g, b);
     let m = geom_normal_dir(g, b);
     let len = max(length(m), 1e-12);
     let mh = m / len;
     let uv = geom_uv(g, b);
-    let sg = sample_grad(uv);
-    let d = displacement_of(sg.value);
-    let grad_d = sg.grad * scene.disp_scale;
-    // Derivatives with respect to (b1, b2), b0 = 1 − b1 − b2.
+    // Height and its derivatives with respect to (b1, b2), b0 = 1 − b1 − b2.
+    let dg = displacement_at_grad(disp, b);
+    let d = dg.value;
     let dp0 = g.v[1] - g.v[0];
     let dp1 = g.v[2] - g.v[0];
     let dm0 = g.n[1] - g.n[0];
     let dm1 = g.n[2] - g.n[0];
-    let duv0 = g.uv[1] - g.uv[0];
-    let duv1 = g.uv[2] - g.uv[0];
     let dmh0 = (dm0 - mh * dot(mh, dm0)) / len;
     let dmh1 = (dm1 - mh * dot(mh, dm1)) / len;
-    let ds0 = dp0 + mh * dot(grad_d, duv0) + dmh0 * d;
-    let ds1 = dp1 + mh * dot(grad_d, duv1) + dmh1 * d;
+    let ds0 = dp0 + mh * dg.grad.x + dmh0 * d;
+    let ds1 = dp1 + mh * dg.grad.y + dmh1 * d;
     let ng = geom_base_normal(g);
     var ns = normalize_or_zero(cross(ds0, ds1));
     if (all(ns == vec3f(0.0))) {

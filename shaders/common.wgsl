@@ -3,8 +3,11 @@
 // helpers. The other stage files are appended to this one into a single module
 // (gpu/src/shaders.rs), so every declaration here is visible to them.
 
-// Sentinels, mirrored from the host (prismbake::trace::NO_PRISM, gpu::layout::T_FAR).
+// Sentinels, mirrored from the host (prismbake::trace::NO_PRISM, gpu::layout::{T_FAR,
+// NO_STITCH}).
 const NO_PRISM: u32 = 0xffffffffu;
+// Prism::stitch of a prism without stitched seam edges: the raw height D(uv(b)).
+const NO_STITCH: u32 = 0xffffffffu;
 // Stands for +infinity: WGSL lets an implementation assume no infinities at run time.
 const T_FAR: f32 = 3.0e38;
 // prismbake::bake::{PRISM_FLAT, M_LO_FLOOR}.
@@ -13,7 +16,7 @@ const M_LO_FLOOR: f32 = 1e-3;
 // Smallest normal length (glam's normalize_or_zero gives zero where 1/len is not finite).
 const TINY_LEN: f32 = 1e-30;
 
-// GpuPrism, 36 bytes.
+// GpuPrism, 40 bytes.
 struct Prism {
     tri: array<u32, 3>,
     flags: u32,
@@ -22,6 +25,14 @@ struct Prism {
     lambda_lo: f32,
     lambda_hi: f32,
     texel_world: f32,
+    stitch: u32,         // index into `stitches`, NO_STITCH: none
+}
+
+// GpuPrismStitch, 88 bytes: seam::PrismStitch without band_h (seam.wgsl).
+struct PrismStitch {
+    other_uv: array<array<vec2f, 3>, 3>,   // per edge k: the neighbour's chart
+    band: array<f32, 3>,                   // per edge k: β_k, 0 = not stitched
+    _pad: u32,
 }
 
 // GpuVertex, 32 bytes.
@@ -133,6 +144,7 @@ struct BeautySums {
 @group(0) @binding(3) var<storage, read> nodes: array<BvhNode>;
 @group(0) @binding(4) var<storage, read> prim_indices: array<u32>;
 @group(0) @binding(5) var<storage, read> height_map: array<f32>;
+@group(0) @binding(6) var<storage, read> stitches: array<PrismStitch>;
 
 // prismbake::trace::Ray.
 struct Ray {

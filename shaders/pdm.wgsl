@@ -4,9 +4,11 @@
 // step is jittered by R·dt (§5.3, the CPU's counter-based R), each sample on the exact
 // canonical sign — its level λ by Newton on the level cubic (`level_cubic`, `level_at`,
 // warm-started from the paper's scanning-triangle estimate), barycentrics in the level
-// triangle T(λ) by Ericson's five dot products (App. C), g = λ|m(b)| − D(uv(b)) — and the
-// crossing refined by Illinois regula falsi on the same g (`refine_levels`). Flat prisms meet
-// the triangle V_i + D n_i and are moved onto the canonical surface by Newton (`flat_hit`).
+// triangle T(λ) by Ericson's five dot products (App. C), g = λ|m(b)| − D(b) (stitched next to
+// UV seams: seam.wgsl) — and the crossing refined by Illinois regula falsi on the same g
+// (`refine_levels`). Flat prisms meet the triangle V_i + D n_i and are moved onto the
+// canonical surface by Newton (`flat_hit`; a flat prism's stitched height is its constant:
+// the bake's range includes the stitch bands).
 // pdm.rs documents each departure from the paper. The paper's parallel-offset prism
 // (`march_scan`) is a CPU-only measurement mode and is not built here.
 
@@ -21,6 +23,8 @@ const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 // pdm::Local: one prism in a local frame (origin at V_0).
 struct Local {
     origin: vec3f,
+    // The prism's height: the map, or the stitched height next to UV seams.
+    disp: PrismDisplacement,
     geom: PrismGeom,
     // Scanning directions n_i / (n_i·N_g).
     a: array<vec3f, 3>,
@@ -45,12 +49,9 @@ fn local_frame(p: Prism) -> Local {
         n[2] / max(dot(n[2], ng), M_LO_FLOOR),
     );
     let scale = max(max(max(length(v1), length(v2)), length(v2 - v1)), F32_MIN_POSITIVE);
-    let geom = PrismGeom(
-        array<vec3f, 3>(vec3f(0.0), v1, v2),
-        n,
-        array<vec2f, 3>(vec2f(va.u, va.v), vec2f(vb.u, vb.v), vec2f(vc.u, vc.v)),
-    );
-    return Local(origin, geom, a, ng, scale);
+    let uv = array<vec2f, 3>(vec2f(va.u, va.v), vec2f(vb.u, vb.v), vec2f(vc.u, vc.v));
+    let geom = PrismGeom(array<vec3f, 3>(vec3f(0.0), v1, v2), n, uv);
+    return Local(origin, prism_displacement(p, uv), geom, a, ng, scale);
 }
 
 // Barycentrics of s in triangle c by five dot products (Ericson 2004; paper App. C).
@@ -97,11 +98,6 @@ fn no_prism_hit() -> PrismHit {
     return PrismHit(false, 0.0, vec3f(0.0));
 }
 
-// Pdm::displacement: D at uv.
-fn displacement(uv: vec2f) -> f32 {
-    return displacement_of(sample_map(uv));
-}
-
 // Pdm::intersect_prism: the cheap record for one prism (surface data not filled); `steps`
 // accumulates the samples taken, hit or miss.
 fn intersect_prism(ray: Ray, ctx: RayContext, prism: u32, steps: ptr<function, u32>) -> Hit {
@@ -122,8 +118,9 @@ fn intersect_prism(ray: Ray, ctx: RayContext, prism: u32, steps: ptr<function, u
 
 // Pdm::fill_surface: uv, position and normals from the canonical surface.
 fn fill_surface(hit: ptr<function, Hit>) {
-    let g = prism_geom(prisms[(*hit).prism]);
-    let sp = surface_point(g, (*hit).bary);
+    let p = prisms[(*hit).prism];
+    let g = prism_geom(p);
+    let sp = surface_point(g, prism_displacement(p, g.uv), (*hit).bary);
     (*hit).uv = sp.uv;
     (*hit).position = sp.position;
     (*hit).geometric_normal = sp.geometric_normal;
@@ -300,7 +297,8 @@ fn scan_level_estimate(local: Local, x: vec3f) -> f32 {
 }
 
 // Pdm::level_sample: the exact canonical sample at t — level λ (Newton from `guess`, retried
-// from the middle of the prism), barycentrics in T(λ), g = λ|m(b)| − D(uv(b)).
+// from the middle of the prism), barycentrics in T(λ), g = λ|m(b)| − D(b) (D* next to
+// stitched seams).
 fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
     let u = t - lt.t0;
     var lv = level_at(lt.cubic, u, guess, lt.tol, lt.lo, lt.hi);
@@ -314,7 +312,7 @@ fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> S
     let g = local.geom;
     let c = array<vec3f, 3>(g.v[0] + g.n[0] * l, g.v[1] + g.n[1] * l, g.v[2] + g.n[2] * l);
     let b = triangle_barycentric(lt.base + d * u, c);
-    return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement(geom_uv(g, b)), b, l);
+    return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement_at(local.disp, b), b, l);
 }
 
 fn inside_detect(b: vec3f) -> bool {

@@ -147,3 +147,65 @@ fn auto_renders_beauty_on_the_gpu_from_the_cpu_table_cache() {
     assert_eq!(auto["table_cache"]["path"], cpu["table_cache"]["path"]);
     assert!(dir.join("auto").join("beauty.exr").is_file());
 }
+
+#[test]
+fn gpu_render_traces_the_seam_mode_it_is_given() {
+    // `--seams` reaches the GPU session: on a cube whose islands disagree at every seam, the
+    // GPU's depth matches the CPU's of the same mode wherever the two modes differ. Breaks if
+    // the GPU always traced one surface, or ignored `--seams`.
+    let (jump, _, dir) = crate::seams::cube_assets();
+    let render = |device: &str, seams: &str| -> Vec<f32> {
+        let out = dir.join(format!("{device}-{seams}"));
+        run(&[
+            "render",
+            s(&jump),
+            "--device",
+            device,
+            "--res",
+            "48x48",
+            "--aov",
+            "depth",
+            "--camera-from",
+            "2.6,2.1,3.3",
+            "--camera-to",
+            "0,0,0",
+            "--seams",
+            seams,
+            "-o",
+            s(&out),
+        ])
+        .assert_success();
+        prismbake::render::output::read_exr(&out.join("depth.exr"))
+            .unwrap()
+            .3
+    };
+    let (cpu_stitch, cpu_open) = (render("cpu", "stitch"), render("cpu", "open"));
+    let (gpu_stitch, gpu_open) = (render("gpu", "stitch"), render("gpu", "open"));
+    let close = |a: f32, b: f32, tol: f32| (a - b).abs() <= tol * a.abs().max(1e-6);
+    let bands: Vec<usize> = (0..cpu_stitch.len())
+        .filter(|&i| !close(cpu_stitch[i], cpu_open[i], 1e-4))
+        .collect();
+    assert!(
+        bands.len() >= 10,
+        "stitch and open differ on {} px",
+        bands.len()
+    );
+    for (mode, gpu, cpu) in [
+        ("stitch", &gpu_stitch, &cpu_stitch),
+        ("open", &gpu_open, &cpu_open),
+    ] {
+        let agree = bands
+            .iter()
+            .filter(|&&i| close(cpu[i], gpu[i], 1e-5))
+            .count();
+        eprintln!(
+            "--seams {mode}: {agree} of {} seam-band px agree",
+            bands.len()
+        );
+        assert!(
+            agree as f64 >= 0.95 * bands.len() as f64,
+            "--seams {mode}: the GPU's depth agrees with the CPU's on {agree} of {} seam-band px",
+            bands.len()
+        );
+    }
+}

@@ -86,7 +86,7 @@ fn write_map(path: &Path, seam_safe: bool) {
     img.save(path).unwrap();
 }
 
-fn cube_assets() -> (PathBuf, PathBuf, PathBuf) {
+pub(crate) fn cube_assets() -> (PathBuf, PathBuf, PathBuf) {
     let dir = temp_dir("seams");
     for (name, safe) in [("jump", false), ("safe", true)] {
         std::fs::write(dir.join(format!("{name}.obj")), cube_obj()).unwrap();

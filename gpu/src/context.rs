@@ -16,6 +16,12 @@ use std::sync::{Mutex, OnceLock};
 /// submission on GPUs with a watchdog.
 pub const MAX_TILE: u32 = 512;
 
+/// Storage buffers the beauty kernel binds in its one stage: the scene's six (prisms,
+/// vertices, BVH nodes and indices, height map, seam stitch records), its sums and the
+/// environment's texels and tables. One over WebGPU's default of 8, so it is requested from
+/// the adapter (native Vulkan, Metal and DX12 adapters allow far more); the AOV kernel binds 7.
+pub const BEAUTY_STORAGE_BUFFERS: u32 = 9;
+
 /// The beauty kernel: its pipeline, the tile of running sums it accumulates into, and the
 /// group-1 bind group (frame uniform + sums).
 pub(crate) struct BeautyKernel {
@@ -117,6 +123,13 @@ impl GpuContext {
             // Use what the adapter has for the one limit a large scene meets first.
             max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
             max_buffer_size: supported.max_buffer_size,
+            // Beauty's 9 where the adapter has them; an 8-buffer adapter still renders AOVs.
+            max_storage_buffers_per_shader_stage: supported
+                .max_storage_buffers_per_shader_stage
+                .clamp(
+                    wgpu::Limits::defaults().max_storage_buffers_per_shader_stage,
+                    BEAUTY_STORAGE_BUFFERS,
+                ),
             ..wgpu::Limits::defaults()
         };
         let (device, queue) = adapter
@@ -143,6 +156,7 @@ impl GpuContext {
                 storage_entry(3, true), // nodes: array<BvhNode>
                 storage_entry(4, true), // prim_indices: array<u32>
                 storage_entry(5, true), // height_map: array<f32>
+                storage_entry(6, true), // stitches: array<PrismStitch>
             ],
         });
         let aov_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -277,6 +291,13 @@ impl GpuContext {
     }
 
     async fn build_beauty(&self) -> Result<BeautyKernel, GpuError> {
+        let have = self.device.limits().max_storage_buffers_per_shader_stage;
+        if have < BEAUTY_STORAGE_BUFFERS {
+            return Err(GpuError::Unsupported(format!(
+                "beauty binds {BEAUTY_STORAGE_BUFFERS} storage buffers in one shader stage and {} allows {have}; render AOVs on it or use --device cpu",
+                self.adapter_info.name
+            )));
+        }
         let pipeline = build_pipeline(
             &self.device,
             "render_beauty",

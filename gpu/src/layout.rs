@@ -12,11 +12,15 @@ pub const NO_PRISM: u32 = prismbake::trace::NO_PRISM;
 /// The shaders' stand-in for `f32::INFINITY` (WGSL lets an implementation assume that no
 /// infinities occur at run time, so `t_max = ∞` is this large finite value on the GPU).
 pub const T_FAR: f32 = 3.0e38;
+/// "No stitch record" in `GpuPrism::stitch`: the prism has no stitched seam edge (every prism
+/// of a scene traced with `SeamMode::Open`), so the shaders evaluate the raw `D(uv(b))`.
+pub const NO_STITCH: u32 = u32::MAX;
 /// Compute workgroup edge: both kernels run `@workgroup_size(8, 8)`; the host dispatches
 /// `div_ceil(tile, WORKGROUP)` groups per axis.
 pub const WORKGROUP: u32 = 8;
 
-/// One prism record, 36 bytes: `prismbake::bake::Prism` as the shader reads it.
+/// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
+/// index of its stitch record (`StitchField::record_index`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuPrism {
@@ -27,6 +31,31 @@ pub struct GpuPrism {
     pub lambda_lo: f32,
     pub lambda_hi: f32,
     pub texel_world: f32,
+    /// Index into the `stitches` array, or `NO_STITCH`.
+    pub stitch: u32,
+}
+
+/// The stitch data of one prism with stitched seam edges, 88 bytes:
+/// `prismbake::seam::PrismStitch` without `band_h` (a bound the bake has already folded into
+/// the prism's range).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPrismStitch {
+    /// Per edge `k`: the neighbour's UV chart over this prism's corners.
+    pub other_uv: [[[f32; 2]; 3]; 3],
+    /// Per edge `k`: the band width `β_k` (barycentric), 0 where edge `k` is not stitched.
+    pub band: [f32; 3],
+    pub _pad: u32,
+}
+
+impl From<&prismbake::seam::PrismStitch> for GpuPrismStitch {
+    fn from(s: &prismbake::seam::PrismStitch) -> Self {
+        GpuPrismStitch {
+            other_uv: s.other_uv.map(|chart| chart.map(|uv| uv.to_array())),
+            band: s.band,
+            _pad: 0,
+        }
+    }
 }
 
 /// One base vertex, 32 bytes: position, unit normal and UV (u and v fill the vec3 padding).
@@ -163,7 +192,8 @@ pub struct GpuBeautySums {
 }
 
 const _: () = {
-    assert!(std::mem::size_of::<GpuPrism>() == 36);
+    assert!(std::mem::size_of::<GpuPrism>() == 40);
+    assert!(std::mem::size_of::<GpuPrismStitch>() == 88);
     assert!(std::mem::size_of::<GpuVertex>() == 32);
     assert!(std::mem::size_of::<GpuBvhNode>() == 32);
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
@@ -193,7 +223,16 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 d_max,
                 lambda_lo,
                 lambda_hi,
-                texel_world
+                texel_world,
+                stitch
+            }
+        ),
+        layout!(
+            "PrismStitch",
+            GpuPrismStitch {
+                other_uv,
+                band,
+                _pad
             }
         ),
         layout!(
@@ -325,6 +364,9 @@ mod tests {
         assert_eq!(offset_of!(GpuAovPixel, uv_sum), 16);
         assert_eq!(offset_of!(GpuAovPixel, prism), 32);
         assert_eq!(offset_of!(GpuPrism, texel_world), 32);
+        // vec2<f32> aligns to 8: the nested UV arrays pack at stride 8 and 24, and the struct
+        // rounds up to 88.
+        assert_eq!(offset_of!(GpuPrismStitch, band), 72);
         assert_eq!(offset_of!(GpuLighting, base_color), 16);
         assert_eq!(offset_of!(GpuLighting, ground_up), 32);
         assert_eq!(offset_of!(GpuLighting, metallic), 48);

@@ -5,7 +5,7 @@
 //!   once (the beauty pipeline on first use). Any wgpu adapter works, software ones included
 //!   (Mesa's lavapipe is what CI uses).
 //! * `GpuScene::upload(&ctx, &scene)` — prisms, vertices, a BVH2 over the CPU's prism boxes,
-//!   the height map.
+//!   the height map, and the seam stitch records when the scene stitches (`SeamMode`).
 //! * `render_aovs(&ctx, &gpu_scene, &camera, &settings, &pdm_options, progress)` — one frame of
 //!   AOVs as `prismbake::render::AovImage`, so `render::output::write_frame` writes it.
 //! * `GpuBeautyScene::upload(&ctx, &beauty_scene)` and `render_beauty(..)` — one beauty frame
@@ -15,7 +15,8 @@
 //!
 //! The shaders (`shaders/*.wgsl`, one per stage) mirror the CPU function by function under the
 //! same names: `pcg_hash`/`hash_counters` (rng), `camera_ray` (`Camera::ray`), `sample_map`
-//! (`HeightMap::sample`), `surface_point`, `project_to_prism` (canonical),
+//! (`HeightMap::sample`), `band_weight`, `displacement_at` (`PrismDisplacement::at`),
+//! `displacement_at_grad` (`at_grad`) (seam), `surface_point`, `project_to_prism` (canonical),
 //! `ray_prism_interval`, `cap_planes_reject` (prism_hit), `intersect_prism`, `march_levels`,
 //! `level_cubic`, `level_at`, `level_track`, `level_sample`, `level_crossing`,
 //! `refine_levels`, `flat_hit`, `fill_surface`, `intersect`, `occluded` (pdm),

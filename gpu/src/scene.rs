@@ -7,13 +7,19 @@
 //! from the same boxes, flattened into `GpuBvhNode`s (obvhs's `small_bvh2_node` layout; the
 //! feature itself is not enabled, so the CPU's BVH2 is unchanged) with leaves pointing into a
 //! prism index list.
+//!
+//! Next to UV seams the scene traces the stitched height (`prismbake::seam`): when the
+//! scene's seam mode is `Stitch`, each stitched prism's record goes up as a `GpuPrismStitch`
+//! and its `GpuPrism::stitch` indexes it; every other prism (all of them under `Open`) carries
+//! `NO_STITCH` and the shaders evaluate the raw `D(uv(b))`.
 
 use crate::context::GpuContext;
-use crate::layout::{GpuBvhNode, GpuPrism, GpuSceneParams, GpuVertex};
+use crate::layout::{GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams, GpuVertex, NO_STITCH};
 use crate::GpuError;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::BvhBuildParams;
 use prismbake::accel::{prism_aabbs, Scene};
+use prismbake::seam::{SeamMode, StitchField};
 use prismbake::Wrap;
 use std::time::Duration;
 use wgpu::util::DeviceExt;
@@ -54,19 +60,26 @@ pub fn flatten_bvh(scene: &Scene) -> FlatBvh {
 pub struct GpuScene {
     pub(crate) group: wgpu::BindGroup,
     pub(crate) params: GpuSceneParams,
+    stitched_prisms: u32,
     bytes: u64,
     method_bytes: u64,
 }
 
 impl GpuScene {
     /// Upload a scene. Fails with `GpuError::TooLarge` if one array exceeds the device's
-    /// storage-binding limit (128 MiB on WebGPU defaults: ~33 M map texels, ~3.7 M prisms).
+    /// storage-binding limit (128 MiB on WebGPU defaults: ~33 M map texels, ~3.3 M prisms).
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
         let table = &scene.table;
+        let empty = StitchField::empty();
+        let stitch = match scene.seam_mode() {
+            SeamMode::Stitch => scene.stitch(),
+            SeamMode::Open => &empty,
+        };
         let prisms: Vec<GpuPrism> = table
             .prisms
             .iter()
-            .map(|p| GpuPrism {
+            .enumerate()
+            .map(|(i, p)| GpuPrism {
                 tri: p.tri,
                 flags: p.flags,
                 d_min: p.d_min,
@@ -74,8 +87,16 @@ impl GpuScene {
                 lambda_lo: p.lambda_lo,
                 lambda_hi: p.lambda_hi,
                 texel_world: p.texel_world,
+                stitch: stitch.record_index(i as u32).unwrap_or(NO_STITCH),
             })
             .collect();
+        let mut stitches: Vec<GpuPrismStitch> =
+            stitch.records().iter().map(GpuPrismStitch::from).collect();
+        let stitched_prisms = stitches.len() as u32;
+        if stitches.is_empty() {
+            // Zero-sized bindings are invalid, and a runtime array binds one element at least.
+            stitches.push(GpuPrismStitch::default());
+        }
         let vertices: Vec<GpuVertex> = (0..table.positions.len())
             .map(|i| GpuVertex {
                 position: table.positions[i].to_array(),
@@ -132,6 +153,7 @@ impl GpuScene {
         let node_buf = storage("BVH nodes", bytemuck::cast_slice(&bvh.nodes))?;
         let index_buf = storage("BVH prism indices", bytemuck::cast_slice(&bvh.prim_indices))?;
         let map_buf = storage("height map", bytemuck::cast_slice(&map.data))?;
+        let stitch_buf = storage("seam stitch records", bytemuck::cast_slice(&stitches))?;
         let param_buf = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -167,6 +189,10 @@ impl GpuScene {
                     binding: 5,
                     resource: map_buf.as_entire_binding(),
                 }, // height_map
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: stitch_buf.as_entire_binding(),
+                }, // stitches
             ],
         });
         let method_bytes = (std::mem::size_of_val(&bvh.nodes[..])
@@ -175,6 +201,7 @@ impl GpuScene {
         Ok(GpuScene {
             group,
             params,
+            stitched_prisms,
             bytes,
             method_bytes,
         })
@@ -184,7 +211,12 @@ impl GpuScene {
         self.params.prism_count
     }
 
-    /// Bytes uploaded (prisms, vertices, BVH, map).
+    /// Prisms uploaded with a stitch record (0 under `SeamMode::Open`).
+    pub fn stitched_prisms(&self) -> u32 {
+        self.stitched_prisms
+    }
+
+    /// Bytes uploaded (prisms, vertices, BVH, map, stitch records).
     pub fn bytes(&self) -> u64 {
         self.bytes
     }

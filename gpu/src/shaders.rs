@@ -10,6 +10,8 @@ pub const RNG: &str = include_str!("../../shaders/rng.wgsl");
 pub const CAMERA: &str = include_str!("../../shaders/camera.wgsl");
 /// Bilinear height-map sampling (mirror of `prismbake::heightmap`).
 pub const HEIGHTMAP: &str = include_str!("../../shaders/heightmap.wgsl");
+/// The stitched height next to UV seams (mirror of `prismbake::seam`).
+pub const SEAM: &str = include_str!("../../shaders/seam.wgsl");
 /// BVH2 closest-hit traversal (GPU counterpart of `prismbake::accel::Scene::closest_hit`).
 pub const BVH: &str = include_str!("../../shaders/bvh.wgsl");
 /// Ray vs prism interval (mirror of `prismbake::trace::prism_hit`).
@@ -28,8 +30,8 @@ pub const SHADING: &str = include_str!("../../shaders/shading.wgsl");
 pub const BEAUTY: &str = include_str!("../../shaders/beauty.wgsl");
 
 /// Every stage but the entry points and the lighting: what every kernel builds on.
-pub const LIBRARY: [&str; 8] = [
-    COMMON, RNG, CAMERA, HEIGHTMAP, BVH, PRISM_HIT, CANONICAL, PDM,
+pub const LIBRARY: [&str; 9] = [
+    COMMON, RNG, CAMERA, HEIGHTMAP, SEAM, BVH, PRISM_HIT, CANONICAL, PDM,
 ];
 
 /// The AOV module: the library plus `aov.wgsl` (entry point `render_aovs`).

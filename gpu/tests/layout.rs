@@ -67,6 +67,10 @@ fn sentinels_and_flags_are_mirrored() {
     );
     assert_eq!(constant(&m, "T_FAR"), naga::Literal::F32(layout::T_FAR));
     assert_eq!(
+        constant(&m, "NO_STITCH"),
+        naga::Literal::U32(layout::NO_STITCH)
+    );
+    assert_eq!(
         constant(&m, "PRISM_FLAT"),
         naga::Literal::U32(prismbake::bake::PRISM_FLAT)
     );
@@ -126,4 +130,21 @@ fn modules_validate_and_state_the_host_workgroup_size() {
             .unwrap_or_else(|| panic!("entry point {entry}"));
         assert_eq!(ep.workgroup_size, [layout::WORKGROUP, layout::WORKGROUP, 1]);
     }
+}
+
+#[test]
+fn beauty_binds_the_storage_buffers_the_device_is_asked_for() {
+    // Breaks if a storage binding is added to a kernel without raising the limit the context
+    // requests (pipeline creation would fail on adapters that only grant what was asked).
+    let storage = |m: &naga::Module| {
+        m.global_variables
+            .iter()
+            .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
+            .count() as u32
+    };
+    assert_eq!(
+        storage(&beauty_module()),
+        prismbake_gpu::context::BEAUTY_STORAGE_BUFFERS
+    );
+    assert!(storage(&module()) <= wgpu::Limits::defaults().max_storage_buffers_per_shader_stage);
 }

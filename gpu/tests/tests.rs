@@ -8,3 +8,4 @@ mod beauty;
 mod layout;
 mod parity;
 mod rng;
+mod seams;

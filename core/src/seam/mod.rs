@@ -157,6 +157,19 @@ impl StitchField {
         (i != NONE).then(|| &self.records[i as usize])
     }
 
+    /// Index of prism `prism`'s record in `records()`, `None` without stitched edges (what
+    /// the GPU uploads as its per-prism index).
+    #[inline]
+    pub fn record_index(&self, prism: u32) -> Option<u32> {
+        let i = *self.index.get(prism as usize)?;
+        (i != NONE).then_some(i)
+    }
+
+    /// The records of the stitched prisms, in `record_index` order.
+    pub fn records(&self) -> &[PrismStitch] {
+        &self.records
+    }
+
     /// Prisms with at least one stitched edge.
     pub fn stitched_prisms(&self) -> usize {
         self.records.len()
