@@ -107,6 +107,30 @@ fn indexed_face_varying_st_is_expanded_per_corner() {
 }
 
 #[test]
+fn face_varying_st_split_on_shared_points_is_a_uv_seam() {
+    // USD shares points between faces and splits only `st`: the quad and the pentagon share
+    // points 1 and 2 (one edge), with other UVs on each side. Repair must find that edge as
+    // a seam (same positions and derived normals, other UVs) and nothing else.
+    let d = dir("fv_seam");
+    let st = r#"texCoord2f[] primvars:st = [(0.5, 0.5), (0, 0), (1, 0), (1, 1), (0, 1)] (
+        interpolation = "faceVarying"
+    )
+    int[] primvars:st:indices = [1, 2, 3, 4, 0, 0, 0, 0, 0]"#;
+    let p = write(&d, "a.usda", &quad_and_pentagon(st));
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    let (out, report) = crate::repair::repair(m, &Default::default());
+    assert_eq!(out.seams.len(), 1, "{}", report.to_text());
+    let seam = out.seams[0];
+    let [i, j] = seam.corners(0);
+    let tri = out.triangles[seam.faces[0] as usize];
+    let ends = [
+        out.positions[tri[i] as usize],
+        out.positions[tri[j] as usize],
+    ];
+    assert!(ends.contains(&Vec3::new(1.0, 0.0, 0.0)) && ends.contains(&Vec3::new(1.0, 1.0, 0.0)));
+}
+
+#[test]
 fn vertex_uniform_and_constant_st_interpolations() {
     let d = dir("interp");
     let cases = [
