@@ -66,6 +66,26 @@ pub(crate) fn icosphere(subdiv: u32, radius: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) 
     (pos.into_iter().map(|p| p * radius).collect(), tris)
 }
 
+/// A one-group mesh of the given arrays (no face flags): the raw input a loader would give.
+pub(crate) fn fixture_mesh(
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    triangles: Vec<[u32; 3]>,
+) -> BaseMesh {
+    let n = triangles.len();
+    BaseMesh {
+        positions,
+        normals,
+        uvs,
+        triangles,
+        face_group: vec![0; n],
+        groups: vec!["fixture".into()],
+        face_flags: vec![0; n],
+        ..Default::default()
+    }
+}
+
 /// `res`×`res` repeat-wrapped map: a smooth two-lobe relief plus hashed texel noise, in [0, 1].
 pub(crate) fn test_height_map(res: u32) -> HeightMap {
     let tau = std::f32::consts::TAU;

@@ -5,19 +5,7 @@ use crate::mesh::{FACE_INSERTED, FACE_UV_DEGENERATE};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 
-fn mesh(positions: Vec<Vec3>, normals: Vec<Vec3>, uvs: Vec<Vec2>, tris: Vec<[u32; 3]>) -> BaseMesh {
-    let n = tris.len();
-    BaseMesh {
-        positions,
-        normals,
-        uvs,
-        triangles: tris,
-        face_group: vec![0; n],
-        groups: vec!["fixture".into()],
-        face_flags: vec![0; n],
-        ..Default::default()
-    }
-}
+use crate::test_util::fixture_mesh as mesh;
 
 /// Unit quad in z = 0 as two triangles, normals +z, sharing vertices 0 and 2.
 fn quad() -> BaseMesh {

@@ -48,17 +48,7 @@ fn finish(
         }
     }
     positions.shrink_to_fit();
-    let n = tris.len();
-    BaseMesh {
-        positions,
-        normals,
-        uvs,
-        triangles: tris,
-        face_group: vec![0; n],
-        groups: vec!["fixture".into()],
-        face_flags: vec![0; n],
-        ..Default::default()
-    }
+    crate::test_util::fixture_mesh(positions, normals, uvs, tris)
 }
 
 const CUBE_ISLANDS: [Island; 6] = [

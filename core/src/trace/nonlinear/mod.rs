@@ -522,40 +522,9 @@ impl<'a> Nonlinear<'a> {
         let mut best_t = best_t;
         for &(a, b) in &node.iv.iv[..node.iv.n] {
             *steps += 1;
-            let (mut l0, mut l1) = (a, b);
-            let (mut g0, mut g1) = (g(l0), g(l1));
-            if (g0 < T::ZERO) == (g1 < T::ZERO) || !(g0.is_finite() && g1.is_finite()) {
+            let Some(l) = illinois(&g, a, b) else {
                 continue;
-            }
-            let tol = (b - a).abs() * T::EPS * T::of(64.0);
-            let mut side = 0;
-            for _ in 0..60 {
-                if (l1 - l0).abs() <= tol {
-                    break;
-                }
-                let mut l = (l0 * g1 - l1 * g0) / (g1 - g0);
-                if !(l > l0.min(l1) && l < l0.max(l1)) {
-                    l = T::HALF * (l0 + l1);
-                }
-                let gl = g(l);
-                if gl == T::ZERO {
-                    (l0, l1) = (l, l);
-                    break;
-                }
-                if (gl < T::ZERO) == (g1 < T::ZERO) {
-                    (l1, g1) = (l, gl);
-                    if side == -1 {
-                        g0 = g0 * T::HALF;
-                    }
-                    side = -1;
-                } else {
-                    (l0, g0) = (l, gl);
-                    if side == 1 {
-                        g1 = g1 * T::HALF;
-                    }
-                    side = 1;
-                }
-            }
+            };
             let c = Cand {
                 t: T::ZERO,
                 b: [T::ZERO; 3],
@@ -565,7 +534,7 @@ impl<'a> Nonlinear<'a> {
                 lower: None,
                 f: (T::ZERO, T::ZERO),
             };
-            if let Some(h) = self.accept(pr, &c, T::HALF * (l0 + l1), best_t) {
+            if let Some(h) = self.accept(pr, &c, l, best_t) {
                 let h = if self.opts.refine {
                     self.refine_stitched(pr, st, h).unwrap_or(h)
                 } else {
@@ -615,24 +584,7 @@ impl<'a> Nonlinear<'a> {
             l * pr.curve.m_len(&b) - T::of32(st.disp.at(bv))
         };
         let span = (pr.lam.1 - pr.lam.0).abs().max(pr.lam_pad);
-        let tol = span * T::EPS * T::of(16.0);
-        let (mut l0, mut l1) = (c.l, c.l + span * T::of(1e-3));
-        let (mut g0, mut g1) = (g(l0), g(l1));
-        for _ in 0..8 {
-            if g1 == g0 {
-                break;
-            }
-            let l2 = l1 - g1 * (l1 - l0) / (g1 - g0);
-            if !l2.is_finite() {
-                return None;
-            }
-            (l0, g0) = (l1, g1);
-            l1 = l2;
-            g1 = g(l1);
-            if (l1 - l0).abs() <= tol {
-                break;
-            }
-        }
+        let l1 = secant(g, c.l, span)?;
         if !((l1 - c.l).abs() <= span * T::of(0.25)) {
             return None;
         }
@@ -722,41 +674,7 @@ impl<'a> Nonlinear<'a> {
         b: T,
         t_max: T,
     ) -> Option<Cand<T>> {
-        let (mut l0, mut l1) = (a, b);
-        let (mut g0, mut g1) = (Self::g_exact(pr, c, l0), Self::g_exact(pr, c, l1));
-        if (g0 < T::ZERO) == (g1 < T::ZERO) || !(g0.is_finite() && g1.is_finite()) {
-            return None;
-        }
-        let tol = (b - a).abs() * T::EPS * T::of(64.0);
-        let mut side = 0;
-        for _ in 0..60 {
-            if (l1 - l0).abs() <= tol {
-                break;
-            }
-            let mut l = (l0 * g1 - l1 * g0) / (g1 - g0);
-            if !(l > l0.min(l1) && l < l0.max(l1)) {
-                l = T::HALF * (l0 + l1);
-            }
-            let g = Self::g_exact(pr, c, l);
-            if g == T::ZERO {
-                (l0, l1) = (l, l);
-                break;
-            }
-            if (g < T::ZERO) == (g1 < T::ZERO) {
-                (l1, g1) = (l, g);
-                if side == -1 {
-                    g0 = g0 * T::HALF;
-                }
-                side = -1;
-            } else {
-                (l0, g0) = (l, g);
-                if side == 1 {
-                    g1 = g1 * T::HALF;
-                }
-                side = 1;
-            }
-        }
-        let l = T::HALF * (l0 + l1);
+        let l = illinois(|l| Self::g_exact(pr, c, l), a, b)?;
         let (x, y) = pr.curve.tex(l);
         let lower = c.lower.map(|_| x - c.cell.0 >= y - c.cell.1);
         self.accept(pr, &Cand { lower, ..*c }, l, t_max)
@@ -847,24 +765,7 @@ impl<'a> Nonlinear<'a> {
             l * pr.curve.m_len(&b) - dv
         };
         let span = (pr.lam.1 - pr.lam.0).abs().max(pr.lam_pad);
-        let tol = span * T::EPS * T::of(16.0);
-        let (mut l0, mut l1) = (c.l, c.l + span * T::of(1e-3));
-        let (mut g0, mut g1) = (g(l0), g(l1));
-        for _ in 0..8 {
-            if g1 == g0 {
-                break;
-            }
-            let l2 = l1 - g1 * (l1 - l0) / (g1 - g0);
-            if !l2.is_finite() {
-                return None;
-            }
-            (l0, g0) = (l1, g1);
-            l1 = l2;
-            g1 = g(l1);
-            if (l1 - l0).abs() <= tol {
-                break;
-            }
-        }
+        let l1 = secant(g, c.l, span)?;
         // The refined point must stay near its cell (a root of the neighbour's patch is the
         // neighbour's business) and pass the usual checks.
         if !((l1 - c.l).abs() <= span * T::of(0.25)) {
@@ -985,6 +886,70 @@ impl<'a> Nonlinear<'a> {
         };
         Some(hit)
     }
+}
+
+/// Illinois regula falsi on `g` over `[a, b]`, whose ends must lie on opposite sides (else
+/// `None`): the middle of the final bracket.
+fn illinois<T: Real>(g: impl Fn(T) -> T, a: T, b: T) -> Option<T> {
+    let (mut l0, mut l1) = (a, b);
+    let (mut g0, mut g1) = (g(l0), g(l1));
+    if (g0 < T::ZERO) == (g1 < T::ZERO) || !(g0.is_finite() && g1.is_finite()) {
+        return None;
+    }
+    let tol = (b - a).abs() * T::EPS * T::of(64.0);
+    let mut side = 0;
+    for _ in 0..60 {
+        if (l1 - l0).abs() <= tol {
+            break;
+        }
+        let mut l = (l0 * g1 - l1 * g0) / (g1 - g0);
+        if !(l > l0.min(l1) && l < l0.max(l1)) {
+            l = T::HALF * (l0 + l1);
+        }
+        let gl = g(l);
+        if gl == T::ZERO {
+            (l0, l1) = (l, l);
+            break;
+        }
+        if (gl < T::ZERO) == (g1 < T::ZERO) {
+            (l1, g1) = (l, gl);
+            if side == -1 {
+                g0 = g0 * T::HALF;
+            }
+            side = -1;
+        } else {
+            (l0, g0) = (l, gl);
+            if side == 1 {
+                g1 = g1 * T::HALF;
+            }
+            side = 1;
+        }
+    }
+    Some(T::HALF * (l0 + l1))
+}
+
+/// Secant iterations on `g` from `l` (second point a thousandth of `span` on), at most 8:
+/// the last iterate, `None` if one is not finite.
+fn secant<T: Real>(g: impl Fn(T) -> T, l: T, span: T) -> Option<T> {
+    let tol = span * T::EPS * T::of(16.0);
+    let (mut l0, mut l1) = (l, l + span * T::of(1e-3));
+    let (mut g0, mut g1) = (g(l0), g(l1));
+    for _ in 0..8 {
+        if g1 == g0 {
+            break;
+        }
+        let l2 = l1 - g1 * (l1 - l0) / (g1 - g0);
+        if !l2.is_finite() {
+            return None;
+        }
+        (l0, g0) = (l1, g1);
+        l1 = l2;
+        g1 = g(l1);
+        if (l1 - l0).abs() <= tol {
+            break;
+        }
+    }
+    Some(l1)
 }
 
 /// Push up to four tested children so that the one with the smallest `key` is popped first.
