@@ -25,7 +25,10 @@
 //!   approximate scanning march and `interpolateCrossing` (`march_scan`).
 //! * The entry and the exit are samples too (the paper starts at `t_min + R dt` and stops
 //!   before `t_max`), and the shared-wall interval is widened by a hair on both ends: a
-//!   crossing right at a wall is then seen by at least one of the two prisms.
+//!   crossing right at a wall is then seen by at least one of the two prisms. It is also cut
+//!   to where the surface can be, within max|D| of the base triangle (its box and the slab
+//!   around its plane, `prism_hit::clip_to_surface_bounds`): a prism whose λ range is large
+//!   relative to |D| never marches far.
 //! * Samples whose barycentrics fall outside the triangle (curved walls make the interval a
 //!   hull) are skipped for crossing detection.
 //! * Flat prisms (one displacement value) are not marched: the ray meets the triangle
@@ -38,7 +41,7 @@ use crate::accel::Scene;
 use crate::bake::Prism;
 use crate::canonical::{surface_point, PrismGeom};
 use crate::rng::{self, Purpose};
-use crate::trace::prism_hit::ray_prism_interval;
+use crate::trace::prism_hit::{clip_to_surface_bounds, ray_prism_interval};
 use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
 use glam::{Mat3, Vec2, Vec3};
 
@@ -561,8 +564,14 @@ impl<'a> Pdm<'a> {
         let hi = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_hi);
         let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * local.scale;
-        let te = (iv.t_enter - pad).max(ray.t_min);
-        let tx = (iv.t_exit + pad).min(ray.t_max);
+        let (te, tx) = clip_to_surface_bounds(
+            ro,
+            d,
+            (iv.t_enter - pad).max(ray.t_min),
+            (iv.t_exit + pad).min(ray.t_max),
+            &g.v,
+            p.d_min.abs().max(p.d_max.abs()) + pad,
+        )?;
         let dt = self.step_size(p, local).max((tx - te) / MAX_STEPS as f32);
         let lt = LevelTrack::new(local, p, ro, d, te);
         let inside = |b: Vec3| b.min_element() >= -DETECT_TOL;
@@ -833,6 +842,34 @@ mod tests {
             .into_iter()
             .map(|(r, _)| r)
             .collect()
+    }
+
+    // Would break if the march interval were not cut to the surface bounds: a prism whose λ range
+    // is far larger than its |D| (as the clamped `M_LO_FLOOR` crease prisms were, ±23 on a
+    // 3-unit rock) marched the whole hull of its walls, thousands of steps per ray.
+    #[test]
+    fn huge_lambda_ranges_do_not_lengthen_the_march() {
+        let scene = sphere_scene(2, relief_map(64), 0.15, 1.0);
+        let mut inflated = Scene::new(scene.table.clone(), scene.map.clone());
+        for p in inflated.table.prisms.iter_mut() {
+            p.lambda_lo -= 50.0;
+            p.lambda_hi += 50.0;
+        }
+        let opts = PdmOptions {
+            jitter: false,
+            ..Default::default()
+        };
+        let (a, b) = (Pdm::new(&scene, opts), Pdm::new(&inflated, opts));
+        let (mut steps_a, mut steps_b) = (0u64, 0u64);
+        for (i, ray) in rays_through_centre(500, 1.0, 4).iter().enumerate() {
+            let ha = a.intersect(ray, &ctx(i as u32, 0)).expect("closed sphere");
+            let hb = b.intersect(ray, &ctx(i as u32, 0)).expect("closed sphere");
+            assert!((ha.t - hb.t).abs() < 1e-4, "ray {i}: {} vs {}", ha.t, hb.t);
+            steps_a += ha.steps as u64;
+            steps_b += hb.steps as u64;
+        }
+        eprintln!("steps: {steps_a} with the baked λ, {steps_b} with λ ± 50");
+        assert!(steps_b <= 2 * steps_a, "{steps_a} vs {steps_b}");
     }
 
     #[test]

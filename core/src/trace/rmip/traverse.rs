@@ -8,7 +8,7 @@ use super::curve::Frame;
 use super::Rmip;
 use crate::bake::{Prism, M_LO_FLOOR};
 use crate::canonical::{project_to_prism, PrismGeom};
-use crate::trace::prism_hit::ray_prism_interval;
+use crate::trace::prism_hit::{clip_to_surface_bounds, ray_prism_interval};
 use crate::trace::Ray;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
@@ -111,8 +111,15 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let ro = ray.origin - origin;
         let iv = ray_prism_interval(ro, ray.dir, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * scale;
-        let te = (iv.t_enter - pad).max(ray.t_min);
-        let tx = (iv.t_exit + pad).min(ray.t_max);
+        // Cut to where the surface can be (a big λ range does not mean a long march).
+        let (te, tx) = clip_to_surface_bounds(
+            ro,
+            ray.dir,
+            (iv.t_enter - pad).max(ray.t_min),
+            (iv.t_exit + pad).min(ray.t_max),
+            &v,
+            p.d_min.abs().max(p.d_max.abs()) + pad,
+        )?;
         let geom = PrismGeom {
             v,
             n,
