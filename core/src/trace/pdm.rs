@@ -30,7 +30,10 @@
 //!   around its plane, `prism_hit::clip_to_surface_bounds`): a prism whose λ range is large
 //!   relative to |D| never marches far.
 //! * Samples whose barycentrics fall outside the triangle (curved walls make the interval a
-//!   hull) are skipped for crossing detection.
+//!   hull) are skipped for crossing detection. Where the ray leaves (or re-enters) the part of
+//!   the interval in which the level cubic has a root in range (a grazing exit, the level
+//!   planes folding just past a wall), the edge of that part is found by bisection and is a
+//!   sample too (`level_domain_edge`): the crossing before it would be lost otherwise.
 //! * Flat prisms (one displacement value) are not marched: the ray meets the triangle
 //!   `V_i + D n_i`, then Newton moves the hit onto `P(b) + D m̂(b)`.
 //! * Normals come from the analytic derivative of the canonical surface
@@ -59,6 +62,9 @@ const MAX_STEPS: u32 = 1 << 14;
 const REFINE_ITERS: u32 = 24;
 /// Newton iterations for a sample's level `λ` (warm-started: one or two in practice).
 const LEVEL_ITERS: u32 = 8;
+/// Bisections locating where the ray leaves the region in which a level exists (to 1/1024
+/// of the step there).
+const DOMAIN_EDGE_ITERS: u32 = 10;
 
 /// March step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -578,12 +584,29 @@ impl<'a> Pdm<'a> {
 
         let mut guess = Self::scan_level_estimate(local, ro + d * te);
         let mut prev: Option<Sample> = None;
+        // The last sample with a level, and where the first sample without one since then was.
+        let mut last_ok: Option<Sample> = None;
+        let mut failed_at: Option<f32> = None;
         let r = self.jitter(ctx, prism);
         let mut t = te;
         let mut n = 0;
         loop {
             n += 1;
-            if let Some(cur) = self.level_sample(local, &lt, d, t, guess) {
+            let sample = self.level_sample(local, &lt, d, t, guess);
+            // Where the ray leaves (or re-enters) the region in which a level exists, the
+            // edge of that region is a sample too: a crossing between the last sample with a
+            // level and the first without one would be lost otherwise (a grazing exit, where
+            // the level planes fold just past the wall).
+            let edge = match (sample, last_ok, failed_at) {
+                (None, Some(ok), None) => {
+                    Some(self.level_domain_edge(local, &lt, d, ok, t, &mut n))
+                }
+                (Some(cur), _, Some(bad)) => {
+                    Some(self.level_domain_edge(local, &lt, d, cur, bad, &mut n))
+                }
+                _ => None,
+            };
+            for cur in edge.into_iter().chain(sample) {
                 guess = cur.lambda;
                 if inside(cur.b) {
                     if let Some(pv) = prev {
@@ -599,6 +622,15 @@ impl<'a> Pdm<'a> {
                     prev = Some(cur);
                 }
             }
+            match sample {
+                Some(cur) => {
+                    last_ok = Some(cur);
+                    failed_at = None;
+                }
+                None => {
+                    failed_at = failed_at.or(Some(t));
+                }
+            }
             if t >= tx || n >= MAX_STEPS {
                 break;
             }
@@ -611,6 +643,29 @@ impl<'a> Pdm<'a> {
         }
         *steps += n;
         None
+    }
+
+    /// The sample nearest to `bad` (a ray parameter with no level in range) on the segment
+    /// from the sample `ok` towards it, by bisection; `n` counts the samples taken.
+    fn level_domain_edge(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        d: Vec3,
+        ok: Sample,
+        bad: f32,
+        n: &mut u32,
+    ) -> Sample {
+        let (mut good, mut bad) = (ok, bad);
+        for _ in 0..DOMAIN_EDGE_ITERS {
+            let t = 0.5 * (good.t + bad);
+            *n += 1;
+            match self.level_sample(local, lt, d, t, good.lambda) {
+                Some(s) => good = s,
+                None => bad = t,
+            }
+        }
+        good
     }
 
     /// Resolve a sign change of the canonical `g` between samples `a` and `b` into a hit:
@@ -1217,6 +1272,52 @@ mod tests {
                 .intersect(&Ray::new(o, d), &ctx(pixel, 0))
                 .expect("closed surface");
             assert!(hit.t < 2.7, "ray {pixel} passed the surface: t = {}", hit.t);
+        }
+    }
+
+    /// Regression: three leak rays of `examples/rock` (`bench::leak_rays`, seed 0, rays 458,
+    /// 5554 and 6417 of 10^5) that passed through regular prisms once the crease strips were
+    /// in. Each grazes out of a prism through a wall just where the level planes fold: past
+    /// the last sample with a level (`g > 0`), the exit sample has no level in range, so the
+    /// sign change to `g < 0` was never seen and the next prism starts below the surface. The
+    /// march now samples the edge of the region where a level exists.
+    #[test]
+    fn former_rock_leaks_at_a_grazing_exit() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+        let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
+        let p = crate::asset::prepare(&spec, &Default::default()).unwrap();
+        let scene = Scene::new(p.table, p.map);
+        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let rays = [
+            (
+                458,
+                Vec3::new(-2.8676052, 2.628653, -1.1067853),
+                Vec3::new(0.7025751, -0.7079846, -0.07173594),
+                3.5975957,
+            ),
+            (
+                5554,
+                Vec3::new(0.27264884, -3.218831, -2.6625793),
+                Vec3::new(-0.13171001, 0.9239466, 0.35913128),
+                3.5975955,
+            ),
+            (
+                6417,
+                Vec3::new(1.8435394, -1.8580118, -3.6530547),
+                Vec3::new(-0.5437362, 0.5496773, 0.63419694),
+                3.5975957,
+            ),
+        ];
+        for (pixel, origin, dir, t_max) in rays {
+            let ray = Ray {
+                origin,
+                dir,
+                t_min: 0.0,
+                t_max,
+            };
+            let hit = pdm.intersect(&ray, &ctx(pixel, 0));
+            assert!(hit.is_some(), "ray {pixel} passed through the rock");
         }
     }
 }
