@@ -1320,4 +1320,51 @@ mod tests {
             assert!(hit.is_some(), "ray {pixel} passed through the rock");
         }
     }
+
+    /// Regression: two leak rays of `examples/rock` (rays 895 and 2394 of 10^5) through the
+    /// knife edge's crease strips. A strip's inserted vertices interpolate the UVs of the two
+    /// sides' islands, so its relief is squeezed into the rounded edge: these rays cross the
+    /// canonical surface twice within ~5e-4 (a thin dip), well inside one `dt` when the
+    /// strip's texel size was the base edge's. `bake::inserted_texel_world` measures it on
+    /// the displaced strip, and the march resolves the dip.
+    #[test]
+    fn former_rock_leaks_through_squeezed_strip_relief() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+        let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
+        let p = crate::asset::prepare(&spec, &Default::default()).unwrap();
+        let scene = Scene::new(p.table, p.map);
+        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let rays = [
+            (
+                895,
+                Vec3::new(3.3535738, -2.2690098, 2.5615988),
+                Vec3::new(-0.46161956, 0.70123106, -0.5433069),
+                3.5975955,
+            ),
+            (
+                2394,
+                Vec3::new(3.1534061, 0.54019725, 3.675978),
+                Vec3::new(-0.6907371, -0.16357262, -0.70436233),
+                3.5975957,
+            ),
+        ];
+        for (pixel, origin, dir, t_max) in rays {
+            let ray = Ray {
+                origin,
+                dir,
+                t_min: 0.0,
+                t_max,
+            };
+            let hit = pdm
+                .intersect(&ray, &ctx(pixel, 0))
+                .expect("the strip's dip");
+            let flags = scene.table.prisms[hit.prism as usize].flags;
+            assert_ne!(
+                flags & crate::bake::PRISM_INSERTED,
+                0,
+                "ray {pixel}: {hit:?}"
+            );
+        }
+    }
 }
