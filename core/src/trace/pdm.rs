@@ -584,7 +584,7 @@ impl<'a> Pdm<'a> {
 
         let mut guess = Self::scan_level_estimate(local, ro + d * te);
         let mut prev: Option<Sample> = None;
-        // The last sample with a level, and where the first sample without one since then was.
+        // The last sample with a level, and where the latest sample without one since then was.
         let mut last_ok: Option<Sample> = None;
         let mut failed_at: Option<f32> = None;
         let r = self.jitter(ctx, prism);
@@ -627,9 +627,7 @@ impl<'a> Pdm<'a> {
                     last_ok = Some(cur);
                     failed_at = None;
                 }
-                None => {
-                    failed_at = failed_at.or(Some(t));
-                }
+                None => failed_at = Some(t),
             }
             if t >= tx || n >= MAX_STEPS {
                 break;
