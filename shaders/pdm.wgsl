@@ -315,17 +315,18 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     let g = local.geom;
     let lo = array<vec3f, 3>(g.v[0] + g.n[0] * p.lambda_lo, g.v[1] + g.n[1] * p.lambda_lo, g.v[2] + g.n[2] * p.lambda_lo);
     let hi = array<vec3f, 3>(g.v[0] + g.n[0] * p.lambda_hi, g.v[1] + g.n[1] * p.lambda_hi, g.v[2] + g.n[2] * p.lambda_hi);
-    let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, lo, hi);
-    if (!iv.ok) {
-        return no_prism_hit();
-    }
     let pad = INTERVAL_PAD * local.scale;
-    let cl = clip_to_surface_bounds(ro, d, max(iv.t_enter - pad, ray.t_min), min(iv.t_exit + pad, ray.t_max), g.v, max(abs(p.d_min), abs(p.d_max)) + pad);
+    // Cut to the surface bounds first, then the walls on the cut segment only.
+    let cl = clip_to_surface_bounds(ro, d, ray.t_min, ray.t_max, g.v, max(abs(p.d_min), abs(p.d_max)) + pad);
     if (!cl.ok) {
         return no_prism_hit();
     }
-    let te = cl.t_enter;
-    let tx = cl.t_exit;
+    let iv = ray_prism_interval(ro, d, cl.t_enter, cl.t_exit, lo, hi);
+    if (!iv.ok) {
+        return no_prism_hit();
+    }
+    let te = max(iv.t_enter - pad, cl.t_enter);
+    let tx = min(iv.t_exit + pad, cl.t_exit);
     let dt = max(step_size(p, local), (tx - te) / f32(MAX_STEPS));
     let lt = level_track(local, p, ro, d);
 

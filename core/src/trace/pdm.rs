@@ -568,19 +568,16 @@ impl<'a> Pdm<'a> {
         let g = &local.geom;
         let lo = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_lo);
         let hi = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_hi);
-        let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * local.scale;
-        let (te, tx) = clip_to_surface_bounds(
-            ro,
-            d,
-            (iv.t_enter - pad).max(ray.t_min),
-            (iv.t_exit + pad).min(ray.t_max),
-            &g.v,
-            p.d_min.abs().max(p.d_max.abs()) + pad,
-        )?;
+        // Cut to the surface bounds first: most candidate prisms of a ray are rejected here,
+        // before the walls, and the walls' crossings are searched on the cut segment only.
+        let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
+        let (t0, t1) = clip_to_surface_bounds(ro, d, ray.t_min, ray.t_max, &g.v, reach)?;
+        let iv = ray_prism_interval(ro, d, t0, t1, &lo, &hi)?;
+        let te = (iv.t_enter - pad).max(t0);
+        let tx = (iv.t_exit + pad).min(t1);
         let dt = self.step_size(p, local).max((tx - te) / MAX_STEPS as f32);
         let lt = LevelTrack::new(local, p, ro, d, te);
-        let inside = |b: Vec3| b.min_element() >= -DETECT_TOL;
 
         let mut guess = Self::scan_level_estimate(local, ro + d * te);
         let mut prev: Option<Sample> = None;
@@ -597,35 +594,31 @@ impl<'a> Pdm<'a> {
             // edge of that region is a sample too: a crossing between the last sample with a
             // level and the first without one would be lost otherwise (a grazing exit, where
             // the level planes fold just past the wall).
-            let edge = match (sample, last_ok, failed_at) {
-                (None, Some(ok), None) => {
-                    Some(self.level_domain_edge(local, &lt, d, ok, t, &mut n))
+            let edge = match (sample, failed_at) {
+                (None, None) => {
+                    last_ok.map(|ok| self.level_domain_edge(local, &lt, d, ok, t, &mut n))
                 }
-                (Some(cur), _, Some(bad)) => {
+                (Some(cur), Some(bad)) => {
                     Some(self.level_domain_edge(local, &lt, d, cur, bad, &mut n))
                 }
                 _ => None,
             };
-            for cur in edge.into_iter().chain(sample) {
-                guess = cur.lambda;
-                if inside(cur.b) {
-                    if let Some(pv) = prev {
-                        if (pv.g > 0.0) != (cur.g > 0.0) {
-                            if let Some(hit) =
-                                self.level_crossing(local, &lt, ro, ray, pv, cur, te, tx)
-                            {
-                                *steps += n;
-                                return Some(hit);
-                            }
-                        }
-                    }
-                    prev = Some(cur);
+            if let Some(e) = edge {
+                guess = e.lambda;
+                if let Some(hit) = self.detect(local, &lt, ro, ray, &mut prev, e, te, tx) {
+                    *steps += n;
+                    return Some(hit);
                 }
             }
             match sample {
                 Some(cur) => {
+                    guess = cur.lambda;
                     last_ok = Some(cur);
                     failed_at = None;
+                    if let Some(hit) = self.detect(local, &lt, ro, ray, &mut prev, cur, te, tx) {
+                        *steps += n;
+                        return Some(hit);
+                    }
                 }
                 None => failed_at = Some(t),
             }
@@ -640,6 +633,36 @@ impl<'a> Pdm<'a> {
             .min(tx);
         }
         *steps += n;
+        None
+    }
+
+    /// One march sample `cur`: a sign change of `g` from the previous sample inside the
+    /// triangle (within `DETECT_TOL`) is resolved into a hit (`level_crossing`); otherwise
+    /// `cur` becomes the previous sample if it is inside.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn detect(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        ro: Vec3,
+        ray: &Ray,
+        prev: &mut Option<Sample>,
+        cur: Sample,
+        te: f32,
+        tx: f32,
+    ) -> Option<(f32, Vec3)> {
+        if cur.b.min_element() < -DETECT_TOL {
+            return None;
+        }
+        if let Some(pv) = *prev {
+            if (pv.g > 0.0) != (cur.g > 0.0) {
+                if let Some(hit) = self.level_crossing(local, lt, ro, ray, pv, cur, te, tx) {
+                    return Some(hit);
+                }
+            }
+        }
+        *prev = Some(cur);
         None
     }
 

@@ -306,12 +306,11 @@ pub fn clip_to_surface_bounds(
 fn cap_planes_reject(
     o: Vec3,
     d: Vec3,
-    t_min: f32,
-    t_max: f32,
+    (t_min, t_max): (f32, f32),
     lo: &[Vec3; 3],
     hi: &[Vec3; 3],
+    extent: f32,
 ) -> bool {
-    let extent = (hi[0] - lo[0]).length() + (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length();
     for (cap, other, sign) in [(hi, lo, 1.0f32), (lo, hi, -1.0)] {
         // Outward normal of this cap (counter-clockwise base: `hi` up, `lo` down).
         let n = (cap[1] - cap[0]).cross(cap[2] - cap[0]) * sign;
@@ -328,6 +327,41 @@ fn cap_planes_reject(
     false
 }
 
+/// The same early-out for the three walls. The wall over the base edge `lo_i lo_j` is a
+/// bilinear patch, so it lies in the hull of its corners: on the inner side of the plane
+/// through `lo_i, lo_j, hi_i` shifted outwards by the fourth corner's distance `δ`. Every level
+/// triangle has its edge on the wall and its third corner between `lo_k` and `hi_k`; if those
+/// are on the inner side, the whole prism is. A segment wholly beyond the shifted plane then
+/// misses the prism (the walls' quadratics are the interval's main cost, and most candidate
+/// prisms of a ray are missed).
+#[inline]
+fn wall_planes_reject(
+    o: Vec3,
+    d: Vec3,
+    (t_min, t_max): (f32, f32),
+    lo: &[Vec3; 3],
+    hi: &[Vec3; 3],
+    extent: f32,
+) -> bool {
+    for i in 0..3 {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        let a = lo[i];
+        // Outward for a counter-clockwise base (as in `wall`).
+        let n = (lo[j] - a).cross(hi[i] - a);
+        let tol = 1e-5 * n.length() * extent;
+        if (lo[k] - a).dot(n) > -tol || (hi[k] - a).dot(n) > -tol {
+            continue;
+        }
+        let bound = (hi[j] - a).dot(n).max(0.0) + tol;
+        let s0 = (o - a).dot(n);
+        let sd = d.dot(n);
+        if s0 + t_min * sd > bound && (sd >= 0.0 || s0 + t_max * sd > bound) {
+            return true;
+        }
+    }
+    false
+}
+
 /// The hull `[first entry, last exit]` of the ray's inside set in `[t_min, t_max]`, or `None`
 /// if the ray misses the prism. `d` need not be unit length (t is in units of `d`).
 pub fn ray_prism_interval(
@@ -338,7 +372,10 @@ pub fn ray_prism_interval(
     lo: &[Vec3; 3],
     hi: &[Vec3; 3],
 ) -> Option<Interval> {
-    if cap_planes_reject(o, d, t_min, t_max, lo, hi) {
+    let extent = (hi[0] - lo[0]).length() + (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length();
+    if cap_planes_reject(o, d, (t_min, t_max), lo, hi, extent)
+        || wall_planes_reject(o, d, (t_min, t_max), lo, hi, extent)
+    {
         return None;
     }
     // Crossings are gathered over [t_min, ∞) and clipped afterwards: a crossing past t_max
@@ -465,6 +502,22 @@ mod tests {
                 }
             }
             let step = 6.0 * scale / n as f32;
+            // A random piece of the same ray (the early-outs cull by the segment's ends): it
+            // must keep every inside sample it contains.
+            let (ka, kb) = (
+                (rng.next() * n as f32) as usize,
+                (rng.next() * n as f32) as usize,
+            );
+            let (ka, kb) = (ka.min(kb), ka.max(kb));
+            let (t0, t1) = (step * ka as f32, step * kb as f32);
+            let piece = ray_prism_interval(o, d, t0, t1, &cl, &ch);
+            for k in ka..=kb {
+                let t = step * k as f32;
+                if inside(&g, lo, hi, o + d * t) {
+                    let iv = piece.unwrap_or_else(|| panic!("piece [{t0}, {t1}] lost t={t}"));
+                    assert!(iv.t_enter <= t + 1e-4 * scale && iv.t_exit >= t - 1e-4 * scale);
+                }
+            }
             match interval {
                 None => assert!(
                     !first.is_finite(),

@@ -212,17 +212,13 @@ impl<'a> Nonlinear<'a> {
         // Range reduction: the ray's hull inside the shared-wall prism.
         let lo: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_lo);
         let hi: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_hi);
-        let iv = ray_prism_interval(ro, ray.dir, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * scale.max(f32::MIN_POSITIVE);
-        // Cut to where the surface can be (a big λ range does not mean a long search).
-        let (te, tx) = clip_to_surface_bounds(
-            ro,
-            ray.dir,
-            (iv.t_enter - pad).max(ray.t_min),
-            (iv.t_exit + pad).min(ray.t_max),
-            &v,
-            p.d_min.abs().max(p.d_max.abs()) + pad,
-        )?;
+        // Cut to where the surface can be first (a big λ range does not mean a long search,
+        // and most candidate prisms are rejected here, before the walls).
+        let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
+        let (t0, t1) = clip_to_surface_bounds(ro, ray.dir, ray.t_min, ray.t_max, &v, reach)?;
+        let iv = ray_prism_interval(ro, ray.dir, t0, t1, &lo, &hi)?;
+        let (te, tx) = ((iv.t_enter - pad).max(t0), (iv.t_exit + pad).min(t1));
         let t_range = (T::of32(te), T::of32(tx));
         // Texel footprint (shifted texel coordinates: cell (i, j) is [i, i+1] × [j, j+1]).
         let (w, h) = (self.scene.map.width as f64, self.scene.map.height as f64);

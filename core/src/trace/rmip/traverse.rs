@@ -109,17 +109,13 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let lo: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_lo);
         let hi: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_hi);
         let ro = ray.origin - origin;
-        let iv = ray_prism_interval(ro, ray.dir, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * scale;
-        // Cut to where the surface can be (a big λ range does not mean a long march).
-        let (te, tx) = clip_to_surface_bounds(
-            ro,
-            ray.dir,
-            (iv.t_enter - pad).max(ray.t_min),
-            (iv.t_exit + pad).min(ray.t_max),
-            &v,
-            p.d_min.abs().max(p.d_max.abs()) + pad,
-        )?;
+        // Cut to where the surface can be first (a big λ range does not mean a long march,
+        // and most candidate prisms are rejected here, before the walls).
+        let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
+        let (t0, t1) = clip_to_surface_bounds(ro, ray.dir, ray.t_min, ray.t_max, &v, reach)?;
+        let iv = ray_prism_interval(ro, ray.dir, t0, t1, &lo, &hi)?;
+        let (te, tx) = ((iv.t_enter - pad).max(t0), (iv.t_exit + pad).min(t1));
         let geom = PrismGeom {
             v,
             n,
