@@ -9,6 +9,12 @@
 //! form loops (k ≥ 3 copies, e.g. a cube corner); each loop is closed by a fan over it, wound
 //! against the loop, which is the one orientation consistent with its neighbours.
 //!
+//! Where an end's two normals are more than 90° apart (a knife edge), the quad becomes a strip:
+//! each end gets a ladder of inserted copies whose normals turn from one side to the other
+//! (`strip::NormalArc`, shared by every strip that meets at that pair of records), and the two
+//! ladders are zipped into triangles (`strip::zip`). Corner loops then run through the ladders'
+//! copies and are fanned around an inserted centre vertex (`fan`).
+//!
 //! Edges whose positions and normals match but UVs differ are UV seams: their walls coincide,
 //! only the height can jump. They are counted, not stitched (the seams issue handles them).
 //! Crease repair (`crease`) works by position, so its hard edges may lie on UV seams and cross
