@@ -18,6 +18,7 @@ const INTERVAL_PAD: f32 = 1e-4;
 const MAX_STEPS: u32 = 16384u;
 const REFINE_ITERS: u32 = 24u;
 const LEVEL_ITERS: u32 = 8u;
+const DOMAIN_EDGE_ITERS: u32 = 10u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 
 // pdm::Local: one prism in a local frame (origin at V_0).
@@ -325,25 +326,48 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     let g = local.geom;
     let lo = array<vec3f, 3>(g.v[0] + g.n[0] * p.lambda_lo, g.v[1] + g.n[1] * p.lambda_lo, g.v[2] + g.n[2] * p.lambda_lo);
     let hi = array<vec3f, 3>(g.v[0] + g.n[0] * p.lambda_hi, g.v[1] + g.n[1] * p.lambda_hi, g.v[2] + g.n[2] * p.lambda_hi);
-    let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, lo, hi);
+    let pad = INTERVAL_PAD * local.scale;
+    // Cut to the surface bounds first, then the walls on the cut segment only.
+    let cl = clip_to_surface_bounds(ro, d, ray.t_min, ray.t_max, g.v, max(abs(p.d_min), abs(p.d_max)) + pad);
+    if (!cl.ok) {
+        return no_prism_hit();
+    }
+    let iv = ray_prism_interval(ro, d, cl.t_enter, cl.t_exit, lo, hi);
     if (!iv.ok) {
         return no_prism_hit();
     }
-    let pad = INTERVAL_PAD * local.scale;
-    let te = max(iv.t_enter - pad, ray.t_min);
-    let tx = min(iv.t_exit + pad, ray.t_max);
+    let te = max(iv.t_enter - pad, cl.t_enter);
+    let tx = min(iv.t_exit + pad, cl.t_exit);
     let dt = max(step_size(p, local), (tx - te) / f32(MAX_STEPS));
     let lt = level_track(local, p, ro, d, te);
 
     var guess = scan_level_estimate(local, ro + d * te);
     var prev = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    // The last sample with a level; whether (and where, last) a sample had none since then.
+    var last_ok = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    var failed = false;
+    var failed_at = 0.0;
     let r = jitter(ctx, prism);
     var t = te;
     var n = 0u;
     loop {
         n += 1u;
-        let cur = level_sample(local, lt, d, t, guess);
-        if (cur.ok) {
+        let sample = level_sample(local, lt, d, t, guess);
+        // The edge of the region where a level exists is a sample too (level_domain_edge).
+        var edge = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+        if (!sample.ok && last_ok.ok && !failed) {
+            edge = level_domain_edge(local, lt, ro, d, last_ok, t, &n);
+        } else if (sample.ok && failed) {
+            edge = level_domain_edge(local, lt, ro, d, sample, failed_at, &n);
+        }
+        for (var k = 0u; k < 2u; k++) {
+            var cur = edge;
+            if (k == 1u) {
+                cur = sample;
+            }
+            if (!cur.ok) {
+                continue;
+            }
             guess = cur.lambda;
             if (inside_detect(cur.b)) {
                 if (prev.ok && ((prev.g > 0.0) != (cur.g > 0.0))) {
@@ -356,6 +380,13 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                 prev = cur;
             }
         }
+        if (sample.ok) {
+            last_ok = sample;
+            failed = false;
+        } else {
+            failed = true;
+            failed_at = t;
+        }
         if (t >= tx || n >= MAX_STEPS) {
             break;
         }
@@ -367,6 +398,24 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     }
     *steps += n;
     return no_prism_hit();
+}
+
+// Pdm::level_domain_edge: the sample nearest to `bad` (no level there) on the way from `ok`,
+// by bisection; n counts the samples.
+fn level_domain_edge(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, ok: Sample, bad_t: f32, n: ptr<function, u32>) -> Sample {
+    var good = ok;
+    var bad = bad_t;
+    for (var i = 0u; i < DOMAIN_EDGE_ITERS; i++) {
+        let t = 0.5 * (good.t + bad);
+        *n += 1u;
+        let s = level_sample(local, lt, d, t, good.lambda);
+        if (s.ok) {
+            good = s;
+        } else {
+            bad = t;
+        }
+    }
+    return good;
 }
 
 // Pdm::level_crossing: a sign change of the canonical g between a and b into a hit (Illinois

@@ -168,6 +168,44 @@ fn box_exit(o: vec3f, d: vec3f, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> f32
     return far;
 }
 
+// prism_hit::clip_to_surface_bounds: [t0, t1] cut to where the prism's surface can be, within
+// `reach` of the base triangle v — its box grown by `reach` and the slab of that half-width
+// around its plane (a zero-area base has no plane: the box alone). An axis with d = 0 keeps
+// everything if the origin lies in its slab and nothing otherwise (the CPU's ±∞).
+fn clip_to_surface_bounds(o: vec3f, d: vec3f, t0: f32, t1: f32, v: array<vec3f, 3>, reach: f32) -> Interval {
+    let lo = min(min(v[0], v[1]), v[2]) - vec3f(reach);
+    let hi = max(max(v[0], v[1]), v[2]) + vec3f(reach);
+    var a = t0;
+    var b = t1;
+    for (var k = 0; k < 3; k++) {
+        if (d[k] == 0.0) {
+            if (o[k] < lo[k] || o[k] > hi[k]) {
+                return Interval(false, 0.0, 0.0);
+            }
+            continue;
+        }
+        let inv = 1.0 / d[k];
+        let ta = (lo[k] - o[k]) * inv;
+        let tb = (hi[k] - o[k]) * inv;
+        a = max(a, min(ta, tb));
+        b = min(b, max(ta, tb));
+    }
+    let ng = normalize_or_zero(cross(v[1] - v[0], v[2] - v[0]));
+    let s0 = dot(o - v[0], ng);
+    let sd = dot(d, ng);
+    if (sd == 0.0) {
+        if (abs(s0) > reach) {
+            return Interval(false, 0.0, 0.0);
+        }
+    } else {
+        let ta = (-reach - s0) / sd;
+        let tb = (reach - s0) / sd;
+        a = max(a, min(ta, tb));
+        b = min(b, max(ta, tb));
+    }
+    return Interval(a <= b, a, b);
+}
+
 // prism_hit::cap_planes_reject: true if [t_min, t_max] lies wholly outside one cap's plane,
 // on the side away from the prism. A cap plane bounds the prism only if the other cap's
 // corners are on its inner side (walls lie in the hull of their corners).

@@ -63,7 +63,7 @@ fn intersect(c: &mut Criterion) {
     let rays = primary_rays(&cam);
     let scene = Scene::new(prepared.table, prepared.map);
     let pdm = Pdm::new(&scene, PdmOptions::default());
-    let reference = Reference::new(&scene.table, &scene.map, 2.0);
+    let reference = Reference::new(scene.surface(), 2.0);
     let hits = trace_batch(&pdm, &rays);
     eprintln!(
         "sphere: {} prisms, {} rays, {} hit (pdm), {} hit (reference, {} micro-triangles)",

@@ -312,6 +312,34 @@ pub fn texel_world_size(map: &HeightMap, pos: &[Vec3; 3], uv: &[Vec2; 3]) -> f32
     }
 }
 
+/// World size of one texel over an inserted (zero-area) prism's part of the displaced
+/// surface: the smallest, over its edges, of the edge's extent on the surface
+/// (`|ΔP| + reach |Δn|`, `reach` = max |D|) per texel of the edge's UV length, and at most
+/// `texel_world_size`. A crease strip's zero-length edges turn the normal through up to 60°
+/// while their UVs may cross many texels (from one side's UV island to the other's): the
+/// relief there is squeezed far below the base mesh's texel size, and the march step
+/// (`dt = auto`, a fraction of this) has to follow it.
+pub fn inserted_texel_world(
+    map: &HeightMap,
+    pos: &[Vec3; 3],
+    n: &[Vec3; 3],
+    uv: &[Vec2; 3],
+    reach: f32,
+) -> f32 {
+    let size = Vec2::new(map.width as f32, map.height as f32);
+    let mut best = texel_world_size(map, pos, uv);
+    for i in 0..3 {
+        let j = (i + 1) % 3;
+        let texels = ((uv[j] - uv[i]) * size).length();
+        let world = (pos[j] - pos[i]).length() + reach * (n[j] - n[i]).length();
+        if texels > 1e-3 && world > 0.0 {
+            let w = world / texels;
+            best = if best > 0.0 { best.min(w) } else { w };
+        }
+    }
+    best
+}
+
 /// Bake one prism record for triangle `t` of `mesh` (its own footprint; `bake` widens the
 /// range of stitched prisms afterwards).
 pub fn bake_prism(mesh: &BaseMesh, map: &HeightMap, params: &DisplaceParams, t: usize) -> Prism {
@@ -328,9 +356,15 @@ pub fn bake_prism(mesh: &BaseMesh, map: &HeightMap, params: &DisplaceParams, t: 
     {
         flags |= PRISM_INSERTED;
     }
+    let (d_min, d_max) = params.displacement_range(hmin, hmax);
+    let texel_world = if flags & PRISM_INSERTED != 0 {
+        inserted_texel_world(map, &pos, &n, &uv, d_min.abs().max(d_max.abs()))
+    } else {
+        texel_world_size(map, &pos, &uv)
+    };
     let p = Prism {
         tri,
-        texel_world: texel_world_size(map, &pos, &uv),
+        texel_world,
         flags,
         ..Prism::default()
     };
@@ -633,5 +667,66 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// An inserted strip triangle's relief is squeezed into its rounded edge: its texel size
+    /// must be measured on the displaced strip (else `dt = auto` steps over whole bumps).
+    /// Would break if inserted prisms took the base edge's texel size again.
+    #[test]
+    fn inserted_strip_texel_size_follows_its_squeezed_uvs() {
+        let map = HeightMap::new(
+            64,
+            64,
+            (0..64 * 64).map(|i| (i % 7) as f32 / 7.0).collect(),
+            Wrap::Repeat,
+        );
+        let (p, q) = (Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0));
+        let n0 = Vec3::Y;
+        let n1 = Vec3::new(0.0, 0.5, 3f32.sqrt() / 2.0); // 60° from n0: |n1 − n0| = 1
+        let texel = 1.0 / 64.0;
+        // The zero-length edge (slots 0–1) crosses 40 texels of UV; the real edge 8.
+        let mesh = BaseMesh {
+            positions: vec![p, p, q],
+            normals: vec![n0, n1, n0],
+            uvs: vec![
+                Vec2::new(0.1, 0.5),
+                Vec2::new(0.1 + 40.0 * texel, 0.5),
+                Vec2::new(0.1, 0.5 + 8.0 * texel),
+            ],
+            triangles: vec![[0, 1, 2]],
+            face_group: vec![0],
+            face_flags: vec![FACE_INSERTED],
+            ..Default::default()
+        };
+        let params = DisplaceParams {
+            scale: 0.1,
+            midlevel: 0.5,
+        };
+        let prism = bake_prism(&mesh, &map, &params, 0);
+        let reach = prism.d_min.abs().max(prism.d_max.abs());
+        assert!(reach > 0.04);
+        let want = reach * 1.0 / 40.0;
+        assert!(
+            (prism.texel_world - want).abs() < 1e-3 * want,
+            "{} vs {want}",
+            prism.texel_world
+        );
+        // The estimate it replaces (longest world edge over longest UV edge) is ~20× larger.
+        let base = texel_world_size(&map, &[p, p, q], &[mesh.uvs[0], mesh.uvs[1], mesh.uvs[2]]);
+        assert!(base > 4.0 * prism.texel_world, "{base}");
+        // Regular faces keep the area-ratio texel size.
+        let mut regular = mesh.clone();
+        regular.positions[1] = Vec3::new(0.0, 0.0, 1.0);
+        regular.face_flags = vec![0];
+        let r = bake_prism(&regular, &map, &params, 0);
+        let pos = [
+            regular.positions[0],
+            regular.positions[1],
+            regular.positions[2],
+        ];
+        assert_eq!(
+            r.texel_world,
+            texel_world_size(&map, &pos, &[mesh.uvs[0], mesh.uvs[1], mesh.uvs[2]])
+        );
     }
 }

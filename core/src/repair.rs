@@ -17,6 +17,10 @@
 //! 5. `stitch` — close hard edges (same positions, different normals) with zero-area triangles
 //!    (`FACE_INSERTED`), and the k-gon holes where k ≥ 3 copies meet (cube corners). The result
 //!    is closed up to UV seams: every edge is shared by two triangles or has a seam twin.
+//!    Where the two sides' normals are more than 90° apart (a knife edge: nearly opposite) the
+//!    edge gets a strip of quads whose inserted vertices turn the normal from one side to the
+//!    other through the outside in steps of at most 60° (`strip`), so that no inserted prism
+//!    has normals that cancel.
 //! 6. `seams` — find the UV seams (same positions and normals, other UVs), record them in the
 //!    mesh for the bake (and the stitched surface, `crate::seam`), and snap each group of seam
 //!    twins to one position and normal bit for bit.
@@ -37,6 +41,7 @@ mod crease;
 mod report;
 mod seams;
 mod stitch;
+mod strip;
 mod weld;
 
 #[cfg(test)]
@@ -58,6 +63,11 @@ pub struct RepairOptions {
     pub weld: bool,
     /// Insert zero-area triangles along hard edges (and at corners where ≥ 3 copies meet).
     pub stitch_hard_edges: bool,
+    /// Largest turn of the normal (radians) between neighbouring copies in the strip that
+    /// stitches a hard edge whose sides are more than 90° apart (default 60°). `π` or more
+    /// inserts one quad per hard edge whatever its angle (the construction before strips,
+    /// whose prisms fold across a knife edge: kept to measure what strips fix).
+    pub strip_step_angle: f32,
 }
 
 impl Default for RepairOptions {
@@ -66,6 +76,7 @@ impl Default for RepairOptions {
             crease_threshold: 2.5f32.to_radians().sin(),
             weld: true,
             stitch_hard_edges: true,
+            strip_step_angle: std::f32::consts::FRAC_PI_3,
         }
     }
 }
@@ -113,7 +124,7 @@ pub fn repair(mesh: BaseMesh, opts: &RepairOptions) -> (BaseMesh, RepairReport) 
     weld::compact_vertices(&mut work, &mut report);
     crease::report_inverted_corners(&work, &mut report);
     crease::split_creases(&mut work, &quant, opts.crease_threshold, &mut report);
-    stitch::stitch(&mut work, &quant, opts.stitch_hard_edges, &mut report);
+    stitch::stitch(&mut work, &quant, opts, &mut report);
     let seams = seams::find_seams(&mut work, &quant, &mut report);
     report.output_vertices = work.positions.len();
     report.output_triangles = work.triangles.len();

@@ -71,6 +71,12 @@ pub fn report(what: &str, a: &Agreement) -> String {
 }
 
 fn check_asset(rel: &str, spp: u32) {
+    check_asset_with(rel, spp, PdmOptions::default(), true);
+}
+
+/// `strict_stitched`: hold the pixels of stitched prisms to the bounds on their own (else only
+/// report them; they still count in the whole image's bounds).
+fn check_asset_with(rel: &str, spp: u32, opts: PdmOptions, strict_stitched: bool) {
     let ex = example_scene(rel);
     let (scene, cam) = (&ex.scene, &ex.cam);
     let settings = RenderSettings {
@@ -79,7 +85,6 @@ fn check_asset(rel: &str, spp: u32) {
         spp,
         seed: 7,
     };
-    let opts = PdmOptions::default();
     let cpu = render::render_aovs(&Pdm::new(scene, opts), cam, &settings, &|_| {});
     let gpu_scene = GpuScene::upload(ctx(), scene).expect("upload");
     let gpu = render_aovs(ctx(), &gpu_scene, cam, &settings, &opts, &|_| {}).expect("gpu render");
@@ -98,7 +103,9 @@ fn check_asset(rel: &str, spp: u32) {
         report(&format!("{rel} 128² spp {spp}, stitched prisms"), &s)
     );
     assert_parity(rel, &a, 128 * 128 / 20);
-    assert_parity(&format!("{rel}, stitched prisms"), &s, 0);
+    if strict_stitched {
+        assert_parity(&format!("{rel}, stitched prisms"), &s, 0);
+    }
 }
 
 /// The parity tolerances (module doc) on `a`, over at least `min_pixels` pixels both hit.
@@ -135,18 +142,28 @@ fn torus_matches_the_cpu() {
     check_asset("torus/torus.obj", 1);
 }
 
-// Ignored until the rock's bake is fixed: its crease prisms inserted by repair (flags
-// INSERTED, some DEGENERATE_NORMALS) get λ ranges of ±23 world units on a 3-unit rock, so a ray
-// crossing one marches ~10 000 samples in it (the CPU pays for it too). lavapipe (Mesa 22.3's
-// gallivm) caps an invocation at 65535 loop iterations in total and silently cuts the march
-// short (docs/gpu.md). Measured after the re-port of the rebased level cubic: 691 of 16384
-// pixels (4.2%) hit on the CPU only, nearly all of them rays the CPU marched 9 500–38 000
-// samples for (the few others presumably meet such a prism earlier in the GPU's BVH2 order);
-// no pixel hits on the GPU only.
+// The rock's knife-edge crease used to be stitched with single quads whose corner normals
+// nearly cancel (flags INSERTED | DEGENERATE_NORMALS, λ ranges of ±23 world units on a 3-unit
+// rock): rays marched thousands of steps in them and lavapipe's 65535 loop iterations per
+// invocation cut the march short (docs/gpu.md). Repair's crease strips and the march's cut
+// to the surface bounds keep most marches short, but the strips march at their own, much
+// smaller texel size: at the default dt a few rays still run past lavapipe's cap (42 of 16384
+// pixels hit on the CPU only, every one with no GPU steps at all; the same 42 with `--seams
+// open`). The whole image is held to the bounds; its stitched prisms (where those pixels are
+// 0.7%) only at a step that stays below the cap, where they match exactly.
 #[test]
-#[ignore = "rock bake: inserted crease prisms with ±23 λ exceed lavapipe's 65535 loop iterations per invocation"]
 fn rock_matches_the_cpu() {
-    check_asset("rock/rock.glb", 1);
+    check_asset_with("rock/rock.glb", 1, PdmOptions::default(), false);
+}
+
+#[test]
+fn rock_matches_the_cpu_below_lavapipes_loop_cap() {
+    use prismbake::trace::pdm::StepSize;
+    let opts = PdmOptions {
+        dt: StepSize::Auto(4.0),
+        ..PdmOptions::default()
+    };
+    check_asset_with("rock/rock.glb", 1, opts, true);
 }
 
 #[test]

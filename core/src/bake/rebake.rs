@@ -1,7 +1,10 @@
 //! Incremental re-bake for a changed height map (`render --watch`): same mesh and
 //! parameters, new map values; only prisms whose stored bounds no longer hold are re-derived.
 
-use super::{prism_height_range, texel_world_size, with_height_range, Prism, PrismTable};
+use super::{
+    footprint_range, inserted_texel_world, prism_height_range, texel_world_size, with_height_range,
+    Prism, PrismTable, PRISM_INSERTED,
+};
 use crate::heightmap::HeightMap;
 use crate::seam::StitchField;
 use rayon::prelude::*;
@@ -35,8 +38,15 @@ pub fn rebake_for_map(table: &mut PrismTable, map: &HeightMap) -> RebakeStats {
         // Texel sizes first: the stitch bands (one texel wide) follow them.
         for i in 0..table.prisms.len() {
             let p = table.prisms[i];
-            let (pos, _) = table.prism_corners(&p);
-            table.prisms[i].texel_world = texel_world_size(map, &pos, &table.prism_uvs(&p));
+            let (pos, n) = table.prism_corners(&p);
+            let uv = table.prism_uvs(&p);
+            table.prisms[i].texel_world = if p.flags & PRISM_INSERTED != 0 {
+                let (hmin, hmax) = footprint_range(map, &uv);
+                let (d0, d1) = params.displacement_range(hmin, hmax);
+                inserted_texel_world(map, &pos, &n, &uv, d0.abs().max(d1.abs()))
+            } else {
+                texel_world_size(map, &pos, &uv)
+            };
         }
     }
     let view: &PrismTable = table;

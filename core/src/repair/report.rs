@@ -33,7 +33,11 @@ pub struct StitchedEdge {
     pub faces: [u32; 2],
     /// Output vertices `[a, b, a', b']`.
     pub vertices: [u32; 4],
-    /// Output indices of the inserted triangles (1 or 2).
+    /// Steps of the normal's turn from one side to the other at `a` and at `b` (inserted
+    /// vertices + 1; 1 for a narrow edge, one quad; 0 where the normals agree, a crease end).
+    pub segments: [u32; 2],
+    /// Output indices of the inserted triangles (`segments[0] + segments[1]`, less any
+    /// with a repeated vertex).
     pub inserted: Vec<u32>,
 }
 
@@ -51,7 +55,10 @@ pub struct SeamFinding {
 pub struct CornerFan {
     /// Output vertices around the hole, in the fan's order.
     pub vertices: Vec<u32>,
-    /// Output indices of the inserted triangles (k − 2).
+    /// Output index of the inserted centre vertex, if the fan has one (then k triangles).
+    pub centre: Option<u32>,
+    /// Output indices of the inserted triangles (k − 2 from the first vertex, or k around
+    /// the centre).
     pub inserted: Vec<u32>,
     /// The fan's orientation (fixed by its neighbours, so that the mesh stays consistently
     /// oriented) disagrees with the copies' mean normal, measured on the displaced positions
@@ -89,8 +96,12 @@ pub struct RepairReport {
     pub unresolved_crease_corners: Vec<CornerFinding>,
     pub stitched_edges: Vec<StitchedEdge>,
     pub corner_fans: Vec<CornerFan>,
-    /// Total triangles inserted (edge quads + corner fans), all flagged `FACE_INSERTED`.
+    /// Total triangles inserted (edge strips + corner fans), all flagged `FACE_INSERTED`.
     pub inserted_triangles: usize,
+    /// Vertices inserted by stitching (output indices from `output_vertices −
+    /// inserted_vertices` on): the intermediate normals of wide hard edges' strips and the
+    /// centres of corner fans, each at the position of the vertex it was made for.
+    pub inserted_vertices: usize,
     /// Hard edges found but left open because `stitch_hard_edges` was off.
     pub unstitched_hard_edges: usize,
     /// Edges whose positions and normals match another face's edge but whose UVs differ:
@@ -185,8 +196,8 @@ impl RepairReport {
             for e in &self.stitched_edges {
                 let _ = writeln!(
                     s,
-                    "    faces {} | {}: output vertices {:?}, inserted triangles {:?}",
-                    e.faces[0], e.faces[1], e.vertices, e.inserted
+                    "    faces {} | {}: output vertices {:?}, steps {:?}, inserted triangles {:?}",
+                    e.faces[0], e.faces[1], e.vertices, e.segments, e.inserted
                 );
             }
         }
@@ -195,8 +206,10 @@ impl RepairReport {
             for f in &self.corner_fans {
                 let _ = writeln!(
                     s,
-                    "    output vertices {:?}: inserted triangles {:?}{}",
+                    "    output vertices {:?}{}: inserted triangles {:?}{}",
                     f.vertices,
+                    f.centre
+                        .map_or(String::new(), |c| format!(" around centre {c}")),
                     f.inserted,
                     if f.against_normals {
                         " (AGAINST the normals: check the input winding)"
@@ -208,6 +221,13 @@ impl RepairReport {
         }
         if self.inserted_triangles > 0 {
             let _ = writeln!(s, "  triangles inserted: {}", self.inserted_triangles);
+        }
+        if self.inserted_vertices > 0 {
+            let _ = writeln!(
+                s,
+                "  vertices inserted (strip normals, fan centres): {}",
+                self.inserted_vertices
+            );
         }
         if self.unstitched_hard_edges > 0 {
             let _ = writeln!(

@@ -9,6 +9,12 @@
 //! form loops (k ≥ 3 copies, e.g. a cube corner); each loop is closed by a fan over it, wound
 //! against the loop, which is the one orientation consistent with its neighbours.
 //!
+//! Where an end's two normals are more than 90° apart (a knife edge), the quad becomes a strip:
+//! each end gets a ladder of inserted copies whose normals turn from one side to the other
+//! (`strip::NormalArc`, shared by every strip that meets at that pair of records), and the two
+//! ladders are zipped into triangles (`strip::zip`). Corner loops then run through the ladders'
+//! copies and are fanned around an inserted centre vertex (`fan`).
+//!
 //! Edges whose positions and normals match but UVs differ are UV seams: their walls coincide,
 //! only the height can jump. They are counted, not stitched (the seams issue handles them).
 //! Crease repair (`crease`) works by position, so its hard edges may lie on UV seams and cross
@@ -19,7 +25,7 @@
 //! edge with a twin (same positions and normals, other UVs).
 
 use super::weld::Quantizer;
-use super::{CornerFan, RepairReport, StitchedEdge, Work, INSERTED_ORIGIN};
+use super::{strip, CornerFan, RepairOptions, RepairReport, StitchedEdge, Work, INSERTED_ORIGIN};
 use crate::mesh::FACE_INSERTED;
 use glam::Vec3;
 use std::collections::HashMap;
@@ -64,12 +70,24 @@ fn boundary_half_edges(triangles: &[[u32; 3]]) -> Vec<(usize, u32, u32)> {
     out
 }
 
-pub(super) fn stitch(w: &mut Work, quant: &Quantizer, enabled: bool, report: &mut RepairReport) {
+pub(super) fn stitch(
+    w: &mut Work,
+    quant: &Quantizer,
+    opts: &RepairOptions,
+    report: &mut RepairReport,
+) {
     let pos: Vec<PosKey> = w.positions.iter().map(|&p| quant.position_key(p)).collect();
-    stitch_edges(w, &pos, enabled, report);
+    let first_inserted_vertex = w.positions.len();
+    let enabled = opts.stitch_hard_edges;
+    let hard = pair_hard_edges(w, &pos, enabled, report);
     if enabled {
-        close_corners(w, &pos, report);
+        let mut ladders = Ladders::new(w, &pos, &hard, opts.strip_step_angle);
+        for e in &hard {
+            insert_strip(w, &mut ladders, e, report);
+        }
+        close_corners(w, quant, first_inserted_vertex, report);
     }
+    report.inserted_vertices = w.positions.len() - first_inserted_vertex;
     report.open_boundary_edges = edge_counts(&w.triangles)
         .values()
         .filter(|&&c| c == 1)
@@ -87,9 +105,26 @@ fn push_inserted(w: &mut Work, tri: [u32; 3], group: u32) -> Option<u32> {
     Some((w.triangles.len() - 1) as u32)
 }
 
-/// Pair every boundary edge with a reversed boundary edge at the same positions; stitch hard
-/// ones, count UV seams. Pairing is greedy in face order (first unmatched candidate).
-fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut RepairReport) {
+/// A hard edge: `a → b` of face `t1` and `b2 → a2` of face `t2`, same positions, and the
+/// normals differ at one end at least.
+struct HardEdge {
+    t1: usize,
+    t2: usize,
+    a: u32,
+    b: u32,
+    a2: u32,
+    b2: u32,
+}
+
+/// Pair every boundary edge with a reversed boundary edge at the same positions; return the
+/// hard ones, count UV seams (and, with stitching off, the hard edges left open). Pairing is
+/// greedy in face order (first unmatched candidate).
+fn pair_hard_edges(
+    w: &Work,
+    pos: &[PosKey],
+    enabled: bool,
+    report: &mut RepairReport,
+) -> Vec<HardEdge> {
     let half = boundary_half_edges(&w.triangles);
     let mut by_pos: HashMap<(PosKey, PosKey), Vec<usize>> = HashMap::new();
     for (h, &(_, a, b)) in half.iter().enumerate() {
@@ -101,6 +136,7 @@ fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut Repair
         }
     }
     let mut matched = vec![false; half.len()];
+    let mut hard = Vec::new();
     for h in 0..half.len() {
         let (t1, a, b) = half[h];
         if matched[h] || pos[a as usize] == pos[b as usize] {
@@ -116,8 +152,7 @@ fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut Repair
         matched[h2] = true;
         let (t2, b2, a2) = half[h2];
         let n = |i: u32| w.normals[i as usize];
-        let (same_a, same_b) = (same_normal(n(a), n(a2)), same_normal(n(b), n(b2)));
-        if same_a && same_b {
+        if same_normal(n(a), n(a2)) && same_normal(n(b), n(b2)) {
             let uv = |i: u32| w.uvs[i as usize];
             if uv(a) != uv(a2) || uv(b) != uv(b2) {
                 report.uv_seam_edges += 1;
@@ -128,32 +163,145 @@ fn stitch_edges(w: &mut Work, pos: &[PosKey], enabled: bool, report: &mut Repair
             report.unstitched_hard_edges += 1;
             continue;
         }
-        let group = w.face_group[t1];
-        // Where one end agrees in normal (a crease ending there, possibly on a UV seam) only
-        // the other half of the quad is needed; its zero-length edge would join seam twins.
-        let inserted: Vec<u32> = [(!same_a, [b, a, a2]), (!same_b, [b, a2, b2])]
-            .into_iter()
-            .filter(|&(needed, _)| needed)
-            .filter_map(|(_, tri)| push_inserted(w, tri, group))
-            .collect();
-        report.inserted_triangles += inserted.len();
-        report.stitched_edges.push(StitchedEdge {
-            faces: [w.face_origin[t1], w.face_origin[t2]],
-            vertices: [a, b, a2, b2],
-            inserted,
+        hard.push(HardEdge {
+            t1,
+            t2,
+            a,
+            b,
+            a2,
+            b2,
         });
     }
+    hard
+}
+
+/// Normal bits, for ordering a pair of normals the same way wherever it occurs.
+fn normal_bits(n: Vec3) -> [u32; 3] {
+    n.to_array().map(f32::to_bits)
+}
+
+/// The ladders of inserted vertices at the ends of hard edges: for a pair of records at one
+/// position (the first face's, the second face's), the records whose normals turn from one to
+/// the other (`strip::NormalArc`), both included. Made once per pair and shared by every strip
+/// that meets there, so that neighbouring strips share their zero-length edges by index.
+struct Ladders {
+    /// Away-from-the-solid direction per (position, ordered normal pair): the sum of
+    /// `strip::edge_hint` over the hard edges that end there with that pair of normals.
+    hints: HashMap<(PosKey, [[u32; 3]; 2]), Vec3>,
+    /// (record with the smaller normal bits, the other) → ladder from the first to the second.
+    made: HashMap<(u32, u32), Vec<u32>>,
+    pos: Vec<PosKey>,
+    step: f32,
+}
+
+impl Ladders {
+    fn new(w: &Work, pos: &[PosKey], hard: &[HardEdge], step: f32) -> Self {
+        let mut hints: HashMap<(PosKey, [[u32; 3]; 2]), Vec3> = HashMap::new();
+        for e in hard {
+            let p = |i: u32| w.positions[i as usize];
+            let third = |t: usize, x: u32, y: u32| {
+                let tri = w.triangles[t];
+                p(*tri.iter().find(|&&v| v != x && v != y).expect("a triangle"))
+            };
+            let h = strip::edge_hint(
+                p(e.a),
+                p(e.b),
+                third(e.t1, e.a, e.b),
+                w.face_normal(e.t1),
+                third(e.t2, e.a2, e.b2),
+                w.face_normal(e.t2),
+            );
+            for (x, y) in [(e.a, e.a2), (e.b, e.b2)] {
+                let (nx, ny) = (w.normals[x as usize], w.normals[y as usize]);
+                if !same_normal(nx, ny) {
+                    let (bx, by) = (normal_bits(nx), normal_bits(ny));
+                    let key = (pos[x as usize], [bx.min(by), bx.max(by)]);
+                    *hints.entry(key).or_insert(Vec3::ZERO) += h;
+                }
+            }
+        }
+        Ladders {
+            hints,
+            made: HashMap::new(),
+            pos: pos.to_vec(),
+            step,
+        }
+    }
+
+    /// Records from `from` to `to` (one position). Equal normals: just `[to]` (a crease
+    /// ending there; a UV seam if the records differ).
+    fn ladder(&mut self, w: &mut Work, from: u32, to: u32) -> Vec<u32> {
+        let (nf, nt) = (w.normals[from as usize], w.normals[to as usize]);
+        if same_normal(nf, nt) {
+            return vec![to];
+        }
+        let swapped = normal_bits(nf) > normal_bits(nt);
+        let (lo, hi) = if swapped { (to, from) } else { (from, to) };
+        let mut rungs = match self.made.get(&(lo, hi)) {
+            Some(r) => r.clone(),
+            None => {
+                let (nlo, nhi) = (w.normals[lo as usize], w.normals[hi as usize]);
+                let key = (self.pos[lo as usize], [normal_bits(nlo), normal_bits(nhi)]);
+                let hint = self.hints.get(&key).copied().unwrap_or(Vec3::ZERO);
+                let arc = strip::NormalArc::new(nlo, nhi, hint, self.step);
+                let mut r = vec![lo];
+                for j in 1..arc.segments {
+                    let s = j as f32 / arc.segments as f32;
+                    w.positions.push(w.positions[lo as usize]);
+                    w.normals.push(arc.point(j));
+                    w.uvs.push(w.uvs[lo as usize].lerp(w.uvs[hi as usize], s));
+                    w.vertex_origin.push(w.vertex_origin[lo as usize]);
+                    self.pos.push(self.pos[lo as usize]);
+                    r.push((w.positions.len() - 1) as u32);
+                }
+                r.push(hi);
+                self.made.insert((lo, hi), r.clone());
+                r
+            }
+        };
+        if swapped {
+            rungs.reverse();
+        }
+        rungs
+    }
+}
+
+/// Close one hard edge with the strip between its two ladders (`strip::zip`): one quad for
+/// a narrow edge, the two halves of it where one end is a crease ending, several quads whose
+/// normals turn through the outside of a wide edge.
+fn insert_strip(w: &mut Work, ladders: &mut Ladders, e: &HardEdge, report: &mut RepairReport) {
+    let la = ladders.ladder(w, e.a, e.a2);
+    let lb = ladders.ladder(w, e.b, e.b2);
+    let group = w.face_group[e.t1];
+    let inserted: Vec<u32> = strip::zip(&la, &lb)
+        .into_iter()
+        .filter_map(|tri| push_inserted(w, tri, group))
+        .collect();
+    report.inserted_triangles += inserted.len();
+    report.stitched_edges.push(StitchedEdge {
+        faces: [w.face_origin[e.t1], w.face_origin[e.t2]],
+        vertices: [e.a, e.b, e.a2, e.b2],
+        segments: [(la.len() - 1) as u32, (lb.len() - 1) as u32],
+        inserted,
+    });
 }
 
 /// Close the loops of zero-length boundary edges left at positions where ≥ 3 copies meet.
 ///
 /// The loop is followed over the copies' NORMALS, not their records: where a UV seam crosses
 /// the crease, one normal has several records (seam twins), and the loop passes from one twin
-/// to the other across the seam. A loop of two normals (a crease crossing a UV seam) is already
-/// closed up to the seam: nothing to fill. A loop of k ≥ 3 normals is filled by a fan over one
-/// record per normal (the tail of its outgoing edge); where that record differs from a twin
-/// the fan's edge is again a UV seam edge.
-fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
+/// to the other across the seam. Two zero-length edges that are each other's reverse by
+/// normal (the ladders of a crease crossing a UV seam, one on each side of it) are already
+/// closed up to the seam and drop out. A loop of k ≥ 3 normals is filled by a fan over one
+/// record per normal (the tail of its outgoing edge, `fan`); where that record differs from a
+/// twin the fan's edge is again a UV seam edge.
+fn close_corners(
+    w: &mut Work,
+    quant: &Quantizer,
+    first_inserted_vertex: usize,
+    report: &mut RepairReport,
+) {
+    let pos: Vec<PosKey> = w.positions.iter().map(|&p| quant.position_key(p)).collect();
     let mut groups: HashMap<PosKey, Vec<(u32, u32)>> = HashMap::new();
     for (_, a, b) in boundary_half_edges(&w.triangles) {
         if pos[a as usize] == pos[b as usize] {
@@ -162,6 +310,7 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
     }
     let mut keys: Vec<PosKey> = groups.keys().copied().collect();
     keys.sort_unstable();
+    let original_faces = w.triangles.len();
     for key in keys {
         let edges = &groups[&key];
         // Normal class of each record: the smallest record at this position with its normal.
@@ -175,12 +324,31 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
                 .find(|&&r| same_normal(w.normals[r as usize], n))
                 .expect("v is among the records")
         };
+        let classed: Vec<(u32, u32, u32)> = edges
+            .iter()
+            .map(|&(a, b)| (class(a), class(b), a))
+            .collect();
+        // Drop edge pairs that are each other's reverse by class (closed up to a UV seam).
+        let mut cancelled = vec![false; classed.len()];
+        for i in 0..classed.len() {
+            if cancelled[i] {
+                continue;
+            }
+            let (ca, cb, _) = classed[i];
+            if let Some(j) = (i + 1..classed.len())
+                .find(|&j| !cancelled[j] && classed[j].0 == cb && classed[j].1 == ca)
+            {
+                cancelled[i] = true;
+                cancelled[j] = true;
+            }
+        }
         // Class → (next class, tail record).
         let mut next: HashMap<u32, (u32, u32)> = HashMap::new();
         let mut ambiguous = false;
-        for &(a, b) in edges {
-            let (ca, cb) = (class(a), class(b));
-            ambiguous |= ca == cb || next.insert(ca, (cb, a)).is_some();
+        for (i, &(ca, cb, a)) in classed.iter().enumerate() {
+            if !cancelled[i] {
+                ambiguous |= ca == cb || next.insert(ca, (cb, a)).is_some();
+            }
         }
         if ambiguous {
             report.unclosed_corners += 1;
@@ -209,7 +377,8 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
             visited.extend_from_slice(&cycle);
             if closed && cycle.len() >= 3 {
                 let tails: Vec<u32> = cycle.iter().map(|c| next[c].1).collect();
-                fan(w, &tails, report);
+                let laddered = tails.iter().any(|&v| v as usize >= first_inserted_vertex);
+                fan(w, &pos, &tails, laddered, original_faces, report);
             } else if !closed {
                 open = true;
             }
@@ -220,17 +389,56 @@ fn close_corners(w: &mut Work, pos: &[PosKey], report: &mut RepairReport) {
     }
 }
 
-/// Fill the boundary loop `u0→u1→…→u(k−1)→u0` with triangles `(u0, u(i+1), u(i))`.
-fn fan(w: &mut Work, cycle: &[u32], report: &mut RepairReport) {
+/// A fan from the loop's first vertex is kept (a cube corner: one triangle) only if its
+/// triangles' normals are this well spread: the bake's lower bound `min n_i·ĉ` of `|m|`.
+const FAN_MIN_M_LO: f32 = 0.5;
+
+/// The bake's lower bound of `|Σ b_i n_i|` over a triangle with normals `n` (no floor).
+fn normal_spread(n: [Vec3; 3]) -> f32 {
+    let c = (n[0] + n[1] + n[2]).normalize_or_zero();
+    n.iter().map(|ni| ni.dot(c)).fold(f32::INFINITY, f32::min)
+}
+
+/// Fill the boundary loop `u0→u1→…→u(k−1)→u0`: with triangles `(u0, u(i+1), u(i))` where that
+/// keeps every triangle's normals well spread (`FAN_MIN_M_LO`) and the loop has no ladder
+/// vertices (three of those lie on one great circle: a flat prism); otherwise with a centre
+/// vertex `c` and triangles `(c, u(i+1), u(i))`. `c`'s normal is the loop's mean normal, or
+/// where the normals nearly cancel (a sharp apex) the direction away from the faces at the
+/// corner; its UV is the loop's mean UV.
+fn fan(
+    w: &mut Work,
+    pos: &[PosKey],
+    cycle: &[u32],
+    laddered: bool,
+    original_faces: usize,
+    report: &mut RepairReport,
+) {
     let group = w
         .triangles
         .iter()
         .position(|tri| tri.contains(&cycle[0]))
         .map_or(0, |t| w.face_group[t]);
+    let k = cycle.len();
+    let nrm = |i: u32| w.normals[i as usize];
+    let from_first = !laddered
+        && (1..k - 1).all(|i| {
+            normal_spread([nrm(cycle[0]), nrm(cycle[i + 1]), nrm(cycle[i])]) >= FAN_MIN_M_LO
+        });
     let mut inserted = Vec::new();
-    for i in 1..cycle.len() - 1 {
-        if let Some(t) = push_inserted(w, [cycle[0], cycle[i + 1], cycle[i]], group) {
-            inserted.push(t);
+    let mut centre = None;
+    if from_first {
+        for i in 1..k - 1 {
+            if let Some(t) = push_inserted(w, [cycle[0], cycle[i + 1], cycle[i]], group) {
+                inserted.push(t);
+            }
+        }
+    } else {
+        let c = push_centre(w, pos, cycle, original_faces);
+        centre = Some(c);
+        for i in 0..k {
+            if let Some(t) = push_inserted(w, [c, cycle[(i + 1) % k], cycle[i]], group) {
+                inserted.push(t);
+            }
         }
     }
     // The fan's polygon, in its own winding: u0, u(k−1), …, u1.
@@ -248,7 +456,44 @@ fn fan(w: &mut Work, cycle: &[u32], report: &mut RepairReport) {
     report.inserted_triangles += inserted.len();
     report.corner_fans.push(CornerFan {
         vertices: order,
+        centre,
         inserted,
         against_normals: area.dot(mean_normal) < 0.0,
     });
+}
+
+/// The centre vertex of a corner fan over `cycle` (all at one position).
+fn push_centre(w: &mut Work, pos: &[PosKey], cycle: &[u32], original_faces: usize) -> u32 {
+    let v0 = cycle[0] as usize;
+    let p = w.positions[v0];
+    let sum: Vec3 = cycle.iter().map(|&i| w.normals[i as usize]).sum();
+    let normal = if sum.length() >= 0.25 * cycle.len() as f32 {
+        sum.normalize()
+    } else {
+        // Away from the faces: minus the sum of their corner bisectors at p (a convex corner).
+        let mut away = Vec3::ZERO;
+        for t in 0..original_faces {
+            if w.is_inserted(t) {
+                continue;
+            }
+            let tri = w.triangles[t];
+            let q = tri.map(|i| w.positions[i as usize]);
+            for k in 0..3 {
+                if pos[tri[k] as usize] == pos[v0] {
+                    let e1 = (q[(k + 1) % 3] - q[k]).normalize_or_zero();
+                    let e2 = (q[(k + 2) % 3] - q[k]).normalize_or_zero();
+                    away -= (e1 + e2).normalize_or_zero();
+                }
+            }
+        }
+        away.try_normalize()
+            .or_else(|| sum.try_normalize())
+            .unwrap_or(w.normals[v0])
+    };
+    let uv = cycle.iter().map(|&i| w.uvs[i as usize]).sum::<glam::Vec2>() / cycle.len() as f32;
+    w.positions.push(p);
+    w.normals.push(normal);
+    w.uvs.push(uv);
+    w.vertex_origin.push(w.vertex_origin[v0]);
+    (w.positions.len() - 1) as u32
 }

@@ -262,6 +262,49 @@ fn assert_sized(m: &BaseMesh) {
     );
 }
 
+/// Smallest accepted spread of an inserted triangle's normals: the bake's lower bound
+/// `min n_i·ĉ` of `|Σ b_i n_i|` over the triangle. `m(b)` then never comes near zero (no
+/// folded prism) and the λ range is at most `|D| / MIN_SPREAD`. A 90° edge's single quad
+/// (two normals of one side, one of the other) has `1/√5 = 0.447`; strip triangles, whose
+/// normals are at most 60° apart, 0.75.
+const MIN_SPREAD: f32 = 0.44;
+
+/// Every inserted triangle of `m` has well-spread normals (`MIN_SPREAD`), and baked over a
+/// map with `|D| ≤ d` its prism is not flagged `PRISM_DEGENERATE_NORMALS` and has
+/// `|λ| ≤ d / MIN_SPREAD`. Returns the smallest spread (1 if nothing was inserted).
+fn assert_inserted_prisms_sane(m: &BaseMesh, d: f32) -> f32 {
+    use crate::bake::{bake_prism, PRISM_DEGENERATE_NORMALS, PRISM_INSERTED};
+    use crate::heightmap::{DisplaceParams, HeightMap, Wrap};
+    let map = HeightMap::new(2, 2, vec![0.0, 1.0, 0.3, 0.8], Wrap::Repeat);
+    let params = DisplaceParams {
+        scale: 2.0 * d,
+        midlevel: 0.5,
+    };
+    let mut worst = 1.0f32;
+    for t in 0..m.triangles.len() {
+        if m.face_flags[t] & FACE_INSERTED == 0 {
+            continue;
+        }
+        let n = m.corner_normals(t);
+        let c = (n[0] + n[1] + n[2]).normalize_or_zero();
+        let spread = n.iter().map(|ni| ni.dot(c)).fold(f32::INFINITY, f32::min);
+        assert!(
+            spread >= MIN_SPREAD,
+            "inserted face {t}: normals {n:?} nearly cancel (spread {spread})"
+        );
+        worst = worst.min(spread);
+        let p = bake_prism(m, &map, &params, t);
+        assert_ne!(p.flags & PRISM_INSERTED, 0);
+        assert_eq!(p.flags & PRISM_DEGENERATE_NORMALS, 0, "face {t}: {p:?}");
+        let bound = d / MIN_SPREAD * 1.001;
+        assert!(
+            p.lambda_lo >= -bound && p.lambda_hi <= bound,
+            "face {t}: λ range {p:?} beyond ±{bound}"
+        );
+    }
+    worst
+}
+
 // Would break if the weld key ignored an attribute or triangles were not remapped.
 #[test]
 fn weld_merges_duplicated_quad_vertices() {
@@ -407,6 +450,11 @@ fn split_normal_cube_is_closed_by_stitching() {
         "every edge shared by exactly two faces"
     );
     assert_eq!(max_displaced_gap(&out, D), 0.0);
+    // 90° edges keep one quad, the corners one triangle: nothing inserted but triangles.
+    assert!(rep.stitched_edges.iter().all(|e| e.segments == [1, 1]));
+    assert!(rep.corner_fans.iter().all(|f| f.centre.is_none()));
+    assert_eq!(rep.inserted_vertices, 0);
+    assert_inserted_prisms_sane(&out, D);
     // Each corner fan, displaced, faces the way its copies' normals point.
     for fan in &rep.corner_fans {
         let t = out.triangles[fan.inserted[0] as usize];
@@ -452,9 +500,25 @@ fn knife_edge_lens_is_split_and_stitched_closed() {
         rep.corner_fans.is_empty(),
         "only two copies meet at each rim point"
     );
-    assert_eq!(out.positions.len(), 2 * rim as usize + 2);
+    // The rim's sides are ~178° apart: a strip of three quads per edge, the normal turning
+    // in 60° steps through two inserted copies per rim vertex.
+    assert!(rep.stitched_edges.iter().all(|e| e.segments == [3, 3]));
+    assert_eq!(rep.inserted_triangles, 6 * rim as usize);
+    assert_eq!(rep.inserted_vertices, 2 * rim as usize);
+    assert_eq!(out.positions.len(), 4 * rim as usize + 2);
     assert_eq!(open_half_edges(&out), 0);
     assert_eq!(max_displaced_gap(&out, D), 0.0);
+    assert!(assert_inserted_prisms_sane(&out, D) > 0.7);
+    // The strip rounds the rim through the outside: every inserted normal points outwards
+    // (it would fold through the fin if it turned the other way).
+    for v in out.positions.len() - rep.inserted_vertices..out.positions.len() {
+        let radial = out.positions[v].normalize();
+        assert!(
+            out.normals[v].dot(radial) > 0.8,
+            "vertex {v}: {}",
+            out.normals[v]
+        );
+    }
     // Every original corner now sees its own side's normal.
     for t in 0..out.triangles.len() {
         if out.face_flags[t] & FACE_INSERTED == 0 {
@@ -509,6 +573,9 @@ fn bad_smooth_normal_on_a_moderate_rim_is_split() {
         rep.to_text()
     );
     assert_eq!(open_half_edges(&out), 0);
+    // The split rim's sides are 160° apart: strips, not single quads.
+    assert!(rep.stitched_edges.iter().all(|e| e.segments == [3, 3]));
+    assert_inserted_prisms_sane(&out, 0.1);
 }
 
 // Would break if the report stopped being valid JSON for the CLI and the Blender add-on.
@@ -581,6 +648,8 @@ fn cylinder_cap_rims_are_stitched_closed() {
     assert!(rep.corner_fans.is_empty() && rep.unclosed_corners == 0);
     assert_eq!(open_half_edges(&out), 0);
     assert_eq!(max_displaced_gap(&out, 0.1), 0.0);
+    assert!(rep.stitched_edges.iter().all(|e| e.segments == [1, 1]));
+    assert_inserted_prisms_sane(&out, 0.1);
 }
 
 // Would break if a crease that ends inside the mesh (its end vertex keeps one copy) left a
@@ -598,13 +667,16 @@ fn crease_ending_inside_the_mesh_is_closed_with_single_triangles() {
     let (out, rep) = repair(m, &RepairOptions::default());
     assert!(!rep.crease_edges.is_empty() && rep.crease_edges.len() < 24);
     assert!(!rep.split_vertices.is_empty());
+    // At the crease's end the normals agree: the strip is a fan of its other end's steps.
     assert!(
-        rep.stitched_edges.iter().any(|e| e.inserted.len() == 1),
+        rep.stitched_edges.iter().any(|e| e.segments.contains(&0)
+            && e.inserted.len() == e.segments[0].max(e.segments[1]) as usize),
         "{}",
         rep.to_text()
     );
     assert_eq!(open_half_edges(&out), 0, "{}", rep.to_text());
     assert_eq!(max_displaced_gap(&out, 0.1), 0.0);
+    assert_inserted_prisms_sane(&out, 0.1);
 }
 
 /// Directed edges a→b with no reverse b→a (by vertex index) that are NOT a UV seam: a seam
@@ -714,10 +786,11 @@ fn knife_edge_crossing_a_uv_seam_is_split_and_stitched() {
     assert_eq!(rep.unclosed_corners, 0, "{}", rep.to_text());
     assert!(rep.corner_fans.is_empty());
     // The cap seam's two edges stay plain UV seams (their twins keep equal normals), and where
-    // the seam crosses the rim the crease wall has one too: the zero-length edge between the
-    // two top islands' copies and the bottom record, once per crossing.
-    assert_eq!(rep.uv_seam_edges, 4, "{}", rep.to_text());
-    assert_eq!(out.seams.len(), 4);
+    // the seam crosses the rim the crease wall has them too: the zero-length edges between the
+    // two top islands' copies along the strip, one per strip segment (a ~180° knife edge in
+    // steps of at most 60°: 3), at each of the two crossings.
+    assert_eq!(rep.uv_seam_edges, 2 + 2 * 3, "{}", rep.to_text());
+    assert_eq!(out.seams.len(), rep.uv_seam_edges);
     assert_eq!(rep.open_boundary_edges, 2 * rep.uv_seam_edges);
     assert_eq!(open_edges_not_seams(&out), vec![], "{}", rep.to_text());
     assert_eq!(max_displaced_gap(&out, D), 0.0);
@@ -727,6 +800,11 @@ fn knife_edge_crossing_a_uv_seam_is_split_and_stitched() {
             assert!(out.corner_normals(t).iter().all(|n| n.dot(ng) > 0.9));
         }
     }
+    // Where the seam crosses the rim, each side's strip has its own inserted copies (their
+    // UVs differ) with equal normals: the strips meet as a UV seam.
+    assert!(rep.stitched_edges.iter().all(|e| e.segments == [3, 3]));
+    assert_eq!(rep.inserted_vertices, 2 * (rim + 2));
+    assert_inserted_prisms_sane(&out, D);
 }
 
 // Would break if crease repair ignored UV seams on a real asset: the rock's knife-edge fin
@@ -776,4 +854,176 @@ fn rock_fin_crease_is_repaired_across_uv_seams() {
     assert_eq!(rep.unclosed_corners, 0, "{}", rep.to_text());
     assert_eq!(open_edges_not_seams(&out), vec![], "{}", rep.to_text());
     assert_eq!(max_displaced_gap(&out, 0.02), 0.0);
+    // The fin's sides are nearly opposite: its stitches are strips, and no inserted prism
+    // folds (they all did with one quad per edge: `PRISM_DEGENERATE_NORMALS`, λ ≈ ±23).
+    assert!(
+        rep.stitched_edges.iter().any(|e| e.segments[0] >= 3),
+        "{}",
+        rep.to_text()
+    );
+    let spread = assert_inserted_prisms_sane(&out, 0.025);
+    eprintln!(
+        "{}min spread of inserted normals: {spread:.3}",
+        rep.to_text()
+    );
+}
+
+// Would break if the bake of the real asset still had a prism whose normals cancel: the rock
+// with its own map and scale, every prism (inserted or not) unflagged and its λ range within
+// max |D| / MIN_SPREAD.
+#[test]
+fn rock_bakes_without_degenerate_prisms() {
+    use crate::bake::{PRISM_DEGENERATE_NORMALS, PRISM_INSERTED};
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+    let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
+    let folded = |opts: &RepairOptions| {
+        let p = crate::asset::prepare(&spec, opts).unwrap();
+        let reach = p
+            .table
+            .prisms
+            .iter()
+            .map(|q| q.d_min.abs().max(q.d_max.abs()));
+        let reach = reach.fold(0.0, f32::max);
+        let inserted = p
+            .table
+            .prisms
+            .iter()
+            .filter(|q| q.flags & PRISM_INSERTED != 0);
+        let worst = inserted
+            .clone()
+            .map(|q| q.lambda_lo.abs().max(q.lambda_hi.abs()))
+            .fold(0.0, f32::max);
+        let degenerate = p
+            .table
+            .prisms
+            .iter()
+            .filter(|q| q.flags & PRISM_DEGENERATE_NORMALS != 0)
+            .count();
+        eprintln!(
+            "strip step {:.0}°: {} inserted prisms, {degenerate} degenerate, largest |λ| {worst:.3} (max |D| {reach:.4})",
+            opts.strip_step_angle.to_degrees(),
+            inserted.count()
+        );
+        (degenerate, worst / reach)
+    };
+    let (degenerate, ratio) = folded(&RepairOptions::default());
+    assert_eq!(degenerate, 0);
+    assert!(ratio <= 1.0 / MIN_SPREAD, "{ratio}");
+    // The single-quad construction this replaces: folded prisms, λ up to |D| / 1e-3.
+    let single = RepairOptions {
+        strip_step_angle: std::f32::consts::PI,
+        ..Default::default()
+    };
+    let (degenerate, ratio) = folded(&single);
+    assert!(degenerate > 0 && ratio > 100.0, "{degenerate} {ratio}");
+}
+
+/// A thin wedge (knife edge along z at x = 1, back face at x = 0, 2° between top and bottom)
+/// with flat ends at z = ±1 and per-face normals, UVs and vertices: every edge a hard edge in
+/// the file, like the cube, but the rim's sides are ~178° apart.
+fn knife_wedge() -> BaseMesh {
+    let t = 1f32.to_radians().tan();
+    let rim = |z: f32| Vec3::new(1.0, 0.0, z);
+    let top = |z: f32| Vec3::new(0.0, t, z);
+    let bot = |z: f32| Vec3::new(0.0, -t, z);
+    // Counter-clockwise seen from outside.
+    let quads: [[Vec3; 4]; 3] = [
+        [rim(1.0), rim(-1.0), top(-1.0), top(1.0)],
+        [rim(-1.0), rim(1.0), bot(1.0), bot(-1.0)],
+        [top(1.0), top(-1.0), bot(-1.0), bot(1.0)],
+    ];
+    let ends: [[Vec3; 3]; 2] = [
+        [rim(1.0), top(1.0), bot(1.0)],
+        [rim(-1.0), bot(-1.0), top(-1.0)],
+    ];
+    let (mut p, mut n, mut uv, mut tris) = (vec![], vec![], vec![], vec![]);
+    let mut face = |corners: &[Vec3], tris: &mut Vec<[u32; 3]>| {
+        let base = p.len() as u32;
+        let ng = (corners[1] - corners[0])
+            .cross(corners[2] - corners[0])
+            .normalize();
+        for &c in corners {
+            p.push(c);
+            n.push(ng);
+            uv.push(Vec2::new(
+                0.3 + 0.2 * c.x + 0.1 * c.z,
+                0.5 + 0.2 * c.y + 0.15 * c.z,
+            ));
+        }
+        for k in 1..corners.len() as u32 - 1 {
+            tris.push([base, base + k, base + k + 1]);
+        }
+    };
+    for q in &quads {
+        face(q, &mut tris);
+    }
+    for e in &ends {
+        face(e, &mut tris);
+    }
+    let m = mesh(p, n, uv, tris);
+    let out = [
+        m.face_cross(0).y,
+        -m.face_cross(4).x,
+        m.face_cross(6).z,
+        -m.face_cross(7).z,
+    ];
+    assert!(out.iter().all(|&c| c > 0.0), "outward normals");
+    m
+}
+
+// Would break if the corner fans ignored the strips: where the knife edge meets the flat ends,
+// the hole between the copies runs through the strip's inserted normals, and a fan from one
+// copy would put three normals of one great circle in a triangle (a flat prism) or span the
+// nearly opposite sides (a folded one).
+#[test]
+fn knife_wedge_corners_are_fanned_around_a_centre() {
+    const D: f32 = 0.1;
+    let m = knife_wedge();
+    assert!(max_displaced_gap(&m, D) > 0.05);
+    let (out, rep) = repair(m, &RepairOptions::default());
+    assert_sized(&out);
+    assert!(rep.sharp_corners.is_empty() && rep.split_vertices.is_empty());
+    assert_eq!(rep.stitched_edges.len(), 9, "{}", rep.to_text());
+    let segments = |s: [u32; 2]| {
+        rep.stitched_edges
+            .iter()
+            .filter(|e| e.segments == s)
+            .count()
+    };
+    // The rim (178°) turns in three steps, the back edges (91°) in two, the ends' 90° edges
+    // keep one quad.
+    assert_eq!(
+        (segments([3, 3]), segments([2, 2]), segments([1, 1])),
+        (1, 2, 6),
+        "{}",
+        rep.to_text()
+    );
+    // All six corners touch a strip: every fan has a centre.
+    assert_eq!(rep.corner_fans.len(), 6, "{}", rep.to_text());
+    assert!(rep.corner_fans.iter().all(|f| f.centre.is_some()));
+    let rim_ends: Vec<_> = rep
+        .corner_fans
+        .iter()
+        .filter(|f| f.vertices.len() == 5)
+        .collect();
+    assert_eq!(rim_ends.len(), 2, "{}", rep.to_text());
+    for f in &rim_ends {
+        // top, two strip normals, bottom, end: five around the centre, which points out of
+        // the rim's end (not into the blade).
+        assert_eq!(f.inserted.len(), 5);
+        let c = out.normals[f.centre.unwrap() as usize];
+        assert!(c.x > 0.5, "{c}");
+    }
+    assert!(rep.corner_fans.iter().all(|f| !f.against_normals));
+    assert_eq!(rep.unclosed_corners, 0);
+    // Two per rim end, one per back edge end, one centre per corner.
+    assert_eq!(rep.inserted_vertices, 2 * 2 + 4 + 6);
+    assert_eq!(open_half_edges(&out), 0, "{}", rep.to_text());
+    assert_eq!(max_displaced_gap(&out, D), 0.0);
+    assert_inserted_prisms_sane(&out, D);
+    // Idempotent: the repaired wedge needs no more stitching (its 2° rim is still listed as a
+    // crease edge by angle, with nothing to split).
+    let (again, rep2) = repair(out.clone(), &RepairOptions::default());
+    assert!(rep2.split_vertices.is_empty() && rep2.inserted_triangles == 0);
+    assert_eq!(again.triangles, out.triangles);
 }

@@ -25,9 +25,15 @@
 //!   approximate scanning march and `interpolateCrossing` (`march_scan`).
 //! * The entry and the exit are samples too (the paper starts at `t_min + R dt` and stops
 //!   before `t_max`), and the shared-wall interval is widened by a hair on both ends: a
-//!   crossing right at a wall is then seen by at least one of the two prisms.
+//!   crossing right at a wall is then seen by at least one of the two prisms. It is also cut
+//!   to where the surface can be, within max|D| of the base triangle (its box and the slab
+//!   around its plane, `prism_hit::clip_to_surface_bounds`): a prism whose λ range is large
+//!   relative to |D| never marches far.
 //! * Samples whose barycentrics fall outside the triangle (curved walls make the interval a
-//!   hull) are skipped for crossing detection.
+//!   hull) are skipped for crossing detection. Where the ray leaves (or re-enters) the part of
+//!   the interval in which the level cubic has a root in range (a grazing exit, the level
+//!   planes folding just past a wall), the edge of that part is found by bisection and is a
+//!   sample too (`level_domain_edge`): the crossing before it would be lost otherwise.
 //! * Flat prisms (one displacement value) are not marched: the ray meets the triangle
 //!   `V_i + D n_i`, then Newton moves the hit onto `P(b) + D m̂(b)`.
 //! * Normals come from the analytic derivative of the canonical surface
@@ -39,7 +45,7 @@ use crate::bake::Prism;
 use crate::canonical::{surface_point, PrismGeom};
 use crate::rng::{self, Purpose};
 use crate::seam::PrismDisplacement;
-use crate::trace::prism_hit::ray_prism_interval;
+use crate::trace::prism_hit::{clip_to_surface_bounds, ray_prism_interval};
 use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
 use glam::{Mat3, Vec2, Vec3};
 
@@ -57,6 +63,9 @@ const MAX_STEPS: u32 = 1 << 14;
 const REFINE_ITERS: u32 = 24;
 /// Newton iterations for a sample's level `λ` (warm-started: one or two in practice).
 const LEVEL_ITERS: u32 = 8;
+/// Bisections locating where the ray leaves the region in which a level exists (to 1/1024
+/// of the step there).
+const DOMAIN_EDGE_ITERS: u32 = 10;
 
 /// March step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -554,36 +563,59 @@ impl<'a> Pdm<'a> {
         let g = &local.geom;
         let lo = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_lo);
         let hi = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_hi);
-        let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * local.scale;
-        let te = (iv.t_enter - pad).max(ray.t_min);
-        let tx = (iv.t_exit + pad).min(ray.t_max);
+        // Cut to the surface bounds first: most candidate prisms of a ray are rejected here,
+        // before the walls, and the walls' crossings are searched on the cut segment only.
+        let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
+        let (t0, t1) = clip_to_surface_bounds(ro, d, ray.t_min, ray.t_max, &g.v, reach)?;
+        let iv = ray_prism_interval(ro, d, t0, t1, &lo, &hi)?;
+        let te = (iv.t_enter - pad).max(t0);
+        let tx = (iv.t_exit + pad).min(t1);
         let dt = self.step_size(p, local).max((tx - te) / MAX_STEPS as f32);
         let lt = LevelTrack::new(local, p, ro, d, te);
-        let inside = |b: Vec3| b.min_element() >= -DETECT_TOL;
 
         let mut guess = Self::scan_level_estimate(local, ro + d * te);
         let mut prev: Option<Sample> = None;
+        // The last sample with a level, and where the latest sample without one since then was.
+        let mut last_ok: Option<Sample> = None;
+        let mut failed_at: Option<f32> = None;
         let r = self.jitter(ctx, prism);
         let mut t = te;
         let mut n = 0;
         loop {
             n += 1;
-            if let Some(cur) = self.level_sample(local, &lt, d, t, guess) {
-                guess = cur.lambda;
-                if inside(cur.b) {
-                    if let Some(pv) = prev {
-                        if (pv.g > 0.0) != (cur.g > 0.0) {
-                            if let Some(hit) =
-                                self.level_crossing(local, &lt, ro, ray, pv, cur, te, tx)
-                            {
-                                *steps += n;
-                                return Some(hit);
-                            }
-                        }
-                    }
-                    prev = Some(cur);
+            let sample = self.level_sample(local, &lt, d, t, guess);
+            // Where the ray leaves (or re-enters) the region in which a level exists, the
+            // edge of that region is a sample too: a crossing between the last sample with a
+            // level and the first without one would be lost otherwise (a grazing exit, where
+            // the level planes fold just past the wall).
+            let edge = match (sample, failed_at) {
+                (None, None) => {
+                    last_ok.map(|ok| self.level_domain_edge(local, &lt, d, ok, t, &mut n))
                 }
+                (Some(cur), Some(bad)) => {
+                    Some(self.level_domain_edge(local, &lt, d, cur, bad, &mut n))
+                }
+                _ => None,
+            };
+            if let Some(e) = edge {
+                guess = e.lambda;
+                if let Some(hit) = self.detect(local, &lt, ray, &mut prev, e, te, tx) {
+                    *steps += n;
+                    return Some(hit);
+                }
+            }
+            match sample {
+                Some(cur) => {
+                    guess = cur.lambda;
+                    last_ok = Some(cur);
+                    failed_at = None;
+                    if let Some(hit) = self.detect(local, &lt, ray, &mut prev, cur, te, tx) {
+                        *steps += n;
+                        return Some(hit);
+                    }
+                }
+                None => failed_at = Some(t),
             }
             if t >= tx || n >= MAX_STEPS {
                 break;
@@ -599,6 +631,58 @@ impl<'a> Pdm<'a> {
         None
     }
 
+    /// One march sample `cur`: a sign change of `g` from the previous sample inside the
+    /// triangle (within `DETECT_TOL`) is resolved into a hit (`level_crossing`); otherwise
+    /// `cur` becomes the previous sample if it is inside.
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn detect(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        ray: &Ray,
+        prev: &mut Option<Sample>,
+        cur: Sample,
+        te: f32,
+        tx: f32,
+    ) -> Option<(f32, Vec3)> {
+        if cur.b.min_element() < -DETECT_TOL {
+            return None;
+        }
+        if let Some(pv) = *prev {
+            if (pv.g > 0.0) != (cur.g > 0.0) {
+                if let Some(hit) = self.level_crossing(local, lt, ray, pv, cur, te, tx) {
+                    return Some(hit);
+                }
+            }
+        }
+        *prev = Some(cur);
+        None
+    }
+
+    /// The sample nearest to `bad` (a ray parameter with no level in range) on the segment
+    /// from the sample `ok` towards it, by bisection; `n` counts the samples taken.
+    fn level_domain_edge(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        d: Vec3,
+        ok: Sample,
+        bad: f32,
+        n: &mut u32,
+    ) -> Sample {
+        let (mut good, mut bad) = (ok, bad);
+        for _ in 0..DOMAIN_EDGE_ITERS {
+            let t = 0.5 * (good.t + bad);
+            *n += 1;
+            match self.level_sample(local, lt, d, t, good.lambda) {
+                Some(s) => good = s,
+                None => bad = t,
+            }
+        }
+        good
+    }
+
     /// Resolve a sign change of the canonical `g` between samples `a` and `b` into a hit:
     /// regula falsi (Illinois) on `g(t)`, each evaluation a `level_sample` warm-started from
     /// the nearer end; without `refine`, the paper's linear interpolation. The hit is accepted
@@ -609,7 +693,6 @@ impl<'a> Pdm<'a> {
         &self,
         local: &Local,
         lt: &LevelTrack,
-        ro: Vec3,
         ray: &Ray,
         a: Sample,
         b: Sample,
@@ -828,6 +911,34 @@ mod tests {
             .into_iter()
             .map(|(r, _)| r)
             .collect()
+    }
+
+    // Would break if the march interval were not cut to the surface bounds: a prism whose λ range
+    // is far larger than its |D| (as the clamped `M_LO_FLOOR` crease prisms were, ±23 on a
+    // 3-unit rock) marched the whole hull of its walls, thousands of steps per ray.
+    #[test]
+    fn huge_lambda_ranges_do_not_lengthen_the_march() {
+        let scene = sphere_scene(2, relief_map(64), 0.15, 1.0);
+        let mut inflated = Scene::new(scene.table.clone(), scene.map.clone());
+        for p in inflated.table.prisms.iter_mut() {
+            p.lambda_lo -= 50.0;
+            p.lambda_hi += 50.0;
+        }
+        let opts = PdmOptions {
+            jitter: false,
+            ..Default::default()
+        };
+        let (a, b) = (Pdm::new(&scene, opts), Pdm::new(&inflated, opts));
+        let (mut steps_a, mut steps_b) = (0u64, 0u64);
+        for (i, ray) in rays_through_centre(500, 1.0, 4).iter().enumerate() {
+            let ha = a.intersect(ray, &ctx(i as u32, 0)).expect("closed sphere");
+            let hb = b.intersect(ray, &ctx(i as u32, 0)).expect("closed sphere");
+            assert!((ha.t - hb.t).abs() < 1e-4, "ray {i}: {} vs {}", ha.t, hb.t);
+            steps_a += ha.steps as u64;
+            steps_b += hb.steps as u64;
+        }
+        eprintln!("steps: {steps_a} with the baked λ, {steps_b} with λ ± 50");
+        assert!(steps_b <= 2 * steps_a, "{steps_a} vs {steps_b}");
     }
 
     #[test]
@@ -1175,6 +1286,99 @@ mod tests {
                 .intersect(&Ray::new(o, d), &ctx(pixel, 0))
                 .expect("closed surface");
             assert!(hit.t < 2.7, "ray {pixel} passed the surface: t = {}", hit.t);
+        }
+    }
+
+    /// Regression: three leak rays of `examples/rock` (`bench::leak_rays`, seed 0, rays 458,
+    /// 5554 and 6417 of 10^5) that passed through regular prisms once the crease strips were
+    /// in. Each grazes out of a prism through a wall just where the level planes fold: past
+    /// the last sample with a level (`g > 0`), the exit sample has no level in range, so the
+    /// sign change to `g < 0` was never seen and the next prism starts below the surface. The
+    /// march now samples the edge of the region where a level exists.
+    #[test]
+    fn former_rock_leaks_at_a_grazing_exit() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+        let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
+        let p = crate::asset::prepare(&spec, &Default::default()).unwrap();
+        let scene = Scene::new(p.table, p.map);
+        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let rays = [
+            (
+                458,
+                Vec3::new(-2.8676052, 2.628653, -1.1067853),
+                Vec3::new(0.7025751, -0.7079846, -0.07173594),
+                3.5975957,
+            ),
+            (
+                5554,
+                Vec3::new(0.27264884, -3.218831, -2.6625793),
+                Vec3::new(-0.13171001, 0.9239466, 0.35913128),
+                3.5975955,
+            ),
+            (
+                6417,
+                Vec3::new(1.8435394, -1.8580118, -3.6530547),
+                Vec3::new(-0.5437362, 0.5496773, 0.63419694),
+                3.5975957,
+            ),
+        ];
+        for (pixel, origin, dir, t_max) in rays {
+            let ray = Ray {
+                origin,
+                dir,
+                t_min: 0.0,
+                t_max,
+            };
+            let hit = pdm.intersect(&ray, &ctx(pixel, 0));
+            assert!(hit.is_some(), "ray {pixel} passed through the rock");
+        }
+    }
+
+    /// Regression: two leak rays of `examples/rock` (rays 895 and 2394 of 10^5) through the
+    /// knife edge's crease strips. A strip's inserted vertices interpolate the UVs of the two
+    /// sides' islands, so its relief is squeezed into the rounded edge: these rays cross the
+    /// canonical surface twice within ~5e-4 (a thin dip), well inside one `dt` when the
+    /// strip's texel size was the base edge's. `bake::inserted_texel_world` measures it on
+    /// the displaced strip, and the march resolves the dip.
+    #[test]
+    fn former_rock_leaks_through_squeezed_strip_relief() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+        let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
+        let p = crate::asset::prepare(&spec, &Default::default()).unwrap();
+        let scene = Scene::new(p.table, p.map);
+        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let rays = [
+            (
+                895,
+                Vec3::new(3.3535738, -2.2690098, 2.5615988),
+                Vec3::new(-0.46161956, 0.70123106, -0.5433069),
+                3.5975955,
+            ),
+            (
+                2394,
+                Vec3::new(3.1534061, 0.54019725, 3.675978),
+                Vec3::new(-0.6907371, -0.16357262, -0.70436233),
+                3.5975957,
+            ),
+        ];
+        for (pixel, origin, dir, t_max) in rays {
+            let ray = Ray {
+                origin,
+                dir,
+                t_min: 0.0,
+                t_max,
+            };
+            let hit = pdm
+                .intersect(&ray, &ctx(pixel, 0))
+                .expect("the strip's dip");
+            let flags = scene.table.prisms[hit.prism as usize].flags;
+            assert_ne!(
+                flags & crate::bake::PRISM_INSERTED,
+                0,
+                "ray {pixel}: {hit:?}"
+            );
         }
     }
 }

@@ -230,6 +230,74 @@ fn box_exit(o: Vec3, d: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> f32 {
     far.x.min(far.y).min(far.z)
 }
 
+/// Box of the base triangle `v` grown by `reach` on every side. With `reach` the prism's
+/// largest `|D|` it holds the prism's part of the canonical surface: every surface point is
+/// `P(b) + D m̂(b)` with a unit `m̂` (`PrismTable::prism_aabb` cuts the BVH box to the same).
+#[inline]
+pub fn surface_box(v: &[Vec3; 3], reach: f32) -> (Vec3, Vec3) {
+    let r = Vec3::splat(reach);
+    (v[0].min(v[1]).min(v[2]) - r, v[0].max(v[1]).max(v[2]) + r)
+}
+
+/// `[t0, t1]` cut to where the ray `o + t d` is inside the box `[lo, hi]` (slab test), or
+/// `None` if nothing is left. Every method clips its march interval with this to the
+/// `surface_box`: where the normals nearly cancel, a prism's λ range (and so its walls' hull)
+/// can be far larger than the region the surface can reach.
+#[inline]
+pub fn clip_to_box(o: Vec3, d: Vec3, t0: f32, t1: f32, lo: Vec3, hi: Vec3) -> Option<(f32, f32)> {
+    let inv = d.recip();
+    let a = (lo - o) * inv;
+    let b = (hi - o) * inv;
+    let (near, far) = (a.min(b), a.max(b));
+    // f32::max / min ignore a NaN operand (o on a slab plane with d parallel to it); an axis
+    // the ray is parallel to and outside of gives +∞ or −∞ on both sides and empties it.
+    let t_near = t0.max(near.x).max(near.y).max(near.z);
+    let t_far = t1.min(far.x).min(far.y).min(far.z);
+    (t_near <= t_far).then_some((t_near, t_far))
+}
+
+/// `[t0, t1]` cut to where the ray is within `reach` of the plane through `p` with unit
+/// normal `n`, or `None`; a zero `n` (a zero-area base) keeps everything.
+#[inline]
+pub fn clip_to_slab(
+    o: Vec3,
+    d: Vec3,
+    (t0, t1): (f32, f32),
+    p: Vec3,
+    n: Vec3,
+    reach: f32,
+) -> Option<(f32, f32)> {
+    let s0 = (o - p).dot(n);
+    let sd = d.dot(n);
+    if sd == 0.0 {
+        return (s0.abs() <= reach).then_some((t0, t1));
+    }
+    let (ta, tb) = ((-reach - s0) / sd, (reach - s0) / sd);
+    let (a, b) = (t0.max(ta.min(tb)), t1.min(ta.max(tb)));
+    (a <= b).then_some((a, b))
+}
+
+/// `[t0, t1]` cut to where the prism's part of the canonical surface can be: within `reach`
+/// (the prism's largest `|D|`, plus any padding) of the base triangle `v`, so inside both its
+/// `surface_box` and the slab of half-width `reach` around its plane. Every method clips its
+/// march interval with this: the walls' hull follows the λ range, and where the normals
+/// nearly cancel that range (and the hull) is far larger than the region the surface can
+/// reach; the slab also keeps a tilted triangle's march to its thickness, not its box.
+#[inline]
+pub fn clip_to_surface_bounds(
+    o: Vec3,
+    d: Vec3,
+    t0: f32,
+    t1: f32,
+    v: &[Vec3; 3],
+    reach: f32,
+) -> Option<(f32, f32)> {
+    let (lo, hi) = surface_box(v, reach);
+    let range = clip_to_box(o, d, t0, t1, lo, hi)?;
+    let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
+    clip_to_slab(o, d, range, v[0], ng, reach)
+}
+
 /// Cheap early-out before the walls: `true` if the segment `[t_min, t_max]` lies wholly
 /// outside the plane of one cap, on the side away from the prism. A cap plane bounds the
 /// prism only if the other cap's corners are on its inner side (walls lie in the hull of
@@ -238,12 +306,11 @@ fn box_exit(o: Vec3, d: Vec3, lo: &[Vec3; 3], hi: &[Vec3; 3]) -> f32 {
 fn cap_planes_reject(
     o: Vec3,
     d: Vec3,
-    t_min: f32,
-    t_max: f32,
+    (t_min, t_max): (f32, f32),
     lo: &[Vec3; 3],
     hi: &[Vec3; 3],
+    extent: f32,
 ) -> bool {
-    let extent = (hi[0] - lo[0]).length() + (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length();
     for (cap, other, sign) in [(hi, lo, 1.0f32), (lo, hi, -1.0)] {
         // Outward normal of this cap (counter-clockwise base: `hi` up, `lo` down).
         let n = (cap[1] - cap[0]).cross(cap[2] - cap[0]) * sign;
@@ -260,6 +327,41 @@ fn cap_planes_reject(
     false
 }
 
+/// The same early-out for the three walls. The wall over the base edge `lo_i lo_j` is a
+/// bilinear patch, so it lies in the hull of its corners: on the inner side of the plane
+/// through `lo_i, lo_j, hi_i` shifted outwards by the fourth corner's distance `δ`. Every level
+/// triangle has its edge on the wall and its third corner between `lo_k` and `hi_k`; if those
+/// are on the inner side, the whole prism is. A segment wholly beyond the shifted plane then
+/// misses the prism (the walls' quadratics are the interval's main cost, and most candidate
+/// prisms of a ray are missed).
+#[inline]
+fn wall_planes_reject(
+    o: Vec3,
+    d: Vec3,
+    (t_min, t_max): (f32, f32),
+    lo: &[Vec3; 3],
+    hi: &[Vec3; 3],
+    extent: f32,
+) -> bool {
+    for i in 0..3 {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        let a = lo[i];
+        // Outward for a counter-clockwise base (as in `wall`).
+        let n = (lo[j] - a).cross(hi[i] - a);
+        let tol = 1e-5 * n.length() * extent;
+        if (lo[k] - a).dot(n) > -tol || (hi[k] - a).dot(n) > -tol {
+            continue;
+        }
+        let bound = (hi[j] - a).dot(n).max(0.0) + tol;
+        let s0 = (o - a).dot(n);
+        let sd = d.dot(n);
+        if s0 + t_min * sd > bound && (sd >= 0.0 || s0 + t_max * sd > bound) {
+            return true;
+        }
+    }
+    false
+}
+
 /// The hull `[first entry, last exit]` of the ray's inside set in `[t_min, t_max]`, or `None`
 /// if the ray misses the prism. `d` need not be unit length (t is in units of `d`).
 pub fn ray_prism_interval(
@@ -270,7 +372,10 @@ pub fn ray_prism_interval(
     lo: &[Vec3; 3],
     hi: &[Vec3; 3],
 ) -> Option<Interval> {
-    if cap_planes_reject(o, d, t_min, t_max, lo, hi) {
+    let extent = (hi[0] - lo[0]).length() + (lo[1] - lo[0]).length() + (lo[2] - lo[0]).length();
+    if cap_planes_reject(o, d, (t_min, t_max), lo, hi, extent)
+        || wall_planes_reject(o, d, (t_min, t_max), lo, hi, extent)
+    {
         return None;
     }
     // Crossings are gathered over [t_min, ∞) and clipped afterwards: a crossing past t_max
@@ -397,6 +502,22 @@ mod tests {
                 }
             }
             let step = 6.0 * scale / n as f32;
+            // A random piece of the same ray (the early-outs cull by the segment's ends): it
+            // must keep every inside sample it contains.
+            let (ka, kb) = (
+                (rng.next() * n as f32) as usize,
+                (rng.next() * n as f32) as usize,
+            );
+            let (ka, kb) = (ka.min(kb), ka.max(kb));
+            let (t0, t1) = (step * ka as f32, step * kb as f32);
+            let piece = ray_prism_interval(o, d, t0, t1, &cl, &ch);
+            for k in ka..=kb {
+                let t = step * k as f32;
+                if inside(&g, lo, hi, o + d * t) {
+                    let iv = piece.unwrap_or_else(|| panic!("piece [{t0}, {t1}] lost t={t}"));
+                    assert!(iv.t_enter <= t + 1e-4 * scale && iv.t_exit >= t - 1e-4 * scale);
+                }
+            }
             match interval {
                 None => assert!(
                     !first.is_finite(),
@@ -511,5 +632,48 @@ mod tests {
             (iv.t_enter - 0.8).abs() < 1e-5 && (iv.t_exit - 1.1).abs() < 1e-5,
             "{iv:?}"
         );
+    }
+
+    // Would break if the box clip dropped a part of the ray inside the box (the march would
+    // lose surface) or kept a ray parallel to a slab and outside it.
+    #[test]
+    fn clip_to_box_keeps_exactly_the_inside_part() {
+        let (lo, hi) = (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 2.0, 0.5));
+        let mut rng = Rng(17);
+        for _ in 0..2000 {
+            let o = Vec3::new(rng.range(-3., 3.), rng.range(-3., 3.), rng.range(-3., 3.));
+            let mut d = rng.unit();
+            if rng.next() < 0.2 {
+                d.x = 0.0; // parallel to the x slabs, inside or outside them
+                d = d.normalize();
+            }
+            let (t0, t1) = (rng.range(-1.0, 2.0), rng.range(2.0, 8.0));
+            let inside = |t: f32| {
+                let x = o + d * t;
+                x.cmpge(lo - 1e-5).all() && x.cmple(hi + 1e-5).all()
+            };
+            let clip = clip_to_box(o, d, t0, t1, lo, hi);
+            for k in 0..=200 {
+                let t = t0 + (t1 - t0) * k as f32 / 200.0;
+                let kept = clip.is_some_and(|(a, b)| t >= a - 1e-5 && t <= b + 1e-5);
+                assert_eq!(inside(t), kept, "o {o} d {d} t {t}: {clip:?}");
+            }
+        }
+        // The surface box is the base triangle's box grown by the reach on every side.
+        let v = [Vec3::ZERO, Vec3::X, Vec3::new(0.2, 1.0, -0.5)];
+        assert_eq!(
+            surface_box(&v, 0.1),
+            (Vec3::new(-0.1, -0.1, -0.6), Vec3::new(1.1, 1.1, 0.1))
+        );
+        // ... and the slab around the plane: a ray down the base normal through the triangle
+        // keeps only the `2 × reach` around the base, whatever its box allows.
+        let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
+        let c = (v[0] + v[1] + v[2]) / 3.0;
+        let (a, b) = clip_to_surface_bounds(c + ng * 5.0, -ng, 0.0, 10.0, &v, 0.1).unwrap();
+        assert!((a - 4.9).abs() < 1e-5 && (b - 5.1).abs() < 1e-5, "{a} {b}");
+        // A zero-area base has no plane: the box alone.
+        let flat = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
+        let r = clip_to_surface_bounds(Vec3::new(0.5, 3.0, 0.0), Vec3::NEG_Y, 0.0, 9.0, &flat, 0.1);
+        assert_eq!(r, Some((2.9, 3.1)));
     }
 }

@@ -70,7 +70,7 @@ use crate::accel::Scene;
 use crate::bake::{lambda_range, mean_normal_lower_bound, Prism};
 use crate::canonical::{surface_point, PrismGeom};
 use crate::seam::{PrismDisplacement, PrismStitch};
-use crate::trace::prism_hit::ray_prism_interval;
+use crate::trace::prism_hit::{clip_to_surface_bounds, ray_prism_interval};
 use crate::trace::{Hit, Intersector, NormalMode, Ray, RayContext};
 use cubic::cubic_roots;
 use curve::{Curve, Intervals};
@@ -244,12 +244,14 @@ impl<'a> Nonlinear<'a> {
         // Range reduction: the ray's hull inside the shared-wall prism.
         let lo: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_lo);
         let hi: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_hi);
-        let iv = ray_prism_interval(ro, ray.dir, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * scale.max(f32::MIN_POSITIVE);
-        let t_range = (
-            T::of32((iv.t_enter - pad).max(ray.t_min)),
-            T::of32((iv.t_exit + pad).min(ray.t_max)),
-        );
+        // Cut to where the surface can be first (a big λ range does not mean a long search,
+        // and most candidate prisms are rejected here, before the walls).
+        let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
+        let (t0, t1) = clip_to_surface_bounds(ro, ray.dir, ray.t_min, ray.t_max, &v, reach)?;
+        let iv = ray_prism_interval(ro, ray.dir, t0, t1, &lo, &hi)?;
+        let (te, tx) = ((iv.t_enter - pad).max(t0), (iv.t_exit + pad).min(t1));
+        let t_range = (T::of32(te), T::of32(tx));
         // Texel footprint (shifted texel coordinates: cell (i, j) is [i, i+1] × [j, j+1]).
         let (w, h) = (self.scene.map.width as f64, self.scene.map.height as f64);
         let tex_abs = p.tri.map(|i| {

@@ -42,11 +42,16 @@
 //!   (`PrismStitch::band_h`), and the march and refinement evaluate `D*` at the point's
 //!   barycentrics. Everything else is unchanged.
 //!
+//! * Newton's inversion starts from the `λ` of the point's projection on the guess's line,
+//!   not the prism's middle `λ`: in a zero-area crease prism that middle is ≈ 0, where the
+//!   Jacobian is singular.
+//!
 //! Open: on `examples/rock` the bench's leak rays (aimed half a texel below the surface)
-//! find 29 / 20 000 misses where the reference hits (PDM: 73). Most are in repair's inserted
-//! crease prisms (zero base area, flags 2/6), where Newton inversion from the prism's middle
-//! λ starts at a singular Jacobian and fails; a few are regular prisms where the ray ends
-//! within ~0.1 texel below the surface. The closed procedural spheres do not leak.
+//! find 37 / 100 000 misses where the reference hits (k = 2; it was 162 with the folded
+//! single-quad crease prisms, 53 with crease strips before the inversion start). About half
+//! are next to UV seams (the surface tears there, see docs/watertightness.md); the other
+//! half are in the crease strips, whose interpolated UVs squeeze the relief into the rounded
+//! edge. The closed procedural spheres do not leak.
 
 mod curve;
 pub mod pyramid;

@@ -9,7 +9,7 @@ use super::Rmip;
 use crate::bake::{Prism, M_LO_FLOOR};
 use crate::canonical::{project_to_prism, PrismGeom};
 use crate::seam::{PrismDisplacement, PrismStitch};
-use crate::trace::prism_hit::ray_prism_interval;
+use crate::trace::prism_hit::{clip_to_surface_bounds, ray_prism_interval};
 use crate::trace::Ray;
 use glam::{DVec2, DVec3, Vec2, Vec3};
 
@@ -112,10 +112,13 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let lo: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_lo);
         let hi: [Vec3; 3] = std::array::from_fn(|i| v[i] + n[i] * p.lambda_hi);
         let ro = ray.origin - origin;
-        let iv = ray_prism_interval(ro, ray.dir, ray.t_min, ray.t_max, &lo, &hi)?;
         let pad = INTERVAL_PAD * scale;
-        let te = (iv.t_enter - pad).max(ray.t_min);
-        let tx = (iv.t_exit + pad).min(ray.t_max);
+        // Cut to where the surface can be first (a big λ range does not mean a long march,
+        // and most candidate prisms are rejected here, before the walls).
+        let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
+        let (t0, t1) = clip_to_surface_bounds(ro, ray.dir, ray.t_min, ray.t_max, &v, reach)?;
+        let iv = ray_prism_interval(ro, ray.dir, t0, t1, &lo, &hi)?;
+        let (te, tx) = ((iv.t_enter - pad).max(t0), (iv.t_exit + pad).min(t1));
         let geom = PrismGeom {
             v,
             n,
@@ -172,9 +175,16 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         let x = self.frame.o + self.frame.d * t;
         let x = Vec3::new(x.x as f32, x.y as f32, x.z as f32);
         let starts = [guess, Vec3::splat(1.0 / 3.0), Vec3::X, Vec3::Y, Vec3::Z];
+        let (lo, hi) = self.frame.lambda_range;
         starts
             .iter()
-            .find_map(|&b| project_to_prism(&self.geom, x, b, self.lambda_mid))
+            .find_map(|&b| {
+                // λ of x's projection on the line through the guess: in a zero-area crease
+                // prism the prism's middle λ (≈ 0) is where the Jacobian is singular.
+                let l = line_lambda(&self.geom, x, b).clamp(lo as f32, hi as f32);
+                project_to_prism(&self.geom, x, b, l)
+                    .or_else(|| project_to_prism(&self.geom, x, b, self.lambda_mid))
+            })
             .map(|(b, _)| self.frame.sigma_of_bary(b))
     }
 
@@ -583,6 +593,13 @@ fn clip_triangle_to_rect(tri: &[DVec2; 3], lo: DVec2, hi: DVec2) -> ([DVec2; 8],
     (a, n)
 }
 
+/// `λ` of the point on the line `P(b) + λ m(b)` nearest to `x`: a Newton start for
+/// `project_to_prism` that is right on the line of the guess `b`.
+fn line_lambda(g: &PrismGeom, x: Vec3, b: Vec3) -> f32 {
+    let m = g.normal_dir(b);
+    (x - g.position(b)).dot(m) / m.length_squared().max(1e-30)
+}
+
 /// Fallback for prisms without a texture-space parametrisation (UV-degenerate faces):
 /// march the prism interval in `t` at half a texel (or 1/16 of the thickness), sign changes
 /// refined on the canonical surface as above.
@@ -608,7 +625,9 @@ pub(super) fn march_degenerate(
     .max((m1 - m0) / 4096.0);
     let g_at = |t: f32, guess: Vec3| -> Option<(f32, Vec3)> {
         let x = local.origin + local.dir * t;
-        let (b, l) = project_to_prism(geom, x, guess, 0.5 * (p.lambda_lo + p.lambda_hi))?;
+        let l0 = line_lambda(geom, x, guess).clamp(p.lambda_lo - thick, p.lambda_hi + thick);
+        let (b, l) = project_to_prism(geom, x, guess, l0)
+            .or_else(|| project_to_prism(geom, x, guess, 0.5 * (p.lambda_lo + p.lambda_hi)))?;
         let m = geom.normal_dir(b).length();
         Some((l * m - disp.at(b), b))
     };

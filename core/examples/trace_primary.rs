@@ -1,0 +1,81 @@
+//! One thread, one batch of primary rays through an example asset's camera (or a framing of
+//! its bounds): ns per ray for PDM and the tessellated reference, from the same run. For the
+//! figures in docs/benchmarks.md and for profiling (`valgrind --tool=callgrind` on a small
+//! `RES`); benches/intersect.rs is the criterion version at 128².
+//!
+//! `cargo run --release -p prismbake-core --example trace_primary [ASSET] [RES] [pdm|reference|both]`
+
+use glam::Vec2;
+use prismbake::accel::Scene;
+use prismbake::asset::{self, Overrides};
+use prismbake::render::camera::Camera;
+use prismbake::repair::RepairOptions;
+use prismbake::trace::pdm::{Pdm, PdmOptions};
+use prismbake::trace::reference::Reference;
+use prismbake::trace::{Intersector, Ray, RayContext};
+use std::time::Instant;
+
+fn trace(isect: &dyn Intersector, rays: &[Ray]) -> (usize, u64, f64) {
+    let t0 = Instant::now();
+    let mut hits = 0;
+    let mut steps = 0u64;
+    for (i, r) in rays.iter().enumerate() {
+        let ctx = RayContext {
+            pixel: i as u32,
+            ..Default::default()
+        };
+        if let Some(h) = isect.intersect(r, &ctx) {
+            hits += 1;
+            steps += h.steps as u64;
+        }
+    }
+    (hits, steps, t0.elapsed().as_secs_f64())
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let asset_path = args
+        .get(1)
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| root.join("examples/sphere/sphere.glb"));
+    let res: u32 = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(512);
+    let which = args.get(3).map(String::as_str).unwrap_or("both");
+    let spec = asset::resolve(&asset_path, &Overrides::default()).expect("asset resolves");
+    let prepared = asset::prepare(&spec, &RepairOptions::default()).expect("asset bakes");
+    let cam = match &prepared.mesh.camera {
+        Some(c) => Camera::from_scene(c),
+        None => {
+            let (lo, hi) = prepared.table.bounds();
+            let up = prepared.mesh.up_axis.unwrap_or(prismbake::mesh::UpAxis::Y);
+            Camera::frame_bounds(lo, hi, up, 40.0, 1.0)
+        }
+    };
+    let rays: Vec<Ray> = (0..res)
+        .flat_map(|y| (0..res).map(move |x| (x, y)))
+        .map(|(x, y)| cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), res, res))
+        .collect();
+    let scene = Scene::new(prepared.table, prepared.map);
+    let n = rays.len() as f64;
+    if which != "reference" {
+        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let (hits, steps, secs) = trace(&pdm, &rays);
+        println!(
+            "pdm: {} rays, {hits} hit, {:.1} steps/hit, {:.0} ns/ray, {:.3} Mray/s (one thread)",
+            rays.len(),
+            steps as f64 / hits.max(1) as f64,
+            secs * 1e9 / n,
+            n / secs / 1e6
+        );
+    }
+    if which != "pdm" {
+        let reference = Reference::new(scene.surface(), 2.0);
+        let (hits, _, secs) = trace(&reference, &rays);
+        println!(
+            "reference k=2 ({} micro-triangles): {hits} hit, {:.0} ns/ray, {:.3} Mray/s (one thread)",
+            reference.triangle_count(),
+            secs * 1e9 / n,
+            n / secs / 1e6
+        );
+    }
+}
