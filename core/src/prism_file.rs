@@ -275,8 +275,10 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         if faces.iter().any(|&f| f as usize >= np)
             || edges.iter().any(|&k| k > 2)
             || faces[0] == faces[1]
+            || e[2] != 0
+            || e[3] != 0
         {
-            return Err(format!("seam {i} names prisms {faces:?}, edges {edges:?}, but the table has {np} prisms and edges 0..2 (corrupt; re-bake)"));
+            return Err(format!("seam {i} names prisms {faces:?}, edges {edges:?} (reserved bytes {:?}), but the table has {np} prisms, edges 0..2 and zero reserved bytes (corrupt; re-bake)", [e[2], e[3]]));
         }
         seams.push(SeamEdge { faces, edges });
     }
@@ -392,6 +394,13 @@ mod tests {
             let err = decode(&encode(&t)).unwrap_err();
             assert!(err.contains("seam 0"), "{err}");
         }
+        // The record's reserved bytes must be zero (a table is re-encoded byte for byte).
+        let mut b = encode(&seamed_table());
+        let n = b.len() - 32;
+        b[n - 1] = 7;
+        let sum = blake3::hash(&b[..n]);
+        b[n..].copy_from_slice(sum.as_bytes());
+        assert!(decode(&b).unwrap_err().contains("seam 0"));
     }
 
     /// Frozen header bytes: a change to the layout must bump VERSION and the doc.

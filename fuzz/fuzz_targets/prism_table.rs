@@ -15,10 +15,10 @@ fn check(bytes: &[u8]) {
         assert!(table.normals.len() == nv && table.uvs.len() == nv);
         assert!(table.prisms.iter().all(|p| p.tri.iter().all(|&i| (i as usize) < nv)));
         // A decoded table re-encodes to the same bytes (nothing is silently dropped), but
-        // for the reserved header flags (bytes 48..52), which readers ignore and `encode`
+        // for the reserved header flags (bytes 56..60), which readers ignore and `encode`
         // writes as zero.
         let mut expected = bytes.to_vec();
-        expected[48..52].fill(0);
+        expected[56..60].fill(0);
         with_checksum(&mut expected);
         assert_eq!(encode(&table), expected);
     }
