@@ -1,0 +1,66 @@
+//! Where the leak rays of `prismbake bench` get through: for each ray the reference hits and
+//! PDM does not, the prism the reference hit (inserted crease prism or not, stitched or not)
+//! and its barycentrics. `cargo run --release -p prismbake-core --example leak_probe ASSET [N]`
+
+use prismbake::accel::Scene;
+use prismbake::asset::{self, Overrides};
+use prismbake::bake::PRISM_INSERTED;
+use prismbake::bench::leak_rays;
+use prismbake::repair::RepairOptions;
+use prismbake::trace::nonlinear::{Nonlinear, NonlinearOptions};
+use prismbake::trace::pdm::{Pdm, PdmOptions, StepSize};
+use prismbake::trace::rmip::{Rmip, RmipOptions};
+use prismbake::trace::reference::Reference;
+use prismbake::trace::{Intersector, RayContext};
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let path = std::path::PathBuf::from(&args[1]);
+    let n: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(100_000);
+    let spec = asset::resolve(&path, &Overrides::default()).expect("asset resolves");
+    let prepared = asset::prepare(&spec, &RepairOptions::default()).expect("asset bakes");
+    let scene = Scene::new(prepared.table, prepared.map);
+    let reference = Reference::new(scene.surface(), 2.0);
+    let pdm = Pdm::new(&scene, PdmOptions::default());
+    let fine = Pdm::new(&scene, PdmOptions { dt: StepSize::Auto(0.05), jitter: false, ..Default::default() });
+    let rmip = Rmip::new(&scene, RmipOptions::default());
+    let nl = Nonlinear::new(&scene, NonlinearOptions::default());
+    let rays = leak_rays(&scene, n, 0);
+    let (mut leaks, mut inserted, mut stitched, mut near_edge) = (0, 0, 0, 0);
+    for (i, r) in rays.iter().enumerate() {
+        let ctx = RayContext {
+            pixel: i as u32,
+            ..Default::default()
+        };
+        let Some(truth) = reference.intersect(r, &ctx) else { continue };
+        if pdm.intersect(r, &ctx).is_some() {
+            continue;
+        }
+        leaks += 1;
+        let p = &scene.table.prisms[truth.prism as usize];
+        let ins = p.flags & PRISM_INSERTED != 0;
+        let st = scene.stitch().record_index(truth.prism).is_some();
+        let edge = truth.bary.min_element() < 0.02;
+        inserted += ins as usize;
+        stitched += st as usize;
+        near_edge += edge as usize;
+        let mut longer = *r;
+        longer.t_max += 4.0 * p.texel_world;
+        let ext = pdm.intersect(&longer, &ctx);
+        if leaks <= 25 {
+            println!(
+                "ray {i}: ref prism {} inserted {ins} stitched {st} bary {:.4?} (t_max - t)/texel {:.4} longer ray: pdm prism {:?} (t - t_ref)/texel {:?}",
+                truth.prism, truth.bary, (r.t_max - truth.t) / p.texel_world,
+                ext.map(|h| h.prism), ext.map(|h| (h.t - truth.t) / p.texel_world)
+            );
+            let t_of = |h: Option<prismbake::trace::Hit>| h.map(|h| (h.t - truth.t) / p.texel_world);
+            println!(
+                "    fine pdm {:?}  rmip {:?}  nonlinear {:?}",
+                t_of(fine.intersect(&longer, &ctx)),
+                t_of(rmip.intersect(&longer, &ctx)),
+                t_of(nl.intersect(&longer, &ctx))
+            );
+        }
+    }
+    println!("{leaks} leaks of {n}: {inserted} in inserted prisms, {stitched} in stitched prisms, {near_edge} within 0.02 of an edge");
+}
