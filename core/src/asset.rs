@@ -211,10 +211,13 @@ pub fn input_hash(spec: &AssetSpec, repair: &RepairOptions) -> Result<[u8; 32]> 
             }
         }
     }
+    // The map is streamed through the hasher, not read whole: next to the decoded map a
+    // second copy of a large file was the load's peak memory.
     let disp = spec.require_disp()?;
-    let map_bytes = std::fs::read(disp).map_err(|e| Error::io(disp, e))?;
-    h.update(&(map_bytes.len() as u64).to_le_bytes());
-    h.update(&map_bytes);
+    let file = std::fs::File::open(disp).map_err(|e| Error::io(disp, e))?;
+    let len = file.metadata().map_err(|e| Error::io(disp, e))?.len();
+    h.update(&len.to_le_bytes());
+    h.update_reader(file).map_err(|e| Error::io(disp, e))?;
     h.update(&spec.params.scale.to_le_bytes());
     h.update(&spec.params.midlevel.to_le_bytes());
     h.update(&[spec.wrap as u8]);

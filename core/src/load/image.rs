@@ -92,10 +92,12 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         .map_err(corrupt)?;
     let layer = image.layer_data;
     let (w, h) = check_dimensions(path, layer.size.width(), layer.size.height())?;
+    // Take the channel out of the decoded layer: its samples move, not copy (a 4096² map is
+    // 64 MiB of f32, and two copies at once doubled the load's peak memory).
     let channel = layer
         .channel_data
         .list
-        .iter()
+        .into_iter()
         .find(|c| c.name.to_string() == name)
         .ok_or_else(|| {
             Error::invalid(
@@ -103,9 +105,9 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
                 format!("channel '{name}' vanished between header and pixels"),
             )
         })?;
-    let data: Vec<f32> = match &channel.sample_data {
+    let data: Vec<f32> = match channel.sample_data {
         FlatSamples::F16(s) => s.iter().map(|v| v.to_f32()).collect(),
-        FlatSamples::F32(s) => s.clone(),
+        FlatSamples::F32(s) => s,
         FlatSamples::U32(s) => s.iter().map(|&v| v as f32).collect(),
     };
     if data.len() != w as usize * h as usize {
