@@ -54,43 +54,69 @@ fn traverse(ray: Ray, ctx: RayContext, stop_at_first: bool) -> Hit {
     var sp = 0u;
     var current = 0u;
     var visit = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[0]) < T_FAR;
+    // "While-while" (Aila & Laine 2009): descend through inner nodes until this invocation
+    // holds a leaf, and only then test the leaf's prisms. The prism test is by far the
+    // larger body; an implementation that runs invocations in lock-step (lavapipe's SIMD
+    // lanes, GPU warps) then runs it with most lanes holding a leaf, instead of alternating
+    // box tests and prism tests lane by lane.
     loop {
-        if (visit) {
+        loop {
+            if (!visit) {
+                break;
+            }
             let node = nodes[current];
-            if (node.prim_count == 0u) {
-                let l = node.first_index;
-                let tl = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[l]);
-                let tr = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[l + 1u]);
-                if (tl < T_FAR && tr < T_FAR) {
-                    // Near child next, far one on the stack (dropped if the stack is full).
-                    let near_is_left = tl <= tr;
-                    if (sp < BVH_STACK) {
-                        stack_node[sp] = select(l, l + 1u, near_is_left);
-                        stack_t[sp] = select(tl, tr, near_is_left);
-                        sp += 1u;
-                    }
-                    current = select(l + 1u, l, near_is_left);
-                    continue;
-                } else if (tl < T_FAR) {
-                    current = l;
-                    continue;
-                } else if (tr < T_FAR) {
-                    current = l + 1u;
-                    continue;
+            if (node.prim_count != 0u) {
+                break;
+            }
+            let l = node.first_index;
+            let tl = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[l]);
+            let tr = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[l + 1u]);
+            if (tl < T_FAR && tr < T_FAR) {
+                // Near child next, far one on the stack (dropped if the stack is full).
+                let near_is_left = tl <= tr;
+                if (sp < BVH_STACK) {
+                    stack_node[sp] = select(l, l + 1u, near_is_left);
+                    stack_t[sp] = select(tl, tr, near_is_left);
+                    sp += 1u;
                 }
-            } else {
-                for (var i = 0u; i < node.prim_count; i++) {
-                    let prism = prim_indices[node.first_index + i];
-                    let clipped = Ray(ray.origin, ray.dir, ray.t_min, t_best);
-                    let h = intersect_prism(clipped, ctx, prism, &steps);
-                    if (h.prism != NO_PRISM && (stop_at_first || h.t < t_best)) {
-                        best = h;
-                        t_best = h.t;
-                        if (stop_at_first) {
-                            best.steps = steps;
-                            return best;
-                        }
-                    }
+                current = select(l + 1u, l, near_is_left);
+                continue;
+            } else if (tl < T_FAR) {
+                current = l;
+                continue;
+            } else if (tr < T_FAR) {
+                current = l + 1u;
+                continue;
+            }
+            // Neither child: pop the next node whose box entry is still before the best hit.
+            visit = false;
+            loop {
+                if (sp == 0u) {
+                    break;
+                }
+                sp -= 1u;
+                if (stack_t[sp] <= t_best) {
+                    current = stack_node[sp];
+                    visit = true;
+                    break;
+                }
+            }
+        }
+        if (!visit) {
+            break;
+        }
+        // `current` is a leaf.
+        let leaf = nodes[current];
+        for (var i = 0u; i < leaf.prim_count; i++) {
+            let prism = prim_indices[leaf.first_index + i];
+            let clipped = Ray(ray.origin, ray.dir, ray.t_min, t_best);
+            let h = intersect_prism(clipped, ctx, prism, &steps);
+            if (h.prism != NO_PRISM && (stop_at_first || h.t < t_best)) {
+                best = h;
+                t_best = h.t;
+                if (stop_at_first) {
+                    best.steps = steps;
+                    return best;
                 }
             }
         }
