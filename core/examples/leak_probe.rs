@@ -9,8 +9,8 @@ use prismbake::bench::leak_rays;
 use prismbake::repair::RepairOptions;
 use prismbake::trace::nonlinear::{Nonlinear, NonlinearOptions};
 use prismbake::trace::pdm::{Pdm, PdmOptions, StepSize};
-use prismbake::trace::rmip::{Rmip, RmipOptions};
 use prismbake::trace::reference::Reference;
+use prismbake::trace::rmip::{Rmip, RmipOptions};
 use prismbake::trace::{Intersector, RayContext};
 
 fn main() {
@@ -22,7 +22,14 @@ fn main() {
     let scene = Scene::new(prepared.table, prepared.map);
     let reference = Reference::new(scene.surface(), 2.0);
     let pdm = Pdm::new(&scene, PdmOptions::default());
-    let fine = Pdm::new(&scene, PdmOptions { dt: StepSize::Auto(0.05), jitter: false, ..Default::default() });
+    let fine = Pdm::new(
+        &scene,
+        PdmOptions {
+            dt: StepSize::Auto(0.05),
+            jitter: false,
+            ..Default::default()
+        },
+    );
     let rmip = Rmip::new(&scene, RmipOptions::default());
     let nl = Nonlinear::new(&scene, NonlinearOptions::default());
     let rays = leak_rays(&scene, n, 0);
@@ -32,7 +39,9 @@ fn main() {
             pixel: i as u32,
             ..Default::default()
         };
-        let Some(truth) = reference.intersect(r, &ctx) else { continue };
+        let Some(truth) = reference.intersect(r, &ctx) else {
+            continue;
+        };
         if pdm.intersect(r, &ctx).is_some() {
             continue;
         }
@@ -53,7 +62,8 @@ fn main() {
                 truth.prism, truth.bary, (r.t_max - truth.t) / p.texel_world,
                 ext.map(|h| h.prism), ext.map(|h| (h.t - truth.t) / p.texel_world)
             );
-            let t_of = |h: Option<prismbake::trace::Hit>| h.map(|h| (h.t - truth.t) / p.texel_world);
+            let t_of =
+                |h: Option<prismbake::trace::Hit>| h.map(|h| (h.t - truth.t) / p.texel_world);
             println!(
                 "    fine pdm {:?}  rmip {:?}  nonlinear {:?}",
                 t_of(fine.intersect(&longer, &ctx)),

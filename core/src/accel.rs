@@ -355,6 +355,13 @@ pub(crate) mod fixtures {
     }
 
     /// Scale every position of a mesh (normals and UVs unchanged).
+    /// The jittered icosphere at `size` with `map` displaced by `scale × size`.
+    pub fn sphere_scene(subdiv: u32, map: HeightMap, scale: f32, size: f32) -> super::Scene {
+        let mesh = scaled(sphere_mesh(subdiv, 0.25), size);
+        let table = table(&mesh, &map, scale * size);
+        super::Scene::new(table, map)
+    }
+
     pub fn scaled(mut mesh: BaseMesh, s: f32) -> BaseMesh {
         for p in mesh.positions.iter_mut() {
             *p *= s;

@@ -199,3 +199,55 @@ impl Rng {
         }
     }
 }
+
+/// Rays from a sphere of radius `3 size` to points within `0.35 size` of the centre (inside
+/// every closed test sphere's displaced surface), with the distance to that point: each must
+/// hit the surface before reaching it.
+pub(crate) fn rays_to_inner_points(
+    n: usize,
+    size: f32,
+    seed: u32,
+) -> Vec<(crate::trace::Ray, f32)> {
+    let mut rng = Rng(seed);
+    (0..n)
+        .map(|_| {
+            let o = rng.unit() * 3.0 * size;
+            let target = rng.unit() * 0.35 * size * rng.next();
+            (
+                crate::trace::Ray::new(o, (target - o).normalize()),
+                (target - o).length(),
+            )
+        })
+        .collect()
+}
+
+/// Distance of a hit's ray point from the canonical surface, in texels of its prism: project
+/// it onto the lines `P(b) + λ m(b)` and compare `λ|m|` with `D(uv(b))`.
+pub(crate) fn canonical_error_texels(
+    scene: &crate::accel::Scene,
+    ray: &crate::trace::Ray,
+    hit: &crate::trace::Hit,
+) -> f32 {
+    let p = &scene.table.prisms[hit.prism as usize];
+    let g = crate::canonical::PrismGeom::new(&scene.table, p);
+    let (b, lambda) =
+        crate::canonical::project_to_prism(&g, ray.at(hit.t), hit.bary, 0.0).expect("hit projects");
+    let m = g.normal_dir(b).length();
+    let d = scene.table.params.displacement(scene.map.sample(g.uv(b)));
+    (lambda * m - d).abs() / p.texel_world
+}
+
+/// Rays per second of `isect` over `rays`, one thread (printed by tests, never asserted).
+pub(crate) fn rays_per_second(
+    isect: &dyn crate::trace::Intersector,
+    rays: &[crate::trace::Ray],
+) -> f64 {
+    let t0 = std::time::Instant::now();
+    let ctx = crate::trace::RayContext::default();
+    let hits = rays
+        .iter()
+        .filter(|r| isect.intersect(r, &ctx).is_some())
+        .count();
+    std::hint::black_box(hits);
+    rays.len() as f64 / t0.elapsed().as_secs_f64()
+}

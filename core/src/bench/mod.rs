@@ -282,8 +282,17 @@ pub fn run_bench(
             hits = trace_all(isect, timed, cfg.seed);
             best = best.min(t.elapsed().as_secs_f64());
         }
-        hits.extend(trace_from(isect, &set.rays[set.leak_start..], set.leak_start, cfg.seed));
-        let steps: u64 = hits[..set.leak_start].iter().flatten().map(|h| h.steps as u64).sum();
+        hits.extend(trace_from(
+            isect,
+            &set.rays[set.leak_start..],
+            set.leak_start,
+            cfg.seed,
+        ));
+        let steps: u64 = hits[..set.leak_start]
+            .iter()
+            .flatten()
+            .map(|h| h.steps as u64)
+            .sum();
         let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, &set, &hits, &truth);
         let through = hits[set.leak_start..]
             .iter()
@@ -425,7 +434,12 @@ mod tests {
         let rows = run_bench("sphere", &scene, &cam, &cfg, &|_| {});
         assert_eq!(rows.len(), 2, "reference and pdm");
         for r in &rows {
-            assert_eq!(r.rays, 24 * 16, "{}: timed rays are the camera rays", r.setting);
+            assert_eq!(
+                r.rays,
+                24 * 16,
+                "{}: timed rays are the camera rays",
+                r.setting
+            );
             assert_eq!(r.leak_rays, 500);
             assert!((r.rays_per_s - r.rays as f64 / r.seconds).abs() <= 1e-6 * r.rays_per_s);
             // The closed sphere: every leak ray crosses the surface, for both methods.
@@ -455,7 +469,11 @@ mod tests {
             steps: 0,
         };
         assert!(clear_of_the_end(&scene, &hit(10.0 - 2.0 * texel), &ray));
-        assert!(clear_of_the_end(&scene, &hit(10.0 - LEAK_END_TOL_TEXELS * texel * 1.01), &ray));
+        assert!(clear_of_the_end(
+            &scene,
+            &hit(10.0 - LEAK_END_TOL_TEXELS * texel * 1.01),
+            &ray
+        ));
         assert!(!clear_of_the_end(&scene, &hit(10.0 - 0.1 * texel), &ray));
     }
 }

@@ -859,11 +859,10 @@ mod tests {
     use super::*;
     use crate::accel::fixtures::*;
     use crate::bake::PRISM_FLAT;
-    use crate::canonical::project_to_prism;
     use crate::heightmap::{HeightMap, Wrap};
     use crate::mesh::BaseMesh;
 
-    use crate::test_util::Rng;
+    use crate::test_util::{canonical_error_texels, rays_to_inner_points, Rng};
 
     fn ctx(pixel: u32, sample: u32) -> RayContext {
         RayContext {
@@ -872,38 +871,6 @@ mod tests {
             bounce: 0,
             seed: 0,
         }
-    }
-
-    /// Distance of a hit's ray point from the canonical surface, in texels of its prism:
-    /// project it onto the lines `P(b) + λ m(b)` and compare `λ|m|` with `D(uv(b))`.
-    fn canonical_error_texels(scene: &Scene, ray: &Ray, hit: &Hit) -> f32 {
-        let p = &scene.table.prisms[hit.prism as usize];
-        let g = PrismGeom::new(&scene.table, p);
-        let x = ray.at(hit.t);
-        let (b, lambda) = project_to_prism(&g, x, hit.bary, 0.0).expect("hit projects");
-        let m = g.normal_dir(b).length();
-        let d = scene.table.params.displacement(scene.map.sample(g.uv(b)));
-        (lambda * m - d).abs() / p.texel_world
-    }
-
-    fn sphere_scene(subdiv: u32, map: HeightMap, scale: f32, size: f32) -> Scene {
-        let mesh = scaled(sphere_mesh(subdiv, 0.25), size);
-        let table = table(&mesh, &map, scale * size);
-        Scene::new(table, map)
-    }
-
-    /// Random rays from a sphere of radius `3 size` through points within `0.35 size` of the
-    /// centre (inside every test sphere's displaced surface), with the distance to that point:
-    /// each must hit the closed surface before reaching it.
-    fn rays_to_inner_points(n: usize, size: f32, seed: u32) -> Vec<(Ray, f32)> {
-        let mut rng = Rng(seed);
-        (0..n)
-            .map(|_| {
-                let o = rng.unit() * 3.0 * size;
-                let target = rng.unit() * 0.35 * size * rng.next();
-                (Ray::new(o, (target - o).normalize()), (target - o).length())
-            })
-            .collect()
     }
 
     fn rays_through_centre(n: usize, size: f32, seed: u32) -> Vec<Ray> {

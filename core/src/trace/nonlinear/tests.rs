@@ -9,9 +9,8 @@ use crate::mesh::{BaseMesh, UpAxis};
 use crate::render::camera::Camera;
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
-use std::time::Instant;
 
-use crate::test_util::Rng;
+use crate::test_util::{canonical_error_texels, rays_per_second, rays_to_inner_points, Rng};
 
 fn ctx() -> RayContext {
     RayContext::default()
@@ -76,17 +75,6 @@ fn agreement(
     }
 }
 
-/// Rays per second of `isect` over `rays` (one thread).
-fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
-    let t0 = Instant::now();
-    let hits = rays
-        .iter()
-        .filter(|r| isect.intersect(r, &ctx()).is_some())
-        .count();
-    std::hint::black_box(hits);
-    rays.len() as f64 / t0.elapsed().as_secs_f64()
-}
-
 #[test]
 fn agrees_with_reference_on_the_example_assets() {
     // Breaks if the curve, the mipmap bounds, the cubic or the canonical reconciliation are
@@ -140,19 +128,6 @@ fn agrees_with_reference_on_the_example_assets() {
     }
 }
 
-/// Rays from a sphere of radius 3 through points within 0.35 of the centre, with their
-/// distance to that point.
-fn rays_to_inner_points(n: usize, size: f32, seed: u32) -> Vec<(Ray, f32)> {
-    let mut rng = Rng(seed);
-    (0..n)
-        .map(|_| {
-            let o = rng.unit() * 3.0 * size;
-            let target = rng.unit() * 0.35 * size * rng.next();
-            (Ray::new(o, (target - o).normalize()), (target - o).length())
-        })
-        .collect()
-}
-
 #[test]
 fn closed_displaced_sphere_does_not_leak() {
     // Breaks if the detection surface has cracks between prisms or micro-triangles, if a
@@ -190,18 +165,6 @@ fn closed_displaced_sphere_does_not_leak() {
             assert_eq!(occl_leaks, 0);
         }
     }
-}
-
-/// Distance of a hit's ray point from the canonical surface, in texels of its prism.
-fn canonical_error_texels(scene: &Scene, ray: &Ray, hit: &Hit) -> f32 {
-    let p = &scene.table.prisms[hit.prism as usize];
-    let g = PrismGeom::new(&scene.table, p);
-    let x = ray.at(hit.t);
-    let (b, lambda) =
-        crate::canonical::project_to_prism(&g, x, hit.bary, 0.0).expect("hit projects");
-    let m = g.normal_dir(b).length();
-    let d = scene.table.params.displacement(scene.map.sample(g.uv(b)));
-    (lambda * m - d).abs() / p.texel_world
 }
 
 #[test]

@@ -3,46 +3,14 @@
 use super::*;
 use crate::accel::fixtures::*;
 use crate::bake::PrismTable;
-use crate::canonical::project_to_prism;
-use crate::heightmap::HeightMap;
 use crate::render::camera::Camera;
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
-use std::time::Instant;
 
-use crate::test_util::Rng;
+use crate::test_util::{canonical_error_texels, rays_per_second, rays_to_inner_points, Rng};
 
 fn ctx() -> RayContext {
     RayContext::default()
-}
-
-/// Distance of a hit's ray point from the canonical surface, in texels of its prism.
-fn canonical_error_texels(scene: &Scene, ray: &Ray, hit: &Hit) -> f32 {
-    let p = &scene.table.prisms[hit.prism as usize];
-    let g = PrismGeom::new(&scene.table, p);
-    let (b, lambda) = project_to_prism(&g, ray.at(hit.t), hit.bary, 0.0).expect("hit projects");
-    let m = g.normal_dir(b).length();
-    let d = scene.table.params.displacement(scene.map.sample(g.uv(b)));
-    (lambda * m - d).abs() / p.texel_world
-}
-
-fn sphere_scene(subdiv: u32, map: HeightMap, scale: f32, size: f32) -> Scene {
-    let mesh = scaled(sphere_mesh(subdiv, 0.25), size);
-    let table = table(&mesh, &map, scale * size);
-    Scene::new(table, map)
-}
-
-/// Rays from a sphere of radius `3 size` to points within `0.35 size` of the centre (inside
-/// every test sphere's displaced surface), with the distance to that point.
-fn rays_to_inner_points(n: usize, size: f32, seed: u32) -> Vec<(Ray, f32)> {
-    let mut rng = Rng(seed);
-    (0..n)
-        .map(|_| {
-            let o = rng.unit() * 3.0 * size;
-            let target = rng.unit() * 0.35 * size * rng.next();
-            (Ray::new(o, (target - o).normalize()), (target - o).length())
-        })
-        .collect()
 }
 
 #[test]
@@ -276,17 +244,6 @@ fn agreement(
             .unwrap_or(0.0)
     };
     (mismatches, at(0.5), at(0.95))
-}
-
-/// Rays per second over `rays`, one thread.
-fn rays_per_second(isect: &dyn Intersector, rays: &[Ray]) -> f64 {
-    let t0 = Instant::now();
-    let hits = rays
-        .iter()
-        .filter(|r| isect.intersect(r, &ctx()).is_some())
-        .count();
-    std::hint::black_box(hits);
-    rays.len() as f64 / t0.elapsed().as_secs_f64()
 }
 
 #[test]
