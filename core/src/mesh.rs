@@ -9,8 +9,9 @@ use serde::Serialize;
 use std::path::PathBuf;
 
 /// Up axis of the asset's own frame; glTF is Y-up, OBJ is taken as Y-up, USD says so itself.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub enum UpAxis {
+    #[default]
     Y,
     Z,
 }
@@ -65,12 +66,6 @@ impl SeamEdge {
     pub fn corners(&self, side: usize) -> [usize; 2] {
         let k = self.edges[side] as usize;
         [(k + 1) % 3, (k + 2) % 3]
-    }
-}
-
-impl Default for UpAxis {
-    fn default() -> Self {
-        UpAxis::Y
     }
 }
 

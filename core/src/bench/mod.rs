@@ -216,7 +216,13 @@ pub const LEAK_END_TOL_TEXELS: f32 = 0.25;
 
 fn clear_of_the_end(scene: &Scene, truth: &Hit, ray: &Ray) -> bool {
     let texel = scene.table.prisms[truth.prism as usize].texel_world;
-    !(texel > 0.0) || truth.t <= ray.t_max - LEAK_END_TOL_TEXELS * texel
+    // A prism without a texel size (UV-degenerate) has no tolerance.
+    let tol = if texel.is_finite() && texel > 0.0 {
+        LEAK_END_TOL_TEXELS * texel
+    } else {
+        0.0
+    };
+    truth.t <= ray.t_max - tol
 }
 
 fn compare(
