@@ -6,7 +6,7 @@
 
 Runs the project's Cycles reference tool (shared/tools/cycles_reference.py: adaptive dicing at
 0.5 px, CPU, 2 threads, 1 spp) and `prismbake render --method pdm` with the same glTF camera,
-then prints one JSON line. Needs bpy==5.0.1, OpenEXR and numpy (tests/python/requirements.txt).
+then prints one JSON line (an asset without a glTF camera gets the tool's default camera on both sides). Needs bpy==5.0.1, OpenEXR and numpy (tests/python/requirements.txt).
 """
 import argparse
 import json
@@ -58,10 +58,16 @@ def main():
     wrapper = ("import resource, subprocess, sys; p = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
                "sys.stdout.write(p.stdout); sys.stderr.write(p.stderr); "
                "sys.stderr.write('\\nPEAK_RSS_KB %d\\n' % resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); sys.exit(p.returncode)")
+    # Without a glTF camera the Cycles tool places its own (Blender (0, -4, 2.5) looking at the
+    # origin, 50 mm lens on a 36 mm sensor); give prismbake the same one in the glTF frame.
+    inspect = subprocess.run([a.prismbake, "inspect", a.asset, "--json"], capture_output=True, text=True)
+    camera = []
+    if inspect.returncode == 0 and not json.loads(inspect.stdout).get("camera", False):
+        camera = ["--camera-from", "0,2.5,4", "--camera-to", "0,0,0", "--fov", "39.6"]
     t = time.perf_counter()
     pb = subprocess.run([sys.executable, "-c", wrapper, a.prismbake, "render", a.asset, "--disp", a.disp, "--scale", str(a.scale),
                          "--midlevel", str(a.midlevel), "--res", f"{a.res}x{a.res}", "--aov", "mask,normal",
-                         "--threads", str(a.threads), "-o", str(out / "pb"), "--json", *a.extra.split()], capture_output=True, text=True)
+                         "--threads", str(a.threads), "-o", str(out / "pb"), "--json", *camera, *a.extra.split()], capture_output=True, text=True)
     wall = time.perf_counter() - t
     if pb.returncode != 0:
         sys.exit(f"prismbake failed:\n{pb.stderr}")
