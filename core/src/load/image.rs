@@ -1,5 +1,6 @@
 //! Height maps from EXR (half, float or uint channels, read raw) and PNG / TIFF (8/16-bit
-//! normalised to [0, 1], 32-bit float raw), into a `HeightMap` with row 0 at the top.
+//! normalised to [0, 1]; TIFF also 32/64-bit float, grey or colour, read raw, and 32-bit grey
+//! integers normalised), into a `HeightMap` with row 0 at the top.
 //!
 //! Colour images give their first channel (R), grey ones L. NaN texels are kept: the validate
 //! command reports them (`HeightMap::first_non_finite`). Dimensions are checked from the header
@@ -21,7 +22,7 @@ pub fn load(path: &Path, opts: &MapOptions) -> Result<HeightMap> {
     let (width, height, data, channel) = match ext.as_str() {
         "exr" => load_exr(path, opts.channel.as_deref())?,
         "png" => load_raster(path, ::image::ImageFormat::Png, opts.channel.as_deref())?,
-        "tif" | "tiff" => load_raster(path, ::image::ImageFormat::Tiff, opts.channel.as_deref())?,
+        "tif" | "tiff" => load_tiff(path, opts.channel.as_deref())?,
         _ => {
             return Err(Error::UnsupportedFormat {
                 path: path.into(),
@@ -146,6 +147,64 @@ fn pick_exr_channel(path: &Path, names: &[String], requested: Option<&str>) -> R
         .map(|c| c.to_string())
         .or_else(|| sorted.first().cloned())
         .ok_or_else(|| Error::invalid(path, "has no channels (re-export the map)"))
+}
+
+/// TIFF: one-channel float and 32-bit integer TIFFs (what sculpting tools export as 32-bit
+/// displacement) through the `tiff` decoder, which `image` has no layout for; every other
+/// TIFF through `image` (`load_raster`).
+fn load_tiff(path: &Path, requested: Option<&str>) -> Result<Decoded> {
+    use tiff::decoder::{Decoder, DecodingResult, Limits};
+    use tiff::ColorType;
+    let corrupt = |e: tiff::TiffError| {
+        Error::invalid(
+            path,
+            format!("cannot decode as TIFF: {e} (the file is truncated or corrupt; re-export it)"),
+        )
+    };
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let Ok(mut decoder) = Decoder::new(std::io::BufReader::new(file)) else {
+        // Not even a TIFF header: let `image` word the error as for every raster.
+        return load_raster(path, ::image::ImageFormat::Tiff, requested);
+    };
+    let bytes = match decoder.colortype() {
+        Ok(ColorType::Gray(32)) => 4,
+        Ok(ColorType::Gray(64)) => 8,
+        _ => return load_raster(path, ::image::ImageFormat::Tiff, requested),
+    };
+    let (w, h) = decoder.dimensions().map_err(corrupt)?;
+    let (w, h) = check_dimensions(path, w as usize, h as usize)?;
+    if let Some(want) = requested.filter(|&c| c != "L") {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "has no channel '{want}': PNG and TIFF maps are read from their first channel \
+                 ('L' here); drop --channel or convert the map to EXR"
+            ),
+        ));
+    }
+    // The whole image at once, and no more than it needs.
+    let mut limits = Limits::default();
+    limits.decoding_buffer_size = w as usize * h as usize * bytes;
+    let data: Vec<f32> = match decoder.with_limits(limits).read_image().map_err(corrupt)? {
+        DecodingResult::F32(v) => v,
+        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+        // Integers normalised by their full range, as for 8- and 16-bit maps.
+        DecodingResult::U32(v) => v.into_iter().map(|x| (x as f64 / u32::MAX as f64) as f32).collect(),
+        DecodingResult::U64(v) => v.into_iter().map(|x| (x as f64 / u64::MAX as f64) as f32).collect(),
+        DecodingResult::I32(v) => v.into_iter().map(|x| (x as f64 / i32::MAX as f64) as f32).collect(),
+        DecodingResult::I64(v) => v.into_iter().map(|x| (x as f64 / i64::MAX as f64) as f32).collect(),
+        _ => return Err(Error::invalid(path, "has a grey sample layout that is not 32/64-bit integer or float (convert the map to EXR)")),
+    };
+    if data.len() != w as usize * h as usize {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "holds {} samples for {w}x{h} texels (re-export the map)",
+                data.len()
+            ),
+        ));
+    }
+    Ok((w, h, data, "L".to_string()))
 }
 
 /// PNG / TIFF through the `image` crate.

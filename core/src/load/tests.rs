@@ -922,3 +922,50 @@ fn float_tiff_is_read_raw() {
         "not normalised"
     );
 }
+
+#[test]
+fn grey_float_and_32_bit_tiffs_are_read() {
+    // The 32-bit displacement export of sculpting tools: one float channel, which `image` has
+    // no layout for. Float is read raw (negative and > 1 kept), 32-bit integers normalised.
+    use tiff::encoder::{colortype, TiffEncoder};
+    let dir = temp_dir("tiff-grey32");
+    let raw = [0.5f32, -2.0, 9.0, 0.25, 1.5, -0.125];
+    let write = |name: &str, f: &dyn Fn(&mut TiffEncoder<std::fs::File>)| {
+        let path = dir.join(name);
+        let mut enc = TiffEncoder::new(std::fs::File::create(&path).unwrap()).unwrap();
+        f(&mut enc);
+        path
+    };
+    let f32_path = write("f32.tif", &|e| {
+        e.write_image::<colortype::Gray32Float>(3, 2, &raw).unwrap()
+    });
+    let f64_path = write("f64.tif", &|e| {
+        let v: Vec<f64> = raw.iter().map(|&x| x as f64).collect();
+        e.write_image::<colortype::Gray64Float>(3, 2, &v).unwrap()
+    });
+    let u32_path = write("u32.tif", &|e| {
+        e.write_image::<colortype::Gray32>(2, 1, &[0, u32::MAX])
+            .unwrap()
+    });
+    for path in [&f32_path, &f64_path] {
+        let m = load_height_map(path, &MapOptions::default()).unwrap();
+        assert_eq!((m.width, m.height, m.channel.as_str()), (3, 2, "L"));
+        assert_eq!(m.data, raw.to_vec(), "{}", path.display());
+    }
+    let m = load_height_map(&u32_path, &MapOptions::default()).unwrap();
+    assert_eq!(m.data, vec![0.0, 1.0]);
+    // A channel other than L is refused with the fix.
+    let opts = MapOptions {
+        channel: Some("R".into()),
+        ..MapOptions::default()
+    };
+    let msg = load_height_map(&f32_path, &opts).unwrap_err().to_string();
+    assert!(msg.contains("f32.tif") && msg.contains("'L' here"), "{msg}");
+    // Truncated: a clean error naming the file, for every prefix.
+    let bytes = std::fs::read(&f32_path).unwrap();
+    for n in 0..bytes.len() {
+        let cut = dir.join("cut.tif");
+        std::fs::write(&cut, &bytes[..n]).unwrap();
+        err_naming_file(load_height_map(&cut, &MapOptions::default()), &cut);
+    }
+}
