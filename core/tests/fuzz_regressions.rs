@@ -113,3 +113,31 @@ fn height_png_corpus_loads_or_fails_cleanly() {
         drop(load::load_height_map(p, &MapOptions::default()))
     });
 }
+
+#[test]
+fn height_exr_corpus_loads_or_fails_cleanly() {
+    replay_files("height_exr", "exr", |p| {
+        drop(load::load_height_map(p, &MapOptions::default()))
+    });
+}
+
+#[test]
+fn height_tiff_corpus_loads_or_fails_cleanly() {
+    replay_files("height_tiff", "tif", |p| {
+        drop(load::load_height_map(p, &MapOptions::default()))
+    });
+}
+
+#[test]
+fn usda_corpus_loads_or_fails_cleanly() {
+    replay_files("usda", "usda", |p| {
+        drop(load::load_mesh(p, &MeshOptions::default()))
+    });
+}
+
+#[test]
+fn usdc_corpus_loads_or_fails_cleanly() {
+    replay_files("usdc", "usdc", |p| {
+        drop(load::load_mesh(p, &MeshOptions::default()))
+    });
+}

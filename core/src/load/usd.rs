@@ -97,9 +97,14 @@ pub fn displacement(path: &Path) -> Result<Option<UsdDisplacement>> {
     })
 }
 
-/// openusd may panic on some corrupt inputs: turn that into an error naming the file.
+/// openusd may panic on some corrupt inputs: turn that into an error naming the file. The
+/// panic is expected here, so it prints nothing (`quiet_panics`): the user sees the error only.
 fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
+    quiet_panics();
+    let was = QUIET.with(|q| q.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was));
+    r.unwrap_or_else(|_| {
         Err(Error::invalid(
             path,
             "the USD reader (openusd 0.6) crashed on this file: it is corrupt or uses a feature \
@@ -108,7 +113,156 @@ fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
     })
 }
 
+thread_local! {
+    /// Set while `guarded` runs: a panic on this thread is the reader's, and is caught.
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Chain a panic hook, once, that stays silent for panics inside `guarded` and hands every
+/// other panic to the hook that was there before.
+fn quiet_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(|q| q.get()) {
+                previous(info);
+            }
+        }));
+    });
+}
+
+/// Deepest `{`, `(` or `[` nesting accepted in a text layer. openusd's text parser and its
+/// composition recurse once per level, so a hostile file nested thousands deep overflows the
+/// stack (an abort no `catch_unwind` can turn into an error); real layers nest a few dozen.
+pub const MAX_USDA_NESTING: usize = 100;
+
+/// The identifier-like word at `i` (letters, digits, `_`, `:`), advancing past it.
+fn take_word<'b>(bytes: &'b [u8], i: &mut usize) -> &'b [u8] {
+    let start = *i;
+    while *i < bytes.len()
+        && (bytes[*i].is_ascii_alphanumeric() || matches!(bytes[*i], b'_' | b':'))
+    {
+        *i += 1;
+    }
+    &bytes[start..*i]
+}
+
+/// After `def` / `over` / `class` at `i`: skip an optional type name; a quoted prim name must
+/// be an identifier (letters, digits and `_`, not starting with a digit; UTF-8 letters allowed).
+fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Result<()> {
+    let skip_blanks = |i: &mut usize| {
+        while *i < bytes.len() && matches!(bytes[*i], b' ' | b'\t') {
+            *i += 1;
+        }
+    };
+    skip_blanks(i);
+    if *i < bytes.len() && bytes[*i].is_ascii_alphabetic() {
+        take_word(bytes, i);
+        skip_blanks(i);
+    }
+    if *i >= bytes.len() || bytes[*i] != b'"' {
+        return Ok(());
+    }
+    let Some(len) = bytes[*i + 1..]
+        .iter()
+        .position(|&b| b == b'"' || b == b'\n')
+    else {
+        return Ok(());
+    };
+    let name = String::from_utf8_lossy(&bytes[*i + 1..*i + 1 + len]);
+    let valid = name
+        .chars()
+        .next()
+        .is_some_and(|c| c.is_alphabetic() || c == '_')
+        && name.chars().all(|c| c.is_alphanumeric() || c == '_');
+    if !valid {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "line {line}: prim name \"{name}\" is not a USD identifier (letters, digits and \
+                 _, not starting with a digit); the file is corrupt, or rename the prim"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Refuse a text layer nested deeper than `MAX_USDA_NESTING` (strings and comments skipped),
+/// or with a prim whose name is not an identifier.
+/// Binary layers (`PXR-USDC`) are not scanned.
+fn check_nesting(path: &Path) -> Result<()> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if bytes.starts_with(b"PXR-USDC") {
+        return Ok(());
+    }
+    let (mut depth, mut deepest, mut line, mut deepest_line) = (0usize, 0usize, 1usize, 1usize);
+    let mut i = 0;
+    while i < bytes.len() {
+        match bytes[i] {
+            b'\n' => line += 1,
+            b'#' => {
+                while i < bytes.len() && bytes[i] != b'\n' {
+                    i += 1;
+                }
+                continue;
+            }
+            q @ (b'"' | b'\'') => {
+                // A string, single or triple quoted; backslash escapes the next byte.
+                let triple = bytes[i..].starts_with(&[q, q, q]);
+                i += if triple { 3 } else { 1 };
+                while i < bytes.len() {
+                    if bytes[i] == b'\\' {
+                        i += 2;
+                        continue;
+                    }
+                    if bytes[i] == b'\n' {
+                        line += 1;
+                    }
+                    if bytes[i] == q && (!triple || bytes[i..].starts_with(&[q, q, q])) {
+                        i += if triple { 3 } else { 1 };
+                        break;
+                    }
+                    i += 1;
+                }
+                continue;
+            }
+            c if c.is_ascii_alphabetic() => {
+                // A word: after `def`, `over` or `class` (and an optional type name) comes the
+                // prim's name, which must be an identifier; openusd takes `{`, `}` and the like
+                // in a name for path syntax and recurses without end.
+                let word = take_word(&bytes, &mut i);
+                if matches!(word, b"def" | b"over" | b"class") {
+                    check_prim_name(path, &bytes, &mut i, line)?;
+                }
+                continue;
+            }
+            b'{' | b'(' | b'[' => {
+                depth += 1;
+                if depth > deepest {
+                    (deepest, deepest_line) = (depth, line);
+                }
+            }
+            b'}' | b')' | b']' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+        i += 1;
+    }
+    if deepest > MAX_USDA_NESTING {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "nests brackets {deepest} levels deep (line {deepest_line}); the USD reader \
+                 accepts at most {MAX_USDA_NESTING} (the file is corrupt, or flatten its \
+                 hierarchy, e.g. with `usdcat --flatten`)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 fn open(path: &Path) -> Result<Stage> {
+    check_nesting(path)?;
     let s = path
         .to_str()
         .ok_or_else(|| Error::invalid(path, "the path is not UTF-8 (rename the file)"))?;

@@ -497,3 +497,106 @@ fn truncated_usdc_prefixes_fail_cleanly() {
         assert!(r.is_ok(), "prefix of {len} bytes panicked");
     }
 }
+
+/// A text layer nested past `MAX_USDA_NESTING` is refused before the reader sees it (the
+/// reader recurses per level; 50 000 nested prims overflowed the stack and aborted), while a
+/// hierarchy at the limit loads, even on a 2 MiB thread (rayon's and std's default).
+#[test]
+fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
+    let d = dir("nesting");
+    let nested = |levels: usize| {
+        let mut body = String::new();
+        for i in 0..levels - 1 {
+            body += &format!("def Xform \"X{i}\" {{\n");
+        }
+        body += "def Mesh \"M\" {\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n \
+                 point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n texCoord2f[] primvars:st = \
+                 [(0, 0), (1, 0), (0, 1)] (interpolation = \"vertex\")\n}\n";
+        body += &"}\n".repeat(levels - 1);
+        layer("Y", &body)
+    };
+    // The prims' braces, then the mesh's `[(0, 0), ...]` arrays: two levels more.
+    let ok = write(&d, "ok.usda", &nested(MAX_USDA_NESTING - 2));
+    let deep = write(&d, "deep.usda", &nested(20_000));
+    let loaded = std::thread::Builder::new()
+        .stack_size(2 << 20)
+        .spawn(move || load_mesh(&ok, &MeshOptions::default()).map(|m| m.triangles.len()))
+        .unwrap()
+        .join()
+        .expect("no stack overflow at the limit");
+    assert_eq!(loaded.unwrap(), 1);
+    let e = load_mesh(&deep, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("deep.usda") && e.contains("levels deep") && e.contains("flatten"),
+        "{e}"
+    );
+    // Brackets inside strings and comments do not count.
+    let quoted = write(
+        &d,
+        "quoted.usda",
+        &format!(
+            "{}\n# {}\ndef Xform \"A\" ( doc = \"{}\" ) {{\n}}\n",
+            layer("Y", ""),
+            "{".repeat(500),
+            "[".repeat(500)
+        ),
+    );
+    assert!(check_nesting(&quoted).is_ok());
+}
+
+/// A panic inside the reader (fuzzed binary layer: a token index past the token table) is a
+/// clean error naming the file.
+#[test]
+fn a_reader_panic_is_an_error() {
+    let d = dir("panic");
+    let p = d.join("crash.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/crash-token-index"),
+    )
+    .unwrap();
+    let e = load_mesh(&p, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("crash.usdc") && e.contains("crashed on this file"),
+        "{e}"
+    );
+}
+
+/// Fuzzing found prim names with path syntax (`"hsq}ad"`) sending openusd's instancing into
+/// endless recursion (a stack overflow, an abort): a text layer's prim names must be
+/// identifiers. Both found files are in `fuzz/corpus/usda/overflow-prim-name-*`.
+#[test]
+fn a_prim_name_that_is_not_an_identifier_is_an_error() {
+    let d = dir("primname");
+    for (name, bad) in [
+        ("hsq}ad", true),
+        ("a$b", true),
+        ("1abc", true),
+        ("Rock_01", false),
+        ("Stein_ä", false),
+    ] {
+        let text = layer(
+            "Y",
+            &format!(
+                "def Mesh \"{name}\" {{\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n \
+                 point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}}\n"
+            ),
+        );
+        let p = write(&d, "n.usda", &text);
+        let r = load_mesh(&p, &MeshOptions::default());
+        if bad {
+            let e = r.unwrap_err().to_string();
+            assert!(
+                e.contains("n.usda") && e.contains("not a USD identifier"),
+                "{name}: {e}"
+            );
+        } else {
+            let e = r.err().map(|e| e.to_string()).unwrap_or_default();
+            assert!(!e.contains("identifier"), "{name}: {e}");
+        }
+    }
+}

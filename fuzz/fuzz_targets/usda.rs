@@ -1,0 +1,13 @@
+//! bytes → a .usda file → `load::load_mesh` (the USD reader): any input is a clean `Err` or a value that passed
+//! the loader's own checks; a panic, abort or runaway allocation is a bug.
+#![no_main]
+
+mod file_input;
+
+use libfuzzer_sys::fuzz_target;
+use prismbake::load::{self, MeshOptions};
+
+fuzz_target!(|data: &[u8]| {
+    let path = file_input::scratch_file("usda", data);
+    let _ = load::load_mesh(&path, &MeshOptions::default());
+});
