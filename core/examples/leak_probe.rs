@@ -1,6 +1,8 @@
 //! Where the leak rays of `prismbake bench` get through: for each ray the reference hits and
-//! PDM does not, the prism the reference hit (inserted crease prism or not, stitched or not)
-//! and its barycentrics. `cargo run --release -p prismbake-core --example leak_probe ASSET [N]`
+//! the probed method (PDM, or RMIP / nonlinear) does not, the prism the reference hit (inserted
+//! crease prism or not, stitched or not), its barycentrics, and what the other methods find on
+//! the ray lengthened by 4 texels.
+//! `cargo run --release -p prismbake-core --example leak_probe ASSET [N] [pdm|rmip|nonlinear]`
 
 use prismbake::accel::Scene;
 use prismbake::asset::{self, Overrides};
@@ -32,6 +34,11 @@ fn main() {
     );
     let rmip = Rmip::new(&scene, RmipOptions::default());
     let nl = Nonlinear::new(&scene, NonlinearOptions::default());
+    let probed: &dyn Intersector = match args.get(3).map(String::as_str) {
+        Some("rmip") => &rmip,
+        Some("nonlinear") => &nl,
+        _ => &pdm,
+    };
     let rays = leak_rays(&scene, n, 0);
     let (mut leaks, mut inserted, mut stitched, mut near_edge) = (0, 0, 0, 0);
     for (i, r) in rays.iter().enumerate() {
@@ -42,7 +49,7 @@ fn main() {
         let Some(truth) = reference.intersect(r, &ctx) else {
             continue;
         };
-        if pdm.intersect(r, &ctx).is_some() {
+        if probed.intersect(r, &ctx).is_some() {
             continue;
         }
         leaks += 1;
@@ -55,10 +62,10 @@ fn main() {
         near_edge += edge as usize;
         let mut longer = *r;
         longer.t_max += 4.0 * p.texel_world;
-        let ext = pdm.intersect(&longer, &ctx);
+        let ext = probed.intersect(&longer, &ctx);
         if leaks <= 25 {
             println!(
-                "ray {i}: ref prism {} inserted {ins} stitched {st} bary {:.4?} (t_max - t)/texel {:.4} longer ray: pdm prism {:?} (t - t_ref)/texel {:?}",
+                "ray {i}: ref prism {} inserted {ins} stitched {st} bary {:.4?} (t_max - t)/texel {:.4} longer ray: probed prism {:?} (t - t_ref)/texel {:?}",
                 truth.prism, truth.bary, (r.t_max - truth.t) / p.texel_world,
                 ext.map(|h| h.prism), ext.map(|h| (h.t - truth.t) / p.texel_world)
             );
