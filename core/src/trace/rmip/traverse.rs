@@ -126,7 +126,15 @@ impl<'r, 'a> PrismTrace<'r, 'a> {
         };
         let local = Ray { origin: ro, ..*ray };
         let srel = s.map(|x| x - s[0]);
-        let Some(mut frame) = Frame::new(&v, &n, &srel, ro + ray.dir * te, ray.dir) else {
+        // Crease-strip prisms (zero-area base) are marched in `t` too: their texture-space
+        // curve degenerates with the base, and the traversal lost rays in them that the other
+        // methods find (docs/watertightness.md).
+        let frame = if p.flags & crate::bake::PRISM_INSERTED != 0 {
+            None
+        } else {
+            Frame::new(&v, &n, &srel, ro + ray.dir * te, ray.dir)
+        };
+        let Some(mut frame) = frame else {
             return Some(Setup::Degenerate {
                 local,
                 te,
