@@ -316,6 +316,30 @@ fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> S
     return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement_at(local.disp, b), b, l);
 }
 
+// Pdm::entry_sample: the march's first sample; if its b is outside (a ghost level of the
+// cubic, which every later sample would be warm-started from), retried from the middle and the
+// quarters of the range, keeping the level whose b is most inside (the last of equals, as the
+// CPU's max_by over [mid, mid - q, mid + q, first]).
+fn entry_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
+    let first = level_sample(local, lt, d, t, guess);
+    if (first.ok && min_element(first.b) >= -DETECT_TOL) {
+        return first;
+    }
+    let quarter = 0.25 * (lt.hi - lt.lo);
+    let starts = array<f32, 3>(lt.mid, lt.mid - quarter, lt.mid + quarter);
+    var best = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    for (var k = 0u; k < 4u; k++) {
+        var s = first;
+        if (k < 3u) {
+            s = level_sample(local, lt, d, t, starts[k]);
+        }
+        if (s.ok && (!best.ok || min_element(s.b) >= min_element(best.b))) {
+            best = s;
+        }
+    }
+    return best;
+}
+
 fn inside_detect(b: vec3f) -> bool {
     return min_element(b) >= -DETECT_TOL;
 }
@@ -352,7 +376,12 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var n = 0u;
     loop {
         n += 1u;
-        let sample = level_sample(local, lt, d, t, guess);
+        var sample: Sample;
+        if (n == 1u) {
+            sample = entry_sample(local, lt, d, t, guess);
+        } else {
+            sample = level_sample(local, lt, d, t, guess);
+        }
         // The edge of the region where a level exists is a sample too (level_domain_edge).
         var edge = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
         if (!sample.ok && last_ok.ok && !failed) {

@@ -518,6 +518,32 @@ impl<'a> Pdm<'a> {
         }
     }
 
+    /// The march's first sample, at the prism entry. Its guess is only the scanning-triangle
+    /// estimate, and the level cubic can have another root in the padded range whose level
+    /// triangle misses the point (a ghost level, `b` far outside); every later sample is
+    /// warm-started from this one, so the march would stay on that branch and skip a crossing.
+    /// If `b` is outside, retry from the middle and the quarters of the range and keep the level
+    /// whose `b` is most inside.
+    fn entry_sample(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        d: Vec3,
+        t: f32,
+        guess: f32,
+    ) -> Option<Sample> {
+        let first = self.level_sample(local, lt, d, t, guess);
+        if first.is_some_and(|s| s.b.min_element() >= -DETECT_TOL) {
+            return first;
+        }
+        let quarter = 0.25 * (lt.hi - lt.lo);
+        [lt.mid, lt.mid - quarter, lt.mid + quarter]
+            .into_iter()
+            .filter_map(|g0| self.level_sample(local, lt, d, t, g0))
+            .chain(first)
+            .max_by(|a, b| a.b.min_element().total_cmp(&b.b.min_element()))
+    }
+
     /// Exact canonical sample at `t`: the level `λ` of the ray point (Newton on the level
     /// cubic from `guess`, retried from the middle of the prism), `b` its barycentrics in the
     /// level triangle `T(λ)` (the scanning triangle made exact), and `g = λ|m(b)| − D(uv(b))`:
@@ -584,7 +610,11 @@ impl<'a> Pdm<'a> {
         let mut n = 0;
         loop {
             n += 1;
-            let sample = self.level_sample(local, &lt, d, t, guess);
+            let sample = if n == 1 {
+                self.entry_sample(local, &lt, d, t, guess)
+            } else {
+                self.level_sample(local, &lt, d, t, guess)
+            };
             // Where the ray leaves (or re-enters) the region in which a level exists, the
             // edge of that region is a sample too: a crossing between the last sample with a
             // level and the first without one would be lost otherwise (a grazing exit, where
@@ -1346,6 +1376,33 @@ mod tests {
                 0,
                 "ray {pixel}: {hit:?}"
             );
+        }
+    }
+
+    #[test]
+    fn entry_on_a_ghost_level_is_retried() {
+        // A rock leak ray (bench::leak_rays, 2·10⁵ rays, seed 0, ray 102 832) enters prism 331
+        // where the level cubic's Newton, from the scanning estimate, lands on a ghost root
+        // (λ ≈ −0.046, b.z ≈ −0.29); every later sample followed that branch and the crossing
+        // at b.z ≈ 0.0097 was skipped at any dt. `entry_sample` retries the entry level.
+        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
+        let i = 102_832;
+        let ray = crate::bench::leak_rays(scene, 200_000, 0)[i];
+        let ctx = RayContext {
+            pixel: i as u32,
+            ..Default::default()
+        };
+        for dt in [0.5, 0.05] {
+            let pdm = Pdm::new(
+                scene,
+                PdmOptions {
+                    dt: StepSize::Auto(dt),
+                    ..Default::default()
+                },
+            );
+            let hit = pdm.intersect(&ray, &ctx).expect("the ray hits");
+            assert_eq!(hit.prism, 331, "dt {dt}");
+            assert!(canonical_error_texels(scene, &ray, &hit) < 1e-3, "dt {dt}");
         }
     }
 }
