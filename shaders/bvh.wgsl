@@ -27,6 +27,28 @@ fn safe_inverse(d: vec3f) -> vec3f {
     return 1.0 / dd;
 }
 
+// Pop the next node whose box entry is still before the closest hit into `current`; false
+// when the stack has none left.
+fn pop_next(
+    stack_node: ptr<function, array<u32, BVH_STACK>>,
+    stack_t: ptr<function, array<f32, BVH_STACK>>,
+    sp: ptr<function, u32>,
+    t_best: f32,
+    current: ptr<function, u32>,
+) -> bool {
+    loop {
+        if (*sp == 0u) {
+            return false;
+        }
+        *sp -= 1u;
+        if ((*stack_t)[*sp] <= t_best) {
+            *current = (*stack_node)[*sp];
+            return true;
+        }
+    }
+    return false;
+}
+
 // Scene::closest_hit with PDM's intersect_prism as the per-prism test.
 fn closest_hit(ray: Ray, ctx: RayContext) -> Hit {
     return traverse(ray, ctx, false);
@@ -88,19 +110,8 @@ fn traverse(ray: Ray, ctx: RayContext, stop_at_first: bool) -> Hit {
                 current = l + 1u;
                 continue;
             }
-            // Neither child: pop the next node whose box entry is still before the best hit.
-            visit = false;
-            loop {
-                if (sp == 0u) {
-                    break;
-                }
-                sp -= 1u;
-                if (stack_t[sp] <= t_best) {
-                    current = stack_node[sp];
-                    visit = true;
-                    break;
-                }
-            }
+            // Neither child: the next node on the stack.
+            visit = pop_next(&stack_node, &stack_t, &sp, t_best, &current);
         }
         if (!visit) {
             break;
@@ -120,19 +131,7 @@ fn traverse(ray: Ray, ctx: RayContext, stop_at_first: bool) -> Hit {
                 }
             }
         }
-        // Pop the next node whose box entry is still before the closest hit.
-        visit = false;
-        loop {
-            if (sp == 0u) {
-                break;
-            }
-            sp -= 1u;
-            if (stack_t[sp] <= t_best) {
-                current = stack_node[sp];
-                visit = true;
-                break;
-            }
-        }
+        visit = pop_next(&stack_node, &stack_t, &sp, t_best, &current);
         if (!visit) {
             break;
         }
