@@ -1294,12 +1294,8 @@ mod tests {
     /// march now samples the edge of the region where a level exists.
     #[test]
     fn former_rock_leaks_at_a_grazing_exit() {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
-        let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
-        let p = crate::asset::prepare(&spec, &Default::default()).unwrap();
-        let scene = Scene::new(p.table, p.map);
-        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
+        let pdm = Pdm::new(scene, PdmOptions::default());
         let rays = [
             (
                 458,
@@ -1340,12 +1336,8 @@ mod tests {
     /// the displaced strip, and the march resolves the dip.
     #[test]
     fn former_rock_leaks_through_squeezed_strip_relief() {
-        let path =
-            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
-        let spec = crate::asset::resolve(&path, &Default::default()).unwrap();
-        let p = crate::asset::prepare(&spec, &Default::default()).unwrap();
-        let scene = Scene::new(p.table, p.map);
-        let pdm = Pdm::new(&scene, PdmOptions::default());
+        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
+        let pdm = Pdm::new(scene, PdmOptions::default());
         let rays = [
             (
                 895,
