@@ -173,15 +173,7 @@ fn load_tiff(path: &Path, requested: Option<&str>) -> Result<Decoded> {
     };
     let (w, h) = decoder.dimensions().map_err(corrupt)?;
     let (w, h) = check_dimensions(path, w as usize, h as usize)?;
-    if let Some(want) = requested.filter(|&c| c != "L") {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "has no channel '{want}': PNG and TIFF maps are read from their first channel \
-                 ('L' here); drop --channel or convert the map to EXR"
-            ),
-        ));
-    }
+    first_channel_only(path, requested, "L")?;
     // The whole image at once, and no more than it needs.
     let mut limits = Limits::default();
     limits.decoding_buffer_size = w as usize * h as usize * bytes;
@@ -205,6 +197,20 @@ fn load_tiff(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         ));
     }
     Ok((w, h, data, "L".to_string()))
+}
+
+/// PNG and TIFF maps give their first channel, `name`: any other `--channel` is refused.
+fn first_channel_only(path: &Path, requested: Option<&str>, name: &str) -> Result<()> {
+    match requested {
+        Some(want) if want != name => Err(Error::invalid(
+            path,
+            format!(
+                "has no channel '{want}': PNG and TIFF maps are read from their first channel \
+                 ('{name}' here); drop --channel or convert the map to EXR"
+            ),
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// PNG / TIFF through the `image` crate.
@@ -251,17 +257,7 @@ fn load_raster(
             | DynamicImage::ImageLumaA16(_)
     );
     let name = if grey { "L" } else { "R" };
-    if let Some(want) = requested {
-        if want != name {
-            return Err(Error::invalid(
-                path,
-                format!(
-                    "has no channel '{want}': PNG and TIFF maps are read from their first channel \
-                     ('{name}' here); drop --channel or convert the map to EXR"
-                ),
-            ));
-        }
-    }
+    first_channel_only(path, requested, name)?;
     // First channel of every texel; integer formats normalised by their full range.
     let data: Vec<f32> = match &image {
         DynamicImage::ImageLuma8(b) => b.pixels().map(|p| p.0[0] as f32 / 255.0).collect(),
