@@ -3,7 +3,7 @@
 //! figures in docs/benchmarks.md and for profiling (`valgrind --tool=callgrind` on a small
 //! `RES`); benches/intersect.rs is the criterion version at 128².
 //!
-//! `cargo run --release -p prismbake-core --example trace_primary [ASSET] [RES] [pdm|reference|both]`
+//! `cargo run --release -p prismbake-core --example trace_primary [ASSET] [RES] [pdm|whole|reference|both]`
 
 use glam::Vec2;
 use prismbake::accel::Scene;
@@ -57,18 +57,35 @@ fn main() {
         .collect();
     let scene = Scene::new(prepared.table, prepared.map);
     let n = rays.len() as f64;
-    if which != "reference" {
-        let pdm = Pdm::new(&scene, PdmOptions::default());
+    let pdm_variants: &[(&str, bool)] = match which {
+        "reference" => &[],
+        "pdm" => &[("cells", true)],
+        "whole" => &[("whole prisms", false)],
+        _ => &[("cells", true), ("whole prisms", false)],
+    };
+    for &(label, cells) in pdm_variants {
+        let t_build = Instant::now();
+        let pdm = Pdm::new(
+            &scene,
+            PdmOptions {
+                cells,
+                ..PdmOptions::default()
+            },
+        );
+        let build = t_build.elapsed().as_secs_f64();
+
         let (hits, steps, secs) = trace(&pdm, &rays);
         println!(
-            "pdm: {} rays, {hits} hit, {:.1} steps/hit, {:.0} ns/ray, {:.3} Mray/s (one thread)",
+            "pdm ({label}, built in {:.0} ms, {} B/tri): {} rays, {hits} hit, {:.1} steps/hit, {:.0} ns/ray, {:.3} Mray/s (one thread)",
+            build * 1e3,
+            pdm.memory_bytes() / scene.table.prisms.len().max(1),
             rays.len(),
             steps as f64 / hits.max(1) as f64,
             secs * 1e9 / n,
             n / secs / 1e6
         );
     }
-    if which != "pdm" {
+    if which == "both" || which == "reference" {
         let reference = Reference::new(scene.surface(), 2.0);
         let (hits, _, secs) = trace(&reference, &rays);
         println!(

@@ -59,13 +59,128 @@ enum Bvh {
     Wide(CwBvh),
 }
 
+/// An obvhs hierarchy over boxes whose leaves are `u32` items (prisms, or any finer
+/// primitive a method bounds itself: `trace::cells`); it knows only the boxes, and the
+/// caller's closure intersects each candidate item.
+pub struct BoxBvh {
+    /// `None` without boxes (every ray misses).
+    bvh: Option<Bvh>,
+    kind: BvhKind,
+}
+
+impl BoxBvh {
+    pub fn build(aabbs: &[Aabb], kind: BvhKind) -> Self {
+        let bvh = (!aabbs.is_empty()).then(|| {
+            let params = BvhBuildParams::medium_build();
+            let mut build_time = Duration::default();
+            match kind {
+                BvhKind::Binary => Bvh::Binary(build_bvh2(aabbs, params, &mut build_time)),
+                BvhKind::Wide => Bvh::Wide(build_cwbvh(aabbs, params, &mut build_time)),
+            }
+        });
+        BoxBvh { bvh, kind }
+    }
+
+    pub fn kind(&self) -> BvhKind {
+        self.kind
+    }
+
+    /// Bytes of the hierarchy: nodes plus the leaf-to-item index list.
+    pub fn bytes(&self) -> usize {
+        match &self.bvh {
+            None => 0,
+            Some(Bvh::Binary(b)) => {
+                b.nodes.len() * std::mem::size_of_val(&b.nodes[0]) + b.primitive_indices.len() * 4
+            }
+            Some(Bvh::Wide(b)) => {
+                b.nodes.len() * std::mem::size_of_val(&b.nodes[0]) + b.primitive_indices.len() * 4
+            }
+        }
+    }
+
+    /// Panics (obvhs asserts) if the hierarchy is malformed or does not bound `aabbs`.
+    pub fn validate(&self, aabbs: &[Aabb]) {
+        match &self.bvh {
+            None => assert!(aabbs.is_empty()),
+            Some(Bvh::Binary(b)) => {
+                b.validate(aabbs, false, false);
+            }
+            Some(Bvh::Wide(b)) => {
+                b.validate(aabbs, false);
+            }
+        }
+    }
+
+    /// Closest hit over all items. `f(ray, item)` intersects one item with the ray clipped
+    /// to the closest hit so far (`ray.t_max`) and returns the cheap record.
+    #[inline]
+    pub fn closest_hit<F: FnMut(&Ray, u32) -> Option<Hit>>(
+        &self,
+        ray: &Ray,
+        mut f: F,
+    ) -> Option<Hit> {
+        let bvh = self.bvh.as_ref()?;
+        let mut best: Option<Hit> = None;
+        let oray = to_obvhs(ray);
+        let mut hit = RayHit::none();
+        let mut visit = |r: &obvhs::ray::Ray, item: u32| -> f32 {
+            let clipped = Ray {
+                t_max: r.tmax,
+                ..*ray
+            };
+            match f(&clipped, item) {
+                Some(h) if h.t < r.tmax => {
+                    best = Some(h);
+                    h.t
+                }
+                _ => f32::INFINITY,
+            }
+        };
+        match bvh {
+            Bvh::Binary(b) => {
+                let idx = &b.primitive_indices;
+                b.ray_traverse(oray, &mut hit, |r, id| visit(r, idx[id]));
+            }
+            Bvh::Wide(b) => {
+                let idx = &b.primitive_indices;
+                b.ray_traverse(oray, &mut hit, |r, id| visit(r, idx[id]));
+            }
+        }
+        best
+    }
+
+    /// Whether `f` reports a hit for any candidate item (shadow rays); stops at the first.
+    pub fn any_hit<F: FnMut(&Ray, u32) -> bool>(&self, ray: &Ray, mut f: F) -> bool {
+        let Some(bvh) = self.bvh.as_ref() else {
+            return false;
+        };
+        let oray = to_obvhs(ray);
+        let mut visit = |item: u32| -> f32 {
+            if f(ray, item) {
+                ray.t_min
+            } else {
+                f32::INFINITY
+            }
+        };
+        let missed = match bvh {
+            Bvh::Binary(b) => {
+                let idx = &b.primitive_indices;
+                b.ray_traverse_miss(oray, |_, id| visit(idx[id]))
+            }
+            Bvh::Wide(b) => {
+                let idx = &b.primitive_indices;
+                b.ray_traverse_miss(oray, |_, id| visit(idx[id]))
+            }
+        };
+        !missed
+    }
+}
+
 /// Everything a ray needs: the prism table, the height map and the BVH over the prisms.
 pub struct Scene {
     pub table: PrismTable,
     pub map: HeightMap,
-    /// `None` for a table without prisms (every ray misses).
-    bvh: Option<Bvh>,
-    kind: BvhKind,
+    bvh: BoxBvh,
     seam_mode: SeamMode,
     /// The seam stitch data when `seam_mode` is `Stitch` (empty otherwise).
     stitch: StitchField,
@@ -78,21 +193,12 @@ impl Scene {
     }
 
     pub fn with_bvh(table: PrismTable, map: HeightMap, kind: BvhKind) -> Self {
-        let aabbs = prism_aabbs(&table);
-        let bvh = (!aabbs.is_empty()).then(|| {
-            let params = BvhBuildParams::medium_build();
-            let mut build_time = Duration::default();
-            match kind {
-                BvhKind::Binary => Bvh::Binary(build_bvh2(&aabbs, params, &mut build_time)),
-                BvhKind::Wide => Bvh::Wide(build_cwbvh(&aabbs, params, &mut build_time)),
-            }
-        });
+        let bvh = BoxBvh::build(&prism_aabbs(&table), kind);
         let stitch = StitchField::build(&table, &map);
         Scene {
             table,
             map,
             bvh,
-            kind,
             seam_mode: SeamMode::Stitch,
             stitch,
         }
@@ -143,99 +249,30 @@ impl Scene {
     }
 
     pub fn bvh_kind(&self) -> BvhKind {
-        self.kind
+        self.bvh.kind()
     }
 
     /// Bytes of the hierarchy: nodes plus the leaf-to-prism index list.
     pub fn bvh_bytes(&self) -> usize {
-        match &self.bvh {
-            None => 0,
-            Some(Bvh::Binary(b)) => {
-                b.nodes.len() * std::mem::size_of_val(&b.nodes[0]) + b.primitive_indices.len() * 4
-            }
-            Some(Bvh::Wide(b)) => {
-                b.nodes.len() * std::mem::size_of_val(&b.nodes[0]) + b.primitive_indices.len() * 4
-            }
-        }
+        self.bvh.bytes()
     }
 
     /// Panics (obvhs asserts) if the hierarchy is malformed or does not bound its prisms.
     pub fn validate(&self) {
-        let aabbs = prism_aabbs(&self.table);
-        match &self.bvh {
-            None => assert!(aabbs.is_empty()),
-            Some(Bvh::Binary(b)) => {
-                b.validate(&aabbs, false, false);
-            }
-            Some(Bvh::Wide(b)) => {
-                b.validate(&aabbs, false);
-            }
-        }
+        self.bvh.validate(&prism_aabbs(&self.table));
     }
 
     /// Closest hit over all prisms. `f(ray, prism)` intersects one prism with the ray clipped
     /// to the closest hit so far (`ray.t_max`) and returns the cheap record (t, prism,
     /// barycentrics; surface data may be filled later, once, for the winner).
     #[inline]
-    pub fn closest_hit<F: FnMut(&Ray, u32) -> Option<Hit>>(
-        &self,
-        ray: &Ray,
-        mut f: F,
-    ) -> Option<Hit> {
-        let bvh = self.bvh.as_ref()?;
-        let mut best: Option<Hit> = None;
-        let oray = to_obvhs(ray);
-        let mut hit = RayHit::none();
-        let mut visit = |r: &obvhs::ray::Ray, prism: u32| -> f32 {
-            let clipped = Ray {
-                t_max: r.tmax,
-                ..*ray
-            };
-            match f(&clipped, prism) {
-                Some(h) if h.t < r.tmax => {
-                    best = Some(h);
-                    h.t
-                }
-                _ => f32::INFINITY,
-            }
-        };
-        match bvh {
-            Bvh::Binary(b) => {
-                let idx = &b.primitive_indices;
-                b.ray_traverse(oray, &mut hit, |r, id| visit(r, idx[id]));
-            }
-            Bvh::Wide(b) => {
-                let idx = &b.primitive_indices;
-                b.ray_traverse(oray, &mut hit, |r, id| visit(r, idx[id]));
-            }
-        }
-        best
+    pub fn closest_hit<F: FnMut(&Ray, u32) -> Option<Hit>>(&self, ray: &Ray, f: F) -> Option<Hit> {
+        self.bvh.closest_hit(ray, f)
     }
 
     /// Whether any prism reports a hit (shadow rays); stops at the first.
-    pub fn any_hit<F: FnMut(&Ray, u32) -> bool>(&self, ray: &Ray, mut f: F) -> bool {
-        let Some(bvh) = self.bvh.as_ref() else {
-            return false;
-        };
-        let oray = to_obvhs(ray);
-        let mut visit = |prism: u32| -> f32 {
-            if f(ray, prism) {
-                ray.t_min
-            } else {
-                f32::INFINITY
-            }
-        };
-        let missed = match bvh {
-            Bvh::Binary(b) => {
-                let idx = &b.primitive_indices;
-                b.ray_traverse_miss(oray, |_, id| visit(idx[id]))
-            }
-            Bvh::Wide(b) => {
-                let idx = &b.primitive_indices;
-                b.ray_traverse_miss(oray, |_, id| visit(idx[id]))
-            }
-        };
-        !missed
+    pub fn any_hit<F: FnMut(&Ray, u32) -> bool>(&self, ray: &Ray, f: F) -> bool {
+        self.bvh.any_hit(ray, f)
     }
 }
 
@@ -259,10 +296,15 @@ pub fn prism_aabbs(table: &PrismTable) -> Vec<Aabb> {
         .iter()
         .map(|p| {
             let (lo, hi) = table.prism_aabb(p);
-            let pad = Vec3::splat((hi - lo).length() * AABB_PAD + f32::MIN_POSITIVE);
-            Aabb::new(Vec3A::from(lo - pad), Vec3A::from(hi + pad))
+            padded_box(lo, hi)
         })
         .collect()
+}
+
+/// The box `[lo, hi]` padded by `AABB_PAD` of its diagonal (what every leaf box gets).
+pub fn padded_box(lo: Vec3, hi: Vec3) -> Aabb {
+    let pad = Vec3::splat((hi - lo).length() * AABB_PAD + f32::MIN_POSITIVE);
+    Aabb::new(Vec3A::from(lo - pad), Vec3A::from(hi + pad))
 }
 
 /// Procedural test assets: a closed, seam-free displaced sphere.

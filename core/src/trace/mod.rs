@@ -9,6 +9,7 @@ pub mod reference;
 
 use glam::{Vec2, Vec3};
 
+pub mod cells;
 pub mod nonlinear;
 pub mod pdm;
 pub mod prism_hit;

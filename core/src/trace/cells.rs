@@ -1,0 +1,422 @@
+//! Sub-prism cells: every marched prism split in barycentric space into `4^k` sub-triangles
+//! (midpoint subdivision), each with the λ range of its own footprint and its own box, in
+//! one BVH. PDM marches a candidate cell only over the part of the ray inside it.
+//!
+//! A prism's λ range bounds the surface over the whole triangle, so a ray marches the whole
+//! relief amplitude (at half a texel per step) wherever it crosses the prism, even where the
+//! relief under it is low. A cell is a prism of the same kind: over the sub-triangle with
+//! corners `b_j`, the shared-wall prism points `P(b) + λ m(b)` (with `P` and `m` affine in
+//! `b`) form the shared-wall prism of the base corners `P(b_j)` and directions `m(b_j)`, so
+//! `prism_hit::ray_prism_interval` finds the ray's part in it unchanged. The march inside
+//! still tracks the *parent* prism's exact level cubic and accepts hits anywhere in the
+//! parent triangle: cells only decide where to march.
+//!
+//! Why no crossing is lost: the first crossing `x* = P(b*) + λ* m(b*)` has `b*` in some
+//! closed cell and `λ*` in that cell's range (the range bounds the surface over the closed
+//! sub-triangle, edges included), so the ray is inside that cell at `t*`; before `t*` it is
+//! above the surface, so that cell's march (entry sample at or before `t*`, exit sample at or
+//! after) sees the sign change as the whole prism's march would.
+//!
+//! Ranges: the raw map range over the sub-triangle's UV footprint (`bake::footprint_range`,
+//! every texel bilinear sampling can read), widened by the prism's seam band range where a
+//! stitched band reaches the cell (`PrismStitch::in_band` at its corners), then `D → λ` with
+//! the cell's own `|m|` lower bound, and intersected with the parent's range.
+//!
+//! Which prisms are split: not flat prisms (no march), not zero-area crease prisms
+//! (`PRISM_INSERTED`: their UVs are squeezed) and not prisms whose normals fall below the
+//! floor; the others down to `TARGET_TEXELS` along the longest UV edge, at most `MAX_LEVEL`.
+
+use crate::accel::{padded_box, BoxBvh, BvhKind};
+use crate::bake::{
+    footprint_range, lambda_range, PrismTable, M_LO_FLOOR, PRISM_DEGENERATE_NORMALS, PRISM_FLAT,
+    PRISM_INSERTED,
+};
+use crate::heightmap::HeightMap;
+use crate::seam::StitchField;
+use glam::{Vec2, Vec3};
+use obvhs::aabb::Aabb;
+use rayon::prelude::*;
+
+/// Cells are split until their longest UV edge spans at most this many texels.
+pub const TARGET_TEXELS: f32 = 4.0;
+/// Deepest split: `4^MAX_LEVEL` cells per prism.
+pub const MAX_LEVEL: u32 = 3;
+
+/// One cell's bounds as built: a sub-triangle of prism `prism` (corners as barycentrics of
+/// the prism's base triangle), its λ range and its largest `|D|`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CellBounds {
+    pub prism: u32,
+    pub corners: [Vec3; 3],
+    pub lambda_lo: f32,
+    pub lambda_hi: f32,
+    /// Largest `|D|` over the cell (the surface is within it of the sub-triangle).
+    pub reach: f32,
+}
+
+/// A slab `lo ≤ x·n ≤ hi` (prism-local frame, origin at the prism's first base corner).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Slab {
+    n: Vec3,
+    lo: f32,
+    hi: f32,
+}
+
+/// What the march reads per candidate cell: its prism and eight slabs that hold it.
+///
+/// The slabs replace the exact ray–prism interval (two caps, three bilinear walls: the
+/// costliest part of a candidate) by a superset, which is all a cell needs: the march in it
+/// evaluates the parent prism's exact level, so samples outside the cell are only wasted,
+/// never wrong. A point of the cell is `P(b) + λ m(b)`, affine in `b` for fixed `λ` and in `λ`
+/// for fixed `b`, so its distance to any plane is extreme at one of the six corners: each slab
+/// is the corners' range along a direction. The directions: the base normal (also cut to
+/// `±reach`, where the surface can be), the normal of the cell's middle level triangle, and
+/// per side the plane through the side's base edge and its mean direction (tight where the
+/// normals are near the face normal) and the plane through the edge square to the face
+/// (the lateral bound where the normals lean far over: the first plane then lies nearly in
+/// the face).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cell {
+    pub prism: u32,
+    /// The cell is the whole prism (not split): the march takes the exact prism interval.
+    pub whole: bool,
+    slabs: [Slab; 8],
+}
+
+/// Slab padding relative to the prism's longest base edge (as the march's interval pad): a
+/// crossing on a cell's boundary is then inside it.
+const SLAB_PAD: f32 = 1e-4;
+
+impl Cell {
+    /// The part `[t0, t1]` of the ray `ro + t d` (prism-local origin) inside the cell's
+    /// slabs, if any.
+    #[inline]
+    pub fn clip(&self, ro: Vec3, d: Vec3, mut t0: f32, mut t1: f32) -> Option<(f32, f32)> {
+        for s in &self.slabs {
+            let s0 = ro.dot(s.n);
+            let sd = d.dot(s.n);
+            if sd == 0.0 {
+                if s0 < s.lo || s0 > s.hi {
+                    return None;
+                }
+                continue;
+            }
+            let inv = 1.0 / sd;
+            let (ta, tb) = ((s.lo - s0) * inv, (s.hi - s0) * inv);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+        (t0 <= t1).then_some((t0, t1))
+    }
+}
+
+/// Every prism's cells and the hierarchy over their boxes.
+pub struct Cells {
+    pub cells: Vec<Cell>,
+    bvh: BoxBvh,
+}
+
+/// Midpoint subdivision of the barycentric triangle `t`, `level` times (`4^level` pieces,
+/// same orientation as `t`).
+fn subdivide(t: [Vec3; 3], level: u32, out: &mut Vec<[Vec3; 3]>) {
+    if level == 0 {
+        out.push(t);
+        return;
+    }
+    let [a, b, c] = t;
+    let (ab, bc, ca) = ((a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5);
+    for s in [[a, ab, ca], [ab, b, bc], [ca, bc, c], [bc, ca, ab]] {
+        subdivide(s, level - 1, out);
+    }
+}
+
+/// How many times prism `i` is split (0: one cell, the prism itself).
+fn split_level(table: &PrismTable, map: &HeightMap, i: usize) -> u32 {
+    let p = &table.prisms[i];
+    if p.flags & (PRISM_FLAT | PRISM_INSERTED | PRISM_DEGENERATE_NORMALS) != 0 {
+        return 0;
+    }
+    let uv = table.prism_uvs(p);
+    let size = Vec2::new(map.width as f32, map.height as f32);
+    let longest = (0..3)
+        .map(|k| ((uv[(k + 1) % 3] - uv[k]) * size).length())
+        .fold(0.0f32, f32::max);
+    if !longest.is_finite() {
+        return 0;
+    }
+    let mut level = 0;
+    while level < MAX_LEVEL && longest / (1u32 << level) as f32 > TARGET_TEXELS {
+        level += 1;
+    }
+    level
+}
+
+#[inline]
+fn combine<T>(b: Vec3, x: &[T; 3]) -> T
+where
+    T: Copy + std::ops::Mul<f32, Output = T> + std::ops::Add<Output = T>,
+{
+    x[0] * b.x + x[1] * b.y + x[2] * b.z
+}
+
+/// The cells of prism `i`.
+pub(crate) fn prism_cells(
+    table: &PrismTable,
+    map: &HeightMap,
+    stitch: &StitchField,
+    i: usize,
+) -> Vec<CellBounds> {
+    let p = &table.prisms[i];
+    let whole = CellBounds {
+        prism: i as u32,
+        corners: [Vec3::X, Vec3::Y, Vec3::Z],
+        lambda_lo: p.lambda_lo,
+        lambda_hi: p.lambda_hi,
+        reach: p.d_min.abs().max(p.d_max.abs()),
+    };
+    let level = split_level(table, map, i);
+    if level == 0 {
+        return vec![whole];
+    }
+    let (_, n) = table.prism_corners(p);
+    let uv = table.prism_uvs(p);
+    let band = stitch.get(i as u32);
+    let mut subs = Vec::with_capacity(1 << (2 * level));
+    subdivide(whole.corners, level, &mut subs);
+    subs.into_iter()
+        .map(|corners| {
+            let (mut hmin, mut hmax) = footprint_range(map, &corners.map(|b| combine(b, &uv)));
+            if let Some(s) = band {
+                if corners.iter().any(|&b| s.in_band(b)) {
+                    hmin = hmin.min(s.band_h.0);
+                    hmax = hmax.max(s.band_h.1);
+                }
+            }
+            let (d_min, d_max) = table.params.displacement_range(hmin, hmax);
+            let m = corners.map(|b| combine(b, &n));
+            let c = (m[0] + m[1] + m[2]).normalize_or_zero();
+            let m_lo = m
+                .iter()
+                .map(|mj| mj.dot(c))
+                .fold(f32::INFINITY, f32::min)
+                .max(M_LO_FLOOR);
+            let (lo, hi) = lambda_range(d_min, d_max, m_lo);
+            CellBounds {
+                prism: i as u32,
+                corners,
+                lambda_lo: lo.max(p.lambda_lo),
+                lambda_hi: hi.min(p.lambda_hi),
+                reach: d_min.abs().max(d_max.abs()),
+            }
+        })
+        .collect()
+}
+
+impl CellBounds {
+    /// The cell's base corners `P(b_j)` and directions `m(b_j)` from the prism's corners.
+    #[inline]
+    pub fn base(&self, v: &[Vec3; 3], n: &[Vec3; 3]) -> ([Vec3; 3], [Vec3; 3]) {
+        (
+            self.corners.map(|b| combine(b, v)),
+            self.corners.map(|b| combine(b, n)),
+        )
+    }
+
+    /// The six corners `P(b_j) + λ m(b_j)`, bottom then top, relative to `origin`.
+    fn solid_corners(&self, table: &PrismTable, origin: Vec3) -> [Vec3; 6] {
+        let (v, n) = table.prism_corners(&table.prisms[self.prism as usize]);
+        let (pv, pn) = self.base(&v.map(|x| x - origin), &n);
+        std::array::from_fn(|k| {
+            let l = if k < 3 {
+                self.lambda_lo
+            } else {
+                self.lambda_hi
+            };
+            pv[k % 3] + pn[k % 3] * l
+        })
+    }
+
+    /// The cell's box in the table's frame: its six corners, cut to the sub-triangle's box
+    /// grown by `reach` (as `PrismTable::prism_aabb`).
+    fn aabb(&self, table: &PrismTable) -> Aabb {
+        let c = self.solid_corners(table, Vec3::ZERO);
+        let (lo, hi) = c
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let reach = Vec3::splat(self.reach);
+        let (v, n) = table.prism_corners(&table.prisms[self.prism as usize]);
+        let (base, _) = self.base(&v, &n);
+        let blo = base[0].min(base[1]).min(base[2]) - reach;
+        let bhi = base[0].max(base[1]).max(base[2]) + reach;
+        padded_box(lo.max(blo), hi.min(bhi))
+    }
+
+    /// The march's record: the five slabs in the prism's local frame.
+    fn cell(&self, table: &PrismTable) -> Cell {
+        let p = &table.prisms[self.prism as usize];
+        let (v, n) = table.prism_corners(p);
+        let origin = v[0];
+        let c = self.solid_corners(table, origin);
+        let local: [Vec3; 3] = v.map(|x| x - origin);
+        let scale = (0..3)
+            .map(|k| (local[(k + 1) % 3] - local[k]).length())
+            .fold(f32::MIN_POSITIVE, f32::max);
+        let pad = SLAB_PAD * scale;
+        let (pv, pn) = self.base(&local, &n);
+        let ng = (local[1] - local[0])
+            .cross(local[2] - local[0])
+            .normalize_or_zero();
+        let mid = 0.5 * (self.lambda_lo + self.lambda_hi);
+        let cap: [Vec3; 3] = std::array::from_fn(|j| pv[j] + pn[j] * mid);
+        let cap_n = (cap[1] - cap[0]).cross(cap[2] - cap[0]).normalize_or_zero();
+        let side = |i: usize| {
+            let j = (i + 1) % 3;
+            (pv[j] - pv[i]).cross(pn[i] + pn[j]).normalize_or_zero()
+        };
+        let across = |i: usize| (pv[(i + 1) % 3] - pv[i]).cross(ng).normalize_or_zero();
+        let slab = |dir: Vec3| {
+            let (lo, hi) = c
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), x| {
+                    let s = x.dot(dir);
+                    (a.min(s), b.max(s))
+                });
+            Slab {
+                n: dir,
+                lo: lo - pad,
+                hi: hi + pad,
+            }
+        };
+        let mut base = slab(ng);
+        // The surface is within `reach` of the base plane (through the local origin).
+        base.lo = base.lo.max(-self.reach - pad);
+        base.hi = base.hi.min(self.reach + pad);
+        Cell {
+            prism: self.prism,
+            whole: self.corners == [Vec3::X, Vec3::Y, Vec3::Z],
+            slabs: [
+                base,
+                slab(cap_n),
+                slab(side(0)),
+                slab(side(1)),
+                slab(side(2)),
+                slab(across(0)),
+                slab(across(1)),
+                slab(across(2)),
+            ],
+        }
+    }
+}
+
+impl Cells {
+    pub fn build(table: &PrismTable, map: &HeightMap, stitch: &StitchField) -> Cells {
+        let bounds: Vec<CellBounds> = (0..table.prisms.len())
+            .into_par_iter()
+            .flat_map_iter(|i| prism_cells(table, map, stitch, i))
+            .collect();
+        let aabbs: Vec<Aabb> = bounds.par_iter().map(|c| c.aabb(table)).collect();
+        Cells {
+            bvh: BoxBvh::build(&aabbs, BvhKind::Wide),
+            cells: bounds.par_iter().map(|c| c.cell(table)).collect(),
+        }
+    }
+
+    pub fn bvh(&self) -> &BoxBvh {
+        &self.bvh
+    }
+
+    /// Cell records plus the hierarchy.
+    pub fn bytes(&self) -> usize {
+        self.cells.len() * std::mem::size_of::<Cell>() + self.bvh.bytes()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::canonical::PrismGeom;
+    use crate::test_util::Rng;
+
+    /// Every cell holds its part of the canonical surface (the stitched one next to seams):
+    /// at random points of each sub-triangle, `λ = D*/|m|` is in the cell's range and the
+    /// surface point is inside its slabs and its box. The examples cover seam bands (sphere),
+    /// crease strips and normals leaning far off their faces (rock), and a smooth map (torus).
+    #[test]
+    fn cells_bound_the_canonical_surface() {
+        let mut rng = Rng(0xce11);
+        for name in ["sphere/sphere.glb", "rock/rock.glb", "torus/torus.obj"] {
+            let (scene, _) = crate::test_util::example_with_reference(name);
+            let table = &scene.table;
+            let mut split = 0;
+            for i in 0..table.prisms.len() {
+                let p = &table.prisms[i];
+                if p.flags & PRISM_DEGENERATE_NORMALS != 0 {
+                    continue; // the λ range is clamped there by design (and flagged)
+                }
+                let g = PrismGeom::new(table, p);
+                let disp = scene.prism_displacement(i as u32);
+                let origin = g.v[0];
+                for cb in prism_cells(table, &scene.map, scene.stitch(), i) {
+                    split += (cb.corners != [Vec3::X, Vec3::Y, Vec3::Z]) as usize;
+                    let cell = cb.cell(table);
+                    let aabb = cb.aabb(table);
+                    for _ in 0..16 {
+                        let (r1, r2) = (rng.next(), rng.next());
+                        let (r1, r2) = if r1 + r2 > 1.0 {
+                            (1.0 - r1, 1.0 - r2)
+                        } else {
+                            (r1, r2)
+                        };
+                        let w = Vec3::new(1.0 - r1 - r2, r1, r2);
+                        let b = combine(w, &cb.corners);
+                        let m = g.normal_dir(b);
+                        let d = disp.at(b);
+                        let lambda = d / m.length();
+                        let tol = 1e-4 * lambda.abs().max(1e-3);
+                        assert!(
+                            lambda >= cb.lambda_lo - tol && lambda <= cb.lambda_hi + tol,
+                            "{name} prism {i}: λ = {lambda} outside {cb:?}"
+                        );
+                        let x = g.position(b) + m * lambda;
+                        let local = x - origin;
+                        assert!(
+                            cell.clip(local, Vec3::X, 0.0, 0.0).is_some(),
+                            "{name} prism {i}: surface point outside the slabs of {cb:?}"
+                        );
+                        let xa = glam::Vec3A::from(x);
+                        assert!(
+                            xa.cmpge(aabb.min).all() && xa.cmple(aabb.max).all(),
+                            "{name} prism {i}: surface point outside the box of {cb:?}"
+                        );
+                    }
+                }
+            }
+            assert!(split > table.prisms.len(), "{name}: {split} split cells");
+        }
+    }
+
+    /// Midpoint subdivision tiles the triangle: `4^k` pieces of equal area, same orientation.
+    #[test]
+    fn subdivision_tiles_the_triangle() {
+        for level in 0..=MAX_LEVEL {
+            let mut out = Vec::new();
+            subdivide([Vec3::X, Vec3::Y, Vec3::Z], level, &mut out);
+            assert_eq!(out.len(), 1 << (2 * level));
+            let area = |t: &[Vec3; 3]| {
+                let (a, b) = (t[1] - t[0], t[2] - t[0]);
+                a.y * b.z - a.z * b.y
+            };
+            let whole = area(&[Vec3::X, Vec3::Y, Vec3::Z]);
+            let total: f32 = out.iter().map(area).sum();
+            assert!(
+                (total - whole).abs() < 1e-5,
+                "level {level}: {total} vs {whole}"
+            );
+            for t in &out {
+                assert!((area(t) * out.len() as f32 - whole).abs() < 1e-4, "{t:?}");
+            }
+        }
+    }
+}
