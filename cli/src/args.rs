@@ -332,6 +332,10 @@ pub struct BenchArgs {
     /// Also run the paper-exact parallel-offset PDM (the before-fix watertightness numbers).
     #[arg(long)]
     pub paper_pdm: bool,
+    /// Also run PDM over whole prisms, without its sub-prism cells, at every --dt (what the
+    /// cells save, in one run).
+    #[arg(long)]
+    pub pdm_whole: bool,
     #[arg(long, default_value = "512x512", value_parser = parse_res)]
     pub res: (u32, u32),
     /// Random secondary rays leaving the reference's primary hits.

@@ -554,18 +554,27 @@ fn bench_settings(a: &BenchArgs) -> Result<Vec<(String, MethodConfig)>> {
         let method: Method = m.parse().map_err(Error::Param)?;
         match method {
             Method::Pdm => {
-                for dt in &a.dt {
-                    let pdm = PdmOptions {
-                        dt: parse_dt(dt)?,
-                        ..PdmOptions::default()
-                    };
-                    settings.push((
-                        format!("dt={dt}"),
-                        MethodConfig {
-                            pdm,
-                            ..with(method)
-                        },
-                    ));
+                let variants: &[bool] = if a.pdm_whole { &[true, false] } else { &[true] };
+                for &cells in variants {
+                    for dt in &a.dt {
+                        let pdm = PdmOptions {
+                            dt: parse_dt(dt)?,
+                            cells,
+                            ..PdmOptions::default()
+                        };
+                        let label = if cells {
+                            format!("dt={dt}")
+                        } else {
+                            format!("whole,dt={dt}")
+                        };
+                        settings.push((
+                            label,
+                            MethodConfig {
+                                pdm,
+                                ..with(method)
+                            },
+                        ));
+                    }
                 }
             }
             Method::Rmip => {

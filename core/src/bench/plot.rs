@@ -4,10 +4,13 @@
 use super::{method_name, BenchRow};
 use crate::render::job::Method;
 
-/// The curve a row belongs to: its method, with the paper-exact PDM as a curve of its own.
+/// The curve a row belongs to: its method, with the paper-exact PDM and PDM over whole
+/// prisms (no cells) as curves of their own.
 fn series_name(r: &BenchRow) -> String {
     let name = if r.setting == "paper" {
         format!("{} (paper prism)", method_name(r.method))
+    } else if r.setting.starts_with("whole,") {
+        format!("{} (whole prisms)", method_name(r.method))
     } else {
         method_name(r.method)
     };

@@ -399,6 +399,14 @@ impl<'a> Pdm<'a> {
         steps: &mut u32,
     ) -> Option<Hit> {
         let p = &self.scene.table.prisms[prism as usize];
+        // A split cell's slabs first: they reject most candidates before the prism is set up.
+        let slabs = match cell {
+            Some(c) if !c.whole => {
+                let origin = self.scene.table.positions[p.tri[0] as usize];
+                Some(c.clip(ray.origin - origin, ray.dir, ray.t_min, ray.t_max)?)
+            }
+            _ => None,
+        };
         let local = Local::new(self.scene, p, prism);
         let ro = ray.origin - local.origin;
         let (t, b) = if p.is_flat() {
@@ -406,7 +414,7 @@ impl<'a> Pdm<'a> {
         } else {
             match self.opts.construction {
                 Construction::SharedWall => {
-                    self.march_shared_wall(&local, p, prism, cell, ro, ray, ctx, steps)?
+                    self.march_shared_wall(&local, p, prism, slabs, ro, ray, ctx, steps)?
                 }
                 Construction::ParallelOffset => {
                     self.march_scan(&local, p, prism, ro, ray, ctx, steps)?
@@ -650,23 +658,17 @@ impl<'a> Pdm<'a> {
         local: &Local,
         p: &Prism,
         prism: u32,
-        cell: Option<&Cell>,
+        slabs: Option<(f32, f32)>,
         ro: Vec3,
         ray: &Ray,
         ctx: &RayContext,
         steps: &mut u32,
     ) -> Option<(f32, Vec3)> {
-        let d = ray.dir;
-        let slabs = match cell {
-            Some(c) if !c.whole => {
-                let (t0, t1) = c.clip(ro, d, ray.t_min, ray.t_max)?;
-                match self.march_levels(local, p, prism, (t0, t1), true, ro, ray, ctx, steps) {
-                    Ok(hit) => return hit,
-                    Err(LeftTheTriangle) => Some((t0, t1)),
-                }
+        if let Some(span) = slabs {
+            if let Ok(hit) = self.march_levels(local, p, prism, span, true, ro, ray, ctx, steps) {
+                return hit;
             }
-            _ => None,
-        };
+        }
         let (mut te, mut tx) = Self::prism_interval(local, p, ro, ray)?;
         if let Some((t0, t1)) = slabs {
             (te, tx) = (te.max(t0), tx.min(t1));
