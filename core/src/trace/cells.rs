@@ -62,7 +62,7 @@ struct Slab {
     hi: f32,
 }
 
-/// What the march reads per candidate cell: its prism and eight slabs that hold it.
+/// What the march reads per candidate cell: its prism and seven slabs that hold it.
 ///
 /// The slabs replace the exact ray–prism interval (two caps, three bilinear walls: the
 /// costliest part of a candidate) by a superset, which is all a cell needs: the march in it
@@ -70,17 +70,17 @@ struct Slab {
 /// never wrong. A point of the cell is `P(b) + λ m(b)`, affine in `b` for fixed `λ` and in `λ`
 /// for fixed `b`, so its distance to any plane is extreme at one of the six corners: each slab
 /// is the corners' range along a direction. The directions: the base normal (also cut to
-/// `±reach`, where the surface can be), the normal of the cell's middle level triangle, and
-/// per side the plane through the side's base edge and its mean direction (tight where the
-/// normals are near the face normal) and the plane through the edge square to the face
-/// (the lateral bound where the normals lean far over: the first plane then lies nearly in
-/// the face).
+/// `±reach`, where the surface can be), and per side the plane through the side's base edge
+/// and its mean direction (tight where the normals are near the face normal) and the plane
+/// through the edge square to the face (the lateral bound where the normals lean far over:
+/// the first plane then lies nearly in the face). A slab along the cell's own cap normal was
+/// measured too: no faster, 12% more memory.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cell {
     pub prism: u32,
     /// The cell is the whole prism (not split): the march takes the exact prism interval.
     pub whole: bool,
-    slabs: [Slab; 8],
+    slabs: [Slab; 7],
 }
 
 /// Slab padding relative to the prism's longest base edge (as the march's interval pad): a
@@ -268,9 +268,6 @@ impl CellBounds {
         let ng = (local[1] - local[0])
             .cross(local[2] - local[0])
             .normalize_or_zero();
-        let mid = 0.5 * (self.lambda_lo + self.lambda_hi);
-        let cap: [Vec3; 3] = std::array::from_fn(|j| pv[j] + pn[j] * mid);
-        let cap_n = (cap[1] - cap[0]).cross(cap[2] - cap[0]).normalize_or_zero();
         let side = |i: usize| {
             let j = (i + 1) % 3;
             (pv[j] - pv[i]).cross(pn[i] + pn[j]).normalize_or_zero()
@@ -298,7 +295,6 @@ impl CellBounds {
             whole: self.corners == [Vec3::X, Vec3::Y, Vec3::Z],
             slabs: [
                 base,
-                slab(cap_n),
                 slab(side(0)),
                 slab(side(1)),
                 slab(side(2)),

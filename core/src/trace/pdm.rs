@@ -41,7 +41,7 @@
 //!   the paper's `N's = N_s − N_g + N'` (§5.1).
 
 use crate::accel::Scene;
-use crate::bake::Prism;
+use crate::bake::{Prism, PrismTable};
 use crate::canonical::{surface_point, PrismGeom};
 use crate::rng::{self, Purpose};
 use crate::seam::PrismDisplacement;
@@ -130,14 +130,16 @@ pub struct Pdm<'a> {
     opts: PdmOptions,
     /// The sub-prism cells the march runs in (`opts.cells`, shared-wall prisms).
     cells: Option<Cells>,
+    /// Every prism's constants, in table order.
+    frames: Vec<Frame>,
 }
 
-/// One prism in a local frame (origin at `V_0`), so that f32 keeps its precision at any
-/// distance from the world origin.
-struct Local<'s> {
+/// One prism's ray-independent constants in a local frame (origin at `V_0`, so that f32
+/// keeps its precision at any distance from the world origin): built once per `Pdm` for
+/// every prism (`frames`), not per candidate.
+#[derive(Clone, Copy)]
+struct Frame {
     origin: Vec3,
-    /// The prism's height: the map, or the stitched height next to UV seams.
-    disp: PrismDisplacement<'s>,
     /// Base triangle relative to `origin`, normals and UVs (for `project_to_prism`).
     geom: PrismGeom,
     /// Scanning directions `n_i / (n_i·N_g)`: the level-`h` triangle is `v_i + h a_i`.
@@ -145,6 +147,20 @@ struct Local<'s> {
     ng: Vec3,
     /// Longest base edge: the length scale of tolerances.
     scale: f32,
+    /// The ray-independent part of the level cubic (`level_cubic`).
+    cubic: CubicBasis,
+}
+
+/// One prism in its local frame, with its height (the map, or the stitched height next to
+/// UV seams).
+struct Local<'s> {
+    origin: Vec3,
+    disp: PrismDisplacement<'s>,
+    geom: PrismGeom,
+    a: [Vec3; 3],
+    ng: Vec3,
+    scale: f32,
+    cubic: CubicBasis,
 }
 
 /// The shared-wall prism's level sets are the planar triangles `T(λ) = {v_i + λ n_i}`. A point
@@ -166,31 +182,58 @@ struct LevelCubic {
     deflate: bool,
 }
 
-/// The level cubic of prism `g` (local frame) along the ray `ro + t d`; `lam` is the prism's
-/// largest `|λ|` (the scale of the `N_1`, `N_2` terms).
+/// The level cubic's normals `N_0, N_1, N_2` of prism `g` (local frame), scaled together
+/// to avoid overflow (`lam`, the prism's largest `|λ|`, is the scale of the `N_1`, `N_2`
+/// terms), and their products with `n_0`.
+#[derive(Clone, Copy)]
+struct CubicBasis {
+    n0: Vec3,
+    n1: Vec3,
+    n2: Vec3,
+    k0: f32,
+    k1: f32,
+    k2: f32,
+    deflate: bool,
+}
+
+impl CubicBasis {
+    fn new(g: &PrismGeom, lam: f32) -> Self {
+        let e1 = g.v[1] - g.v[0];
+        let e2 = g.v[2] - g.v[0];
+        let d1 = g.n[1] - g.n[0];
+        let d2 = g.n[2] - g.n[0];
+        let n0 = e1.cross(e2);
+        let n1 = e1.cross(d2) + d1.cross(e2);
+        let n2 = d1.cross(d2);
+        let (l0, l1, l2) = (n0.length(), n1.length() * lam, n2.length() * lam * lam);
+        let inv = 1.0 / (l0 + l1 + l2).max(f32::MIN_POSITIVE);
+        let (n0, n1, n2) = (n0 * inv, n1 * inv, n2 * inv);
+        CubicBasis {
+            n0,
+            n1,
+            n2,
+            k0: g.n[0].dot(n0),
+            k1: g.n[0].dot(n1),
+            k2: g.n[0].dot(n2),
+            deflate: l0 <= 1e-6 * (l0 + l1 + l2),
+        }
+    }
+}
+
+/// The level cubic of a prism (its `CubicBasis`, local frame, base corner `v_0`) along the
+/// ray `ro + t d`.
 #[inline]
-fn level_cubic(g: &PrismGeom, lam: f32, ro: Vec3, d: Vec3) -> LevelCubic {
-    let e1 = g.v[1] - g.v[0];
-    let e2 = g.v[2] - g.v[0];
-    let d1 = g.n[1] - g.n[0];
-    let d2 = g.n[2] - g.n[0];
-    let n0 = e1.cross(e2);
-    let n1 = e1.cross(d2) + d1.cross(e2);
-    let n2 = d1.cross(d2);
-    let (l0, l1, l2) = (n0.length(), n1.length() * lam, n2.length() * lam * lam);
-    let inv = 1.0 / (l0 + l1 + l2).max(f32::MIN_POSITIVE);
-    let (n0, n1, n2) = (n0 * inv, n1 * inv, n2 * inv);
-    let deflate = l0 <= 1e-6 * (l0 + l1 + l2);
-    let q = ro - g.v[0];
+fn level_cubic(c: &CubicBasis, v0: Vec3, ro: Vec3, d: Vec3) -> LevelCubic {
+    let q = ro - v0;
     LevelCubic {
-        a0: q.dot(n0),
-        a1: d.dot(n0),
-        b0: q.dot(n1) - g.n[0].dot(n0),
-        b1: d.dot(n1),
-        c0: q.dot(n2) - g.n[0].dot(n1),
-        c1: d.dot(n2),
-        d3: -g.n[0].dot(n2),
-        deflate,
+        a0: q.dot(c.n0),
+        a1: d.dot(c.n0),
+        b0: q.dot(c.n1) - c.k0,
+        b1: d.dot(c.n1),
+        c0: q.dot(c.n2) - c.k1,
+        c1: d.dot(c.n2),
+        d3: -c.k2,
+        deflate: c.deflate,
     }
 }
 
@@ -228,19 +271,17 @@ fn level_at(c: &LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> O
     (step.abs() <= 1e3 * tol).then_some(l)
 }
 
-impl<'s> Local<'s> {
-    #[inline]
-    fn new(scene: &'s Scene, p: &Prism, prism: u32) -> Self {
-        let t = &scene.table;
+impl Frame {
+    fn new(table: &PrismTable, p: &Prism) -> Self {
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
-        let origin = t.positions[i0];
+        let origin = table.positions[i0];
         let v = [
             Vec3::ZERO,
-            t.positions[i1] - origin,
-            t.positions[i2] - origin,
+            table.positions[i1] - origin,
+            table.positions[i2] - origin,
         ];
-        let n = [t.normals[i0], t.normals[i1], t.normals[i2]];
-        let uv = [t.uvs[i0], t.uvs[i1], t.uvs[i2]];
+        let n = [table.normals[i0], table.normals[i1], table.normals[i2]];
+        let uv = [table.uvs[i0], table.uvs[i1], table.uvs[i2]];
         let ng = v[1].cross(v[2]).normalize_or_zero();
         // The same floor as the baker's `parallel_offset_corners`.
         let a = n.map(|ni| ni / ni.dot(ng).max(crate::bake::M_LO_FLOOR));
@@ -249,13 +290,34 @@ impl<'s> Local<'s> {
             .max(v[2].length())
             .max((v[2] - v[1]).length())
             .max(f32::MIN_POSITIVE);
-        Local {
+        let geom = PrismGeom { v, n, uv };
+        Frame {
             origin,
-            disp: scene.prism_displacement(prism),
-            geom: PrismGeom { v, n, uv },
+            cubic: CubicBasis::new(&geom, p.lambda_lo.abs().max(p.lambda_hi.abs())),
+            geom,
             a,
             ng,
             scale,
+        }
+    }
+}
+
+impl<'s> Local<'s> {
+    #[inline]
+    fn new(scene: &'s Scene, f: &Frame, prism: u32) -> Self {
+        Local {
+            origin: f.origin,
+            disp: PrismDisplacement {
+                map: &scene.map,
+                params: scene.table.params,
+                uv: f.geom.uv,
+                stitch: scene.stitch().get(prism),
+            },
+            geom: f.geom,
+            a: f.a,
+            ng: f.ng,
+            scale: f.scale,
+            cubic: f.cubic,
         }
     }
 }
@@ -280,12 +342,7 @@ impl LevelTrack {
         let span = 0.5 * (p.lambda_hi - p.lambda_lo) + 1e-3 * local.scale;
         let base = ro + d * t0;
         LevelTrack {
-            cubic: level_cubic(
-                &local.geom,
-                p.lambda_lo.abs().max(p.lambda_hi.abs()),
-                base,
-                d,
-            ),
+            cubic: level_cubic(&local.cubic, local.geom.v[0], base, d),
             base,
             t0,
             tol: 1e-6 * local.scale,
@@ -365,7 +422,18 @@ impl<'a> Pdm<'a> {
     pub fn new(scene: &'a Scene, opts: PdmOptions) -> Self {
         let cells = (opts.cells && opts.construction == Construction::SharedWall)
             .then(|| Cells::build(&scene.table, &scene.map, scene.stitch()));
-        Pdm { scene, opts, cells }
+        let frames = scene
+            .table
+            .prisms
+            .iter()
+            .map(|p| Frame::new(&scene.table, p))
+            .collect();
+        Pdm {
+            scene,
+            opts,
+            cells,
+            frames,
+        }
     }
 
     /// The cells the march runs in, if any.
@@ -402,12 +470,13 @@ impl<'a> Pdm<'a> {
         // A split cell's slabs first: they reject most candidates before the prism is set up.
         let slabs = match cell {
             Some(c) if !c.whole => {
-                let origin = self.scene.table.positions[p.tri[0] as usize];
+                let origin = self.frames[prism as usize].origin;
                 Some(c.clip(ray.origin - origin, ray.dir, ray.t_min, ray.t_max)?)
             }
             _ => None,
         };
-        let local = Local::new(self.scene, p, prism);
+        let frame = &self.frames[prism as usize];
+        let local = Local::new(self.scene, frame, prism);
         let ro = ray.origin - local.origin;
         let (t, b) = if p.is_flat() {
             self.flat_hit(&local, p.d_min, ro, ray)?
@@ -1129,14 +1198,16 @@ impl Intersector for Pdm<'_> {
         }
     }
 
-    /// BVH nodes and leaf indices, plus the prism records the march reads (base mesh and
-    /// height map excluded; corners and scanning directions are derived per ray).
+    /// The hierarchy (cells and their BVH, or the prism BVH), the prism records and the
+    /// per-prism frames the march reads (base mesh and height map excluded).
     fn memory_bytes(&self) -> usize {
         let hierarchy = match &self.cells {
             Some(c) => c.bytes(),
             None => self.scene.bvh_bytes(),
         };
-        hierarchy + self.scene.table.prisms.len() * std::mem::size_of::<Prism>()
+        hierarchy
+            + self.scene.table.prisms.len() * std::mem::size_of::<Prism>()
+            + self.frames.len() * std::mem::size_of::<Frame>()
     }
 }
 
