@@ -189,6 +189,16 @@ impl Rng {
         self.0 = pcg_hash(self.0);
         crate::rng::to_unit_float(self.0)
     }
+    /// Uniform random barycentrics in a triangle (the unit square folded along its diagonal).
+    pub fn barycentric(&mut self) -> Vec3 {
+        let (a, c) = (self.next(), self.next());
+        let (a, c) = if a + c > 1.0 {
+            (1.0 - a, 1.0 - c)
+        } else {
+            (a, c)
+        };
+        Vec3::new(1.0 - a - c, a, c)
+    }
     /// A random unit vector (rejection sampling in the unit ball).
     pub fn unit(&mut self) -> Vec3 {
         loop {

@@ -552,13 +552,7 @@ fn stitched_gradient_matches_finite_differences() {
 fn band_weight_gradient_matches_finite_differences() {
     let mut rng = Rng(11);
     for _ in 0..2000 {
-        let (a, c) = (rng.next(), rng.next());
-        let (a, c) = if a + c > 1.0 {
-            (1.0 - a, 1.0 - c)
-        } else {
-            (a, c)
-        };
-        let b = [1.0 - a - c, a, c];
+        let b = rng.barycentric().to_array();
         let k = (rng.next() * 3.0) as usize % 3;
         let band = 0.05 + 0.15 * rng.next();
         let (_, g) = band_weight(b, k, band);

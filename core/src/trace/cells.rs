@@ -359,13 +359,7 @@ mod tests {
                     let cell = cb.cell(table);
                     let aabb = cb.aabb(table);
                     for _ in 0..16 {
-                        let (r1, r2) = (rng.next(), rng.next());
-                        let (r1, r2) = if r1 + r2 > 1.0 {
-                            (1.0 - r1, 1.0 - r2)
-                        } else {
-                            (r1, r2)
-                        };
-                        let w = Vec3::new(1.0 - r1 - r2, r1, r2);
+                        let w = rng.barycentric();
                         let b = combine(w, &cb.corners);
                         let m = g.normal_dir(b);
                         let d = disp.at(b);
