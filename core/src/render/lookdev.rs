@@ -498,8 +498,13 @@ fn render_all_cpu(
     s: &Session,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
+    let t0 = std::time::Instant::now();
     with_intersector(&job.method, &s.scene, |isect| {
-        render_all(job, opts, s, &CpuFrames(isect), progress)
+        // The intersector's own set-up (PDM's cells, RMIP's pyramid) is set-up time too.
+        let build = t0.elapsed().as_secs_f64();
+        let mut summary = render_all(job, opts, s, &CpuFrames(isect), progress)?;
+        summary.render.setup_seconds += build;
+        Ok(summary)
     })
 }
 
