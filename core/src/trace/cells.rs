@@ -22,14 +22,17 @@
 //! stitched band reaches the cell (`PrismStitch::in_band` at its corners), then `D → λ` with
 //! the cell's own `|m|` lower bound, and intersected with the parent's range.
 //!
-//! Which prisms are split: not flat prisms (no march), not zero-area crease prisms
-//! (`PRISM_INSERTED`: their UVs are squeezed) and not prisms whose normals fall below the
-//! floor; the others down to `TARGET_TEXELS` along the longest UV edge, at most `MAX_LEVEL`.
+//! Which prisms are split: every marched prism (not flat ones, and not prisms whose normals
+//! fall below the floor, where the λ range is clamped), down to `TARGET_TEXELS` along the
+//! longest UV edge, at most `MAX_LEVEL`. That includes the zero-area crease strips
+//! (`PRISM_INSERTED`), whose UVs run from one UV island to the other: their relief is squeezed
+//! into the strip, the march step follows it, and before they were split they took 89% of the
+//! rock's march steps. Their slab directions that vanish with the zero-area base (the face
+//! normal, zero-length edges) are replaced by the coordinate axes (the cell's corner box).
 
 use crate::accel::{padded_box, BoxBvh, BvhKind};
 use crate::bake::{
     footprint_range, lambda_range, PrismTable, M_LO_FLOOR, PRISM_DEGENERATE_NORMALS, PRISM_FLAT,
-    PRISM_INSERTED,
 };
 use crate::heightmap::HeightMap;
 use crate::seam::StitchField;
@@ -133,7 +136,7 @@ fn subdivide(t: [Vec3; 3], level: u32, out: &mut Vec<[Vec3; 3]>) {
 /// How many times prism `i` is split (0: one cell, the prism itself).
 fn split_level(table: &PrismTable, map: &HeightMap, i: usize) -> u32 {
     let p = &table.prisms[i];
-    if p.flags & (PRISM_FLAT | PRISM_INSERTED | PRISM_DEGENERATE_NORMALS) != 0 {
+    if p.flags & (PRISM_FLAT | PRISM_DEGENERATE_NORMALS) != 0 {
         return 0;
     }
     let uv = table.prism_uvs(p);
@@ -253,17 +256,24 @@ impl CellBounds {
         padded_box(lo.max(blo), hi.min(bhi))
     }
 
-    /// The march's record: the five slabs in the prism's local frame.
+    /// The march's record: the seven slabs in the prism's local frame.
     fn cell(&self, table: &PrismTable) -> Cell {
         let p = &table.prisms[self.prism as usize];
         let (v, n) = table.prism_corners(p);
         let origin = v[0];
         let c = self.solid_corners(table, origin);
         let local: [Vec3; 3] = v.map(|x| x - origin);
+        // Relative to the longest base edge, or to the cell's extent where the base is a
+        // point (a crease fan).
         let scale = (0..3)
             .map(|k| (local[(k + 1) % 3] - local[k]).length())
             .fold(f32::MIN_POSITIVE, f32::max);
-        let pad = SLAB_PAD * scale;
+        let (clo, chi) = c
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        let pad = SLAB_PAD * scale.max((chi - clo).length());
         let (pv, pn) = self.base(&local, &n);
         let ng = (local[1] - local[0])
             .cross(local[2] - local[0])
@@ -286,10 +296,22 @@ impl CellBounds {
                 hi: hi + pad,
             }
         };
+        // A direction that vanishes with a zero-area base takes the next coordinate axis.
+        let mut axis = 0;
+        let mut slab = |dir: Vec3| {
+            if dir == Vec3::ZERO {
+                axis += 1;
+                slab([Vec3::X, Vec3::Y, Vec3::Z][(axis - 1) % 3])
+            } else {
+                slab(dir)
+            }
+        };
         let mut base = slab(ng);
         // The surface is within `reach` of the base plane (through the local origin).
-        base.lo = base.lo.max(-self.reach - pad);
-        base.hi = base.hi.min(self.reach + pad);
+        if ng != Vec3::ZERO {
+            base.lo = base.lo.max(-self.reach - pad);
+            base.hi = base.hi.min(self.reach + pad);
+        }
         Cell {
             prism: self.prism,
             whole: self.corners == [Vec3::X, Vec3::Y, Vec3::Z],

@@ -1735,14 +1735,16 @@ mod tests {
     }
 
     /// Marching cells instead of whole prisms changes where the march samples, not the
-    /// surface: on the examples (seam bands, crease strips, tilted normals) the two agree on
-    /// every ray but near-tangent grazes, and cells take fewer steps. Would fail if a cell's
-    /// bounds or the march's triangle-edge samples lost part of the surface.
+    /// surface: on the examples (seam bands, crease strips with their squeezed relief, tilted
+    /// normals) the two agree on all but a few rays (near-tangent grazes and the strips' thin
+    /// spikes, which the two sample differently), every hit that differs is on the surface,
+    /// cells are no further from the reference than whole prisms, and they take fewer steps.
+    /// Would fail if a cell's bounds or the march's triangle-edge samples lost surface.
     #[test]
     fn cells_trace_the_surface_of_whole_prisms() {
         use crate::render::camera::Camera;
-        for (name, max_differ) in [("sphere/sphere.glb", 3), ("rock/rock.glb", 8)] {
-            let (scene, _) = crate::test_util::example_with_reference(name);
+        for (name, max_differ) in [("sphere/sphere.glb", 3), ("rock/rock.glb", 20)] {
+            let (scene, reference) = crate::test_util::example_with_reference(name);
             let cells = Pdm::new(scene, PdmOptions::default());
             let whole = Pdm::new(
                 scene,
@@ -1755,24 +1757,31 @@ mod tests {
             let cam = Camera::frame_bounds(lo, hi, crate::mesh::UpAxis::Y, 40.0, 1.0);
             let res = 160;
             let (mut differ, mut hits, mut steps_cells, mut steps_whole) = (0, 0, 0u64, 0u64);
+            let (mut off_cells, mut off_whole) = (0, 0);
+            let same = |a: Option<Hit>, b: Option<Hit>| match (a, b) {
+                (None, None) => true,
+                (Some(x), Some(y)) => (x.t - y.t).abs() <= 1e-4 * y.t,
+                _ => false,
+            };
             for i in 0..res * res {
                 let px = Vec2::new((i % res) as f32 + 0.5, (i / res) as f32 + 0.5);
                 let ray = cam.ray(px, res, res);
-                let (a, b) = (
-                    cells.intersect(&ray, &ctx(i, 0)),
-                    whole.intersect(&ray, &ctx(i, 0)),
-                );
+                let c = ctx(i, 0);
+                let (a, b) = (cells.intersect(&ray, &c), whole.intersect(&ray, &c));
+                let r = reference.intersect(&ray, &c);
                 steps_cells += a.map_or(0, |h| h.steps as u64);
                 steps_whole += b.map_or(0, |h| h.steps as u64);
                 hits += b.is_some() as u32;
-                let same = match (a, b) {
+                // Against the reference, at a looser tolerance (its chords are 1/k texel).
+                let near = |h: Option<Hit>| match (h, r) {
                     (None, None) => true,
-                    (Some(x), Some(y)) => (x.t - y.t).abs() <= 1e-4 * y.t,
+                    (Some(x), Some(y)) => (x.t - y.t).abs() <= 2e-3 * y.t,
                     _ => false,
                 };
-                if !same {
+                off_cells += !near(a) as u32;
+                off_whole += !near(b) as u32;
+                if !same(a, b) {
                     differ += 1;
-                    // A different hit is still on the surface (a graze the other missed).
                     if let Some(x) = a {
                         let gap = (ray.at(x.t) - x.position).length();
                         assert!(gap < 1e-5 * x.t, "{name}: pixel {i}: {gap} off the surface");
@@ -1780,14 +1789,16 @@ mod tests {
                 }
             }
             eprintln!(
-                "{name}: {hits} hits, {differ} differ; steps cells {steps_cells}, whole {steps_whole}"
+                "{name}: {hits} hits, {differ} differ; off the reference: cells {off_cells}, \
+                 whole {off_whole}; steps cells {steps_cells}, whole {steps_whole}"
             );
             assert!(hits > 1000, "{name}: {hits}");
             assert!(differ <= max_differ, "{name}: {differ} rays differ");
             assert!(
-                steps_cells < steps_whole || name.starts_with("rock"),
-                "{name}"
+                off_cells <= off_whole + 2,
+                "{name}: {off_cells} vs {off_whole}"
             );
+            assert!(steps_cells < steps_whole, "{name}");
         }
     }
 }
