@@ -123,6 +123,16 @@ impl HeightMap {
         // Far-off or NaN coordinates (a ray point far outside its prism) must not overflow
         // `x + 1`: clamp to a range where the wrap arithmetic is exact (NaN becomes 0).
         let (x, y) = (fx.clamp(-1e9, 1e9) as i64, fy.clamp(-1e9, 1e9) as i64);
+        if self.wrap == Wrap::Repeat {
+            // Tiled UVs (beyond [0, 1]): wrap the corner once per axis, not per texel; the
+            // same texels and fractions as `texel`'s wrap.
+            let (w, h) = (self.width as i64, self.height as i64);
+            let (x0, y0) = (x.rem_euclid(w), y.rem_euclid(h));
+            let x1 = if x0 + 1 == w { 0 } else { x0 + 1 };
+            let y1 = if y0 + 1 == h { 0 } else { y0 + 1 };
+            let at = |x: i64, y: i64| self.data[(y * w + x) as usize];
+            return ([at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1)], tx, ty);
+        }
         (
             [
                 self.texel(x, y),
