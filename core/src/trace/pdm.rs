@@ -36,6 +36,11 @@
 //!   sample too (`level_domain_edge`): the crossing before it would be lost otherwise.
 //! * Flat prisms (one displacement value) are not marched: the ray meets the triangle
 //!   `V_i + D n_i`, then Newton moves the hit onto `P(b) + D m̂(b)`.
+//! * The march runs in sub-prism cells (`trace::cells`), not whole prisms: each cell marches
+//!   only the part of the ray in its own λ range, with the parent prism's exact level cubic
+//!   (`march_shared_wall`; whole prisms with `cells: false`). Where the ray crosses the
+//!   triangle's boundary between two samples a sample just outside it is added
+//!   (`cross_boundary`), so a cell's interval (a superset) cannot step over a wall.
 //! * Normals come from the analytic derivative of the canonical surface
 //!   (`canonical::surface_point`), not the paper's finite differences; the smoothed normal is
 //!   the paper's `N's = N_s − N_g + N'` (§5.1).
@@ -858,7 +863,7 @@ impl<'a> Pdm<'a> {
 
     /// Take the next sample with a level, `cur`. Where the ray crossed the triangle's
     /// boundary since the latest one (one `detectable`, the other not), a sample just outside
-    /// the boundary is taken first (`triangle_edge`): the crossing between the last sample
+    /// the boundary is taken first (`cross_boundary`): the crossing between the last sample
     /// inside and the wall would be lost otherwise (the march's interval may reach past the
     /// walls: the hull of curved walls, or a cell's slabs).
     #[allow(clippy::too_many_arguments)]
