@@ -154,6 +154,15 @@ fn split_level(table: &PrismTable, map: &HeightMap, i: usize) -> u32 {
     level
 }
 
+/// The box of some points.
+fn box_of(points: &[Vec3]) -> (Vec3, Vec3) {
+    points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        })
+}
+
 #[inline]
 fn combine<T>(b: Vec3, x: &[T; 3]) -> T
 where
@@ -225,10 +234,9 @@ impl CellBounds {
         )
     }
 
-    /// The six corners `P(b_j) + λ m(b_j)`, bottom then top, relative to `origin`.
-    fn solid_corners(&self, table: &PrismTable, origin: Vec3) -> [Vec3; 6] {
-        let (v, n) = table.prism_corners(&table.prisms[self.prism as usize]);
-        let (pv, pn) = self.base(&v.map(|x| x - origin), &n);
+    /// The six corners `P(b_j) + λ m(b_j)`, bottom then top, from the cell's base corners
+    /// `pv` and directions `pn` (`base`).
+    fn solid_corners(&self, pv: &[Vec3; 3], pn: &[Vec3; 3]) -> [Vec3; 6] {
         std::array::from_fn(|k| {
             let l = if k < 3 {
                 self.lambda_lo
@@ -242,18 +250,12 @@ impl CellBounds {
     /// The cell's box in the table's frame: its six corners, cut to the sub-triangle's box
     /// grown by `reach` (as `PrismTable::prism_aabb`).
     fn aabb(&self, table: &PrismTable) -> Aabb {
-        let c = self.solid_corners(table, Vec3::ZERO);
-        let (lo, hi) = c
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &x| {
-                (a.min(x), b.max(x))
-            });
-        let reach = Vec3::splat(self.reach);
         let (v, n) = table.prism_corners(&table.prisms[self.prism as usize]);
-        let (base, _) = self.base(&v, &n);
-        let blo = base[0].min(base[1]).min(base[2]) - reach;
-        let bhi = base[0].max(base[1]).max(base[2]) + reach;
-        padded_box(lo.max(blo), hi.min(bhi))
+        let (pv, pn) = self.base(&v, &n);
+        let (lo, hi) = box_of(&self.solid_corners(&pv, &pn));
+        let (blo, bhi) = box_of(&pv);
+        let reach = Vec3::splat(self.reach);
+        padded_box(lo.max(blo - reach), hi.min(bhi + reach))
     }
 
     /// The march's record: the seven slabs in the prism's local frame.
@@ -261,20 +263,16 @@ impl CellBounds {
         let p = &table.prisms[self.prism as usize];
         let (v, n) = table.prism_corners(p);
         let origin = v[0];
-        let c = self.solid_corners(table, origin);
         let local: [Vec3; 3] = v.map(|x| x - origin);
+        let (pv, pn) = self.base(&local, &n);
+        let c = self.solid_corners(&pv, &pn);
         // Relative to the longest base edge, or to the cell's extent where the base is a
         // point (a crease fan).
         let scale = (0..3)
             .map(|k| (local[(k + 1) % 3] - local[k]).length())
             .fold(f32::MIN_POSITIVE, f32::max);
-        let (clo, chi) = c
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &x| {
-                (a.min(x), b.max(x))
-            });
+        let (clo, chi) = box_of(&c);
         let pad = SLAB_PAD * scale.max((chi - clo).length());
-        let (pv, pn) = self.base(&local, &n);
         let ng = (local[1] - local[0])
             .cross(local[2] - local[0])
             .normalize_or_zero();

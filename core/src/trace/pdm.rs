@@ -159,13 +159,8 @@ struct Frame {
 /// One prism in its local frame, with its height (the map, or the stitched height next to
 /// UV seams).
 struct Local<'s> {
-    origin: Vec3,
+    f: &'s Frame,
     disp: PrismDisplacement<'s>,
-    geom: PrismGeom,
-    a: [Vec3; 3],
-    ng: Vec3,
-    scale: f32,
-    cubic: CubicBasis,
 }
 
 /// The shared-wall prism's level sets are the planar triangles `T(λ) = {v_i + λ n_i}`. A point
@@ -309,20 +304,15 @@ impl Frame {
 
 impl<'s> Local<'s> {
     #[inline]
-    fn new(scene: &'s Scene, f: &Frame, prism: u32) -> Self {
+    fn new(scene: &'s Scene, f: &'s Frame, prism: u32) -> Self {
         Local {
-            origin: f.origin,
+            f,
             disp: PrismDisplacement {
                 map: &scene.map,
                 params: scene.table.params,
                 uv: f.geom.uv,
                 stitch: scene.stitch().get(prism),
             },
-            geom: f.geom,
-            a: f.a,
-            ng: f.ng,
-            scale: f.scale,
-            cubic: f.cubic,
         }
     }
 }
@@ -344,13 +334,13 @@ struct LevelTrack {
 impl LevelTrack {
     #[inline]
     fn new(local: &Local, p: &Prism, ro: Vec3, d: Vec3, t0: f32) -> Self {
-        let span = 0.5 * (p.lambda_hi - p.lambda_lo) + 1e-3 * local.scale;
+        let span = 0.5 * (p.lambda_hi - p.lambda_lo) + 1e-3 * local.f.scale;
         let base = ro + d * t0;
         LevelTrack {
-            cubic: level_cubic(&local.cubic, local.geom.v[0], base, d),
+            cubic: level_cubic(&local.f.cubic, local.f.geom.v[0], base, d),
             base,
             t0,
-            tol: 1e-6 * local.scale,
+            tol: 1e-6 * local.f.scale,
             lo: p.lambda_lo - span,
             hi: p.lambda_hi + span,
             mid: 0.5 * (p.lambda_lo + p.lambda_hi),
@@ -482,7 +472,7 @@ impl<'a> Pdm<'a> {
         };
         let frame = &self.frames[prism as usize];
         let local = Local::new(self.scene, frame, prism);
-        let ro = ray.origin - local.origin;
+        let ro = ray.origin - local.f.origin;
         let (t, b) = if p.is_flat() {
             self.flat_hit(&local, p.d_min, ro, ray)?
         } else {
@@ -533,7 +523,7 @@ impl<'a> Pdm<'a> {
             dt
         } else {
             // No texel size (UV-degenerate face): a sixteenth of the prism's thickness.
-            ((p.lambda_hi - p.lambda_lo).abs().max(local.scale * 1e-3)) / 16.0
+            ((p.lambda_hi - p.lambda_lo).abs().max(local.f.scale * 1e-3)) / 16.0
         }
     }
 
@@ -541,7 +531,7 @@ impl<'a> Pdm<'a> {
     #[inline]
     fn scan(&self, local: &Local, t: f32, s: Vec3, c: &[Vec3; 3], h: f32) -> Sample {
         let b = triangle_barycentric(s, c);
-        let a = local.a[0] * b.x + local.a[1] * b.y + local.a[2] * b.z;
+        let a = local.f.a[0] * b.x + local.f.a[1] * b.y + local.f.a[2] * b.z;
         Sample {
             t,
             g: h * a.length() - local.disp.at(b),
@@ -582,7 +572,10 @@ impl<'a> Pdm<'a> {
     ) -> Option<(f32, Vec3)> {
         let d = ray.dir;
         let (lo, hi) = self.scene.table.parallel_offset_corners(p);
-        let (lo, hi) = (lo.map(|c| c - local.origin), hi.map(|c| c - local.origin));
+        let (lo, hi) = (
+            lo.map(|c| c - local.f.origin),
+            hi.map(|c| c - local.f.origin),
+        );
         let iv = ray_prism_interval(ro, d, ray.t_min, ray.t_max, &lo, &hi)?;
         let (te, tx) = (iv.t_enter, iv.t_exit);
         let dt = self.step_size(p, local).max((tx - te) / MAX_STEPS as f32);
@@ -590,8 +583,8 @@ impl<'a> Pdm<'a> {
 
         // Entry sample and the scanning triangle at its height.
         let mut s = ro + d * te;
-        let mut h = s.dot(local.ng);
-        let mut c: [Vec3; 3] = std::array::from_fn(|i| local.geom.v[i] + local.a[i] * h);
+        let mut h = s.dot(local.f.ng);
+        let mut c: [Vec3; 3] = std::array::from_fn(|i| local.f.geom.v[i] + local.f.a[i] * h);
         let first = self.scan(local, te, s, &c, h);
         let mut prev = inside(first.b).then_some(first);
         let r = self.jitter(ctx, prism);
@@ -601,10 +594,10 @@ impl<'a> Pdm<'a> {
         loop {
             t_next = t_next.min(tx);
             s = ro + d * t_next;
-            let h_next = s.dot(local.ng);
+            let h_next = s.dot(local.f.ng);
             let dh = h_next - h;
             for i in 0..3 {
-                c[i] += local.a[i] * dh;
+                c[i] += local.f.a[i] * dh;
             }
             h = h_next;
             t = t_next;
@@ -644,8 +637,8 @@ impl<'a> Pdm<'a> {
     ) -> Option<(f32, Vec3)> {
         let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
         let s = ro + ray.dir * t;
-        let h = s.dot(local.ng);
-        let c = std::array::from_fn(|i| local.geom.v[i] + local.a[i] * h);
+        let h = s.dot(local.f.ng);
+        let c = std::array::from_fn(|i| local.f.geom.v[i] + local.f.a[i] * h);
         let bary = triangle_barycentric(s, &c);
         let ok = bary.min_element() >= -EDGE_TOL && t >= te && t <= tx;
         ok.then_some((t, bary))
@@ -656,10 +649,10 @@ impl<'a> Pdm<'a> {
     /// point `P(b) + λ m(b)` has height `λ m(b)·N_g`). Only a starting guess for `level_at`.
     #[inline]
     fn scan_level_estimate(local: &Local, x: Vec3) -> f32 {
-        let h = x.dot(local.ng);
-        let c = std::array::from_fn(|i| local.geom.v[i] + local.a[i] * h);
+        let h = x.dot(local.f.ng);
+        let c = std::array::from_fn(|i| local.f.geom.v[i] + local.f.a[i] * h);
         let b = triangle_barycentric(x, &c);
-        let mn = local.geom.normal_dir(b).dot(local.ng);
+        let mn = local.f.geom.normal_dir(b).dot(local.f.ng);
         if mn > crate::bake::M_LO_FLOOR {
             h / mn
         } else {
@@ -682,7 +675,7 @@ impl<'a> Pdm<'a> {
         guess: f32,
     ) -> Option<Sample> {
         let first = self.level_sample(local, lt, d, t, guess);
-        if first.is_some_and(|s| s.b.min_element() >= -DETECT_TOL) {
+        if first.is_some_and(|s| Self::detectable(&s)) {
             return first;
         }
         let quarter = 0.25 * (lt.hi - lt.lo);
@@ -709,7 +702,7 @@ impl<'a> Pdm<'a> {
         let u = t - lt.t0;
         let l = level_at(&lt.cubic, u, guess, lt.tol, lt.lo, lt.hi)
             .or_else(|| level_at(&lt.cubic, u, lt.mid, lt.tol, lt.lo, lt.hi))?;
-        let g = &local.geom;
+        let g = &local.f.geom;
         let c: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + g.n[i] * l);
         let b = triangle_barycentric(lt.base + d * u, &c);
         Some(Sample {
@@ -757,11 +750,11 @@ impl<'a> Pdm<'a> {
     /// The padded part of the ray inside the whole shared-wall prism, cut to the surface
     /// bounds (`prism_hit`).
     fn prism_interval(local: &Local, p: &Prism, ro: Vec3, ray: &Ray) -> Option<(f32, f32)> {
-        let g = &local.geom;
+        let g = &local.f.geom;
         let d = ray.dir;
         let lo = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_lo);
         let hi = std::array::from_fn(|i| g.v[i] + g.n[i] * p.lambda_hi);
-        let pad = INTERVAL_PAD * local.scale;
+        let pad = INTERVAL_PAD * local.f.scale;
         // Cut to the surface bounds first: most candidate prisms of a ray are rejected here,
         // before the walls, and the walls' crossings are searched on the cut segment only.
         let reach = p.d_min.abs().max(p.d_max.abs()) + pad;
@@ -1051,8 +1044,7 @@ impl<'a> Pdm<'a> {
             self.refine_levels(local, lt, d, a, b)
         } else {
             let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
-            let guess = a.lambda + (b.lambda - a.lambda) * ((t - a.t) / (b.t - a.t));
-            self.level_sample(local, lt, d, t, guess)?
+            self.level_sample(local, lt, d, t, lambda_between(&a, &b, t))?
         };
         let ok = s.b.min_element() >= -EDGE_TOL
             && s.t >= te
@@ -1075,8 +1067,8 @@ impl<'a> Pdm<'a> {
     ) -> Sample {
         let (mut s0, mut s1) = (a, b);
         let (mut g0, mut g1) = (a.g, b.g);
-        let tol_g = 1e-6 * local.scale;
-        let tol_t = 1e-7 * (a.t.abs() + b.t.abs() + local.scale);
+        let tol_g = 1e-6 * local.f.scale;
+        let tol_t = 1e-7 * (a.t.abs() + b.t.abs() + local.f.scale);
         let mut side = 0;
         for _ in 0..REFINE_ITERS {
             if s0.g.abs() <= tol_g || s1.g.abs() <= tol_g || (s1.t - s0.t).abs() <= tol_t {
@@ -1110,7 +1102,7 @@ impl<'a> Pdm<'a> {
     /// Constant displacement `D`: meet the triangle `V_i + D n_i`, then Newton on
     /// `P(b) + D m̂(b) = o + t d` for `(b1, b2, t)`.
     fn flat_hit(&self, local: &Local, dval: f32, ro: Vec3, ray: &Ray) -> Option<(f32, Vec3)> {
-        let g = &local.geom;
+        let g = &local.f.geom;
         let d = ray.dir;
         let q: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + g.n[i] * dval);
         let (e1, e2) = (q[1] - q[0], q[2] - q[0]);
@@ -1131,7 +1123,7 @@ impl<'a> Pdm<'a> {
         }
         let dp = [g.v[1] - g.v[0], g.v[2] - g.v[0]];
         let dm = [g.n[1] - g.n[0], g.n[2] - g.n[0]];
-        let tol = 1e-6 * local.scale;
+        let tol = 1e-6 * local.f.scale;
         let mut converged = false;
         for _ in 0..8 {
             let b = Vec3::new(1.0 - b1 - b2, b1, b2);
@@ -1160,7 +1152,7 @@ impl<'a> Pdm<'a> {
         let ok = (converged || {
             let m = g.normal_dir(b);
             let f = g.position(b) + m.normalize_or_zero() * dval - (ro + d * t);
-            f.length() <= 1e-4 * local.scale
+            f.length() <= 1e-4 * local.f.scale
         }) && b.min_element() >= -EDGE_TOL
             && t >= ray.t_min
             && t <= ray.t_max;
