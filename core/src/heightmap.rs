@@ -104,19 +104,22 @@ impl HeightMap {
     /// integers) reads, `floor(p)` and the fraction. Fast path: all four inside the map, no
     /// wrap arithmetic and no libm `floor` call (`p ≥ 0`, so truncation is the floor; same
     /// texels, so bit-identical to the general path).
-    #[inline]
+    #[inline(always)]
     fn bilinear_texels(&self, p: Vec2) -> ([f32; 4], f32, f32) {
         if p.x >= 0.0
             && p.y >= 0.0
             && p.x < self.width.saturating_sub(1) as f32
             && p.y < self.height.saturating_sub(1) as f32
         {
-            let (x, y) = (p.x as usize, p.y as usize);
+            // In range of `i32` (below the map's size): a 32-bit conversion, cheaper than a
+            // saturating one to `usize`.
+            let (x, y) = (p.x as i32, p.y as i32);
             let (tx, ty) = (p.x - x as f32, p.y - y as f32);
             let w = self.width as usize;
-            let i = y * w + x;
-            let (r0, r1) = (&self.data[i..i + 2], &self.data[i + w..i + w + 2]);
-            return ([r0[0], r0[1], r1[0], r1[1]], tx, ty);
+            let i = y as usize * w + x as usize;
+            // One bounds check for the four texels.
+            let q = &self.data[i..i + w + 2];
+            return ([q[0], q[1], q[w], q[w + 1]], tx, ty);
         }
         let (fx, fy) = (floor(p.x), floor(p.y));
         let (tx, ty) = (p.x - fx, p.y - fy);

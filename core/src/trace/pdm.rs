@@ -790,6 +790,8 @@ impl<'a> Pdm<'a> {
         let mut failed_at: Option<f32> = None;
         // The latest sample with a level, domain edges included (for `feed`).
         let mut last: Option<Sample> = None;
+        // The last two loop samples, while each had a level (the next guess).
+        let mut trail: [Option<Sample>; 2] = [None, None];
         let r = self.jitter(ctx, prism);
         let mut t = te;
         let mut n = 0;
@@ -837,8 +839,12 @@ impl<'a> Pdm<'a> {
                         *steps += n;
                         return Ok(Some(hit));
                     }
+                    trail = [trail[1], Some(cur)];
                 }
-                None => failed_at = Some(t),
+                None => {
+                    failed_at = Some(t);
+                    trail = [None, None];
+                }
             }
             if t >= tx || n >= MAX_STEPS {
                 break;
@@ -849,6 +855,13 @@ impl<'a> Pdm<'a> {
                 t + dt
             }
             .min(tx);
+            // The level is smooth along the ray: Newton starts from the last two samples'
+            // line, which leaves it one iteration from converged.
+            if let [Some(a), Some(b)] = trail {
+                if b.t > a.t {
+                    guess = b.lambda + (b.lambda - a.lambda) * ((t - b.t) / (b.t - a.t));
+                }
+            }
         }
         *steps += n;
         Ok(None)
