@@ -3,7 +3,7 @@
 //! figures in docs/benchmarks.md and for profiling (`valgrind --tool=callgrind` on a small
 //! `RES`); benches/intersect.rs is the criterion version at 128².
 //!
-//! `cargo run --release -p prismbake-core --example trace_primary [ASSET] [RES] [pdm|whole|reference|both]`
+//! `cargo run --release -p prismbake-core --example trace_primary [ASSET] [RES] [pdm|whole|all|both|reference|rmip]`
 
 use glam::Vec2;
 use prismbake::accel::Scene;
@@ -12,6 +12,7 @@ use prismbake::render::camera::Camera;
 use prismbake::repair::RepairOptions;
 use prismbake::trace::pdm::{Pdm, PdmOptions};
 use prismbake::trace::reference::Reference;
+use prismbake::trace::rmip::{Rmip, RmipOptions};
 use prismbake::trace::{Intersector, Ray, RayContext};
 use std::time::Instant;
 
@@ -80,6 +81,19 @@ fn main() {
             build * 1e3,
             pdm.memory_bytes() / scene.table.prisms.len().max(1),
             rays.len(),
+            steps as f64 / hits.max(1) as f64,
+            secs * 1e9 / n,
+            n / secs / 1e6
+        );
+    }
+    if which == "rmip" {
+        let t_build = Instant::now();
+        let rmip = Rmip::new(&scene, RmipOptions::default());
+        let build = t_build.elapsed().as_secs_f64();
+        let (hits, steps, secs) = trace(&rmip, &rays);
+        println!(
+            "rmip (default, built in {:.0} ms): {hits} hit, {:.1} steps/hit, {:.0} ns/ray, {:.3} Mray/s (one thread)",
+            build * 1e3,
             steps as f64 / hits.max(1) as f64,
             secs * 1e9 / n,
             n / secs / 1e6
