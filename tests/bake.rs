@@ -58,7 +58,7 @@ fn bake_repairs_creases_of_the_rock() {
     r.assert_success();
     let j = r.json();
     assert!(
-        j["repair"]["sharp_corners"].as_array().unwrap().len() > 0,
+        !j["repair"]["sharp_corners"].as_array().unwrap().is_empty(),
         "the rock example has creases: {j}"
     );
     assert!(j["inserted_prisms"].as_u64().unwrap() > 0, "{j}");

@@ -65,7 +65,7 @@ const CUBE_ISLANDS: [Island; 6] = [
 fn seamed_cube(n: u32) -> BaseMesh {
     let (mut pos, mut nrm, mut uvs, mut tris) = (vec![], vec![], vec![], vec![]);
     let e = [Vec3::X, Vec3::Y, Vec3::Z];
-    for face in 0..6 {
+    for (face, &island) in CUBE_ISLANDS.iter().enumerate() {
         let (a, sign) = (face / 2, if face % 2 == 0 { 1.0 } else { -1.0 });
         let (t1, t2) = (e[(a + 1) % 3], e[(a + 2) % 3]);
         let base = pos.len() as u32;
@@ -75,7 +75,7 @@ fn seamed_cube(n: u32) -> BaseMesh {
                 let p = e[a] * sign + t1 * (2.0 * s - 1.0) + t2 * (2.0 * t - 1.0);
                 pos.push(p);
                 nrm.push(p.normalize());
-                uvs.push(uv_in(CUBE_ISLANDS[face], s, t));
+                uvs.push(uv_in(island, s, t));
             }
         }
         let at = |i: u32, j: u32| base + j * (n + 1) + i;

@@ -596,8 +596,8 @@ impl<'a> Pdm<'a> {
             s = ro + d * t_next;
             let h_next = s.dot(local.f.ng);
             let dh = h_next - h;
-            for i in 0..3 {
-                c[i] += local.f.a[i] * dh;
+            for (ci, ai) in c.iter_mut().zip(&local.f.a) {
+                *ci += *ai * dh;
             }
             h = h_next;
             t = t_next;

@@ -524,7 +524,7 @@ impl<'a> Nonlinear<'a> {
         let mut best_t = best_t;
         for &(a, b) in &node.iv.iv[..node.iv.n] {
             *steps += 1;
-            let Some(l) = illinois(&g, a, b) else {
+            let Some(l) = illinois(g, a, b) else {
                 continue;
             };
             let c = Cand {

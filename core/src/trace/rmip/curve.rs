@@ -103,6 +103,8 @@ impl Frame {
         );
         let det = s1.perp_dot(s2);
         let scale = s1.length_squared().max(s2.length_squared());
+        // Negated so that NaN is rejected too.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         if !(det.abs() > 1e-9 * scale) || scale == 0.0 {
             return None;
         }
@@ -166,6 +168,8 @@ impl Frame {
         let m = self.dir(p);
         let dm = self.d.cross(m);
         let den = dm.length_squared();
+        // Negated so that NaN is rejected too.
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         if !(den > 1e-14 * m.length_squared()) {
             return None;
         }
@@ -202,6 +206,8 @@ impl Frame {
             (DVec2::new(k.b, 2.0 * k.c), k.e),
         ] {
             let nn = normal.length_squared();
+            // Negated so that NaN is rejected too.
+            #[allow(clippy::neg_cmp_op_on_partial_ord)]
             if !(nn > 0.0) {
                 continue;
             }

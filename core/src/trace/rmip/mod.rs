@@ -135,7 +135,7 @@ impl<'a> Rmip<'a> {
     /// popped plus texels marched.
     pub fn intersect_prism(&self, ray: &Ray, prism: u32, steps: &mut u32) -> Option<Hit> {
         let p: &Prism = &self.scene.table.prisms[prism as usize];
-        let (t, bary) = match PrismTrace::new(self, ray, p, prism)? {
+        let (t, bary) = match PrismTrace::setup(self, ray, p, prism)? {
             Setup::Traverse(mut tr) => {
                 let r = tr.run();
                 *steps += tr.steps;

@@ -55,7 +55,9 @@ impl Bound {
 }
 
 /// What a ray-prism pair needs: the texture-space traversal, or (UV-degenerate face, no
-/// texture-space parametrisation) a plain march over the prism interval.
+/// texture-space parametrisation) a plain march over the prism interval. Built once per
+/// ray-prism pair on the stack, so the size difference is not boxed away.
+#[allow(clippy::large_enum_variant)]
 pub(super) enum Setup<'r, 'a> {
     Traverse(PrismTrace<'r, 'a>),
     Degenerate {
@@ -93,7 +95,7 @@ fn d2(v: Vec2) -> DVec2 {
 
 impl<'r, 'a> PrismTrace<'r, 'a> {
     /// Set up the traversal of `ray` in prism `p`, or `None` if the ray misses the prism.
-    pub fn new(rmip: &'r Rmip<'a>, ray: &Ray, p: &Prism, prism: u32) -> Option<Setup<'r, 'a>> {
+    pub fn setup(rmip: &'r Rmip<'a>, ray: &Ray, p: &Prism, prism: u32) -> Option<Setup<'r, 'a>> {
         let t = &rmip.scene.table;
         let [i0, i1, i2] = p.tri.map(|i| i as usize);
         let origin = t.positions[i0];
