@@ -275,7 +275,18 @@ mod tests {
 
     #[test]
     fn floor_is_libm_floor() {
-        let mut xs = vec![0.0, -0.0, 0.5, -0.5, 1.0, -1.0, 8_388_607.5, -8_388_607.5, 1e9, -1e9];
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            8_388_607.5,
+            -8_388_607.5,
+            1e9,
+            -1e9,
+        ];
         xs.extend((0..20_000).map(|i| (i as f32 - 10_000.0) * 0.0173));
         for x in xs {
             assert_eq!(floor(x), x.floor(), "{x}");

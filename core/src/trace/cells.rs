@@ -149,7 +149,12 @@ impl Cell {
         for k in (0..LANES).step_by(4) {
             let lane = |x: &[f32; LANES]| Vec4::from_slice(&x[k..k + 4]);
             let int = |x: &[i16; LANES]| {
-                Vec4::new(x[k] as f32, x[k + 1] as f32, x[k + 2] as f32, x[k + 3] as f32)
+                Vec4::new(
+                    x[k] as f32,
+                    x[k + 1] as f32,
+                    x[k + 2] as f32,
+                    x[k + 3] as f32,
+                )
             };
             let (nx, ny, nz) = (int(&s.nx), int(&s.ny), int(&s.nz));
             let s0 = nx * ro.x + ny * ro.y + nz * ro.z;
