@@ -371,6 +371,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var last_ok = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     var failed = false;
     var failed_at = 0.0;
+    // The last two loop samples while each had a level (the next guess, as on the CPU).
+    var trail0 = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    var trail1 = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     let r = jitter(ctx, prism);
     var t = te;
     var n = 0u;
@@ -412,9 +415,13 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         if (sample.ok) {
             last_ok = sample;
             failed = false;
+            trail0 = trail1;
+            trail1 = sample;
         } else {
             failed = true;
             failed_at = t;
+            trail0.ok = false;
+            trail1.ok = false;
         }
         if (t >= tx || n >= MAX_STEPS) {
             break;
@@ -423,6 +430,10 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             t = min(t + r * dt, tx);
         } else {
             t = min(t + dt, tx);
+        }
+        // Newton starts from the last two samples' line (the level is smooth along the ray).
+        if (trail0.ok && trail1.ok && trail1.t > trail0.t) {
+            guess = trail1.lambda + (trail1.lambda - trail0.lambda) * ((t - trail1.t) / (trail1.t - trail0.t));
         }
     }
     *steps += n;
