@@ -376,40 +376,89 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var trail1 = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     let r = jitter(ctx, prism);
     var t = te;
-    var n = 0u;
+    var n = 1u;
+    var sample = entry_sample(local, lt, d, t, guess);
+    // Two loops, so that the rare cases' code runs once per rare case: an implementation that
+    // runs invocations in lock-step under masks (lavapipe's SIMD lanes; every `if` body runs
+    // there, masked, whether any lane takes it or not) would otherwise run the level domain's
+    // edge search and the crossing's refinement at every sample. The inner loop takes the
+    // common samples — a level, after one with a level, no sign change — and the outer loop
+    // the others, in the CPU's order.
     loop {
-        n += 1u;
-        var sample: Sample;
-        if (n == 1u) {
-            sample = entry_sample(local, lt, d, t, guess);
-        } else {
+        var done = false;
+        loop {
+            let inside = inside_detect(sample.b);
+            if (!sample.ok || failed || (inside && prev.ok && ((prev.g > 0.0) != (sample.g > 0.0)))) {
+                break;
+            }
+            guess = sample.lambda;
+            if (inside) {
+                prev = sample;
+            }
+            last_ok = sample;
+            trail0 = trail1;
+            trail1 = sample;
+            if (t >= tx || n >= MAX_STEPS) {
+                done = true;
+                break;
+            }
+            t = next_march_t(t, n, r, dt, tx);
+            guess = extrapolated_level(trail0, trail1, t, guess);
+            n += 1u;
             sample = level_sample(local, lt, d, t, guess);
         }
-        // The edge of the region where a level exists is a sample too (level_domain_edge).
-        var edge = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
-        if (!sample.ok && last_ok.ok && !failed) {
-            edge = level_domain_edge(local, lt, ro, d, last_ok, t, &n);
-        } else if (sample.ok && failed) {
-            edge = level_domain_edge(local, lt, ro, d, sample, failed_at, &n);
+        if (done) {
+            break;
         }
-        for (var k = 0u; k < 2u; k++) {
-            var cur = edge;
-            if (k == 1u) {
+        // The edge of the region where a level exists is a sample too (level_domain_edge;
+        // one call site, so its bisection runs once per pass of this loop, not twice).
+        var edge = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+        var edge_from = sample;
+        var edge_bad = failed_at;
+        let leaving = !sample.ok && last_ok.ok && !failed;
+        if (leaving) {
+            edge_from = last_ok;
+            edge_bad = t;
+        }
+        if (leaving || (sample.ok && failed)) {
+            edge = level_domain_edge(local, lt, ro, d, edge_from, edge_bad, &n);
+        }
+        // The edge, then the sample, in order; each sign change is refined at one call site
+        // (the scan's second pass runs only for a lane whose first crossing was rejected).
+        var k = 0u;
+        loop {
+            var found = false;
+            var below = prev;
+            var cur = sample;
+            loop {
+                if (k >= 2u) {
+                    break;
+                }
                 cur = sample;
-            }
-            if (!cur.ok) {
-                continue;
-            }
-            guess = cur.lambda;
-            if (inside_detect(cur.b)) {
-                if (prev.ok && ((prev.g > 0.0) != (cur.g > 0.0))) {
-                    let hit = level_crossing(local, lt, ro, ray, prev, cur, te, tx);
-                    if (hit.ok) {
-                        *steps += n;
-                        return hit;
+                if (k == 0u) {
+                    cur = edge;
+                }
+                k += 1u;
+                if (!cur.ok) {
+                    continue;
+                }
+                guess = cur.lambda;
+                if (inside_detect(cur.b)) {
+                    below = prev;
+                    prev = cur;
+                    if (below.ok && ((below.g > 0.0) != (cur.g > 0.0))) {
+                        found = true;
+                        break;
                     }
                 }
-                prev = cur;
+            }
+            if (!found) {
+                break;
+            }
+            let hit = level_crossing(local, lt, ro, ray, below, cur, te, tx);
+            if (hit.ok) {
+                *steps += n;
+                return hit;
             }
         }
         if (sample.ok) {
@@ -426,18 +475,30 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         if (t >= tx || n >= MAX_STEPS) {
             break;
         }
-        if (n == 1u && r > 0.0) {
-            t = min(t + r * dt, tx);
-        } else {
-            t = min(t + dt, tx);
-        }
-        // Newton starts from the last two samples' line (the level is smooth along the ray).
-        if (trail0.ok && trail1.ok && trail1.t > trail0.t) {
-            guess = trail1.lambda + (trail1.lambda - trail0.lambda) * ((t - trail1.t) / (trail1.t - trail0.t));
-        }
+        t = next_march_t(t, n, r, dt, tx);
+        guess = extrapolated_level(trail0, trail1, t, guess);
+        n += 1u;
+        sample = level_sample(local, lt, d, t, guess);
     }
     *steps += n;
     return no_prism_hit();
+}
+
+// The march's next sample after the n-th at t: the first step jittered (paper §5.3).
+fn next_march_t(t: f32, n: u32, r: f32, dt: f32, tx: f32) -> f32 {
+    if (n == 1u && r > 0.0) {
+        return min(t + r * dt, tx);
+    }
+    return min(t + dt, tx);
+}
+
+// Newton's start at t from the last two samples' line (the level is smooth along the ray),
+// else `guess`.
+fn extrapolated_level(a: Sample, b: Sample, t: f32, guess: f32) -> f32 {
+    if (a.ok && b.ok && b.t > a.t) {
+        return b.lambda + (b.lambda - a.lambda) * ((t - b.t) / (b.t - a.t));
+    }
+    return guess;
 }
 
 // Pdm::level_domain_edge: the sample nearest to `bad` (no level there) on the way from `ok`,
@@ -461,25 +522,28 @@ fn level_domain_edge(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, ok: Samp
 // Pdm::level_crossing: a sign change of the canonical g between a and b into a hit (Illinois
 // refinement, or the paper's linear interpolation without `refine`).
 fn level_crossing(local: Local, lt: LevelTrack, ro: vec3f, ray: Ray, a: Sample, b: Sample, te: f32, tx: f32) -> PrismHit {
-    let d = ray.dir;
-    var s: Sample;
-    if (frame.refine != 0u) {
-        s = refine_levels(local, lt, d, a, b);
-    } else {
-        let t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
-        let guess = a.lambda + (b.lambda - a.lambda) * ((t - a.t) / (b.t - a.t));
-        s = level_sample(local, lt, d, t, guess);
-        if (!s.ok) {
-            return no_prism_hit();
-        }
+    let s = refine_levels(local, lt, ray.dir, a, b, frame.refine != 0u);
+    if (!s.ok) {
+        return no_prism_hit();
     }
     let ok = min_element(s.b) >= -EDGE_TOL && s.t >= te && s.t <= tx && s.t >= ray.t_min && s.t <= ray.t_max;
     return PrismHit(ok, s.t, s.b);
 }
 
+// trace::pdm::lambda_between: the level at t interpolated between two samples (Newton's start).
+fn lambda_between(a: Sample, b: Sample, t: f32) -> f32 {
+    var w = 0.5;
+    if (b.t != a.t) {
+        w = clamp((t - a.t) / (b.t - a.t), 0.0, 1.0);
+    }
+    return a.lambda + (b.lambda - a.lambda) * w;
+}
+
 // Pdm::refine_levels: Illinois regula falsi on the canonical g(t) in the bracket [a, b];
-// returns the end sample with the smaller |g|.
-fn refine_levels(local: Local, lt: LevelTrack, d: vec3f, a: Sample, b: Sample) -> Sample {
+// returns the end sample with the smaller |g|. Without `refine`, the one sample at the linear
+// interpolation of g (the CPU's level_crossing without refinement), which may have no level:
+// both modes share the loop's level_sample, so a lock-step implementation runs one.
+fn refine_levels(local: Local, lt: LevelTrack, d: vec3f, a: Sample, b: Sample, refine: bool) -> Sample {
     var s0 = a;
     var s1 = b;
     var g0 = a.g;
@@ -487,16 +551,20 @@ fn refine_levels(local: Local, lt: LevelTrack, d: vec3f, a: Sample, b: Sample) -
     let tol_g = 1e-6 * local.scale;
     let tol_t = 1e-7 * (abs(a.t) + abs(b.t) + local.scale);
     var side = 0;
+    var linear = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     for (var i = 0u; i < REFINE_ITERS; i++) {
-        if (abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t) {
+        if (refine && (abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t)) {
             break;
         }
-        let t = (s0.t * g1 - s1.t * g0) / (g1 - g0);
-        var guess = s1.lambda;
-        if (abs(t - s0.t) < abs(t - s1.t)) {
-            guess = s0.lambda;
+        var t = (s0.t * g1 - s1.t * g0) / (g1 - g0);
+        if (!refine) {
+            t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
         }
-        let s = level_sample(local, lt, d, t, guess);
+        let s = level_sample(local, lt, d, t, lambda_between(s0, s1, t));
+        if (!refine) {
+            linear = s;
+            break;
+        }
         if (!s.ok) {
             break;
         }
@@ -515,6 +583,9 @@ fn refine_levels(local: Local, lt: LevelTrack, d: vec3f, a: Sample, b: Sample) -
             }
             side = 1;
         }
+    }
+    if (!refine) {
+        return linear;
     }
     if (abs(s0.g) <= abs(s1.g)) {
         return s0;
