@@ -302,12 +302,20 @@ fn scan_level_estimate(local: Local, x: vec3f) -> f32 {
 // stitched seams).
 fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
     let u = t - lt.t0;
-    var lv = level_at(lt.cubic, u, guess, lt.tol, lt.lo, lt.hi);
-    if (!lv.ok) {
-        lv = level_at(lt.cubic, u, lt.mid, lt.tol, lt.lo, lt.hi);
-        if (!lv.ok) {
-            return Sample(false, t, 0.0, vec3f(0.0), 0.0);
+    // Newton from `guess`, then from the middle: one call site in a loop that a lane leaves
+    // once it has a level (a lock-step implementation then runs the retry only for groups
+    // that need it; see seam.wgsl's displacement_at).
+    var lv = Level(false, guess);
+    var start = guess;
+    for (var k = 0u; k < 2u; k++) {
+        lv = level_at(lt.cubic, u, start, lt.tol, lt.lo, lt.hi);
+        if (lv.ok) {
+            break;
         }
+        start = lt.mid;
+    }
+    if (!lv.ok) {
+        return Sample(false, t, 0.0, vec3f(0.0), 0.0);
     }
     let l = lv.l;
     let g = local.geom;
