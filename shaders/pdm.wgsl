@@ -329,21 +329,38 @@ fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> S
 // quarters of the range, keeping the level whose b is most inside (the last of equals, as the
 // CPU's max_by over [mid, mid - q, mid + q, first]).
 fn entry_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
-    let first = level_sample(local, lt, d, t, guess);
-    if (first.ok && min_element(first.b) >= -DETECT_TOL) {
-        return first;
-    }
+    // One level_sample call site in a loop that a lane whose first try is inside leaves at
+    // once (see seam.wgsl's displacement_at).
     let quarter = 0.25 * (lt.hi - lt.lo);
-    let starts = array<f32, 3>(lt.mid, lt.mid - quarter, lt.mid + quarter);
+    var first = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     var best = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    var good = false;
     for (var k = 0u; k < 4u; k++) {
-        var s = first;
-        if (k < 3u) {
-            s = level_sample(local, lt, d, t, starts[k]);
+        var start = guess;
+        if (k == 1u) {
+            start = lt.mid;
+        } else if (k == 2u) {
+            start = lt.mid - quarter;
+        } else if (k == 3u) {
+            start = lt.mid + quarter;
         }
-        if (s.ok && (!best.ok || min_element(s.b) >= min_element(best.b))) {
+        let s = level_sample(local, lt, d, t, start);
+        if (k == 0u) {
+            first = s;
+            if (s.ok && min_element(s.b) >= -DETECT_TOL) {
+                good = true;
+                break;
+            }
+        } else if (s.ok && (!best.ok || min_element(s.b) >= min_element(best.b))) {
             best = s;
         }
+    }
+    if (good) {
+        return first;
+    }
+    // The CPU's order: the retries, then the first try (the last of equals is kept).
+    if (first.ok && (!best.ok || min_element(first.b) >= min_element(best.b))) {
+        best = first;
     }
     return best;
 }
@@ -392,9 +409,23 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     // edge search and the crossing's refinement at every sample. The inner loop takes the
     // common samples — a level, after one with a level, no sign change — and the outer loop
     // the others, in the CPU's order.
+    // The inner loop takes the next sample at its top (one level_sample call site for both
+    // loops); `fresh`: `sample` is not processed yet.
+    var fresh = true;
     loop {
         var done = false;
         loop {
+            if (!fresh) {
+                if (t >= tx || n >= MAX_STEPS) {
+                    done = true;
+                    break;
+                }
+                t = next_march_t(t, n, r, dt, tx);
+                guess = extrapolated_level(trail0, trail1, t, guess);
+                n += 1u;
+                sample = level_sample(local, lt, d, t, guess);
+            }
+            fresh = false;
             let inside = inside_detect(sample.b);
             if (!sample.ok || failed || (inside && prev.ok && ((prev.g > 0.0) != (sample.g > 0.0)))) {
                 break;
@@ -406,14 +437,6 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             last_ok = sample;
             trail0 = trail1;
             trail1 = sample;
-            if (t >= tx || n >= MAX_STEPS) {
-                done = true;
-                break;
-            }
-            t = next_march_t(t, n, r, dt, tx);
-            guess = extrapolated_level(trail0, trail1, t, guess);
-            n += 1u;
-            sample = level_sample(local, lt, d, t, guess);
         }
         if (done) {
             break;
@@ -480,13 +503,6 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             trail0.ok = false;
             trail1.ok = false;
         }
-        if (t >= tx || n >= MAX_STEPS) {
-            break;
-        }
-        t = next_march_t(t, n, r, dt, tx);
-        guess = extrapolated_level(trail0, trail1, t, guess);
-        n += 1u;
-        sample = level_sample(local, lt, d, t, guess);
     }
     *steps += n;
     return no_prism_hit();
