@@ -106,35 +106,40 @@ fn displacement_raw(uv: vec2f) -> f32 {
     return displacement_of(sample_map(uv));
 }
 
-// Edge k's term of PrismDisplacement::at for record `rec` (0 outside its band).
-fn stitch_term(rec: u32, b: vec3f, k: u32, own: f32) -> f32 {
-    let band = stitches[rec].band[k];
-    if (!(band > 0.0 && b[k] < band)) {
-        return 0.0;
-    }
-    let w = band_weight(b, k, band).w;
-    if (w > 0.0) {
-        return 0.5 * w * (displacement_raw(uv_at(stitches[rec].other_uv[k], b)) - own);
-    }
-    return 0.0;
-}
-
 // PrismDisplacement::at: D (or D*) at barycentrics b.
 //
-// The edges' terms are summed in a loop that an invocation without a stitch record leaves at
-// once: an implementation that runs invocations in lock-step under masks (lavapipe) runs an
-// `if` body whether any lane takes it or not, but a loop only while some lane is in it, so a
-// group of unstitched prisms pays for one term, not three. Per march sample.
+// One loop over the charts: the prism's own (k = 0), then each edge's other chart (k = 1..3)
+// where the prism has a stitch record, so every height comes from one sample_map call site.
+// An implementation that runs invocations in lock-step under masks (lavapipe) runs an `if`
+// body whether any lane takes it or not, but a loop only while some lane is in it: a group of
+// unstitched prisms then runs the own chart's pass alone. Per march sample. An edge outside
+// its band is sampled and weighted 0 (the CPU skips it): the same D.
 fn displacement_at(disp: PrismDisplacement, b: vec3f) -> f32 {
-    let own = displacement_raw(uv_at(disp.uv, b));
-    var d = own;
+    var own = 0.0;
+    var d = 0.0;
     var k = 0u;
     loop {
-        if (disp.stitch == NO_STITCH || k >= 3u) {
+        var uv = disp.uv;
+        var w = 0.0;
+        if (k > 0u) {
+            let e = k - 1u;
+            let band = stitches[disp.stitch].band[e];
+            if (band > 0.0 && b[e] < band) {
+                w = band_weight(b, e, band).w;
+            }
+            uv = stitches[disp.stitch].other_uv[e];
+        }
+        let h = displacement_raw(uv_at(uv, b));
+        if (k == 0u) {
+            own = h;
+            d = h;
+        } else if (w > 0.0) {
+            d += 0.5 * w * (h - own);
+        }
+        k += 1u;
+        if (disp.stitch == NO_STITCH || k > 3u) {
             break;
         }
-        d += stitch_term(disp.stitch, b, k, own);
-        k += 1u;
     }
     return d;
 }
