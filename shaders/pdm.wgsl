@@ -6,7 +6,7 @@
 // warm-started from the paper's scanning-triangle estimate), barycentrics in the level
 // triangle T(λ) by Ericson's five dot products (App. C), g = λ|m(b)| − D(b) (stitched next to
 // UV seams: seam.wgsl) — and the crossing refined by Illinois regula falsi on the same g
-// (`refine_levels`). Flat prisms meet the triangle V_i + D n_i and are moved onto the
+// (`refine_levels`; on the GPU these are states of `march_levels`, one sample per pass). Flat prisms meet the triangle V_i + D n_i and are moved onto the
 // canonical surface by Newton (`flat_hit`; a flat prism's stitched height is its constant:
 // the bake's range includes the stitch bands).
 // pdm.rs documents each departure from the paper. The paper's parallel-offset prism
@@ -19,6 +19,11 @@ const MAX_STEPS: u32 = 16384u;
 const REFINE_ITERS: u32 = 24u;
 const LEVEL_ITERS: u32 = 8u;
 const DOMAIN_EDGE_ITERS: u32 = 10u;
+// march_levels' states.
+const MODE_ENTRY: u32 = 0u;
+const MODE_MARCH: u32 = 1u;
+const MODE_EDGE: u32 = 2u;
+const MODE_REFINE: u32 = 3u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 
 // pdm::Local: one prism in a local frame (origin at V_0).
@@ -324,47 +329,6 @@ fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> S
     return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement_at(local.disp, b), b, l);
 }
 
-// Pdm::entry_sample: the march's first sample; if its b is outside (a ghost level of the
-// cubic, which every later sample would be warm-started from), retried from the middle and the
-// quarters of the range, keeping the level whose b is most inside (the last of equals, as the
-// CPU's max_by over [mid, mid - q, mid + q, first]).
-fn entry_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
-    // One level_sample call site in a loop that a lane whose first try is inside leaves at
-    // once (see seam.wgsl's displacement_at).
-    let quarter = 0.25 * (lt.hi - lt.lo);
-    var first = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
-    var best = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
-    var good = false;
-    for (var k = 0u; k < 4u; k++) {
-        var start = guess;
-        if (k == 1u) {
-            start = lt.mid;
-        } else if (k == 2u) {
-            start = lt.mid - quarter;
-        } else if (k == 3u) {
-            start = lt.mid + quarter;
-        }
-        let s = level_sample(local, lt, d, t, start);
-        if (k == 0u) {
-            first = s;
-            if (s.ok && min_element(s.b) >= -DETECT_TOL) {
-                good = true;
-                break;
-            }
-        } else if (s.ok && (!best.ok || min_element(s.b) >= min_element(best.b))) {
-            best = s;
-        }
-    }
-    if (good) {
-        return first;
-    }
-    // The CPU's order: the retries, then the first try (the last of equals is kept).
-    if (first.ok && (!best.ok || min_element(first.b) >= min_element(best.b))) {
-        best = first;
-    }
-    return best;
-}
-
 fn inside_detect(b: vec3f) -> bool {
     return min_element(b) >= -DETECT_TOL;
 }
@@ -402,74 +366,172 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     let r = jitter(ctx, prism);
     var t = te;
     var n = 1u;
-    var sample = entry_sample(local, lt, d, t, guess);
-    // Two loops, so that the rare cases' code runs once per rare case: an implementation that
-    // runs invocations in lock-step under masks (lavapipe's SIMD lanes; every `if` body runs
-    // there, masked, whether any lane takes it or not) would otherwise run the level domain's
-    // edge search and the crossing's refinement at every sample. The inner loop takes the
-    // common samples — a level, after one with a level, no sign change — and the outer loop
-    // the others, in the CPU's order.
-    // The inner loop takes the next sample at its top (one level_sample call site for both
-    // loops); `fresh`: `sample` is not processed yet.
-    var fresh = true;
+    // One loop that takes one level_sample per pass, whatever the sample is for: the entry
+    // sample's tries (Pdm::entry_sample), the next march sample, a bisection step towards the
+    // edge of the region where a level exists (level_domain_edge), or a refinement step of a
+    // crossing (refine_levels); the CPU's functions as the states of one machine, in its
+    // order. An implementation that runs invocations in lock-step under masks (lavapipe's
+    // SIMD lanes: every `if` body runs there, masked, whether any lane takes it or not, and a
+    // loop at least once) then runs one sample per pass for all lanes, whatever state each
+    // lane is in, instead of every kind of sample's code for each march sample; a GPU's warp
+    // keeps its lanes on the same instructions.
+    var mode = MODE_ENTRY;
+    var sample = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    // The entry sample: which try, the first try and the best retry.
+    var ek = 0u;
+    var first = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    var ebest = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    let quarter = 0.25 * (lt.hi - lt.lo);
+    // The level domain's edge: the bisection's ends and steps, and the edge sample found.
+    var good = sample;
+    var bad = 0.0;
+    var ei = 0u;
+    var edge = sample;
+    // Feeding the edge (0) then the main sample (1) to the crossing test: the next to feed.
+    var feed_k = 0u;
+    // The crossing's Illinois bracket.
+    var s0 = sample;
+    var s1 = sample;
+    var g0 = 0.0;
+    var g1 = 0.0;
+    var side = 0;
+    var ri = 0u;
+    let refine = frame.refine != 0u;
+    let tol_g = 1e-6 * local.scale;
     loop {
-        var done = false;
-        loop {
-            if (!fresh) {
-                if (t >= tx || n >= MAX_STEPS) {
-                    done = true;
-                    break;
+        // The sample this pass takes.
+        var ts = t;
+        var gs = guess;
+        if (mode == MODE_ENTRY) {
+            if (ek == 1u) {
+                gs = lt.mid;
+            } else if (ek == 2u) {
+                gs = lt.mid - quarter;
+            } else if (ek == 3u) {
+                gs = lt.mid + quarter;
+            }
+        } else if (mode == MODE_EDGE) {
+            ts = 0.5 * (good.t + bad);
+            gs = good.lambda;
+        } else if (mode == MODE_REFINE) {
+            ts = (s0.t * g1 - s1.t * g0) / (g1 - g0);
+            if (!refine) {
+                ts = s0.t + (s1.t - s0.t) * (s0.g / (s0.g - s1.g));
+            }
+            gs = lambda_between(s0, s1, ts);
+        }
+        let s = level_sample(local, lt, d, ts, gs);
+
+        // What it is for. `fresh`: a new main sample to feed; `feeding`: go on feeding.
+        var fresh = false;
+        var feeding = false;
+        if (mode == MODE_ENTRY) {
+            // The first try if it is inside, else the retries' best and then the first try
+            // (the last of equals, as the CPU's max_by over [mid, mid - q, mid + q, first]).
+            if (ek == 0u) {
+                first = s;
+                fresh = s.ok && min_element(s.b) >= -DETECT_TOL;
+                sample = s;
+            } else if (s.ok && (!ebest.ok || min_element(s.b) >= min_element(ebest.b))) {
+                ebest = s;
+            }
+            ek += 1u;
+            if (!fresh && ek == 4u) {
+                if (first.ok && (!ebest.ok || min_element(first.b) >= min_element(ebest.b))) {
+                    ebest = first;
                 }
-                t = next_march_t(t, n, r, dt, tx);
-                guess = extrapolated_level(trail0, trail1, t, guess);
-                n += 1u;
-                sample = level_sample(local, lt, d, t, guess);
+                sample = ebest;
+                fresh = true;
             }
-            fresh = false;
-            let inside = inside_detect(sample.b);
-            if (!sample.ok || failed || (inside && prev.ok && ((prev.g > 0.0) != (sample.g > 0.0)))) {
-                break;
+        } else if (mode == MODE_MARCH) {
+            sample = s;
+            fresh = true;
+        } else if (mode == MODE_EDGE) {
+            n += 1u;
+            if (s.ok) {
+                good = s;
+            } else {
+                bad = ts;
             }
-            guess = sample.lambda;
-            if (inside) {
-                prev = sample;
+            ei += 1u;
+            if (ei == DOMAIN_EDGE_ITERS) {
+                edge = good;
+                feed_k = 0u;
+                feeding = true;
             }
-            last_ok = sample;
-            trail0 = trail1;
-            trail1 = sample;
+        } else if (mode == MODE_REFINE) {
+            // Illinois (refine_levels), or the one linear sample without `refine`.
+            let tol_t = 1e-7 * (abs(s0.t) + abs(s1.t) + local.scale);
+            var done = !refine || !s.ok || abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t;
+            var res = s;
+            if (refine && !done) {
+                if ((s.g > 0.0) == (s1.g > 0.0)) {
+                    s1 = s;
+                    g1 = s.g;
+                    if (side == -1) {
+                        g0 *= 0.5;
+                    }
+                    side = -1;
+                } else {
+                    s0 = s;
+                    g0 = s.g;
+                    if (side == 1) {
+                        g1 *= 0.5;
+                    }
+                    side = 1;
+                }
+                ri += 1u;
+                let tol_t1 = 1e-7 * (abs(s0.t) + abs(s1.t) + local.scale);
+                done = ri == REFINE_ITERS || abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t1;
+            }
+            if (done) {
+                if (refine) {
+                    res = s1;
+                    if (abs(s0.g) <= abs(s1.g)) {
+                        res = s0;
+                    }
+                }
+                // Pdm::level_crossing's test: a hit in this triangle and span.
+                if (res.ok && min_element(res.b) >= -EDGE_TOL && res.t >= te && res.t <= tx && res.t >= ray.t_min && res.t <= ray.t_max) {
+                    *steps += n;
+                    return PrismHit(true, res.t, res.b);
+                }
+                feeding = true;
+            }
         }
-        if (done) {
-            break;
+        if (fresh) {
+            // The edge of the region where a level exists is a sample too.
+            edge = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+            let leaving = !sample.ok && last_ok.ok && !failed;
+            if (leaving || (sample.ok && failed)) {
+                good = sample;
+                bad = failed_at;
+                if (leaving) {
+                    good = last_ok;
+                    bad = t;
+                }
+                ei = 0u;
+                mode = MODE_EDGE;
+            } else {
+                feed_k = 0u;
+                feeding = true;
+            }
         }
-        // The edge of the region where a level exists is a sample too (level_domain_edge;
-        // one call site, so its bisection runs once per pass of this loop, not twice).
-        var edge = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
-        var edge_from = sample;
-        var edge_bad = failed_at;
-        let leaving = !sample.ok && last_ok.ok && !failed;
-        if (leaving) {
-            edge_from = last_ok;
-            edge_bad = t;
-        }
-        if (leaving || (sample.ok && failed)) {
-            edge = level_domain_edge(local, lt, ro, d, edge_from, edge_bad, &n);
-        }
-        // The edge, then the sample, in order; each sign change is refined at one call site
-        // (the scan's second pass runs only for a lane whose first crossing was rejected).
-        var k = 0u;
-        loop {
+        if (feeding) {
+            // The edge, then the main sample: the first sign change from `prev` starts a
+            // refinement; past both, the next march sample.
             var found = false;
             var below = prev;
             var cur = sample;
             loop {
-                if (k >= 2u) {
+                if (feed_k >= 2u) {
                     break;
                 }
                 cur = sample;
-                if (k == 0u) {
+                if (feed_k == 0u) {
                     cur = edge;
                 }
-                k += 1u;
+                feed_k += 1u;
                 if (!cur.ok) {
                     continue;
                 }
@@ -483,25 +545,34 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     }
                 }
             }
-            if (!found) {
-                break;
+            if (found) {
+                s0 = below;
+                s1 = cur;
+                g0 = below.g;
+                g1 = cur.g;
+                side = 0;
+                ri = 0u;
+                mode = MODE_REFINE;
+            } else {
+                if (sample.ok) {
+                    last_ok = sample;
+                    failed = false;
+                    trail0 = trail1;
+                    trail1 = sample;
+                } else {
+                    failed = true;
+                    failed_at = t;
+                    trail0.ok = false;
+                    trail1.ok = false;
+                }
+                if (t >= tx || n >= MAX_STEPS) {
+                    break;
+                }
+                t = next_march_t(t, n, r, dt, tx);
+                guess = extrapolated_level(trail0, trail1, t, guess);
+                n += 1u;
+                mode = MODE_MARCH;
             }
-            let hit = level_crossing(local, lt, ro, ray, below, cur, te, tx);
-            if (hit.ok) {
-                *steps += n;
-                return hit;
-            }
-        }
-        if (sample.ok) {
-            last_ok = sample;
-            failed = false;
-            trail0 = trail1;
-            trail1 = sample;
-        } else {
-            failed = true;
-            failed_at = t;
-            trail0.ok = false;
-            trail1.ok = false;
         }
     }
     *steps += n;
@@ -525,35 +596,6 @@ fn extrapolated_level(a: Sample, b: Sample, t: f32, guess: f32) -> f32 {
     return guess;
 }
 
-// Pdm::level_domain_edge: the sample nearest to `bad` (no level there) on the way from `ok`,
-// by bisection; n counts the samples.
-fn level_domain_edge(local: Local, lt: LevelTrack, ro: vec3f, d: vec3f, ok: Sample, bad_t: f32, n: ptr<function, u32>) -> Sample {
-    var good = ok;
-    var bad = bad_t;
-    for (var i = 0u; i < DOMAIN_EDGE_ITERS; i++) {
-        let t = 0.5 * (good.t + bad);
-        *n += 1u;
-        let s = level_sample(local, lt, d, t, good.lambda);
-        if (s.ok) {
-            good = s;
-        } else {
-            bad = t;
-        }
-    }
-    return good;
-}
-
-// Pdm::level_crossing: a sign change of the canonical g between a and b into a hit (Illinois
-// refinement, or the paper's linear interpolation without `refine`).
-fn level_crossing(local: Local, lt: LevelTrack, ro: vec3f, ray: Ray, a: Sample, b: Sample, te: f32, tx: f32) -> PrismHit {
-    let s = refine_levels(local, lt, ray.dir, a, b, frame.refine != 0u);
-    if (!s.ok) {
-        return no_prism_hit();
-    }
-    let ok = min_element(s.b) >= -EDGE_TOL && s.t >= te && s.t <= tx && s.t >= ray.t_min && s.t <= ray.t_max;
-    return PrismHit(ok, s.t, s.b);
-}
-
 // trace::pdm::lambda_between: the level at t interpolated between two samples (Newton's start).
 fn lambda_between(a: Sample, b: Sample, t: f32) -> f32 {
     var w = 0.5;
@@ -561,60 +603,6 @@ fn lambda_between(a: Sample, b: Sample, t: f32) -> f32 {
         w = clamp((t - a.t) / (b.t - a.t), 0.0, 1.0);
     }
     return a.lambda + (b.lambda - a.lambda) * w;
-}
-
-// Pdm::refine_levels: Illinois regula falsi on the canonical g(t) in the bracket [a, b];
-// returns the end sample with the smaller |g|. Without `refine`, the one sample at the linear
-// interpolation of g (the CPU's level_crossing without refinement), which may have no level:
-// both modes share the loop's level_sample, so a lock-step implementation runs one.
-fn refine_levels(local: Local, lt: LevelTrack, d: vec3f, a: Sample, b: Sample, refine: bool) -> Sample {
-    var s0 = a;
-    var s1 = b;
-    var g0 = a.g;
-    var g1 = b.g;
-    let tol_g = 1e-6 * local.scale;
-    let tol_t = 1e-7 * (abs(a.t) + abs(b.t) + local.scale);
-    var side = 0;
-    var linear = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
-    for (var i = 0u; i < REFINE_ITERS; i++) {
-        if (refine && (abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t)) {
-            break;
-        }
-        var t = (s0.t * g1 - s1.t * g0) / (g1 - g0);
-        if (!refine) {
-            t = a.t + (b.t - a.t) * (a.g / (a.g - b.g));
-        }
-        let s = level_sample(local, lt, d, t, lambda_between(s0, s1, t));
-        if (!refine) {
-            linear = s;
-            break;
-        }
-        if (!s.ok) {
-            break;
-        }
-        if ((s.g > 0.0) == (s1.g > 0.0)) {
-            s1 = s;
-            g1 = s.g;
-            if (side == -1) {
-                g0 *= 0.5;
-            }
-            side = -1;
-        } else {
-            s0 = s;
-            g0 = s.g;
-            if (side == 1) {
-                g1 *= 0.5;
-            }
-            side = 1;
-        }
-    }
-    if (!refine) {
-        return linear;
-    }
-    if (abs(s0.g) <= abs(s1.g)) {
-        return s0;
-    }
-    return s1;
 }
 
 // Pdm::flat_hit: constant displacement D — meet the triangle V_i + D n_i, then Newton on
