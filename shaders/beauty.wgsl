@@ -224,19 +224,37 @@ fn trace_sample(camera: Ray, ctx: RayContext, n: ptr<function, Counters>) -> Sam
             }
         }
 
-        // 2. Trace them, in the CPU's order, through one call site.
-        var answers: array<Hit, 3>;
-        for (var k = 0u; k < 3u; k++) {
+        // 2. Trace them, in the CPU's order, through one call site; only the live ones: the
+        // loop runs as long as some lane has a live query left, so a lock-step implementation
+        // (lavapipe) does not trace a masked ray for every query slot a step leaves empty
+        // (no key light: the first slot is never live).
+        var answers = array<Hit, 3>(no_hit(), no_hit(), no_hit());
+        var live = array<u32, 3>(0u, 0u, 0u);
+        var live_n = 0u;
+        if (q0.live) {
+            live[live_n] = 0u;
+            live_n += 1u;
+        }
+        if (q1.live) {
+            live[live_n] = 1u;
+            live_n += 1u;
+        }
+        if (q2.live) {
+            live[live_n] = 2u;
+            live_n += 1u;
+        }
+        for (var j = 0u; j < 3u; j++) {
+            if (j >= live_n) {
+                break;
+            }
+            let k = live[j];
             var q = q2;
             if (k == 0u) {
                 q = q0;
             } else if (k == 1u) {
                 q = q1;
             }
-            answers[k] = no_hit();
-            if (q.live) {
-                answers[k] = trace(q);
-            }
+            answers[k] = trace(q);
         }
         let seen0 = answers[0].prism != NO_PRISM;
         let seen1 = answers[1].prism != NO_PRISM;
