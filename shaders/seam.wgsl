@@ -158,21 +158,6 @@ fn chart_height(uv: array<vec2f, 3>, b: vec3f) -> ChartHeight {
     return ChartHeight(displacement_of(sg.value), vec3f(dot(g, uv[0]), dot(g, uv[1]), dot(g, uv[2])));
 }
 
-// Edge k's term of PrismDisplacement::at_grad for record `rec` (zero outside its band).
-fn stitch_grad_term(rec: u32, b: vec3f, k: u32, own: ChartHeight) -> ChartHeight {
-    let band = stitches[rec].band[k];
-    if (!(band > 0.0 && b[k] < band)) {
-        return ChartHeight(0.0, vec3f(0.0));
-    }
-    let bw = band_weight(b, k, band);
-    if (!(bw.w > 0.0 || any(bw.grad != vec3f(0.0)))) {
-        return ChartHeight(0.0, vec3f(0.0));
-    }
-    let other = chart_height(stitches[rec].other_uv[k], b);
-    let diff = other.d - own.d;
-    return ChartHeight(0.5 * bw.w * diff, 0.5 * (bw.grad * diff + bw.w * (other.g - own.g)));
-}
-
 // PrismDisplacement::at_grad's result: D (or D*) and its derivatives with respect to (b1, b2),
 // b0 = 1 − b1 − b2.
 struct DisplacementGrad {
@@ -180,21 +165,39 @@ struct DisplacementGrad {
     grad: vec2f,
 }
 
-// PrismDisplacement::at_grad.
+// PrismDisplacement::at_grad. Every chart's height and gradient at one `sample_grad` call
+// site, in a loop over the own chart and then a stitched prism's three other charts, for the
+// reason given at displacement_at (an edge outside its band, or with no weight, adds 0).
 fn displacement_at_grad(disp: PrismDisplacement, b: vec3f) -> DisplacementGrad {
-    let own = chart_height(disp.uv, b);
-    var d = own.d;
-    var g = own.g;
-    // A loop for the reason given at displacement_at.
+    var own = ChartHeight(0.0, vec3f(0.0));
+    var d = 0.0;
+    var g = vec3f(0.0);
     var k = 0u;
     loop {
-        if (disp.stitch == NO_STITCH || k >= 3u) {
+        var uv = disp.uv;
+        var bw = BandWeight(0.0, vec3f(0.0));
+        if (k > 0u) {
+            let e = k - 1u;
+            let band = stitches[disp.stitch].band[e];
+            if (band > 0.0 && b[e] < band) {
+                bw = band_weight(b, e, band);
+            }
+            uv = stitches[disp.stitch].other_uv[e];
+        }
+        let c = chart_height(uv, b);
+        if (k == 0u) {
+            own = c;
+            d = c.d;
+            g = c.g;
+        } else if (bw.w > 0.0 || any(bw.grad != vec3f(0.0))) {
+            let diff = c.d - own.d;
+            d += 0.5 * bw.w * diff;
+            g += 0.5 * (bw.grad * diff + bw.w * (c.g - own.g));
+        }
+        k += 1u;
+        if (disp.stitch == NO_STITCH || k > 3u) {
             break;
         }
-        let tk = stitch_grad_term(disp.stitch, b, k, own);
-        d += tk.d;
-        g += tk.g;
-        k += 1u;
     }
     return DisplacementGrad(d, vec2f(g.y - g.x, g.z - g.x));
 }
