@@ -7,9 +7,9 @@
 //! lie in the hull of their corners), padded by a relative 1e-4 so that hits a method accepts
 //! with its edge tolerance, and zero-thickness prisms of a flat mesh, stay inside their box.
 //!
-//! BVH choice, measured for PDM (see `BvhKind`): CWBVH (Ylitie et al. 2017, 8-wide, 80-byte
-//! nodes, SIMD node tests on the CPU) against BVH2 (PLOC, Meister & Bittner 2018, with
-//! reinsertion and collapse), both built with obvhs's `medium_build` preset.
+//! BVH choice, measured (see `BvhKind`): BVH2 (PLOC, Meister & Bittner 2018, with reinsertion
+//! and collapse) against CWBVH (Ylitie et al. 2017, 8-wide, 80-byte nodes, SIMD node tests on
+//! the CPU), both built with obvhs's `medium_build` preset.
 
 use crate::bake::PrismTable;
 use crate::canonical::Surface;
@@ -29,28 +29,43 @@ use std::time::Duration;
 /// Relative padding of every prism box (fraction of its diagonal).
 const AABB_PAD: f32 = 1e-4;
 
-/// Which obvhs hierarchy traverses the prisms.
+/// Which obvhs hierarchy traverses the prisms (and PDM's cells).
 ///
-/// Measured with PDM (defaults: dt = auto 0.5 texel, jitter, refine) on a displaced icosphere
-/// (5120 prisms, 512² relief map, amplitude ±0.07), 512² primary rays from one thread, release
-/// build, on a 2-core machine shared with other builds (load ~3.8, so absolute rates are
-/// roughly half of an idle core; the ratio is what counts), two runs each:
+/// First measured with PDM over whole prisms (defaults: dt = auto 0.5 texel, jitter, refine)
+/// on a displaced icosphere (5120 prisms, 512² relief map, amplitude ±0.07), 512² primary rays
+/// from one thread, release build, on a 2-core machine shared with other builds, two runs
+/// each:
 ///
 /// | kind   | Mray/s      | march steps / hit ray | hierarchy bytes |
 /// |--------|-------------|-----------------------|-----------------|
 /// | Binary | 0.29, 0.27  | 10.4                  | 119 696         |
 /// | Wide   | 0.33, 0.27  | 14.1                  |  62 240         |
 ///
-/// Wide is as fast or slightly faster and half the memory, so it is the default. (Before the
-/// `prism_hit` half-line fix the same comparison read 0.19/0.20 vs 0.25/0.26.) Reproduce with
-/// a release binary that times `Pdm::intersect` over `Scene::with_bvh(.., kind)`; it belongs
-/// in `prismbake bench`, not in the tests.
+/// Wide was as fast and half the memory, so it was the default. Measured again once PDM marched
+/// sub-prism cells (`trace::cells`), on the examples, 512² through their cameras, one thread
+/// (`core/examples/trace_primary.rs`), two or three interleaved runs, ns/ray:
+///
+/// | asset  | method            | Wide        | Binary      | steps / hit    |
+/// |--------|-------------------|-------------|-------------|----------------|
+/// | sphere | PDM, cells        | 1 053–1 154 | 862–911     | 13.1 → 9.0     |
+/// | sphere | PDM, whole prisms | 1 963–2 022 | 1 387–1 483 | 29.3 → 18.2    |
+/// | sphere | RMIP              | 2 549–2 631 | 1 893–1 981 | 16.7 → 10.5    |
+/// | torus  | PDM, cells        | 568–762     | 414–535     | 5.9 → 4.2      |
+/// | torus  | PDM, whole prisms | 644–779     | 652–758     | 11.3 → 9.5     |
+/// | torus  | RMIP              | 834–1 129   | 914–936     | 7.4 → 6.2      |
+/// | rock   | PDM, cells        | 684–709     | 597–604     | 12.4 → 10.4    |
+/// | rock   | PDM, whole prisms | 1 650–1 662 | 1 409–1 495 | 49.3 → 48.1    |
+/// | rock   | RMIP              | 2 652–2 667 | 2 455–2 516 | 48.0 → 47.0    |
+///
+/// The binary hierarchy visits candidates nearer to front-to-back order (fewer marches before
+/// the hit), which now outweighs the wider node test: Binary is the default, for every method,
+/// at ~10% more memory with cells (sphere 8 685 → 9 499 bytes per triangle). The same hits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BvhKind {
     /// obvhs `Bvh2`: binary, 48-byte nodes.
+    #[default]
     Binary,
     /// obvhs `CwBvh`: compressed 8-wide, 80-byte nodes.
-    #[default]
     Wide,
 }
 

@@ -397,7 +397,7 @@ impl Cells {
             .collect();
         let aabbs: Vec<Aabb> = bounds.par_iter().map(|c| c.aabb(table)).collect();
         Cells {
-            bvh: BoxBvh::build(&aabbs, BvhKind::Wide),
+            bvh: BoxBvh::build(&aabbs, BvhKind::default()),
             cells: bounds.par_iter().map(|c| c.cell(table)).collect(),
         }
     }
