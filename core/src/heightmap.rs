@@ -88,7 +88,7 @@ impl HeightMap {
     pub fn texel(&self, x: i64, y: i64) -> f32 {
         let (w, h) = (self.width as i64, self.height as i64);
         let (x, y) = match self.wrap {
-            Wrap::Repeat => (x.rem_euclid(w), y.rem_euclid(h)),
+            Wrap::Repeat => (wrap(x, w), wrap(y, h)),
             Wrap::Clamp => (x.clamp(0, w - 1), y.clamp(0, h - 1)),
         };
         self.data[(y * w + x) as usize]
@@ -130,7 +130,7 @@ impl HeightMap {
             // Tiled UVs (beyond [0, 1]): wrap the corner once per axis, not per texel; the
             // same texels and fractions as `texel`'s wrap.
             let (w, h) = (self.width as i64, self.height as i64);
-            let (x0, y0) = (x.rem_euclid(w), y.rem_euclid(h));
+            let (x0, y0) = (wrap(x, w), wrap(y, h));
             let x1 = if x0 + 1 == w { 0 } else { x0 + 1 };
             let y1 = if y0 + 1 == h { 0 } else { y0 + 1 };
             let at = |x: i64, y: i64| self.data[(y * w + x) as usize];
@@ -217,6 +217,17 @@ impl HeightMap {
     }
 }
 
+/// `x.rem_euclid(n)` for `n > 0`: a mask where `n` is a power of two (two's complement makes
+/// it the Euclidean remainder for negative `x` too), else the division.
+#[inline]
+fn wrap(x: i64, n: i64) -> i64 {
+    if n & (n - 1) == 0 {
+        x & (n - 1)
+    } else {
+        x.rem_euclid(n)
+    }
+}
+
 /// `x.floor()` without the libm call (the x86-64 baseline has no rounding instruction):
 /// truncation, one less for negative non-integers; `|x| ≥ 2²³` is already an integer, and
 /// NaN stays NaN.
@@ -269,6 +280,15 @@ mod tests {
                 let bottom = c + (d - c) * tx;
                 let want = top + (bottom - top) * ty;
                 assert_eq!(m.sample(uv).to_bits(), want.to_bits(), "{uv}");
+            }
+        }
+    }
+
+    #[test]
+    fn wrap_is_the_euclidean_remainder() {
+        for n in [1i64, 2, 3, 7, 8, 1024, 1000] {
+            for x in (-5000i64..5000).chain([i64::MIN / 4, -1_000_000_007, 1_000_000_007]) {
+                assert_eq!(wrap(x, n), x.rem_euclid(n), "{x} mod {n}");
             }
         }
     }
