@@ -461,8 +461,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             }
         } else if (mode == MODE_REFINE) {
             // Illinois (refine_levels), or the one linear sample without `refine`.
-            let tol_t = 1e-7 * (abs(s0.t) + abs(s1.t) + local.scale);
-            var done = !refine || !s.ok || abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t;
+            var done = !refine || !s.ok || bracket_converged(s0, s1, tol_g, local.scale);
             var res = s;
             if (refine && !done) {
                 if ((s.g > 0.0) == (s1.g > 0.0)) {
@@ -481,8 +480,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     side = 1;
                 }
                 ri += 1u;
-                let tol_t1 = 1e-7 * (abs(s0.t) + abs(s1.t) + local.scale);
-                done = ri == REFINE_ITERS || abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t1;
+                done = ri == REFINE_ITERS || bracket_converged(s0, s1, tol_g, local.scale);
             }
             if (done) {
                 if (refine) {
@@ -577,6 +575,13 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     }
     *steps += n;
     return no_prism_hit();
+}
+
+// refine_levels' stopping test: an end on the surface (|g| ≤ tol_g) or the bracket shrunk to
+// rounding.
+fn bracket_converged(s0: Sample, s1: Sample, tol_g: f32, scale: f32) -> bool {
+    let tol_t = 1e-7 * (abs(s0.t) + abs(s1.t) + scale);
+    return abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t;
 }
 
 // The march's next sample after the n-th at t: the first step jittered (paper §5.3).

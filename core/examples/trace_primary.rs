@@ -59,7 +59,7 @@ fn main() {
     let scene = Scene::new(prepared.table, prepared.map);
     let n = rays.len() as f64;
     let pdm_variants: &[(&str, bool)] = match which {
-        "reference" => &[],
+        "reference" | "rmip" => &[],
         "pdm" => &[("cells", true)],
         "whole" => &[("whole prisms", false)],
         _ => &[("cells", true), ("whole prisms", false)],
