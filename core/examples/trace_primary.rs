@@ -4,6 +4,7 @@
 //! `RES`); benches/intersect.rs is the criterion version at 128².
 //!
 //! `cargo run --release -p prismbake-core --example trace_primary [ASSET] [RES] [pdm|whole|all|both|reference|rmip]`
+//! (`PRISMBAKE_SPLIT=1` also times the rays each method hits and those it misses apart)
 
 use glam::Vec2;
 use prismbake::accel::Scene;
@@ -16,13 +17,14 @@ use prismbake::trace::rmip::{Rmip, RmipOptions};
 use prismbake::trace::{Intersector, Ray, RayContext};
 use std::time::Instant;
 
-fn trace(isect: &dyn Intersector, rays: &[Ray]) -> (usize, u64, f64) {
+/// Times `rays` (indexed by pixel) one after another; returns hits, steps, seconds.
+fn trace_indexed(isect: &dyn Intersector, rays: &[(u32, Ray)]) -> (usize, u64, f64) {
     let t0 = Instant::now();
     let mut hits = 0;
     let mut steps = 0u64;
-    for (i, r) in rays.iter().enumerate() {
+    for &(pixel, ref r) in rays {
         let ctx = RayContext {
-            pixel: i as u32,
+            pixel,
             ..Default::default()
         };
         if let Some(h) = isect.intersect(r, &ctx) {
@@ -31,6 +33,34 @@ fn trace(isect: &dyn Intersector, rays: &[Ray]) -> (usize, u64, f64) {
         }
     }
     (hits, steps, t0.elapsed().as_secs_f64())
+}
+
+fn trace(isect: &dyn Intersector, rays: &[Ray]) -> (usize, u64, f64) {
+    let indexed: Vec<(u32, Ray)> = rays.iter().enumerate().map(|(i, r)| (i as u32, *r)).collect();
+    let result = trace_indexed(isect, &indexed);
+    if std::env::var_os("PRISMBAKE_SPLIT").is_some() {
+        // Where the time goes: the rays this method hits and those it misses, timed apart.
+        let (hit, miss): (Vec<_>, Vec<_>) = indexed.into_iter().partition(|(pixel, r)| {
+            let ctx = RayContext {
+                pixel: *pixel,
+                ..Default::default()
+            };
+            isect.intersect(r, &ctx).is_some()
+        });
+        let (_, _, hit_secs) = trace_indexed(isect, &hit);
+        let (_, _, miss_secs) = trace_indexed(isect, &miss);
+        println!(
+            "  {}: {} hit rays {:.0} ns each, {} miss rays {:.0} ns each ({:.0} + {:.0} ns per ray of the batch)",
+            isect.name(),
+            hit.len(),
+            hit_secs * 1e9 / hit.len().max(1) as f64,
+            miss.len(),
+            miss_secs * 1e9 / miss.len().max(1) as f64,
+            hit_secs * 1e9 / rays.len() as f64,
+            miss_secs * 1e9 / rays.len() as f64,
+        );
+    }
+    result
 }
 
 fn main() {

@@ -163,6 +163,11 @@ impl Cell {
             let tb = (lane(&s.hi) - s0) * inv;
             enter = enter.max(ta.min(tb));
             exit = exit.min(ta.max(tb));
+            // Most candidates fall outside the first four (the face-normal slab and the
+            // walls' mean planes): stop there.
+            if k == 0 && !(enter.max_element() <= exit.min_element()) {
+                return None;
+            }
         }
         let (t0, t1) = (enter.max_element(), exit.min_element());
         (t0 <= t1).then_some((t0, t1))
