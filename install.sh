@@ -25,5 +25,12 @@ if ! command -v cargo >/dev/null; then
   . "$HOME/.cargo/env"
 fi
 
-cargo install --locked --quiet --path cli
+# Built on the machine it runs on, so for its CPU (AVX2/FMA where there are: ~10% faster
+# traces, docs/benchmarks.md). PRISMBAKE_PORTABLE=1 builds for the baseline of the
+# architecture instead: a binary to copy to other machines (a render farm's nodes).
+if [ "${PRISMBAKE_PORTABLE:-0}" = 1 ]; then
+  cargo install --locked --quiet --path cli
+else
+  RUSTFLAGS="${RUSTFLAGS:-} -C target-cpu=native" cargo install --locked --quiet --path cli
+fi
 echo "installed: $(command -v prismbake || echo "$HOME/.cargo/bin/prismbake")"
