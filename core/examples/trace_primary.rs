@@ -36,7 +36,11 @@ fn trace_indexed(isect: &dyn Intersector, rays: &[(u32, Ray)]) -> (usize, u64, f
 }
 
 fn trace(isect: &dyn Intersector, rays: &[Ray]) -> (usize, u64, f64) {
-    let indexed: Vec<(u32, Ray)> = rays.iter().enumerate().map(|(i, r)| (i as u32, *r)).collect();
+    let indexed: Vec<(u32, Ray)> = rays
+        .iter()
+        .enumerate()
+        .map(|(i, r)| (i as u32, *r))
+        .collect();
     let result = trace_indexed(isect, &indexed);
     if std::env::var_os("PRISMBAKE_SPLIT").is_some() {
         // Where the time goes: the rays this method hits and those it misses, timed apart.
