@@ -8,6 +8,7 @@ pub mod obj;
 #[cfg(test)]
 mod tests;
 pub mod usd;
+mod usdc_check;
 
 use crate::error::{Error, Result};
 use crate::heightmap::{HeightMap, Wrap};

@@ -194,7 +194,7 @@ fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Res
 fn check_nesting(path: &Path) -> Result<()> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.starts_with(b"PXR-USDC") {
-        return Ok(());
+        return super::usdc_check::check(path, &bytes);
     }
     let (mut depth, mut deepest, mut line, mut deepest_line) = (0usize, 0usize, 1usize, 1usize);
     let mut i = 0;

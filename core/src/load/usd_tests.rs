@@ -546,6 +546,48 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
     assert!(check_nesting(&quoted).is_ok());
 }
 
+/// A binary layer whose PATHS section states a 4.4 TB compressed block (fuzzed) made the
+/// reader's allocation fail, which aborts the process; the pre-check refuses it, naming the
+/// file and the section. Every prefix of a valid layer, and the layer itself, passes the
+/// check (`truncated_usdc_prefixes_fail_cleanly` loads them).
+#[test]
+fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
+    let d = dir("huge");
+    let p = d.join("huge.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/known-crashes/usdc-huge-allocation"),
+    )
+    .unwrap();
+    let e = load_mesh(&p, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("huge.usdc") && e.contains("PATHS section") && e.contains("cannot hold"),
+        "{e}"
+    );
+    let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
+    let full = d.join("full.usdc");
+    openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();
+    let bytes = std::fs::read(&full).unwrap();
+    for len in 0..=bytes.len() {
+        assert!(
+            crate::load::usdc_check::check(&full, &bytes[..len]).is_ok(),
+            "prefix of {len} bytes refused"
+        );
+    }
+    // The same layer with one count blown up: refused, whichever section it is in.
+    let mut refused = 0;
+    for at in (32..bytes.len().saturating_sub(8)).step_by(8) {
+        let mut b = bytes.clone();
+        b[at..at + 8].copy_from_slice(&(1u64 << 42).to_le_bytes());
+        if crate::load::usdc_check::check(&full, &b).is_err() {
+            refused += 1;
+        }
+    }
+    assert!(refused > 0, "no blown-up count refused");
+}
+
 /// A panic inside the reader (fuzzed binary layer: a token index past the token table) is a
 /// clean error naming the file.
 #[test]

@@ -165,7 +165,7 @@ impl Cell {
             exit = exit.min(ta.max(tb));
             // Most candidates fall outside the first four (the face-normal slab and the
             // walls' mean planes): stop there.
-            if k == 0 && !(enter.max_element() <= exit.min_element()) {
+            if k == 0 && enter.max_element() > exit.min_element() {
                 return None;
             }
         }
