@@ -546,17 +546,18 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
     assert!(check_nesting(&quoted).is_ok());
 }
 
-/// A binary layer whose PATHS section states a 4.4 TB compressed block (fuzzed) made the
-/// reader's allocation fail, which aborts the process; the pre-check refuses it, naming the
-/// file and the section. Every prefix of a valid layer, and the layer itself, passes the
-/// check (`truncated_usdc_prefixes_fail_cleanly` loads them).
+/// Fuzzed binary layers that made the reader's allocation fail, which aborts the process: a
+/// PATHS section stating a 4.4 TB compressed block, an array value of 1.5 × 10¹¹ elements, a
+/// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items. The pre-check refuses
+/// them, naming the file and the section; every prefix of a valid layer, and the layer
+/// itself, passes it (`truncated_usdc_prefixes_fail_cleanly` loads them).
 #[test]
 fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
     let d = dir("huge");
     let p = d.join("huge.usdc");
     std::fs::write(
         &p,
-        include_bytes!("../../../fuzz/known-crashes/usdc-huge-allocation"),
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-compressed-block"),
     )
     .unwrap();
     let e = load_mesh(&p, &MeshOptions::default())
@@ -566,6 +567,42 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         e.contains("huge.usdc") && e.contains("PATHS section") && e.contains("cannot hold"),
         "{e}"
     );
+    // An array value (read per attribute, after open) stating 1.5 × 10¹¹ elements.
+    let p = d.join("array.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-array"),
+    )
+    .unwrap();
+    let e = load_mesh(&p, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("array.usdc") && e.contains("array value") && e.contains("cannot hold"),
+        "{e}"
+    );
+    // A token vector value stating 4.5 × 10¹⁵ entries.
+    let p = d.join("tokens.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-token-vector"),
+    )
+    .unwrap();
+    let e = load_mesh(&p, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("tokens.usdc") && e.contains("entries"), "{e}");
+    // A string list op stating 6.5 × 10¹⁷ items.
+    let p = d.join("listop.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-list-op"),
+    )
+    .unwrap();
+    let e = load_mesh(&p, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("listop.usdc") && e.contains("list op"), "{e}");
     let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
     let full = d.join("full.usdc");
     openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();

@@ -13,8 +13,10 @@
 //! * a plain array's bytes against the bytes left.
 //!
 //! Whatever the walk cannot read (past the end, an older format version) is left to the
-//! reader, which fails on the same read before it allocates. Value arrays read later, per
-//! attribute, are not covered (fuzz/known-crashes and docs/fuzzing.md).
+//! reader, which fails on the same read before it allocates. Array values, read later per
+//! attribute, are checked too: every array rep in FIELDS, its element count against the bytes
+//! after it, and the count-prefixed values (vectors of tokens, strings, paths, dictionaries,
+//! ...) and list ops. Time samples are not.
 
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -93,6 +95,141 @@ impl Walk<'_> {
     }
 }
 
+/// Value types (the crate file's type numbers) stored as a `u64` count and then the entries:
+/// dictionary, path vector, token vector, variant selection map, layer offset vector, string
+/// vector, relocates.
+const COUNTED: [u64; 7] = [31, 40, 41, 45, 49, 50, 58];
+/// The double vector's type number: read like an array of doubles.
+const DOUBLE_VECTOR: u64 = 48;
+
+/// List-op value types and the bytes of one stored item (`0`: items of varying size, read
+/// one by one: only the first list's count is checked): token, string, path, reference, int,
+/// int64, uint, uint64 and payload list ops.
+const LIST_OPS: [(u64, u64); 9] = [
+    (32, 4),
+    (33, 4),
+    (34, 4),
+    (35, 0),
+    (36, 4),
+    (37, 8),
+    (38, 4),
+    (39, 8),
+    (55, 0),
+];
+
+/// A list op at `payload`: a header byte, then each list it flags (explicit, added,
+/// prepended, appended, deleted, ordered: the reader's order) as a `u64` count and the items.
+fn check_list_op(w: &Walk, payload: u64, elem: u64) -> Result<()> {
+    let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
+    let Some(&header) = w.bytes.get(pos) else {
+        return Ok(());
+    };
+    pos += 1;
+    for bit in [1, 2, 5, 6, 3, 4] {
+        if header & (1 << bit) == 0 {
+            continue;
+        }
+        let Some(raw) = pos.checked_add(8).and_then(|end| w.bytes.get(pos..end)) else {
+            return Ok(());
+        };
+        let count = u64::from_le_bytes(raw.try_into().expect("eight bytes"));
+        pos += 8;
+        let left = w.bytes.len().saturating_sub(pos) as u64;
+        if count.saturating_mul(elem.max(1)) > left {
+            return Err(w.corrupt(format!(
+                "has a list op (at byte {payload}) of {count} items with {left} bytes left"
+            )));
+        }
+        if elem == 0 {
+            return Ok(());
+        }
+        pos += (count * elem) as usize;
+    }
+    Ok(())
+}
+
+/// The value reps of the FIELDS section: a compressed block (a chunk-count byte, 0 for one
+/// LZ4 block) of `count` little-endian `u64`s.
+fn value_reps(block: &[u8], count: u64) -> std::result::Result<Vec<u64>, Unreadable> {
+    let (&chunks, data) = block.split_first().ok_or(Unreadable)?;
+    if chunks != 0 {
+        return Err(Unreadable); // the reader does not read chunked blocks
+    }
+    let mut out = vec![0u8; usize::try_from(count.saturating_mul(8)).map_err(|_| Unreadable)?];
+    let n = lz4_flex::block::decompress_into(data, &mut out).map_err(|_| Unreadable)?;
+    Ok(out[..n]
+        .chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().expect("eight bytes")))
+        .collect())
+}
+
+/// An array value (read when an attribute is asked for, not at open): its element count, at
+/// the rep's offset, against what the file holds from there: a byte or more per element
+/// stored plainly, two bits or more per element in a compressed block (ints from version
+/// 0.5.0, floats from 0.6.0, as the reader decides).
+fn check_array(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
+    const ARRAY: u64 = 1 << 63;
+    const INLINED: u64 = 1 << 62;
+    const COMPRESSED: u64 = 1 << 61;
+    let payload = rep & ((1 << 48) - 1);
+    let ty = (rep >> 48) & 0xFF;
+    if rep & INLINED != 0 || payload == 0 {
+        return Ok(());
+    }
+    if rep & ARRAY == 0 && COUNTED.contains(&ty) {
+        // A `u64` count at the offset, then four bytes or more per element.
+        let pos = usize::try_from(payload).unwrap_or(usize::MAX);
+        let Some(raw) = pos.checked_add(8).and_then(|end| w.bytes.get(pos..end)) else {
+            return Ok(());
+        };
+        let count = u64::from_le_bytes(raw.try_into().expect("eight bytes"));
+        let left = w.bytes.len().saturating_sub(pos + 8) as u64;
+        if count > left {
+            return Err(w.corrupt(format!(
+                "has a value (at byte {payload}) of {count} entries with {left} bytes left"
+            )));
+        }
+        return Ok(());
+    }
+    if rep & ARRAY == 0 {
+        if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
+            return check_list_op(w, payload, elem);
+        }
+    }
+    // Arrays, and the double vector that is read as one.
+    if rep & ARRAY == 0 && ty != DOUBLE_VECTOR {
+        return Ok(());
+    }
+    let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
+    if version < (0, 5, 0) {
+        pos = pos.saturating_add(4); // the shape's size
+    }
+    let width = if version < (0, 7, 0) { 4 } else { 8 };
+    let Some(raw) = pos.checked_add(width).and_then(|end| w.bytes.get(pos..end)) else {
+        return Ok(()); // unreadable: the reader fails on the same read
+    };
+    let mut b = [0u8; 8];
+    b[..width].copy_from_slice(raw);
+    let count = u64::from_le_bytes(b);
+    let left = w.bytes.len().saturating_sub(pos + width) as u64;
+    let compressed = rep & COMPRESSED != 0
+        && count >= 4
+        && (((3..=6).contains(&ty) && version >= (0, 5, 0))
+            || ((7..=9).contains(&ty) && version >= (0, 6, 0)));
+    let limit = if compressed {
+        left.saturating_mul(4 * LZ4_MAX_RATIO)
+            .saturating_add(LZ4_SLACK)
+    } else {
+        left
+    };
+    if count > limit {
+        return Err(w.corrupt(format!(
+            "has an array value (at byte {payload}) of {count} elements with {left} bytes left"
+        )));
+    }
+    Ok(())
+}
+
 /// `Err` where a structural count of the crate file `bytes` exceeds what the file can hold.
 pub fn check(path: &Path, bytes: &[u8]) -> Result<()> {
     match walk(path, bytes) {
@@ -165,7 +302,12 @@ fn walk(path: &Path, bytes: &[u8]) -> Result<std::result::Result<(), Unreadable>
                 let count = readable!(w.u64());
                 readable!(w.encoded_ints(count)?);
                 // Then one 8-byte value rep per field, compressed.
+                let block = w.pos + 8;
                 readable!(w.compressed(count.saturating_mul(8))?);
+                let reps = readable!(value_reps(&bytes[block..w.pos], count));
+                for rep in reps {
+                    check_array(&w, version, rep)?;
+                }
             }
             "FIELDSETS" => {
                 let count = readable!(w.u64());
