@@ -213,6 +213,32 @@ fn first_channel_only(path: &Path, requested: Option<&str>, name: &str) -> Resul
     }
 }
 
+/// Deflate's largest ratio of output to input (1032:1), with room for a PNG's chunks.
+const DEFLATE_MAX_RATIO: u64 = 1100;
+
+/// A PNG's pixels come from deflate streams, which expand at most `DEFLATE_MAX_RATIO` times:
+/// a header stating more pixel bytes than the file can expand to is corrupt, and is refused
+/// before the decoder allocates the whole image for it (fuzzed: 2.3 GB from a 95-byte file).
+fn check_png_size(path: &Path, w: u32, h: u32, bytes_per_texel: u64) -> Result<()> {
+    let file = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    let pixels = w as u64 * h as u64 * bytes_per_texel;
+    if pixels
+        > file
+            .saturating_mul(DEFLATE_MAX_RATIO)
+            .saturating_add(1 << 16)
+    {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "the header says {w}x{h} texels ({pixels} bytes of pixels), more than a                  {file}-byte PNG can hold: the file is truncated or corrupt (re-export the map)"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// PNG / TIFF through the `image` crate.
 fn load_raster(
     path: &Path,
@@ -244,8 +270,14 @@ fn load_raster(
             ),
         ),
     };
-    let (w, h) = open()?.into_dimensions().map_err(corrupt)?;
+    let decoder = open()?.into_decoder().map_err(corrupt)?;
+    let (w, h) = ::image::ImageDecoder::dimensions(&decoder);
+    let bytes_per_texel = ::image::ImageDecoder::color_type(&decoder).bytes_per_pixel() as u64;
+    drop(decoder);
     check_dimensions(path, w as usize, h as usize)?;
+    if format == ::image::ImageFormat::Png {
+        check_png_size(path, w, h, bytes_per_texel)?;
+    }
     let image = open()?.decode().map_err(corrupt)?;
     let (w, h) = check_dimensions(path, image.width() as usize, image.height() as usize)?;
 

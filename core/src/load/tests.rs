@@ -637,6 +637,36 @@ fn exr_half_and_float_channels_are_picked_by_name() {
     );
 }
 
+/// A PNG whose header states more pixels than its deflate data can expand to (fuzzed: the
+/// decoder allocated 2.3 GB for a 56-byte file before it failed) is refused before decoding;
+/// the same file with its real size loads.
+#[test]
+fn a_png_header_larger_than_its_data_is_an_error() {
+    let dir = temp_dir("png-huge");
+    let path = dir.join("small.png");
+    image::GrayImage::from_raw(4, 4, vec![7; 16])
+        .unwrap()
+        .save(&path)
+        .unwrap();
+    assert!(load_height_map(&path, &MapOptions::default()).is_ok());
+    // IHDR: 8-byte signature, 4-byte length, "IHDR", width and height, ..., CRC at 29.
+    let mut bytes = std::fs::read(&path).unwrap();
+    assert_eq!(&bytes[12..16], b"IHDR");
+    bytes[16..20].copy_from_slice(&30_000u32.to_be_bytes());
+    bytes[20..24].copy_from_slice(&30_000u32.to_be_bytes());
+    let crc = crc32(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+    let huge = dir.join("huge.png");
+    std::fs::write(&huge, &bytes).unwrap();
+    let e = load_height_map(&huge, &MapOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("huge.png") && e.contains("30000x30000") && e.contains("truncated or corrupt"),
+        "{e}"
+    );
+}
+
 #[test]
 fn png_and_tiff_integers_are_normalised() {
     let dir = temp_dir("png16");
