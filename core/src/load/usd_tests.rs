@@ -554,55 +554,40 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
 #[test]
 fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
     let d = dir("huge");
-    let p = d.join("huge.usdc");
-    std::fs::write(
-        &p,
+    let refused = |name: &str, bytes: &[u8], wants: &[&str]| {
+        let p = d.join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let e = load_mesh(&p, &MeshOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(name), "{e}");
+        for want in wants {
+            assert!(e.contains(want), "{name}: expected '{want}' in: {e}");
+        }
+    };
+    refused(
+        "huge.usdc",
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-compressed-block"),
-    )
-    .unwrap();
-    let e = load_mesh(&p, &MeshOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("huge.usdc") && e.contains("PATHS section") && e.contains("cannot hold"),
-        "{e}"
+        &["PATHS section", "cannot hold"],
     );
     // An array value (read per attribute, after open) stating 1.5 × 10¹¹ elements.
-    let p = d.join("array.usdc");
-    std::fs::write(
-        &p,
+    refused(
+        "array.usdc",
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-array"),
-    )
-    .unwrap();
-    let e = load_mesh(&p, &MeshOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("array.usdc") && e.contains("array value") && e.contains("cannot hold"),
-        "{e}"
+        &["array value", "cannot hold"],
     );
     // A token vector value stating 4.5 × 10¹⁵ entries.
-    let p = d.join("tokens.usdc");
-    std::fs::write(
-        &p,
+    refused(
+        "tokens.usdc",
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-token-vector"),
-    )
-    .unwrap();
-    let e = load_mesh(&p, &MeshOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("tokens.usdc") && e.contains("entries"), "{e}");
+        &["entries"],
+    );
     // A string list op stating 6.5 × 10¹⁷ items.
-    let p = d.join("listop.usdc");
-    std::fs::write(
-        &p,
+    refused(
+        "listop.usdc",
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-list-op"),
-    )
-    .unwrap();
-    let e = load_mesh(&p, &MeshOptions::default())
-        .unwrap_err()
-        .to_string();
-    assert!(e.contains("listop.usdc") && e.contains("list op"), "{e}");
+        &["list op"],
+    );
     let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
     let full = d.join("full.usdc");
     openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();

@@ -38,12 +38,20 @@ struct Walk<'a> {
     section: &'static str,
 }
 
+/// The little-endian count of `width` bytes (4 or 8) at `pos`, and the bytes left after it;
+/// `None` past the end.
+fn count_at(bytes: &[u8], pos: usize, width: usize) -> Option<(u64, u64)> {
+    let end = pos.checked_add(width)?;
+    let mut b = [0u8; 8];
+    b[..width].copy_from_slice(bytes.get(pos..end)?);
+    Some((u64::from_le_bytes(b), (bytes.len() - end) as u64))
+}
+
 impl Walk<'_> {
     fn u64(&mut self) -> std::result::Result<u64, Unreadable> {
-        let end = self.pos.checked_add(8).ok_or(Unreadable)?;
-        let b = self.bytes.get(self.pos..end).ok_or(Unreadable)?;
+        let (v, _) = count_at(self.bytes, self.pos, 8).ok_or(Unreadable)?;
         self.pos += 8;
-        Ok(u64::from_le_bytes(b.try_into().expect("eight bytes")))
+        Ok(v)
     }
 
     fn left(&self) -> u64 {
@@ -129,12 +137,10 @@ fn check_list_op(w: &Walk, payload: u64, elem: u64) -> Result<()> {
         if header & (1 << bit) == 0 {
             continue;
         }
-        let Some(raw) = pos.checked_add(8).and_then(|end| w.bytes.get(pos..end)) else {
+        let Some((count, left)) = count_at(w.bytes, pos, 8) else {
             return Ok(());
         };
-        let count = u64::from_le_bytes(raw.try_into().expect("eight bytes"));
         pos += 8;
-        let left = w.bytes.len().saturating_sub(pos) as u64;
         if count.saturating_mul(elem.max(1)) > left {
             return Err(w.corrupt(format!(
                 "has a list op (at byte {payload}) of {count} items with {left} bytes left"
@@ -163,11 +169,12 @@ fn value_reps(block: &[u8], count: u64) -> std::result::Result<Vec<u64>, Unreada
         .collect())
 }
 
-/// An array value (read when an attribute is asked for, not at open): its element count, at
-/// the rep's offset, against what the file holds from there: a byte or more per element
-/// stored plainly, two bits or more per element in a compressed block (ints from version
-/// 0.5.0, floats from 0.6.0, as the reader decides).
-fn check_array(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
+/// One value (read when an attribute is asked for, not at open): a count-prefixed value or a
+/// list op (`COUNTED`, `LIST_OPS`), or an array: its element count, at the rep's offset,
+/// against what the file holds from there: a byte or more per element stored plainly, two
+/// bits or more per element in a compressed block (ints from version 0.5.0, floats from
+/// 0.6.0, as the reader decides).
+fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
     const ARRAY: u64 = 1 << 63;
     const INLINED: u64 = 1 << 62;
     const COMPRESSED: u64 = 1 << 61;
@@ -176,42 +183,36 @@ fn check_array(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
     if rep & INLINED != 0 || payload == 0 {
         return Ok(());
     }
-    if rep & ARRAY == 0 && COUNTED.contains(&ty) {
-        // A `u64` count at the offset, then four bytes or more per element.
-        let pos = usize::try_from(payload).unwrap_or(usize::MAX);
-        let Some(raw) = pos.checked_add(8).and_then(|end| w.bytes.get(pos..end)) else {
-            return Ok(());
-        };
-        let count = u64::from_le_bytes(raw.try_into().expect("eight bytes"));
-        let left = w.bytes.len().saturating_sub(pos + 8) as u64;
-        if count > left {
-            return Err(w.corrupt(format!(
-                "has a value (at byte {payload}) of {count} entries with {left} bytes left"
-            )));
-        }
-        return Ok(());
-    }
     if rep & ARRAY == 0 {
+        if COUNTED.contains(&ty) {
+            // A `u64` count at the offset, then four bytes or more per element.
+            let pos = usize::try_from(payload).unwrap_or(usize::MAX);
+            let Some((count, left)) = count_at(w.bytes, pos, 8) else {
+                return Ok(());
+            };
+            if count > left {
+                return Err(w.corrupt(format!(
+                    "has a value (at byte {payload}) of {count} entries with {left} bytes left"
+                )));
+            }
+            return Ok(());
+        }
         if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
             return check_list_op(w, payload, elem);
         }
-    }
-    // Arrays, and the double vector that is read as one.
-    if rep & ARRAY == 0 && ty != DOUBLE_VECTOR {
-        return Ok(());
+        // Only the double vector is read as an array.
+        if ty != DOUBLE_VECTOR {
+            return Ok(());
+        }
     }
     let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
     if version < (0, 5, 0) {
         pos = pos.saturating_add(4); // the shape's size
     }
     let width = if version < (0, 7, 0) { 4 } else { 8 };
-    let Some(raw) = pos.checked_add(width).and_then(|end| w.bytes.get(pos..end)) else {
+    let Some((count, left)) = count_at(w.bytes, pos, width) else {
         return Ok(()); // unreadable: the reader fails on the same read
     };
-    let mut b = [0u8; 8];
-    b[..width].copy_from_slice(raw);
-    let count = u64::from_le_bytes(b);
-    let left = w.bytes.len().saturating_sub(pos + width) as u64;
     let compressed = rep & COMPRESSED != 0
         && count >= 4
         && (((3..=6).contains(&ty) && version >= (0, 5, 0))
@@ -306,7 +307,7 @@ fn walk(path: &Path, bytes: &[u8]) -> Result<std::result::Result<(), Unreadable>
                 readable!(w.compressed(count.saturating_mul(8))?);
                 let reps = readable!(value_reps(&bytes[block..w.pos], count));
                 for rep in reps {
-                    check_array(&w, version, rep)?;
+                    check_value(&w, version, rep)?;
                 }
             }
             "FIELDSETS" => {
