@@ -4,8 +4,9 @@
 //! reference's primary hits, and "leak" rays from outside aimed at points just below the
 //! displaced surface (inside a closed object), each clipped at its target so that a method
 //! that misses where the reference hits has let the ray through a hole.
-//! Time covers the camera and secondary rays only (fastest of `repeats`); the leak rays are
-//! traced once, untimed, with the same per-ray seeds as the reference.
+//! Time covers the camera and secondary rays only (fastest of `repeats`, the settings taking
+//! turns: every setting once, then every setting again); the leak rays are traced once,
+//! untimed, with the same per-ray seeds as the reference.
 //! Errors are measured against `reference` (tessellated at `ref_density`): hit/miss mismatch
 //! rate, depth error in world texel sizes of the reference's prism, shading-normal angle.
 
@@ -13,7 +14,7 @@ pub mod plot;
 
 use crate::accel::Scene;
 use crate::render::camera::Camera;
-use crate::render::job::{with_intersector, Method, MethodConfig};
+use crate::render::job::{make_intersector, Method, MethodConfig};
 use crate::rng::{self, Purpose};
 use crate::seam::SeamMode;
 use crate::trace::reference::Reference;
@@ -33,7 +34,7 @@ pub struct BenchConfig {
     pub secondary_rays: usize,
     pub leak_rays: usize,
     pub seed: u32,
-    /// Timed repetitions per setting (the fastest counts).
+    /// Timed repetitions per setting (the fastest counts), interleaved across settings.
     pub repeats: u32,
 }
 
@@ -273,87 +274,128 @@ pub fn run_bench(
     let reference = Reference::new(scene.surface(), cfg.ref_density);
     let set = make_rays(scene, cam, &reference, cfg);
     let truth = trace_all(&reference, &set.rays, cfg.seed);
-    let triangles = scene.table.prisms.len().max(1) as f64;
-    let base_bytes = scene.table.positions.len() * 32 + scene.table.prisms.len() * 12;
     let threads = rayon::current_num_threads() as f64;
-    let mut rows = Vec::new();
-    let mut time_it = |label: &str, method: Method, isect: &dyn Intersector| {
-        // Only the camera (and secondary) rays are timed: the leak rays are a watertightness
-        // test, aimed at the surface from everywhere, and would otherwise dominate the time.
-        let timed = &set.rays[..set.leak_start];
-        let mut best = f64::INFINITY;
-        let mut hits = Vec::new();
-        for _ in 0..cfg.repeats.max(1) {
-            let t = Instant::now();
-            hits = trace_all(isect, timed, cfg.seed);
-            best = best.min(t.elapsed().as_secs_f64());
-        }
-        hits.extend(trace_from(
-            isect,
-            &set.rays[set.leak_start..],
-            set.leak_start,
-            cfg.seed,
-        ));
-        let steps: u64 = hits[..set.leak_start]
-            .iter()
-            .flatten()
-            .map(|h| h.steps as u64)
-            .sum();
-        let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, &set, &hits, &truth);
-        let through = hits[set.leak_start..]
-            .iter()
-            .filter(|h| h.is_none())
-            .count();
-        let rays = timed.len();
-        let memory = isect.memory_bytes()
-            + if method == Method::Reference {
-                0
-            } else {
-                base_bytes
-            };
-        let row = BenchRow {
-            asset: asset.to_string(),
-            method,
-            setting: label.to_string(),
-            seams: scene.seam_mode(),
-            rays,
-            seconds: best,
-            rays_per_s: rays as f64 / best,
-            rays_per_s_per_core: rays as f64 / best / threads,
-            ns_per_ray: best * 1e9 / rays as f64 * threads,
-            steps_per_ray: steps as f64 / rays as f64,
-            mismatch_rate: mismatch,
-            depth_err_median_texels: dmed,
-            depth_err_p99_texels: dp99,
-            normal_err_median_deg: nmed,
-            normal_err_p99_deg: np99,
-            leak_rays: set.rays.len() - set.leak_start,
-            leaks,
-            through,
-            memory_bytes: memory,
-            bytes_per_triangle: memory as f64 / triangles,
-        };
-        log(&format!(
-            "{asset}: {} {label} (seams {}): {:.2} Mrays/s, depth err median {:.4} texels",
-            method_name(method),
-            scene.seam_mode().name(),
-            row.rays_per_s / 1e6,
-            dmed
-        ));
-        rows.push(row);
-    };
-    time_it(
-        &format!("k={}", cfg.ref_density),
+    // Every setting's intersector is built up front and the timed repetitions take turns
+    // (setting 1, 2, …, then 1, 2, … again), so that a machine that speeds up or slows down
+    // during the run shifts every method alike and the ratios between them hold.
+    let built: Vec<(&str, Method, Box<dyn Intersector + '_>)> = cfg
+        .settings
+        .iter()
+        .filter(|(_, mc)| mc.method != Method::Reference)
+        .map(|(label, mc)| (label.as_str(), mc.method, make_intersector(mc, scene)))
+        .collect();
+    let ref_label = format!("k={}", cfg.ref_density);
+    let runs: Vec<(&str, Method, &dyn Intersector)> = std::iter::once((
+        ref_label.as_str(),
         Method::Reference,
-        &reference,
-    );
-    for (label, mc) in &cfg.settings {
-        if mc.method == Method::Reference {
-            continue;
+        &reference as &dyn Intersector,
+    ))
+    .chain(built.iter().map(|(l, m, b)| (*l, *m, b.as_ref())))
+    .collect();
+    // Only the camera (and secondary) rays are timed: the leak rays are a watertightness
+    // test, aimed at the surface from everywhere, and would otherwise dominate the time.
+    let timed = &set.rays[..set.leak_start];
+    let mut rows: Vec<BenchRow> = Vec::with_capacity(runs.len());
+    for rep in 0..cfg.repeats.max(1) {
+        for (i, &(label, method, isect)) in runs.iter().enumerate() {
+            let t = Instant::now();
+            let hits = trace_all(isect, timed, cfg.seed);
+            let seconds = t.elapsed().as_secs_f64();
+            if rep > 0 {
+                let best = seconds.min(rows[i].seconds);
+                rows[i].set_time(best, threads);
+                continue;
+            }
+            let mut row = measure(scene, &set, cfg, asset, label, method, isect, hits, &truth);
+            row.set_time(seconds, threads);
+            rows.push(row);
         }
-        with_intersector(mc, scene, |isect| time_it(label, mc.method, isect));
+    }
+    for r in &rows {
+        log(&format!(
+            "{asset}: {} {} (seams {}): {:.2} Mrays/s, depth err median {:.4} texels",
+            method_name(r.method),
+            r.setting,
+            r.seams.name(),
+            r.rays_per_s / 1e6,
+            r.depth_err_median_texels
+        ));
     }
     rows
+}
+
+/// One setting's row from its hits on the timed rays (the leak rays are traced here): errors,
+/// leaks, steps and memory; the time is set by the caller.
+#[allow(clippy::too_many_arguments)]
+fn measure(
+    scene: &Scene,
+    set: &RaySet,
+    cfg: &BenchConfig,
+    asset: &str,
+    label: &str,
+    method: Method,
+    isect: &dyn Intersector,
+    mut hits: Vec<Option<Hit>>,
+    truth: &[Option<Hit>],
+) -> BenchRow {
+    let triangles = scene.table.prisms.len().max(1) as f64;
+    let base_bytes = scene.table.positions.len() * 32 + scene.table.prisms.len() * 12;
+    hits.extend(trace_from(
+        isect,
+        &set.rays[set.leak_start..],
+        set.leak_start,
+        cfg.seed,
+    ));
+    let steps: u64 = hits[..set.leak_start]
+        .iter()
+        .flatten()
+        .map(|h| h.steps as u64)
+        .sum();
+    let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, set, &hits, truth);
+    let through = hits[set.leak_start..]
+        .iter()
+        .filter(|h| h.is_none())
+        .count();
+    let rays = set.leak_start;
+    let memory = isect.memory_bytes()
+        + if method == Method::Reference {
+            0
+        } else {
+            base_bytes
+        };
+    BenchRow {
+        asset: asset.to_string(),
+        method,
+        setting: label.to_string(),
+        seams: scene.seam_mode(),
+        rays,
+        seconds: f64::NAN,
+        rays_per_s: f64::NAN,
+        rays_per_s_per_core: f64::NAN,
+        ns_per_ray: f64::NAN,
+        steps_per_ray: steps as f64 / rays as f64,
+        mismatch_rate: mismatch,
+        depth_err_median_texels: dmed,
+        depth_err_p99_texels: dp99,
+        normal_err_median_deg: nmed,
+        normal_err_p99_deg: np99,
+        leak_rays: set.rays.len() - set.leak_start,
+        leaks,
+        through,
+        memory_bytes: memory,
+        bytes_per_triangle: memory as f64 / triangles,
+    }
+}
+
+impl BenchRow {
+    /// The timed rays took `seconds` on `threads` threads.
+    fn set_time(&mut self, seconds: f64, threads: f64) {
+        let rays = self.rays as f64;
+        self.seconds = seconds;
+        self.rays_per_s = rays / seconds;
+        self.rays_per_s_per_core = rays / seconds / threads;
+        self.ns_per_ray = seconds * 1e9 / rays * threads;
+    }
 }
 
 pub fn method_name(m: Method) -> String {

@@ -274,14 +274,10 @@ pub struct RenderSummary {
     pub files: Vec<PathBuf>,
 }
 
-/// Build the intersector a config names and call `f` with it.
-pub fn with_intersector<R>(
-    cfg: &MethodConfig,
-    scene: &Scene,
-    f: impl FnOnce(&dyn Intersector) -> R,
-) -> R {
+/// The intersector a config names, built over `scene`.
+pub fn make_intersector<'s>(cfg: &MethodConfig, scene: &'s Scene) -> Box<dyn Intersector + 's> {
     match cfg.method {
-        Method::Pdm => f(&Pdm::new(
+        Method::Pdm => Box::new(Pdm::new(
             scene,
             PdmOptions {
                 normal_mode: cfg.normal_mode,
@@ -291,16 +287,16 @@ pub fn with_intersector<R>(
         Method::Reference => {
             let mut r = Reference::new(scene.surface(), cfg.ref_density);
             r.normal_mode = cfg.normal_mode;
-            f(&r)
+            Box::new(r)
         }
-        Method::Nonlinear => f(&Nonlinear::new(
+        Method::Nonlinear => Box::new(Nonlinear::new(
             scene,
             NonlinearOptions {
                 normal_mode: cfg.normal_mode,
                 ..cfg.nonlinear
             },
         )),
-        Method::Rmip => f(&Rmip::new(
+        Method::Rmip => Box::new(Rmip::new(
             scene,
             RmipOptions {
                 normal_mode: cfg.normal_mode,
@@ -308,6 +304,15 @@ pub fn with_intersector<R>(
             },
         )),
     }
+}
+
+/// Build the intersector a config names and call `f` with it.
+pub fn with_intersector<R>(
+    cfg: &MethodConfig,
+    scene: &Scene,
+    f: impl FnOnce(&dyn Intersector) -> R,
+) -> R {
+    f(make_intersector(cfg, scene).as_ref())
 }
 
 /// Run the job; `progress(frame_index, rows_done)` reports progress.
