@@ -22,8 +22,9 @@ use obvhs::bvh2::builder::build_bvh2;
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
+use obvhs::faststack::FastStack;
 use obvhs::ray::RayHit;
-use obvhs::BvhBuildParams;
+use obvhs::{fast_stack, BvhBuildParams};
 use std::time::Duration;
 
 /// Relative padding of every prism box (fraction of its diagonal).
@@ -178,6 +179,116 @@ impl BoxBvh {
         best
     }
 
+    /// Closest hit over items whose test has a cheap first phase and a costly second one.
+    /// `enter(ray, item, t_leaf)` is the first: where along the ray the full test would start
+    /// (at least `t_leaf`, the entry of the leaf box that holds the item) and what it needs, or
+    /// `None` to reject the item; `finish(ray, item, state)` is the full test, the ray clipped
+    /// to the best hit so far. Entered items wait in a short list sorted by their start, and
+    /// each is finished once the walk pops a node whose box the ray enters after the item
+    /// starts: nearly front to back by start, and an item that starts beyond the best hit is
+    /// never finished. obvhs's walks (`closest_hit`) finish every item as they reach its leaf,
+    /// in the order of the leaves' boxes, so an item whose box the ray enters early but whose
+    /// own interval starts late ran in full before a nearer one ended the ray. Popped nodes
+    /// are skipped once a hit is nearer than their box.
+    ///
+    /// Waiting until no node at all is left nearer than the item (the least entry of the whole
+    /// stack, an exact front-to-back order) was measured too and is slower: the hits that
+    /// shorten the ray come later, and more of the hierarchy is walked before them (PDM's
+    /// instructions at 128²: sphere 75.1M → 79.9M, torus 33.1M → 35.8M, rock 46.3M → 52.9M).
+    ///
+    /// The wide hierarchy finishes each item as its leaf is reached (`closest_hit`).
+    #[inline]
+    pub fn closest_hit_ordered<S, E, F>(
+        &self,
+        ray: &Ray,
+        mut enter: E,
+        mut finish: F,
+    ) -> Option<Hit>
+    where
+        S: Copy,
+        E: FnMut(&Ray, u32, f32) -> Option<(f32, S)>,
+        F: FnMut(&Ray, u32, S) -> Option<Hit>,
+    {
+        let b = match self.bvh.as_ref()? {
+            Bvh::Binary(b) => b,
+            Bvh::Wide(_) => {
+                return self.closest_hit(ray, |r, item| {
+                    let (_, state) = enter(r, item, r.t_min)?;
+                    finish(r, item, state)
+                })
+            }
+        };
+        let nodes = &b.nodes;
+        let oray = to_obvhs(ray);
+        let mut best: Option<Hit> = None;
+        let mut clipped = *ray;
+        let mut waiting = Waiting::<S>::new();
+        // Finish one waiting item: the hit, if nearer, ends the ray there.
+        let mut run = |clipped: &mut Ray, best: &mut Option<Hit>, item: u32, state: S| {
+            if let Some(h) = finish(clipped, item, state) {
+                if h.t < clipped.t_max {
+                    clipped.t_max = h.t;
+                    *best = Some(h);
+                }
+            }
+        };
+        let t_root = nodes.first()?.aabb().intersect_ray(&oray);
+        if t_root >= ray.t_max {
+            return None;
+        }
+        fast_stack!((u32, f32), (96, 192), b.max_depth, stack, {
+            // The node to visit and where the ray enters its box; the farther child of each
+            // inner node waits on the stack (with its entry, so that it is skipped if a hit
+            // has come nearer by the time it is popped).
+            let mut current = (0u32, t_root);
+            loop {
+                let (index, t_node) = current;
+                while let Some((item, state)) = waiting.pop_before(t_node.min(clipped.t_max)) {
+                    run(&mut clipped, &mut best, item, state);
+                }
+                let mut next = None;
+                if t_node < clipped.t_max {
+                    let node = &nodes[index as usize];
+                    if node.is_leaf() {
+                        let first = node.first_index as usize;
+                        let items = &b.primitive_indices[first..first + node.prim_count as usize];
+                        for &item in items {
+                            if let Some((t0, state)) = enter(&clipped, item, t_node) {
+                                if t0 < clipped.t_max {
+                                    if let Some((i, s)) = waiting.insert(t0, item, state) {
+                                        run(&mut clipped, &mut best, i, s);
+                                    }
+                                }
+                            }
+                        }
+                    } else {
+                        let (l, r) = (node.first_index, node.first_index + 1);
+                        let tl = nodes[l as usize].aabb().intersect_ray(&oray);
+                        let tr = nodes[r as usize].aabb().intersect_ray(&oray);
+                        let (mut near, mut far) = ((l, tl), (r, tr));
+                        if tr < tl {
+                            std::mem::swap(&mut near, &mut far);
+                        }
+                        if near.1 < clipped.t_max {
+                            next = Some(near);
+                            if far.1 < clipped.t_max {
+                                stack.push(far);
+                            }
+                        }
+                    }
+                }
+                match next.or_else(|| stack.pop()) {
+                    Some(n) => current = n,
+                    None => break,
+                }
+            }
+        });
+        while let Some((item, state)) = waiting.pop_before(clipped.t_max) {
+            run(&mut clipped, &mut best, item, state);
+        }
+        best
+    }
+
     /// Whether `f` reports a hit for any candidate item (shadow rays); stops at the first.
     pub fn any_hit<F: FnMut(&Ray, u32) -> bool>(&self, ray: &Ray, mut f: F) -> bool {
         let Some(bvh) = self.bvh.as_ref() else {
@@ -302,6 +413,55 @@ impl Scene {
     /// Whether any prism reports a hit (shadow rays); stops at the first.
     pub fn any_hit<F: FnMut(&Ray, u32) -> bool>(&self, ray: &Ray, f: F) -> bool {
         self.bvh.any_hit(ray, f)
+    }
+}
+
+/// Entered items waiting to be finished (`BoxBvh::closest_hit_ordered`), nearest start first.
+struct Waiting<S> {
+    items: [(f32, u32, Option<S>); WAITING],
+    len: usize,
+}
+
+/// Items that may wait at once; when the list is full the nearest is finished to make room.
+const WAITING: usize = 8;
+
+impl<S: Copy> Waiting<S> {
+    fn new() -> Self {
+        Waiting {
+            items: [(0.0, 0, None); WAITING],
+            len: 0,
+        }
+    }
+
+    /// Add an item that starts at `t0`; if the list was full, the nearest item comes back to be
+    /// finished now.
+    #[inline]
+    fn insert(&mut self, t0: f32, item: u32, state: S) -> Option<(u32, S)> {
+        let out = if self.len == WAITING {
+            self.pop_before(f32::INFINITY)
+        } else {
+            None
+        };
+        let mut i = self.len;
+        while i > 0 && self.items[i - 1].0 > t0 {
+            self.items[i] = self.items[i - 1];
+            i -= 1;
+        }
+        self.items[i] = (t0, item, Some(state));
+        self.len += 1;
+        out
+    }
+
+    /// The nearest waiting item, if it starts at or before `t`.
+    #[inline]
+    fn pop_before(&mut self, t: f32) -> Option<(u32, S)> {
+        if self.len == 0 || self.items[0].0 > t {
+            return None;
+        }
+        let (_, item, state) = self.items[0];
+        self.items.copy_within(1..self.len, 0);
+        self.len -= 1;
+        Some((item, state?))
     }
 }
 
@@ -454,6 +614,34 @@ mod tests {
         Scene::with_bvh(table, map, kind)
     }
 
+    /// A stand-in intersector: the prism's base triangle.
+    fn base_triangle_hit(s: &Scene, ray: &Ray, prism: u32) -> Option<Hit> {
+        let g = PrismGeom::new(&s.table, &s.table.prisms[prism as usize]);
+        let (e1, e2) = (g.v[1] - g.v[0], g.v[2] - g.v[0]);
+        let p = ray.dir.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-12 {
+            return None;
+        }
+        let tv = ray.origin - g.v[0];
+        let b1 = tv.dot(p) / det;
+        let q = tv.cross(e1);
+        let b2 = ray.dir.dot(q) / det;
+        let t = e2.dot(q) / det;
+        (b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0 && t >= ray.t_min && t <= ray.t_max).then(|| {
+            Hit {
+                t,
+                prism,
+                bary: Vec3::new(1.0 - b1 - b2, b1, b2),
+                uv: Default::default(),
+                position: ray.at(t),
+                geometric_normal: Vec3::Z,
+                shading_normal: Vec3::Z,
+                steps: 0,
+            }
+        })
+    }
+
     #[test]
     fn both_hierarchies_validate() {
         // obvhs's own validation: every node bounds its children and prisms, every prism is
@@ -469,32 +657,7 @@ mod tests {
     fn traversal_finds_the_closest_box_hit_like_brute_force() {
         // A stand-in intersector: the prism's base triangle. The traversal must agree with a
         // loop over all prisms, for both hierarchies.
-        let tri_hit = |s: &Scene, ray: &Ray, prism: u32| -> Option<Hit> {
-            let g = PrismGeom::new(&s.table, &s.table.prisms[prism as usize]);
-            let (e1, e2) = (g.v[1] - g.v[0], g.v[2] - g.v[0]);
-            let p = ray.dir.cross(e2);
-            let det = e1.dot(p);
-            if det.abs() < 1e-12 {
-                return None;
-            }
-            let tv = ray.origin - g.v[0];
-            let b1 = tv.dot(p) / det;
-            let q = tv.cross(e1);
-            let b2 = ray.dir.dot(q) / det;
-            let t = e2.dot(q) / det;
-            (b1 >= 0.0 && b2 >= 0.0 && b1 + b2 <= 1.0 && t >= ray.t_min && t <= ray.t_max).then(
-                || Hit {
-                    t,
-                    prism,
-                    bary: Vec3::new(1.0 - b1 - b2, b1, b2),
-                    uv: Default::default(),
-                    position: ray.at(t),
-                    geometric_normal: Vec3::Z,
-                    shading_normal: Vec3::Z,
-                    steps: 0,
-                },
-            )
-        };
+        let tri_hit = base_triangle_hit;
         for kind in [BvhKind::Binary, BvhKind::Wide] {
             let s = scene(kind);
             let mut h = 7u32;
@@ -515,6 +678,66 @@ mod tests {
                     s.any_hit(&ray, |ray, p| tri_hit(&s, ray, p).is_some()),
                     want.is_some()
                 );
+            }
+        }
+    }
+
+    // Breaks if the ordered walk finished items in the order of their leaves (as obvhs's walk
+    // does), finished one that starts beyond the best hit, or lost the closest hit.
+    #[test]
+    fn ordered_traversal_finishes_front_to_back_and_stops_at_the_hit() {
+        for kind in [BvhKind::Binary, BvhKind::Wide] {
+            let s = scene(kind);
+            let mut h = 11u32;
+            let (mut finished, mut hits, mut unordered) = (0, 0, 0);
+            for _ in 0..500 {
+                let mut r = || {
+                    h = crate::rng::pcg_hash(h);
+                    crate::rng::to_unit_float(h) * 2.0 - 1.0
+                };
+                let o = Vec3::new(r(), r(), r()).normalize() * 3.0;
+                let target = Vec3::new(r(), r(), r()) * 0.9;
+                let ray = Ray::new(o, (target - o).normalize());
+                let want = (0..s.table.prisms.len() as u32)
+                    .filter_map(|p| base_triangle_hit(&s, &ray, p))
+                    .min_by(|a, b| a.t.total_cmp(&b.t));
+                // Each item starts exactly at its hit: the nearest is nearly always finished
+                // first, and then no other (the closed sphere's far side starts beyond it).
+                let mut n = 0;
+                let got = s.bvh.closest_hit_ordered(
+                    &ray,
+                    |r, p, t_leaf| {
+                        let hit = base_triangle_hit(&s, r, p)?;
+                        assert!(hit.t >= t_leaf - 1e-4, "{} before its leaf {t_leaf}", hit.t);
+                        Some((hit.t, hit))
+                    },
+                    |r, _, hit| {
+                        assert!(hit.t < r.t_max, "finished beyond the best hit");
+                        n += 1;
+                        Some(hit)
+                    },
+                );
+                assert_eq!(got.map(|h| h.prism), want.map(|h| h.prism), "{kind:?}");
+                finished += n;
+                hits += want.is_some() as usize;
+                // The same items in the leaves' order (`closest_hit`): every item reached that
+                // the (clipped) ray hits is a full test.
+                s.closest_hit(&ray, |r, p| {
+                    let hit = base_triangle_hit(&s, r, p);
+                    unordered += hit.is_some() as usize;
+                    hit
+                });
+            }
+            assert!(hits > 100, "{hits}");
+            eprintln!(
+                "{kind:?}: {finished} items finished for {hits} hits ({unordered} unordered)"
+            );
+            if kind == BvhKind::Binary {
+                assert!(
+                    finished * 100 <= hits * 105,
+                    "{finished} finished for {hits} hits"
+                );
+                assert!(finished < unordered, "{finished} vs {unordered}");
             }
         }
     }

@@ -452,24 +452,34 @@ impl<'a> Pdm<'a> {
         self.intersect_part(ray, ctx, prism, None, steps)
     }
 
-    /// `intersect_prism` over the part of the prism in `cell` (the whole prism if `None`).
+    /// A candidate cell's first test: the part of the ray inside its slabs (`Some(None)` for a
+    /// cell that is its whole prism, `None` if the ray misses the slabs). They reject most
+    /// candidates before the prism is set up.
+    #[inline]
+    fn cell_slabs(&self, c: &Cell, ray: &Ray) -> Option<Option<(f32, f32)>> {
+        if c.whole {
+            return Some(None);
+        }
+        let origin = self.frames[c.prism as usize].origin;
+        Some(Some(c.clip(
+            ray.origin - origin,
+            ray.dir,
+            ray.t_min,
+            ray.t_max,
+        )?))
+    }
+
+    /// `intersect_prism` over the part of the ray in a cell's slabs (`cell_slabs`; the whole
+    /// prism if `None`).
     fn intersect_part(
         &self,
         ray: &Ray,
         ctx: &RayContext,
         prism: u32,
-        cell: Option<&Cell>,
+        slabs: Option<(f32, f32)>,
         steps: &mut u32,
     ) -> Option<Hit> {
         let p = &self.scene.table.prisms[prism as usize];
-        // A split cell's slabs first: they reject most candidates before the prism is set up.
-        let slabs = match cell {
-            Some(c) if !c.whole => {
-                let origin = self.frames[prism as usize].origin;
-                Some(c.clip(ray.origin - origin, ray.dir, ray.t_min, ray.t_max)?)
-            }
-            _ => None,
-        };
         let frame = &self.frames[prism as usize];
         let local = Local::new(self.scene, frame, prism);
         let ro = ray.origin - local.f.origin;
@@ -1173,6 +1183,45 @@ impl<'a> Pdm<'a> {
     }
 }
 
+/// The part of a ray already marched in one prism (`[start, end]`, the latest prism whose cell
+/// was marched). A cell's march detects every crossing of its *parent prism's* surface along
+/// the part of the ray it covers (samples anywhere in the triangle count; `trace::cells`), so a
+/// later cell of the same prism need only march what is left of its interval. Cells are
+/// finished nearly front to back (`BoxBvh::closest_hit_ordered`), where the cells of a prism
+/// that a ray crosses come one after another and their slab intervals overlap.
+struct Covered {
+    prism: u32,
+    start: f32,
+    end: f32,
+}
+
+impl Covered {
+    const NONE: Covered = Covered {
+        prism: u32::MAX,
+        start: 0.0,
+        end: 0.0,
+    };
+
+    /// What of the interval `[t0, t1]` of a cell of `prism` is still to march (`None`:
+    /// nothing), recording that it will have been marched.
+    #[inline]
+    fn rest(&mut self, prism: u32, t0: f32, t1: f32) -> Option<(f32, f32)> {
+        if prism == self.prism && t0 >= self.start && t0 <= self.end {
+            if t1 <= self.end {
+                return None;
+            }
+            self.end = t1;
+            return Some((t0, t1));
+        }
+        *self = Covered {
+            prism,
+            start: t0,
+            end: t1,
+        };
+        Some((t0, t1))
+    }
+}
+
 impl Intersector for Pdm<'_> {
     fn name(&self) -> &'static str {
         "pdm"
@@ -1181,10 +1230,26 @@ impl Intersector for Pdm<'_> {
     fn intersect(&self, ray: &Ray, ctx: &RayContext) -> Option<Hit> {
         let mut steps = 0;
         let mut hit = match &self.cells {
-            Some(cells) => cells.bvh().closest_hit(ray, |r, i| {
-                let c = &cells.cells[i as usize];
-                self.intersect_part(r, ctx, c.prism, Some(c), &mut steps)
-            }),
+            // Cells are marched front to back by where the ray enters their slabs.
+            Some(cells) => {
+                let mut covered = Covered::NONE;
+                cells.bvh().closest_hit_ordered(
+                    ray,
+                    |r, i, t_leaf| {
+                        let slabs = self.cell_slabs(&cells.cells[i as usize], r)?;
+                        Some((slabs.map_or(t_leaf, |s| s.0), slabs))
+                    },
+                    |r, i, slabs| {
+                        let c = &cells.cells[i as usize];
+                        // The best hit may have come nearer since the cell was entered.
+                        let slabs = match slabs {
+                            Some((t0, t1)) => Some(covered.rest(c.prism, t0, t1.min(r.t_max))?),
+                            None => None,
+                        };
+                        self.intersect_part(r, ctx, c.prism, slabs, &mut steps)
+                    },
+                )
+            }
             None => self.scene.closest_hit(ray, |r, prism| {
                 self.intersect_prism(r, ctx, prism, &mut steps)
             }),
@@ -1199,8 +1264,10 @@ impl Intersector for Pdm<'_> {
         match &self.cells {
             Some(cells) => cells.bvh().any_hit(ray, |r, i| {
                 let c = &cells.cells[i as usize];
-                self.intersect_part(r, ctx, c.prism, Some(c), &mut steps)
-                    .is_some()
+                self.cell_slabs(c, r).is_some_and(|slabs| {
+                    self.intersect_part(r, ctx, c.prism, slabs, &mut steps)
+                        .is_some()
+                })
             }),
             None => self.scene.any_hit(ray, |r, prism| {
                 self.intersect_prism(r, ctx, prism, &mut steps).is_some()
