@@ -115,6 +115,19 @@ impl BoxBvh {
         self.kind
     }
 
+    /// Number the items in the order the leaves hold them: returns, per new number, the item's
+    /// old one (`order[new] = old`), for the caller to reorder its records alike. A leaf's
+    /// items are then next to each other in memory, and nearby leaves' mostly too.
+    pub fn into_leaf_order(&mut self) -> Vec<u32> {
+        let indices = match &mut self.bvh {
+            None => return Vec::new(),
+            Some(Bvh::Binary(b)) => &mut b.primitive_indices,
+            Some(Bvh::Wide(b)) => &mut b.primitive_indices,
+        };
+        let identity = (0..indices.len() as u32).collect();
+        std::mem::replace(indices, identity)
+    }
+
     /// Bytes of the hierarchy: nodes plus the leaf-to-item index list.
     pub fn bytes(&self) -> usize {
         match &self.bvh {
@@ -232,7 +245,8 @@ impl BoxBvh {
                 }
             }
         };
-        let t_root = nodes.first()?.aabb().intersect_ray(&oray);
+        let root = nodes.first()?;
+        let t_root = root.aabb().intersect_ray(&oray);
         if t_root >= ray.t_max {
             return None;
         }
@@ -240,15 +254,14 @@ impl BoxBvh {
             // The node to visit and where the ray enters its box; the farther child of each
             // inner node waits on the stack (with its entry, so that it is skipped if a hit
             // has come nearer by the time it is popped).
-            let mut current = (0u32, t_root);
+            let mut current = (root, t_root);
             loop {
-                let (index, t_node) = current;
+                let (node, t_node) = current;
                 while let Some((item, state)) = waiting.pop_before(t_node.min(clipped.t_max)) {
                     run(&mut clipped, &mut best, item, state);
                 }
                 let mut next = None;
                 if t_node < clipped.t_max {
-                    let node = &nodes[index as usize];
                     if node.is_leaf() {
                         let first = node.first_index as usize;
                         let items = &b.primitive_indices[first..first + node.prim_count as usize];
@@ -262,12 +275,14 @@ impl BoxBvh {
                             }
                         }
                     } else {
-                        let (l, r) = (node.first_index, node.first_index + 1);
-                        let tl = nodes[l as usize].aabb().intersect_ray(&oray);
-                        let tr = nodes[r as usize].aabb().intersect_ray(&oray);
-                        let (mut near, mut far) = ((l, tl), (r, tr));
+                        let l = node.first_index as usize;
+                        let pair = &nodes[l..l + 2];
+                        let tl = pair[0].aabb().intersect_ray(&oray);
+                        let tr = pair[1].aabb().intersect_ray(&oray);
+                        let (mut near, mut far) = ((&pair[0], tl), (l as u32 + 1, tr));
                         if tr < tl {
-                            std::mem::swap(&mut near, &mut far);
+                            near = (&pair[1], tr);
+                            far = (l as u32, tl);
                         }
                         if near.1 < clipped.t_max {
                             next = Some(near);
@@ -277,10 +292,13 @@ impl BoxBvh {
                         }
                     }
                 }
-                match next.or_else(|| stack.pop()) {
-                    Some(n) => current = n,
-                    None => break,
-                }
+                current = match next {
+                    Some(n) => n,
+                    None => match stack.pop() {
+                        Some((i, t)) => (&nodes[i as usize], t),
+                        None => break,
+                    },
+                };
             }
         });
         while let Some((item, state)) = waiting.pop_before(clipped.t_max) {

@@ -401,9 +401,15 @@ impl Cells {
             .flat_map_iter(|i| prism_cells(table, map, stitch, i))
             .collect();
         let aabbs: Vec<Aabb> = bounds.par_iter().map(|c| c.aabb(table)).collect();
+        let mut bvh = BoxBvh::build(&aabbs, BvhKind::default());
+        // Records in leaf order: the cells a ray tests one after another sit together.
+        let order = bvh.into_leaf_order();
         Cells {
-            bvh: BoxBvh::build(&aabbs, BvhKind::default()),
-            cells: bounds.par_iter().map(|c| c.cell(table)).collect(),
+            bvh,
+            cells: order
+                .par_iter()
+                .map(|&i| bounds[i as usize].cell(table))
+                .collect(),
         }
     }
 
