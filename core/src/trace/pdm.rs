@@ -40,7 +40,11 @@
 //!   only the part of the ray in its own λ range, with the parent prism's exact level cubic
 //!   (`march_shared_wall`; whole prisms with `cells: false`). Where the ray crosses the
 //!   triangle's boundary between two samples a sample just outside it is added
-//!   (`cross_boundary`), so a cell's interval (a superset) cannot step over a wall.
+//!   (`cross_boundary`), so a cell's interval (a superset) cannot step over a wall. Cells are
+//!   marched nearly front to back by where the ray enters their slabs
+//!   (`accel::BoxBvh::closest_hit_ordered`), so one that starts beyond the hit is not
+//!   marched, and a cell whose interval an earlier march in its prism already covered is
+//!   skipped (`Covered`).
 //! * Normals come from the analytic derivative of the canonical surface
 //!   (`canonical::surface_point`), not the paper's finite differences; the smoothed normal is
 //!   the paper's `N's = N_s − N_g + N'` (§5.1).
@@ -1305,6 +1309,24 @@ mod tests {
             bounce: 0,
             seed: 0,
         }
+    }
+
+    // Breaks if a cell were skipped that starts before the covered part, or belongs to another
+    // prism, or reaches past it.
+    #[test]
+    fn covered_skips_only_cells_inside_an_earlier_march_of_their_prism() {
+        let mut c = Covered::NONE;
+        assert_eq!(c.rest(3, 1.0, 2.0), Some((1.0, 2.0)));
+        assert_eq!(c.rest(3, 1.2, 1.9), None, "inside [1, 2] of prism 3");
+        assert_eq!(c.rest(3, 1.5, 2.5), Some((1.5, 2.5)), "reaches past 2");
+        assert_eq!(c.rest(3, 2.0, 2.4), None, "inside [1, 2.5] now");
+        assert_eq!(c.rest(3, 0.5, 1.5), Some((0.5, 1.5)), "starts before 1");
+        assert_eq!(c.rest(4, 0.6, 1.0), Some((0.6, 1.0)), "another prism");
+        assert_eq!(
+            c.rest(3, 0.7, 0.9),
+            Some((0.7, 0.9)),
+            "prism 3 again, its record gone"
+        );
     }
 
     fn rays_through_centre(n: usize, size: f32, seed: u32) -> Vec<Ray> {
