@@ -610,6 +610,57 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
     assert!(refused > 0, "no blown-up count refused");
 }
 
+/// An attribute without a default is read at its first time sample, so time samples are read
+/// too: their times array (a value of its own) states the count the reader allocates for. A
+/// binary layer whose points are time samples loads; with the times' count blown up to 2⁴² it
+/// is refused before the reader allocates 35 TB (which would abort).
+#[test]
+fn time_samples_with_a_huge_times_array_are_an_error_not_an_abort() {
+    let d = dir("samples");
+    let text = layer(
+        "Y",
+        "def Mesh \"M\" {\n    int[] faceVertexCounts = [3]\n    int[] faceVertexIndices = [0, 1, 2]\n    \
+         point3f[] points.timeSamples = {\n        1.5: [(0, 0, 0), (1, 0, 0), (0, 1, 0)],\n        \
+         2.5: [(0, 0, 0), (2, 0, 0), (0, 2, 0)],\n    }\n    texCoord2f[] primvars:st = [(0, 0), \
+         (1, 0), (0, 1)] (interpolation = \"vertex\")\n}\n",
+    );
+    let data = openusd::usda::parse(&text).unwrap();
+    let full = d.join("samples.usdc");
+    openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();
+    let m = load_mesh(&full, &MeshOptions::default()).expect("the first sample loads");
+    assert_eq!(m.triangle_count(), 1);
+    assert_eq!(m.positions[1], glam::Vec3::X, "the first sample's points");
+    let bytes = std::fs::read(&full).unwrap();
+    for len in 0..=bytes.len() {
+        assert!(
+            crate::load::usdc_check::check(&full, &bytes[..len]).is_ok(),
+            "prefix of {len} bytes refused"
+        );
+    }
+    // The times [1.5, 2.5], stored after their count.
+    let times: Vec<u8> = [1.5f64, 2.5].iter().flat_map(|t| t.to_le_bytes()).collect();
+    let at = bytes
+        .windows(16)
+        .position(|w| w == times)
+        .expect("the times array");
+    let mut b = bytes.clone();
+    if b[at - 8..at] == 2u64.to_le_bytes() {
+        b[at - 8..at].copy_from_slice(&(1u64 << 42).to_le_bytes());
+    } else {
+        assert_eq!(b[at - 4..at], 2u32.to_le_bytes(), "the times' count");
+        b[at - 4..at].copy_from_slice(&u32::MAX.to_le_bytes());
+    }
+    let p = d.join("huge-times.usdc");
+    std::fs::write(&p, &b).unwrap();
+    let e = load_mesh(&p, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("huge-times.usdc") && e.contains("array value") && e.contains("cannot hold"),
+        "{e}"
+    );
+}
+
 /// A panic inside the reader (fuzzed binary layer: a token index past the token table) is a
 /// clean error naming the file.
 #[test]

@@ -16,7 +16,8 @@
 //! reader, which fails on the same read before it allocates. Array values, read later per
 //! attribute, are checked too: every array rep in FIELDS, its element count against the bytes
 //! after it, and the count-prefixed values (vectors of tokens, strings, paths, dictionaries,
-//! ...) and list ops. Time samples are not.
+//! ...) and list ops, and time samples: their times array and each sample's value as values of
+//! their own.
 
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -109,6 +110,8 @@ impl Walk<'_> {
 const COUNTED: [u64; 7] = [31, 40, 41, 45, 49, 50, 58];
 /// The double vector's type number: read like an array of doubles.
 const DOUBLE_VECTOR: u64 = 48;
+/// The time samples' type number.
+const TIME_SAMPLES: u64 = 46;
 
 /// List-op value types and the bytes of one stored item (`0`: items of varying size, read
 /// one by one: only the first list's count is checked): token, string, path, reference, int,
@@ -174,7 +177,10 @@ fn value_reps(block: &[u8], count: u64) -> std::result::Result<Vec<u64>, Unreada
 /// against what the file holds from there: a byte or more per element stored plainly, two
 /// bits or more per element in a compressed block (ints from version 0.5.0, floats from
 /// 0.6.0, as the reader decides).
-fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
+///
+/// `in_samples`: the value is a time sample's (or the times'), where time samples again are
+/// refused: USD has none, and the reader would recurse on them.
+fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64, in_samples: bool) -> Result<()> {
     const ARRAY: u64 = 1 << 63;
     const INLINED: u64 = 1 << 62;
     const COMPRESSED: u64 = 1 << 61;
@@ -184,6 +190,9 @@ fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
         return Ok(());
     }
     if rep & ARRAY == 0 {
+        if ty == TIME_SAMPLES {
+            return check_time_samples(w, version, payload, in_samples);
+        }
         if COUNTED.contains(&ty) {
             // A `u64` count at the offset, then four bytes or more per element.
             let pos = usize::try_from(payload).unwrap_or(usize::MAX);
@@ -227,6 +236,46 @@ fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64) -> Result<()> {
         return Err(w.corrupt(format!(
             "has an array value (at byte {payload}) of {count} elements with {left} bytes left"
         )));
+    }
+    Ok(())
+}
+
+/// Time samples at `payload`, as the reader reads them: a jump (an `i64` relative to where it
+/// is stored) to the times' value rep (an array of doubles), then, after that rep, a second
+/// jump to the sample count (`u64`) and one value rep per sample. The times and every sample
+/// are checked as values of their own (an attribute without a default is read at its first
+/// sample), and the count against the bytes after it.
+fn check_time_samples(w: &Walk, version: (u8, u8, u8), payload: u64, nested: bool) -> Result<()> {
+    if nested {
+        return Err(w.corrupt(format!(
+            "has time samples (at byte {payload}) inside time samples"
+        )));
+    }
+    let jump = |pos: usize| -> Option<usize> {
+        let (offset, _) = count_at(w.bytes, pos, 8)?;
+        pos.checked_add_signed(offset as i64 as isize)
+    };
+    let Some(times_at) = usize::try_from(payload).ok().and_then(jump) else {
+        return Ok(()); // unreadable: the reader fails on the same read
+    };
+    let Some((times, _)) = count_at(w.bytes, times_at, 8) else {
+        return Ok(());
+    };
+    check_value(w, version, times, true)?;
+    let Some(count_at_pos) = times_at.checked_add(8).and_then(jump) else {
+        return Ok(());
+    };
+    let Some((count, left)) = count_at(w.bytes, count_at_pos, 8) else {
+        return Ok(());
+    };
+    if count.saturating_mul(8) > left {
+        return Err(w.corrupt(format!(
+            "has time samples (at byte {payload}) of {count} samples with {left} bytes left"
+        )));
+    }
+    for k in 0..count as usize {
+        let (rep, _) = count_at(w.bytes, count_at_pos + 8 + 8 * k, 8).expect("within `left`");
+        check_value(w, version, rep, true)?;
     }
     Ok(())
 }
@@ -307,7 +356,7 @@ fn walk(path: &Path, bytes: &[u8]) -> Result<std::result::Result<(), Unreadable>
                 readable!(w.compressed(count.saturating_mul(8))?);
                 let reps = readable!(value_reps(&bytes[block..w.pos], count));
                 for rep in reps {
-                    check_value(&w, version, rep)?;
+                    check_value(&w, version, rep, false)?;
                 }
             }
             "FIELDSETS" => {
