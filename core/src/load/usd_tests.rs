@@ -548,7 +548,7 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
 
 /// Fuzzed binary layers that made the reader's allocation fail, which aborts the process: a
 /// PATHS section stating a 4.4 TB compressed block, an array value of 1.5 × 10¹¹ elements, a
-/// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items. The pre-check refuses
+/// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items, an inlined token array. The pre-check refuses
 /// them, naming the file and the section; every prefix of a valid layer, and the layer
 /// itself, passes it (`truncated_usdc_prefixes_fail_cleanly` loads them).
 #[test]
@@ -587,6 +587,13 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         "listop.usdc",
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-list-op"),
         &["list op"],
+    );
+    // A token array flagged inlined, whose payload (2) the reader still takes as an offset:
+    // the count there (the file's magic) states 5.8 × 10¹⁷ tokens.
+    refused(
+        "inlined.usdc",
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-token-array"),
+        &["array value", "cannot hold"],
     );
     let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
     let full = d.join("full.usdc");

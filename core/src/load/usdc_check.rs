@@ -186,7 +186,9 @@ fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64, in_samples: bool) -> R
     const COMPRESSED: u64 = 1 << 61;
     let payload = rep & ((1 << 48) - 1);
     let ty = (rep >> 48) & 0xFF;
-    if rep & INLINED != 0 || payload == 0 {
+    // An inlined array is still read at its payload as an offset (the reader only
+    // debug-asserts that arrays are not inlined): only inlined scalars carry no offset.
+    if payload == 0 || (rep & INLINED != 0 && rep & ARRAY == 0) {
         return Ok(());
     }
     if rep & ARRAY == 0 {
