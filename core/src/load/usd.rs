@@ -362,7 +362,31 @@ fn value(path: &Path, prim: &Prim, name: &str) -> Result<Option<Value>> {
     attr_value(path, prim.stage(), &p)
 }
 
+/// The path of property `name` of `prim`. The name must be a namespaced identifier (letters,
+/// digits and `_` per namespace, not starting with a digit, namespaces joined by `:`): names
+/// come from the file too (`xformOpOrder`'s tokens), and a fuzzed one with path syntax in it
+/// (`"xformOp:translaunts0, 0), (~/quad.primvars…"`) sent openusd's instancing into endless
+/// recursion (a stack overflow, an abort).
 fn property_path(path: &Path, prim: &sdf::Path, name: &str) -> Result<sdf::Path> {
+    let identifier = |s: &str| {
+        s.chars()
+            .next()
+            .is_some_and(|c| c.is_alphabetic() || c == '_')
+            && s.chars().all(|c| c.is_alphanumeric() || c == '_')
+    };
+    if !name.split(':').all(identifier) {
+        let shown: String = name.chars().take(60).collect();
+        let more = if shown.len() < name.len() { "…" } else { "" };
+        return Err(prim_err(
+            path,
+            prim,
+            format!(
+                "property name \"{}{more}\" is not a USD identifier (letters, digits and _ per \
+                 namespace, namespaces joined by ':'); the file is corrupt (re-export it)",
+                shown.escape_debug()
+            ),
+        ));
+    }
     prim.append_property(name)
         .map_err(|e| prim_err(path, prim, format!("invalid property name '{name}': {e:#}")))
 }

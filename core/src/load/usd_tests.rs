@@ -691,6 +691,59 @@ fn a_reader_panic_is_an_error() {
 /// Fuzzing found prim names with path syntax (`"hsq}ad"`) sending openusd's instancing into
 /// endless recursion (a stack overflow, an abort): a text layer's prim names must be
 /// identifiers. Both found files are in `fuzz/corpus/usda/overflow-prim-name-*`.
+/// Property names become paths too, and `xformOpOrder` lists them as tokens from the file: a
+/// fuzzed token with path syntax (`corpus/usda/overflow-xform-op-name`) sent openusd's
+/// instancing into endless recursion (a stack overflow). A listed op must be a namespaced
+/// identifier; suffixed ops (`xformOp:rotateXYZ:pivot`) and `!invert!` still load.
+#[test]
+fn an_xform_op_name_that_is_not_an_identifier_is_an_error() {
+    let d = dir("opname");
+    let fuzzed = d.join("fuzzed.usda");
+    std::fs::write(
+        &fuzzed,
+        include_bytes!("../../../fuzz/corpus/usda/overflow-xform-op-name"),
+    )
+    .unwrap();
+    let e = load_mesh(&fuzzed, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("fuzzed.usda") && e.contains("not a USD identifier"),
+        "{e}"
+    );
+    for (order, bad) in [
+        ("\"xformOp:translate/(x)\"", true),
+        ("\"xformOp:translate:\"", true),
+        (
+            "\"xformOp:translate\", \"!invert!xformOp:rotateXYZ:pivot\"",
+            false,
+        ),
+    ] {
+        let text = layer(
+            "Y",
+            &format!(
+                "def Mesh \"M\" {{\n int[] faceVertexCounts = [3]\n int[] faceVertexIndices = [0, 1, 2]\n \
+                 point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n texCoord2f[] primvars:st = \
+                 [(0, 0), (1, 0), (0, 1)] (interpolation = \"vertex\")\n double3 xformOp:translate = \
+                 (1, 2, 3)\n float3 xformOp:rotateXYZ:pivot = (0, 0, 90)\n uniform token[] xformOpOrder = \
+                 [{order}]\n}}\n"
+            ),
+        );
+        let p = write(&d, "op.usda", &text);
+        let r = load_mesh(&p, &MeshOptions::default());
+        if bad {
+            let e = r.unwrap_err().to_string();
+            assert!(
+                e.contains("op.usda") && e.contains("not a USD identifier"),
+                "{order}: {e}"
+            );
+        } else {
+            let m = r.unwrap_or_else(|e| panic!("{order}: {e}"));
+            assert_eq!(m.triangle_count(), 1);
+        }
+    }
+}
+
 #[test]
 fn a_prim_name_that_is_not_an_identifier_is_an_error() {
     let d = dir("primname");
