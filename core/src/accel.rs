@@ -632,6 +632,22 @@ mod tests {
         Scene::with_bvh(table, map, kind)
     }
 
+    /// `n` rays from a sphere of radius 3 aimed at random points within 0.9 of the centre.
+    fn rays_through_sphere(n: usize, seed: u32) -> Vec<Ray> {
+        let mut h = seed;
+        let mut r = || {
+            h = crate::rng::pcg_hash(h);
+            crate::rng::to_unit_float(h) * 2.0 - 1.0
+        };
+        (0..n)
+            .map(|_| {
+                let o = Vec3::new(r(), r(), r()).normalize() * 3.0;
+                let target = Vec3::new(r(), r(), r()) * 0.9;
+                Ray::new(o, (target - o).normalize())
+            })
+            .collect()
+    }
+
     /// A stand-in intersector: the prism's base triangle.
     fn base_triangle_hit(s: &Scene, ray: &Ray, prism: u32) -> Option<Hit> {
         let g = PrismGeom::new(&s.table, &s.table.prisms[prism as usize]);
@@ -678,15 +694,7 @@ mod tests {
         let tri_hit = base_triangle_hit;
         for kind in [BvhKind::Binary, BvhKind::Wide] {
             let s = scene(kind);
-            let mut h = 7u32;
-            for _ in 0..500 {
-                let mut r = || {
-                    h = crate::rng::pcg_hash(h);
-                    crate::rng::to_unit_float(h) * 2.0 - 1.0
-                };
-                let o = Vec3::new(r(), r(), r()).normalize() * 3.0;
-                let target = Vec3::new(r(), r(), r()) * 0.9;
-                let ray = Ray::new(o, (target - o).normalize());
+            for ray in rays_through_sphere(500, 7) {
                 let got = s.closest_hit(&ray, |ray, p| tri_hit(&s, ray, p));
                 let want = (0..s.table.prisms.len() as u32)
                     .filter_map(|p| tri_hit(&s, &ray, p))
@@ -706,16 +714,8 @@ mod tests {
     fn ordered_traversal_finishes_front_to_back_and_stops_at_the_hit() {
         for kind in [BvhKind::Binary, BvhKind::Wide] {
             let s = scene(kind);
-            let mut h = 11u32;
             let (mut finished, mut hits, mut unordered) = (0, 0, 0);
-            for _ in 0..500 {
-                let mut r = || {
-                    h = crate::rng::pcg_hash(h);
-                    crate::rng::to_unit_float(h) * 2.0 - 1.0
-                };
-                let o = Vec3::new(r(), r(), r()).normalize() * 3.0;
-                let target = Vec3::new(r(), r(), r()) * 0.9;
-                let ray = Ray::new(o, (target - o).normalize());
+            for ray in rays_through_sphere(500, 11) {
                 let want = (0..s.table.prisms.len() as u32)
                     .filter_map(|p| base_triangle_hit(&s, &ray, p))
                     .min_by(|a, b| a.t.total_cmp(&b.t));
