@@ -792,19 +792,23 @@ impl Loader<'_> {
     ) -> Result<Option<Vec<Vec2>>> {
         let path = self.path;
         let mut names: Vec<String> = Vec::new();
-        for attr in prim
-            .attributes()
+        // By name, not `Prim::attributes`: that makes a path of every property name the file
+        // lists, and a fuzzed binary layer's name with path syntax in it sent openusd's
+        // ancestor walk (`Path::parent`) into an endless loop. Only `primvars:` names become
+        // paths here, through `property_path`'s identifier check.
+        for name in prim
+            .property_names()
             .map_err(|e| usd_err(path, prim.path(), e))?
         {
-            let Some((_, name)) = attr.path().split_property() else {
-                continue;
-            };
-            let Some(short) = name.strip_prefix("primvars:") else {
+            let Some(short) = name.as_str().strip_prefix("primvars:") else {
                 continue;
             };
             if short.contains(':') {
                 continue;
             }
+            let attr = self
+                .stage
+                .attribute(property_path(path, prim.path(), name.as_str())?);
             let ty = attr
                 .type_name()
                 .ok()

@@ -688,6 +688,33 @@ fn a_reader_panic_is_an_error() {
     );
 }
 
+/// A fuzzed binary layer lists a property named `nor}als` on its mesh. `Prim::attributes`
+/// makes a path of every listed name, and openusd's ancestor walk over that path
+/// (`Path::parent`) never ended: the loader hung. The mesh's primvars are now found by name,
+/// and only `primvars:` names (identifier-checked) become paths. Input:
+/// `fuzz/corpus/usdc/hang-property-name`. The load runs on a watchdog thread, so that a
+/// regression fails here instead of hanging the suite.
+#[test]
+fn a_property_name_with_path_syntax_does_not_hang_the_loader() {
+    let d = dir("hangname");
+    let p = d.join("hang.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/hang-property-name"),
+    )
+    .unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let q = p.clone();
+    std::thread::spawn(move || {
+        let _ = tx.send(load_mesh(&q, &MeshOptions::default()).map(|m| m.triangles.len()));
+    });
+    let loaded = rx
+        .recv_timeout(std::time::Duration::from_secs(300))
+        .expect("the loader still runs after 300 s on a 1.2 kB file: it hangs");
+    // The corrupt layer still holds its faces: three triangles once split.
+    assert_eq!(loaded.expect("the layer loads"), 3);
+}
+
 /// Fuzzing found prim names with path syntax (`"hsq}ad"`) sending openusd's instancing into
 /// endless recursion (a stack overflow, an abort): a text layer's prim names must be
 /// identifiers. Both found files are in `fuzz/corpus/usda/overflow-prim-name-*`.
