@@ -60,7 +60,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         };
         let root = stage.prim(sdf::Path::abs_root());
         for child in children(path, &root)? {
-            loader.visit(&child, DMat4::IDENTITY)?;
+            loader.visit(&child, DMat4::IDENTITY, 1)?;
         }
         let mut mesh = loader.mesh;
         mesh.missing_uvs = loader.any_uv_missing;
@@ -75,7 +75,7 @@ pub fn displacement(path: &Path) -> Result<Option<UsdDisplacement>> {
     guarded(path, || {
         let stage = open(path)?;
         let mut meshes = Vec::new();
-        collect_meshes(path, &stage.prim(sdf::Path::abs_root()), &mut meshes)?;
+        collect_meshes(path, &stage.prim(sdf::Path::abs_root()), 0, &mut meshes)?;
         let mut found: Option<UsdDisplacement> = None;
         for prim in &meshes {
             let Some(d) = mesh_displacement(path, &stage, prim)? else {
@@ -326,15 +326,39 @@ fn is_renderable(path: &Path, prim: &Prim) -> Result<bool> {
     Ok(purpose.as_ref().and_then(|v| v.as_str()) != Some("guide"))
 }
 
-fn collect_meshes(path: &Path, prim: &Prim, out: &mut Vec<Prim>) -> Result<()> {
+/// Deepest prim hierarchy the loader walks. Both walks (`collect_meshes`, `Loader::visit`)
+/// recurse once per level; a fuzzed binary layer whose composed children never end
+/// (`/quad/quad/quad/…`) overflowed the stack 23 000 levels down. Real assets nest a few
+/// dozen levels.
+pub const MAX_PRIM_DEPTH: usize = 256;
+
+/// `Err` naming the prim when it lies deeper than `MAX_PRIM_DEPTH` (`depth`: its level).
+fn check_depth(path: &Path, prim: &Prim, depth: usize) -> Result<()> {
+    if depth <= MAX_PRIM_DEPTH {
+        return Ok(());
+    }
+    let full = prim.path().as_str();
+    let shown: String = full.chars().take(80).collect();
+    let more = if shown.len() < full.len() { "…" } else { "" };
+    Err(Error::invalid(
+        path,
+        format!(
+            "prims nest more than {MAX_PRIM_DEPTH} levels deep (at {shown}{more}); the file is \
+             corrupt, or its hierarchy loops (flatten it, e.g. with `usdcat --flatten`)"
+        ),
+    ))
+}
+
+fn collect_meshes(path: &Path, prim: &Prim, depth: usize, out: &mut Vec<Prim>) -> Result<()> {
     for child in children(path, prim)? {
+        check_depth(path, &child, depth + 1)?;
         if !is_renderable(path, &child)? {
             continue;
         }
         if type_name(&child) == "Mesh" {
             out.push(child.clone());
         }
-        collect_meshes(path, &child, out)?;
+        collect_meshes(path, &child, depth + 1, out)?;
     }
     Ok(())
 }
@@ -593,7 +617,9 @@ enum Interp {
 }
 
 impl Loader<'_> {
-    fn visit(&mut self, prim: &Prim, parent: DMat4) -> Result<()> {
+    /// `prim` at level `depth` (1: a child of the root) and everything under it.
+    fn visit(&mut self, prim: &Prim, parent: DMat4, depth: usize) -> Result<()> {
+        check_depth(self.path, prim, depth)?;
         if !is_renderable(self.path, prim)? {
             return Ok(());
         }
@@ -603,7 +629,7 @@ impl Loader<'_> {
             self.mesh_prim(prim, world)?;
         }
         for child in children(self.path, prim)? {
-            self.visit(&child, world)?;
+            self.visit(&child, world, depth + 1)?;
         }
         Ok(())
     }

@@ -688,6 +688,47 @@ fn a_reader_panic_is_an_error() {
     );
 }
 
+/// A fuzzed binary layer whose prim `/quad` is composed as its own child: both prim walks
+/// recursed until the stack overflowed (23 000 levels, an abort). Prims deeper than
+/// `MAX_PRIM_DEPTH` are an error naming the file; a hierarchy 60 deep still loads. Input:
+/// `fuzz/corpus/usdc/overflow-prim-cycle`.
+#[test]
+fn a_prim_hierarchy_that_never_ends_is_an_error_not_a_stack_overflow() {
+    let d = dir("primcycle");
+    let p = d.join("cycle.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/overflow-prim-cycle"),
+    )
+    .unwrap();
+    for e in [
+        load_mesh(&p, &MeshOptions::default()).unwrap_err(),
+        displacement(&p).unwrap_err(),
+    ] {
+        let e = e.to_string();
+        assert!(
+            e.contains("cycle.usdc") && e.contains("more than 256 levels deep"),
+            "{e}"
+        );
+    }
+    let depth = 60;
+    let mut body = String::new();
+    for k in 0..depth {
+        body += &format!("def Xform \"X{k}\"\n{{\n");
+    }
+    body += "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    \
+             int[] faceVertexIndices = [0, 1, 2]\n    \
+             point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n";
+    body += &"}\n".repeat(depth);
+    let deep = write(&d, "deep.usda", &layer("Y", &body));
+    assert_eq!(
+        load_mesh(&deep, &MeshOptions::default())
+            .unwrap()
+            .triangle_count(),
+        1
+    );
+}
+
 /// A fuzzed binary layer lists a property named `nor}als` on its mesh. `Prim::attributes`
 /// makes a path of every listed name, and openusd's ancestor walk over that path
 /// (`Path::parent`) never ended: the loader hung. The mesh's primvars are now found by name,
