@@ -19,13 +19,14 @@ use crate::trace::{Hit, Ray};
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::builder::build_bvh2;
-use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
-use obvhs::faststack::FastStack;
 use obvhs::ray::RayHit;
-use obvhs::{fast_stack, BvhBuildParams};
+use obvhs::BvhBuildParams;
+use pairs::{PairBvh, Visitor};
 use std::time::Duration;
+
+mod pairs;
 
 /// Relative padding of every prism box (fraction of its diagonal).
 const AABB_PAD: f32 = 1e-4;
@@ -63,7 +64,7 @@ const AABB_PAD: f32 = 1e-4;
 /// at ~10% more memory with cells (sphere 8 685 → 9 499 bytes per triangle). The same hits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BvhKind {
-    /// obvhs `Bvh2`: binary, 48-byte nodes.
+    /// obvhs `Bvh2`: binary, walked in the pair layout (`pairs`): 32 bytes per node.
     #[default]
     Binary,
     /// obvhs `CwBvh`: compressed 8-wide, 80-byte nodes.
@@ -71,7 +72,7 @@ pub enum BvhKind {
 }
 
 enum Bvh {
-    Binary(Bvh2),
+    Binary(PairBvh),
     Wide(CwBvh),
 }
 
@@ -104,7 +105,9 @@ impl BoxBvh {
             };
             let mut build_time = Duration::default();
             match kind {
-                BvhKind::Binary => Bvh::Binary(build_bvh2(aabbs, params, &mut build_time)),
+                BvhKind::Binary => {
+                    Bvh::Binary(PairBvh::new(build_bvh2(aabbs, params, &mut build_time)))
+                }
                 BvhKind::Wide => Bvh::Wide(build_cwbvh(aabbs, params, &mut build_time)),
             }
         });
@@ -121,7 +124,7 @@ impl BoxBvh {
     pub fn into_leaf_order(&mut self) -> Vec<u32> {
         let indices = match &mut self.bvh {
             None => return Vec::new(),
-            Some(Bvh::Binary(b)) => &mut b.primitive_indices,
+            Some(Bvh::Binary(b)) => &mut b.items,
             Some(Bvh::Wide(b)) => &mut b.primitive_indices,
         };
         let identity = (0..indices.len() as u32).collect();
@@ -132,9 +135,7 @@ impl BoxBvh {
     pub fn bytes(&self) -> usize {
         match &self.bvh {
             None => 0,
-            Some(Bvh::Binary(b)) => {
-                b.nodes.len() * std::mem::size_of_val(&b.nodes[0]) + b.primitive_indices.len() * 4
-            }
+            Some(Bvh::Binary(b)) => b.bytes(),
             Some(Bvh::Wide(b)) => {
                 b.nodes.len() * std::mem::size_of_val(&b.nodes[0]) + b.primitive_indices.len() * 4
             }
@@ -145,9 +146,7 @@ impl BoxBvh {
     pub fn validate(&self, aabbs: &[Aabb]) {
         match &self.bvh {
             None => assert!(aabbs.is_empty()),
-            Some(Bvh::Binary(b)) => {
-                b.validate(aabbs, false, false);
-            }
+            Some(Bvh::Binary(b)) => b.validate(aabbs),
             Some(Bvh::Wide(b)) => {
                 b.validate(aabbs, false);
             }
@@ -163,33 +162,61 @@ impl BoxBvh {
         mut f: F,
     ) -> Option<Hit> {
         let bvh = self.bvh.as_ref()?;
-        let mut best: Option<Hit> = None;
         let oray = to_obvhs(ray);
-        let mut hit = RayHit::none();
-        let mut visit = |r: &obvhs::ray::Ray, item: u32| -> f32 {
-            let clipped = Ray {
-                t_max: r.tmax,
-                ..*ray
-            };
-            match f(&clipped, item) {
-                Some(h) if h.t < r.tmax => {
-                    best = Some(h);
-                    h.t
-                }
-                _ => f32::INFINITY,
-            }
-        };
         match bvh {
             Bvh::Binary(b) => {
-                let idx = &b.primitive_indices;
-                b.ray_traverse(oray, &mut hit, |r, id| visit(r, idx[id]));
+                // Each leaf's items in turn, the ray clipped to the best hit so far.
+                struct Closest<F> {
+                    ray: Ray,
+                    best: Option<Hit>,
+                    f: F,
+                }
+                impl<F: FnMut(&Ray, u32) -> Option<Hit>> Visitor for Closest<F> {
+                    #[inline(always)]
+                    fn t_max(&self) -> f32 {
+                        self.ray.t_max
+                    }
+                    #[inline(always)]
+                    fn leaf(&mut self, items: &[u32], _t: f32) -> bool {
+                        for &item in items {
+                            if let Some(h) = (self.f)(&self.ray, item) {
+                                if h.t < self.ray.t_max {
+                                    self.ray.t_max = h.t;
+                                    self.best = Some(h);
+                                }
+                            }
+                        }
+                        true
+                    }
+                }
+                let mut v = Closest {
+                    ray: *ray,
+                    best: None,
+                    f,
+                };
+                b.walk(&oray, &mut v);
+                v.best
             }
             Bvh::Wide(b) => {
+                let mut best: Option<Hit> = None;
+                let mut hit = RayHit::none();
                 let idx = &b.primitive_indices;
-                b.ray_traverse(oray, &mut hit, |r, id| visit(r, idx[id]));
+                b.ray_traverse(oray, &mut hit, |r, id| {
+                    let clipped = Ray {
+                        t_max: r.tmax,
+                        ..*ray
+                    };
+                    match f(&clipped, idx[id]) {
+                        Some(h) if h.t < r.tmax => {
+                            best = Some(h);
+                            h.t
+                        }
+                        _ => f32::INFINITY,
+                    }
+                });
+                best
             }
         }
-        best
     }
 
     /// Closest hit over items whose test has a cheap first phase and a costly second one.
@@ -231,80 +258,68 @@ impl BoxBvh {
                 })
             }
         };
-        let nodes = &b.nodes;
-        let oray = to_obvhs(ray);
-        let mut best: Option<Hit> = None;
-        let mut clipped = *ray;
-        let mut waiting = Waiting::<S>::new();
-        // Finish one waiting item: the hit, if nearer, ends the ray there.
-        let mut run = |clipped: &mut Ray, best: &mut Option<Hit>, item: u32, state: S| {
-            if let Some(h) = finish(clipped, item, state) {
-                if h.t < clipped.t_max {
-                    clipped.t_max = h.t;
-                    *best = Some(h);
+        /// The waiting list, the ray clipped to the best hit and the two phases.
+        struct Ordered<S, E, F> {
+            ray: Ray,
+            best: Option<Hit>,
+            waiting: Waiting<S>,
+            enter: E,
+            finish: F,
+        }
+        impl<S: Copy, E, F> Ordered<S, E, F>
+        where
+            F: FnMut(&Ray, u32, S) -> Option<Hit>,
+        {
+            /// Finish one waiting item: the hit, if nearer, ends the ray there.
+            #[inline(always)]
+            fn run(&mut self, item: u32, state: S) {
+                if let Some(h) = (self.finish)(&self.ray, item, state) {
+                    if h.t < self.ray.t_max {
+                        self.ray.t_max = h.t;
+                        self.best = Some(h);
+                    }
                 }
             }
-        };
-        let root = nodes.first()?;
-        let t_root = root.aabb().intersect_ray(&oray);
-        if t_root >= ray.t_max {
-            return None;
         }
-        fast_stack!((u32, f32), (96, 192), b.max_depth, stack, {
-            // The node to visit and where the ray enters its box; the farther child of each
-            // inner node waits on the stack (with its entry, so that it is skipped if a hit
-            // has come nearer by the time it is popped).
-            let mut current = (root, t_root);
-            loop {
-                let (node, t_node) = current;
-                while let Some((item, state)) = waiting.pop_before(t_node.min(clipped.t_max)) {
-                    run(&mut clipped, &mut best, item, state);
+        impl<S: Copy, E, F> Visitor for Ordered<S, E, F>
+        where
+            E: FnMut(&Ray, u32, f32) -> Option<(f32, S)>,
+            F: FnMut(&Ray, u32, S) -> Option<Hit>,
+        {
+            #[inline(always)]
+            fn t_max(&self) -> f32 {
+                self.ray.t_max
+            }
+            #[inline(always)]
+            fn reach(&mut self, t: f32) {
+                while let Some((item, state)) = self.waiting.pop_before(t.min(self.ray.t_max)) {
+                    self.run(item, state);
                 }
-                let mut next = None;
-                if t_node < clipped.t_max {
-                    if node.is_leaf() {
-                        let first = node.first_index as usize;
-                        let items = &b.primitive_indices[first..first + node.prim_count as usize];
-                        for &item in items {
-                            if let Some((t0, state)) = enter(&clipped, item, t_node) {
-                                if t0 < clipped.t_max {
-                                    if let Some((i, s)) = waiting.insert(t0, item, state) {
-                                        run(&mut clipped, &mut best, i, s);
-                                    }
-                                }
-                            }
-                        }
-                    } else {
-                        let l = node.first_index as usize;
-                        let pair = &nodes[l..l + 2];
-                        let tl = pair[0].aabb().intersect_ray(&oray);
-                        let tr = pair[1].aabb().intersect_ray(&oray);
-                        let (mut near, mut far) = ((&pair[0], tl), (l as u32 + 1, tr));
-                        if tr < tl {
-                            near = (&pair[1], tr);
-                            far = (l as u32, tl);
-                        }
-                        if near.1 < clipped.t_max {
-                            next = Some(near);
-                            if far.1 < clipped.t_max {
-                                stack.push(far);
+            }
+            #[inline(always)]
+            fn leaf(&mut self, items: &[u32], t: f32) -> bool {
+                for &item in items {
+                    if let Some((t0, state)) = (self.enter)(&self.ray, item, t) {
+                        if t0 < self.ray.t_max {
+                            if let Some((i, s)) = self.waiting.insert(t0, item, state) {
+                                self.run(i, s);
                             }
                         }
                     }
                 }
-                current = match next {
-                    Some(n) => n,
-                    None => match stack.pop() {
-                        Some((i, t)) => (&nodes[i as usize], t),
-                        None => break,
-                    },
-                };
+                true
             }
-        });
-        while let Some((item, state)) = waiting.pop_before(clipped.t_max) {
-            run(&mut clipped, &mut best, item, state);
         }
-        best
+        let mut v = Ordered {
+            ray: *ray,
+            best: None,
+            waiting: Waiting::<S>::new(),
+            enter,
+            finish,
+        };
+        b.walk(&to_obvhs(ray), &mut v);
+        v.reach(f32::INFINITY);
+        v.best
     }
 
     /// Whether `f` reports a hit for any candidate item (shadow rays); stops at the first.
@@ -322,8 +337,30 @@ impl BoxBvh {
         };
         let missed = match bvh {
             Bvh::Binary(b) => {
-                let idx = &b.primitive_indices;
-                b.ray_traverse_miss(oray, |_, id| visit(idx[id]))
+                // Stops at the first leaf with a hit.
+                struct Any<V> {
+                    t_max: f32,
+                    hit: bool,
+                    visit: V,
+                }
+                impl<V: FnMut(u32) -> f32> Visitor for Any<V> {
+                    #[inline(always)]
+                    fn t_max(&self) -> f32 {
+                        self.t_max
+                    }
+                    #[inline(always)]
+                    fn leaf(&mut self, items: &[u32], _t: f32) -> bool {
+                        self.hit = items.iter().any(|&i| (self.visit)(i) < self.t_max);
+                        !self.hit
+                    }
+                }
+                let mut v = Any {
+                    t_max: ray.t_max,
+                    hit: false,
+                    visit: &mut visit,
+                };
+                b.walk(&oray, &mut v);
+                !v.hit
             }
             Bvh::Wide(b) => {
                 let idx = &b.primitive_indices;
