@@ -548,7 +548,8 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
 
 /// Fuzzed binary layers that made the reader's allocation fail, which aborts the process: a
 /// PATHS section stating a 4.4 TB compressed block, an array value of 1.5 × 10¹¹ elements, a
-/// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items, an inlined token array. The pre-check refuses
+/// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items, an inlined token array,
+/// a list op flagged as an array. The pre-check refuses
 /// them, naming the file and the section; every prefix of a valid layer, and the layer
 /// itself, passes it (`truncated_usdc_prefixes_fail_cleanly` loads them).
 #[test]
@@ -595,6 +596,13 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-token-array"),
         &["array value", "cannot hold"],
     );
+    // An int list op whose rep is flagged as an array: the reader reads it as a list op
+    // anyway, its first list's count (2 × 10¹⁷) from the file's magic.
+    refused(
+        "arraylistop.usdc",
+        include_bytes!("../../../fuzz/corpus/usdc/abort-list-op-flagged-array"),
+        &["list op", "cannot hold"],
+    );
     let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
     let full = d.join("full.usdc");
     openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();
@@ -615,6 +623,66 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         }
     }
     assert!(refused > 0, "no blown-up count refused");
+}
+
+/// The reader reads a dictionary's entries as values of their own and recurses into nested
+/// dictionaries; an entry whose value is its own dictionary recursed until the stack
+/// overflowed. A layer with nested `customData` loads; the same layer with the inner
+/// dictionary's entry pointed back at the dictionary is an error naming the file.
+#[test]
+fn a_dictionary_that_holds_itself_is_an_error_not_a_stack_overflow() {
+    let d = dir("dictloop");
+    let text = layer(
+        "Y",
+        r#"def Mesh "M" (
+    customData = {
+        dictionary outer = {
+            int inner = 7
+        }
+    }
+)
+{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+}"#,
+    );
+    let data = openusd::usda::parse(&text).unwrap();
+    let good = d.join("good.usdc");
+    openusd::usdc::CrateWriter::write_to_file(&data, &good).unwrap();
+    assert_eq!(
+        load_mesh(&good, &MeshOptions::default())
+            .unwrap()
+            .triangle_count(),
+        1
+    );
+    // The inner dictionary: a plain (not inlined) rep of type 31 stored in the file, pointing
+    // at one entry whose jump leads to the int's rep.
+    let mut b = std::fs::read(&good).unwrap();
+    let u64_at = |b: &[u8], i: usize| u64::from_le_bytes(b[i..i + 8].try_into().unwrap());
+    let (rep, payload) = (0..b.len() - 8)
+        .map(|i| u64_at(&b, i))
+        .filter(|v| v >> 56 == 0 && (v >> 48) & 0xFF == 31)
+        .map(|v| (v, (v & ((1 << 48) - 1)) as usize))
+        .find(|&(_, p)| p > 0 && p + 20 <= b.len() && u64_at(&b, p) == 1)
+        .expect("the inner dictionary's rep");
+    let jump_at = payload + 12;
+    let int_rep_at = (jump_at as i64 + u64_at(&b, jump_at) as i64) as usize;
+    assert_eq!(
+        (u64_at(&b, int_rep_at) >> 48) & 0xFF,
+        3,
+        "the entry is the int"
+    );
+    b[int_rep_at..int_rep_at + 8].copy_from_slice(&rep.to_le_bytes());
+    let looped = d.join("looped.usdc");
+    std::fs::write(&looped, &b).unwrap();
+    let e = load_mesh(&looped, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("looped.usdc") && e.contains("more than 32 deep, or in a loop"),
+        "{e}"
+    );
 }
 
 /// An attribute without a default is read at its first time sample, so time samples are read

@@ -37,6 +37,8 @@ struct Walk<'a> {
     bytes: &'a [u8],
     pos: usize,
     section: &'static str,
+    /// Dictionary entries read so far (`check_dictionary`).
+    entries: std::cell::Cell<u64>,
 }
 
 /// The little-endian count of `width` bytes (4 or 8) at `pos`, and the bytes left after it;
@@ -105,9 +107,16 @@ impl Walk<'_> {
 }
 
 /// Value types (the crate file's type numbers) stored as a `u64` count and then the entries:
-/// dictionary, path vector, token vector, variant selection map, layer offset vector, string
-/// vector, relocates.
-const COUNTED: [u64; 7] = [31, 40, 41, 45, 49, 50, 58];
+/// path vector, token vector, variant selection map, layer offset vector, string vector,
+/// relocates. The reader takes them by type, whatever the rep's array flag says.
+const COUNTED: [u64; 6] = [40, 41, 45, 49, 50, 58];
+/// The dictionary's type number: a count, then per entry a key, a jump and a value rep that
+/// the reader reads as a value of its own (recursing into nested dictionaries).
+const DICTIONARY: u64 = 31;
+/// Deepest nesting of values in values (dictionaries in dictionaries, time samples in them)
+/// accepted: the reader recurses once per level, and a dictionary that jumps back to itself
+/// never ends. Real layers nest a few levels (`customData`, `assetInfo`).
+const MAX_VALUE_DEPTH: u32 = 32;
 /// The double vector's type number: read like an array of doubles.
 const DOUBLE_VECTOR: u64 = 48;
 /// The time samples' type number.
@@ -115,8 +124,8 @@ const TIME_SAMPLES: u64 = 46;
 
 /// List-op value types and the bytes of one stored item (`0`: items of varying size, read
 /// one by one: only the first list's count is checked): token, string, path, reference, int,
-/// int64, uint, uint64 and payload list ops.
-const LIST_OPS: [(u64, u64); 9] = [
+/// int64, uint, uint64, unregistered-value and payload list ops.
+const LIST_OPS: [(u64, u64); 10] = [
     (32, 4),
     (33, 4),
     (34, 4),
@@ -125,6 +134,7 @@ const LIST_OPS: [(u64, u64); 9] = [
     (37, 8),
     (38, 4),
     (39, 8),
+    (54, 0),
     (55, 0),
 ];
 
@@ -178,9 +188,21 @@ fn value_reps(block: &[u8], count: u64) -> std::result::Result<Vec<u64>, Unreada
 /// bits or more per element in a compressed block (ints from version 0.5.0, floats from
 /// 0.6.0, as the reader decides).
 ///
+/// The reader picks how to read a value by its type first: time samples, dictionaries,
+/// counted values and list ops are read at the payload whatever the array flag says (a fuzzed
+/// int list op flagged as an array, its count read as an array's, aborted), and a payload of
+/// 0 is an empty array but, for any other value, the file's first byte.
+///
 /// `in_samples`: the value is a time sample's (or the times'), where time samples again are
-/// refused: USD has none, and the reader would recurse on them.
-fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64, in_samples: bool) -> Result<()> {
+/// refused: USD has none, and the reader would recurse on them. `depth`: how many values
+/// hold this one (`MAX_VALUE_DEPTH`).
+fn check_value(
+    w: &Walk,
+    version: (u8, u8, u8),
+    rep: u64,
+    in_samples: bool,
+    depth: u32,
+) -> Result<()> {
     const ARRAY: u64 = 1 << 63;
     const INLINED: u64 = 1 << 62;
     const COMPRESSED: u64 = 1 << 61;
@@ -188,33 +210,42 @@ fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64, in_samples: bool) -> R
     let ty = (rep >> 48) & 0xFF;
     // An inlined array is still read at its payload as an offset (the reader only
     // debug-asserts that arrays are not inlined): only inlined scalars carry no offset.
-    if payload == 0 || (rep & INLINED != 0 && rep & ARRAY == 0) {
+    if rep & INLINED != 0 && rep & ARRAY == 0 {
         return Ok(());
     }
-    if rep & ARRAY == 0 {
-        if ty == TIME_SAMPLES {
-            return check_time_samples(w, version, payload, in_samples);
-        }
-        if COUNTED.contains(&ty) {
-            // A `u64` count at the offset, then four bytes or more per element.
-            let pos = usize::try_from(payload).unwrap_or(usize::MAX);
-            let Some((count, left)) = count_at(w.bytes, pos, 8) else {
-                return Ok(());
-            };
-            if count > left {
-                return Err(w.corrupt(format!(
-                    "has a value (at byte {payload}) of {count} entries with {left} bytes left"
-                )));
-            }
+    if depth > MAX_VALUE_DEPTH {
+        return Err(w.corrupt(format!(
+            "nests values (dictionaries) more than {MAX_VALUE_DEPTH} deep, or in a loop"
+        )));
+    }
+    if ty == TIME_SAMPLES {
+        return check_time_samples(w, version, payload, in_samples, depth);
+    }
+    if ty == DICTIONARY {
+        return check_dictionary(w, version, payload, in_samples, depth);
+    }
+    if COUNTED.contains(&ty) {
+        // A `u64` count at the offset, then four bytes or more per element.
+        let pos = usize::try_from(payload).unwrap_or(usize::MAX);
+        let Some((count, left)) = count_at(w.bytes, pos, 8) else {
             return Ok(());
+        };
+        if count > left {
+            return Err(w.corrupt(format!(
+                "has a value (at byte {payload}) of {count} entries with {left} bytes left"
+            )));
         }
-        if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
-            return check_list_op(w, payload, elem);
-        }
-        // Only the double vector is read as an array.
-        if ty != DOUBLE_VECTOR {
-            return Ok(());
-        }
+        return Ok(());
+    }
+    if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
+        return check_list_op(w, payload, elem);
+    }
+    // Of the rest, arrays and the double vector are read as arrays.
+    if rep & ARRAY == 0 && ty != DOUBLE_VECTOR {
+        return Ok(());
+    }
+    if payload == 0 {
+        return Ok(()); // the reader's empty array
     }
     let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
     if version < (0, 5, 0) {
@@ -247,7 +278,13 @@ fn check_value(w: &Walk, version: (u8, u8, u8), rep: u64, in_samples: bool) -> R
 /// jump to the sample count (`u64`) and one value rep per sample. The times and every sample
 /// are checked as values of their own (an attribute without a default is read at its first
 /// sample), and the count against the bytes after it.
-fn check_time_samples(w: &Walk, version: (u8, u8, u8), payload: u64, nested: bool) -> Result<()> {
+fn check_time_samples(
+    w: &Walk,
+    version: (u8, u8, u8),
+    payload: u64,
+    nested: bool,
+    depth: u32,
+) -> Result<()> {
     if nested {
         return Err(w.corrupt(format!(
             "has time samples (at byte {payload}) inside time samples"
@@ -263,7 +300,7 @@ fn check_time_samples(w: &Walk, version: (u8, u8, u8), payload: u64, nested: boo
     let Some((times, _)) = count_at(w.bytes, times_at, 8) else {
         return Ok(());
     };
-    check_value(w, version, times, true)?;
+    check_value(w, version, times, true, depth + 1)?;
     let Some(count_at_pos) = times_at.checked_add(8).and_then(jump) else {
         return Ok(());
     };
@@ -277,7 +314,58 @@ fn check_time_samples(w: &Walk, version: (u8, u8, u8), payload: u64, nested: boo
     }
     for k in 0..count as usize {
         let (rep, _) = count_at(w.bytes, count_at_pos + 8 + 8 * k, 8).expect("within `left`");
-        check_value(w, version, rep, true)?;
+        check_value(w, version, rep, true, depth + 1)?;
+    }
+    Ok(())
+}
+
+/// A dictionary at `payload`, as the reader reads it: a `u64` count, then per entry a key (a
+/// `u32` string index), an `i64` jump relative to where it is stored, and at the jump's
+/// target the entry's value rep, read as a value of its own; the next entry follows that rep.
+/// Jumps may lead back, so the entries a dictionary reads (with those of the dictionaries in
+/// it) are bounded by the file's bytes: a real entry takes twenty.
+fn check_dictionary(
+    w: &Walk,
+    version: (u8, u8, u8),
+    payload: u64,
+    in_samples: bool,
+    depth: u32,
+) -> Result<()> {
+    let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
+    let Some((count, left)) = count_at(w.bytes, pos, 8) else {
+        return Ok(()); // unreadable: the reader fails on the same read
+    };
+    if count > left {
+        return Err(w.corrupt(format!(
+            "has a dictionary (at byte {payload}) of {count} entries with {left} bytes left"
+        )));
+    }
+    pos += 8;
+    for _ in 0..count {
+        if w.entries.get() >= w.bytes.len() as u64 {
+            return Err(w.corrupt(format!(
+                "has dictionaries (from byte {payload}) that read more entries than the file \
+                 holds bytes: their jumps loop"
+            )));
+        }
+        w.entries.set(w.entries.get() + 1);
+        let Some(jump_at) = pos.checked_add(4) else {
+            return Ok(());
+        };
+        let Some((offset, _)) = count_at(w.bytes, jump_at, 8) else {
+            return Ok(());
+        };
+        let Some(rep_at) = jump_at.checked_add_signed(offset as i64 as isize) else {
+            return Ok(());
+        };
+        let Some((rep, _)) = count_at(w.bytes, rep_at, 8) else {
+            return Ok(());
+        };
+        if (rep >> 48) & 0xFF == 0 {
+            return Ok(()); // the reader refuses an invalid type
+        }
+        check_value(w, version, rep, in_samples, depth + 1)?;
+        pos = rep_at + 8;
     }
     Ok(())
 }
@@ -305,6 +393,7 @@ fn walk(path: &Path, bytes: &[u8]) -> Result<std::result::Result<(), Unreadable>
         bytes,
         pos: 0,
         section: "TOC",
+        entries: std::cell::Cell::new(0),
     };
     if !bytes.starts_with(b"PXR-USDC") || bytes.len() < 32 {
         return Ok(Err(Unreadable));
@@ -358,7 +447,7 @@ fn walk(path: &Path, bytes: &[u8]) -> Result<std::result::Result<(), Unreadable>
                 readable!(w.compressed(count.saturating_mul(8))?);
                 let reps = readable!(value_reps(&bytes[block..w.pos], count));
                 for rep in reps {
-                    check_value(&w, version, rep, false)?;
+                    check_value(&w, version, rep, false, 0)?;
                 }
             }
             "FIELDSETS" => {
