@@ -23,10 +23,10 @@ use obvhs::cwbvh::builder::build_cwbvh;
 use obvhs::cwbvh::CwBvh;
 use obvhs::ray::RayHit;
 use obvhs::BvhBuildParams;
-use pairs::{PairBvh, Visitor};
+use quads::{QuadBvh, Visitor};
 use std::time::Duration;
 
-mod pairs;
+mod quads;
 
 /// Relative padding of every prism box (fraction of its diagonal).
 const AABB_PAD: f32 = 1e-4;
@@ -64,7 +64,7 @@ const AABB_PAD: f32 = 1e-4;
 /// at ~10% more memory with cells (sphere 8 685 → 9 499 bytes per triangle). The same hits.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BvhKind {
-    /// obvhs `Bvh2`: binary, walked in the pair layout (`pairs`): 32 bytes per node.
+    /// obvhs `Bvh2`, collapsed to four-wide nodes for the walk (`quads`).
     #[default]
     Binary,
     /// obvhs `CwBvh`: compressed 8-wide, 80-byte nodes.
@@ -72,7 +72,7 @@ pub enum BvhKind {
 }
 
 enum Bvh {
-    Binary(PairBvh),
+    Binary(QuadBvh),
     Wide(CwBvh),
 }
 
@@ -106,7 +106,7 @@ impl BoxBvh {
             let mut build_time = Duration::default();
             match kind {
                 BvhKind::Binary => {
-                    Bvh::Binary(PairBvh::new(build_bvh2(aabbs, params, &mut build_time)))
+                    Bvh::Binary(QuadBvh::new(build_bvh2(aabbs, params, &mut build_time)))
                 }
                 BvhKind::Wide => Bvh::Wide(build_cwbvh(aabbs, params, &mut build_time)),
             }
