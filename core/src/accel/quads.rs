@@ -266,18 +266,17 @@ impl QuadBvh {
                         // The children the ray enters before t_max, farthest first.
                         let mut hits = [(Child::INNER0, 0.0f32); 4];
                         let mut n = 0;
-                        for k in 0..4 {
-                            if q.child[k].count == Child::NONE.count {
+                        for (&c, tk) in q.child.iter().zip(ts) {
+                            if c.count == Child::NONE.count {
                                 break;
                             }
-                            let tk = ts[k];
                             if tk < t_max {
                                 let mut j = n;
                                 while j > 0 && hits[j - 1].1 < tk {
                                     hits[j] = hits[j - 1];
                                     j -= 1;
                                 }
-                                hits[j] = (q.child[k], tk);
+                                hits[j] = (c, tk);
                                 n += 1;
                             }
                         }
