@@ -301,8 +301,35 @@ fn up_axis(stage: &Stage) -> UpAxis {
     }
 }
 
+/// The children of `prim`, each named by a USD identifier (letters, digits and `_`, not
+/// starting with a digit). A binary layer's prim names are tokens from the file, not parsed:
+/// a fuzzed name with path syntax in it sent openusd's instancing into endless recursion
+/// (`is_active` on the child, a stack overflow), as text layers' names did before
+/// `check_prim_name`.
 fn children(path: &Path, prim: &Prim) -> Result<Vec<Prim>> {
-    prim.children().map_err(|e| usd_err(path, prim.path(), e))
+    let kids = prim.children().map_err(|e| usd_err(path, prim.path(), e))?;
+    for kid in &kids {
+        let full = kid.path().as_str();
+        let name = full.rsplit('/').next().unwrap_or(full);
+        let identifier = name
+            .chars()
+            .next()
+            .is_some_and(|c| c.is_alphabetic() || c == '_')
+            && name.chars().all(|c| c.is_alphanumeric() || c == '_');
+        if !identifier || !full.starts_with(prim.path().as_str()) {
+            let shown: String = full.chars().take(80).collect();
+            return Err(prim_err(
+                path,
+                prim.path(),
+                format!(
+                    "has a child prim \"{}\" whose name is not a USD identifier (letters, digits \
+                     and _, not starting with a digit); the file is corrupt (re-export it)",
+                    shown.escape_debug()
+                ),
+            ));
+        }
+    }
+    Ok(kids)
 }
 
 fn type_name(prim: &Prim) -> String {

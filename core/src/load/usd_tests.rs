@@ -758,15 +758,66 @@ fn a_reader_panic_is_an_error() {
 
 /// A fuzzed binary layer whose prim `/quad` is composed as its own child: both prim walks
 /// recursed until the stack overflowed (23 000 levels, an abort). Prims deeper than
-/// `MAX_PRIM_DEPTH` are an error naming the file; a hierarchy 60 deep still loads. Input:
-/// `fuzz/corpus/usdc/overflow-prim-cycle`.
+/// `MAX_PRIM_DEPTH` are an error naming the file (shown on a 300-deep binary layer); a
+/// hierarchy 60 deep still loads. Input: `fuzz/corpus/usdc/overflow-prim-cycle`.
 #[test]
 fn a_prim_hierarchy_that_never_ends_is_an_error_not_a_stack_overflow() {
     let d = dir("primcycle");
+    // The fuzzed file also names a prim `;-)`, refused first since binary prim names are
+    // checked (`a_binary_prim_name_that_is_not_an_identifier_is_an_error`).
     let p = d.join("cycle.usdc");
     std::fs::write(
         &p,
         include_bytes!("../../../fuzz/corpus/usdc/overflow-prim-cycle"),
+    )
+    .unwrap();
+    assert!(load_mesh(&p, &MeshOptions::default()).is_err());
+    // A binary layer 300 prims deep (a text layer that deep is refused for its brackets):
+    // refused by the depth guard, by both walks.
+    let nest = |depth: usize| {
+        let mut body = String::new();
+        for k in 0..depth {
+            body += &format!("def Xform \"X{k}\"\n{{\n");
+        }
+        body += "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    \
+                 int[] faceVertexIndices = [0, 1, 2]\n    \
+                 point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n";
+        body + &"}\n".repeat(depth)
+    };
+    let data = openusd::usda::parse(&layer("Y", &nest(300))).unwrap();
+    let deep = d.join("deep.usdc");
+    openusd::usdc::CrateWriter::write_to_file(&data, &deep).unwrap();
+    for e in [
+        load_mesh(&deep, &MeshOptions::default()).unwrap_err(),
+        displacement(&deep).unwrap_err(),
+    ] {
+        let e = e.to_string();
+        assert!(
+            e.contains("deep.usdc") && e.contains("more than 256 levels deep"),
+            "{e}"
+        );
+    }
+    let deep = write(&d, "deep.usda", &layer("Y", &nest(60)));
+    assert_eq!(
+        load_mesh(&deep, &MeshOptions::default())
+            .unwrap()
+            .triangle_count(),
+        1
+    );
+}
+
+/// A fuzzed binary layer names a prim `;-)`: a binary layer's prim names are tokens, not
+/// parsed, and that one sent openusd's instancing into endless recursion when the loader
+/// asked whether the prim is active (a stack overflow). A child prim's name must be an
+/// identifier, as a text layer's must (`check_prim_name`). Input:
+/// `fuzz/corpus/usdc/overflow-prim-name`.
+#[test]
+fn a_binary_prim_name_that_is_not_an_identifier_is_an_error() {
+    let d = dir("binname");
+    let p = d.join("name.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/overflow-prim-name"),
     )
     .unwrap();
     for e in [
@@ -775,26 +826,10 @@ fn a_prim_hierarchy_that_never_ends_is_an_error_not_a_stack_overflow() {
     ] {
         let e = e.to_string();
         assert!(
-            e.contains("cycle.usdc") && e.contains("more than 256 levels deep"),
+            e.contains("name.usdc") && e.contains("\"/;-)\"") && e.contains("not a USD identifier"),
             "{e}"
         );
     }
-    let depth = 60;
-    let mut body = String::new();
-    for k in 0..depth {
-        body += &format!("def Xform \"X{k}\"\n{{\n");
-    }
-    body += "def Mesh \"M\"\n{\n    int[] faceVertexCounts = [3]\n    \
-             int[] faceVertexIndices = [0, 1, 2]\n    \
-             point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]\n}\n";
-    body += &"}\n".repeat(depth);
-    let deep = write(&d, "deep.usda", &layer("Y", &body));
-    assert_eq!(
-        load_mesh(&deep, &MeshOptions::default())
-            .unwrap()
-            .triangle_count(),
-        1
-    );
 }
 
 /// A fuzzed binary layer lists a property named `nor}als` on its mesh. `Prim::attributes`
