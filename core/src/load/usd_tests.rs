@@ -549,7 +549,7 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
 /// Fuzzed binary layers that made the reader's allocation fail, which aborts the process: a
 /// PATHS section stating a 4.4 TB compressed block, an array value of 1.5 × 10¹¹ elements, a
 /// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items, an inlined token array,
-/// a list op flagged as an array. The pre-check refuses
+/// a list op flagged as an array, a compressed array's block. The pre-check refuses
 /// them, naming the file and the section; every prefix of a valid layer, and the layer
 /// itself, passes it (`truncated_usdc_prefixes_fail_cleanly` loads them).
 #[test]
@@ -602,6 +602,12 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         "arraylistop.usdc",
         include_bytes!("../../../fuzz/corpus/usdc/abort-list-op-flagged-array"),
         &["list op", "cannot hold"],
+    );
+    // A compressed int array whose LZ4 block states 1.8 × 10¹⁶ bytes (the count was fine).
+    refused(
+        "block.usdc",
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-compressed-array"),
+        &["compressed array", "block states"],
     );
     let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
     let full = d.join("full.usdc");

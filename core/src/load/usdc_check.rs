@@ -270,6 +270,51 @@ fn check_value(
             "has an array value (at byte {payload}) of {count} elements with {left} bytes left"
         )));
     }
+    if compressed {
+        check_compressed_array(w, ty, payload, pos + width)?;
+    }
+    Ok(())
+}
+
+/// The compressed block of an array whose count ends at `pos`: ints store it there, floats
+/// after a code byte (`i`: the block; `t`: a `u32` lookup-table size, the table, then the
+/// block). The reader allocates the block's stated size before it reads it (a fuzzed int
+/// array's block stated 1.8 × 10¹⁶ bytes, an abort).
+fn check_compressed_array(w: &Walk, ty: u64, payload: u64, pos: usize) -> Result<()> {
+    let block_at = if (3..=6).contains(&ty) {
+        Some(pos)
+    } else {
+        match w.bytes.get(pos) {
+            Some(b'i') => pos.checked_add(1),
+            Some(b't') => {
+                let Some((lut, left)) = count_at(w.bytes, pos + 1, 4) else {
+                    return Ok(());
+                };
+                let elem = match ty {
+                    7 => 2,
+                    8 => 4,
+                    _ => 8,
+                };
+                if lut * elem > left {
+                    return Err(w.corrupt(format!(
+                        "has a compressed array (at byte {payload}) with a lookup table of {lut} \
+                         entries and {left} bytes left"
+                    )));
+                }
+                (pos + 5).checked_add((lut * elem) as usize)
+            }
+            _ => None, // the reader refuses any other code
+        }
+    };
+    let Some((size, left)) = block_at.and_then(|at| count_at(w.bytes, at, 8)) else {
+        return Ok(());
+    };
+    if size > left {
+        return Err(w.corrupt(format!(
+            "has a compressed array (at byte {payload}) whose block states {size} bytes with \
+             {left} left"
+        )));
+    }
     Ok(())
 }
 
