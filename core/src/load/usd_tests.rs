@@ -549,7 +549,8 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
 /// Fuzzed binary layers that made the reader's allocation fail, which aborts the process: a
 /// PATHS section stating a 4.4 TB compressed block, an array value of 1.5 × 10¹¹ elements, a
 /// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items, an inlined token array,
-/// a list op flagged as an array, a compressed array's block. The pre-check refuses
+/// a list op flagged as an array, a compressed array's block, a second list of references.
+/// The pre-check refuses
 /// them, naming the file and the section; every prefix of a valid layer, and the layer
 /// itself, passes it (`truncated_usdc_prefixes_fail_cleanly` loads them).
 #[test]
@@ -609,6 +610,38 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-compressed-array"),
         &["compressed array", "block states"],
     );
+    // A reference list op whose second list states 2.8 × 10¹⁴ references (the pre-check
+    // walks the first list's references, dictionaries included, to find it).
+    refused(
+        "references.usdc",
+        include_bytes!("../../../fuzz/corpus/usdc/abort-huge-reference-list"),
+        &["list op", "cannot hold"],
+    );
+    // Valid references pass: a binary layer whose prim references two others, with and
+    // without customData.
+    let refs = openusd::usda::parse(&layer(
+        "Y",
+        r#"def Mesh "A"
+{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+}
+def Xform "B"
+{
+}
+def Xform "C" (
+    prepend references = [</A>, </B> (customData = { int k = 1 })]
+    append references = </B>
+)
+{
+}"#,
+    ))
+    .unwrap();
+    let refs_path = d.join("refs.usdc");
+    openusd::usdc::CrateWriter::write_to_file(&refs, &refs_path).unwrap();
+    let refs_bytes = std::fs::read(&refs_path).unwrap();
+    crate::load::usdc_check::check(&refs_path, &refs_bytes).expect("valid references pass");
     let data = openusd::usda::parse(&quad_and_pentagon("")).unwrap();
     let full = d.join("full.usdc");
     openusd::usdc::CrateWriter::write_to_file(&data, &full).unwrap();

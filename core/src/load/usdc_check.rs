@@ -134,13 +134,34 @@ const LIST_OPS: [(u64, u64); 10] = [
     (37, 8),
     (38, 4),
     (39, 8),
-    (54, 0),
+    (54, 4),
     (55, 0),
 ];
 
 /// A list op at `payload`: a header byte, then each list it flags (explicit, added,
 /// prepended, appended, deleted, ordered: the reader's order) as a `u64` count and the items.
-fn check_list_op(w: &Walk, payload: u64, elem: u64) -> Result<()> {
+/// Items of size 0 in `LIST_OPS` vary: payloads are two `u32` indices (and a layer offset,
+/// 16 bytes, from version 0.8.0); references are two indices, a layer offset and a
+/// dictionary, walked as the reader walks it (`walk_dictionary`) to find the next list. The
+/// reader reserves a vector for a list's count before it reads the items (a fuzzed second
+/// list of references stated 2.8 × 10¹⁴, an abort).
+fn check_list_op(
+    w: &Walk,
+    version: (u8, u8, u8),
+    ty: u64,
+    payload: u64,
+    elem: u64,
+    in_samples: bool,
+    depth: u32,
+) -> Result<()> {
+    const REFERENCE_LIST_OP: u64 = 35;
+    // The least bytes an item takes: a reference's fixed part and an empty dictionary's count.
+    let elem = match (elem, ty) {
+        (0, REFERENCE_LIST_OP) => 32,
+        (0, _) if version >= (0, 8, 0) => 24,
+        (0, _) => 8,
+        (e, _) => e,
+    };
     let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
     let Some(&header) = w.bytes.get(pos) else {
         return Ok(());
@@ -154,15 +175,21 @@ fn check_list_op(w: &Walk, payload: u64, elem: u64) -> Result<()> {
             return Ok(());
         };
         pos += 8;
-        if count.saturating_mul(elem.max(1)) > left {
+        if count.saturating_mul(elem) > left {
             return Err(w.corrupt(format!(
                 "has a list op (at byte {payload}) of {count} items with {left} bytes left"
             )));
         }
-        if elem == 0 {
-            return Ok(());
+        if ty != REFERENCE_LIST_OP {
+            pos += (count * elem) as usize;
+            continue;
         }
-        pos += (count * elem) as usize;
+        for _ in 0..count {
+            match walk_dictionary(w, version, pos + 24, in_samples, depth)? {
+                Some(end) => pos = end,
+                None => return Ok(()), // unreadable: the reader fails on the same read
+            }
+        }
     }
     Ok(())
 }
@@ -238,7 +265,7 @@ fn check_value(
         return Ok(());
     }
     if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
-        return check_list_op(w, payload, elem);
+        return check_list_op(w, version, ty, payload, elem, in_samples, depth);
     }
     // Of the rest, arrays and the double vector are read as arrays.
     if rep & ARRAY == 0 && ty != DOUBLE_VECTOR {
@@ -376,43 +403,55 @@ fn check_dictionary(
     in_samples: bool,
     depth: u32,
 ) -> Result<()> {
-    let mut pos = usize::try_from(payload).unwrap_or(usize::MAX);
+    let pos = usize::try_from(payload).unwrap_or(usize::MAX);
+    walk_dictionary(w, version, pos, in_samples, depth).map(|_| ())
+}
+
+/// `check_dictionary` for a dictionary whose count is at `pos`: where the reader's position
+/// ends up after it (`None` where the reader would fail on a read).
+fn walk_dictionary(
+    w: &Walk,
+    version: (u8, u8, u8),
+    mut pos: usize,
+    in_samples: bool,
+    depth: u32,
+) -> Result<Option<usize>> {
     let Some((count, left)) = count_at(w.bytes, pos, 8) else {
-        return Ok(()); // unreadable: the reader fails on the same read
+        return Ok(None);
     };
     if count > left {
         return Err(w.corrupt(format!(
-            "has a dictionary (at byte {payload}) of {count} entries with {left} bytes left"
+            "has a dictionary (at byte {pos}) of {count} entries with {left} bytes left"
         )));
     }
     pos += 8;
     for _ in 0..count {
         if w.entries.get() >= w.bytes.len() as u64 {
             return Err(w.corrupt(format!(
-                "has dictionaries (from byte {payload}) that read more entries than the file \
+                "has dictionaries (from byte {pos}) that read more entries than the file \
                  holds bytes: their jumps loop"
             )));
         }
         w.entries.set(w.entries.get() + 1);
         let Some(jump_at) = pos.checked_add(4) else {
-            return Ok(());
+            return Ok(None);
         };
         let Some((offset, _)) = count_at(w.bytes, jump_at, 8) else {
-            return Ok(());
+            return Ok(None);
         };
         let Some(rep_at) = jump_at.checked_add_signed(offset as i64 as isize) else {
-            return Ok(());
+            return Ok(None);
         };
         let Some((rep, _)) = count_at(w.bytes, rep_at, 8) else {
-            return Ok(());
+            return Ok(None);
         };
         if (rep >> 48) & 0xFF == 0 {
-            return Ok(()); // the reader refuses an invalid type
+            return Ok(None); // the reader refuses an invalid type
         }
         check_value(w, version, rep, in_samples, depth + 1)?;
         pos = rep_at + 8;
     }
-    Ok(())
+    Ok(Some(pos))
 }
 
 /// `Err` where a structural count of the crate file `bytes` exceeds what the file can hold.
