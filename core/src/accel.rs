@@ -9,7 +9,8 @@
 //!
 //! BVH choice, measured (see `BvhKind`): BVH2 (PLOC, Meister & Bittner 2018, with reinsertion
 //! and collapse) against CWBVH (Ylitie et al. 2017, 8-wide, 80-byte nodes, SIMD node tests on
-//! the CPU), both built with obvhs's `medium_build` preset.
+//! the CPU), both built with obvhs's `medium_build` preset. The binary tree is walked in our
+//! own four-wide layout (`quads`: up to four children's boxes per node, one 4-lane test).
 
 use crate::bake::PrismTable;
 use crate::canonical::Surface;
