@@ -148,6 +148,15 @@ fn take_word<'b>(bytes: &'b [u8], i: &mut usize) -> &'b [u8] {
     &bytes[start..*i]
 }
 
+/// A USD identifier: letters, digits and `_`, not starting with a digit (UTF-8 letters
+/// allowed). Prim names must be one; property names are identifiers joined by `:`.
+fn is_identifier(s: &str) -> bool {
+    s.chars()
+        .next()
+        .is_some_and(|c| c.is_alphabetic() || c == '_')
+        && s.chars().all(|c| c.is_alphanumeric() || c == '_')
+}
+
 /// After `def` / `over` / `class` at `i`: skip an optional type name; a quoted prim name must
 /// be an identifier (letters, digits and `_`, not starting with a digit; UTF-8 letters allowed).
 fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Result<()> {
@@ -171,12 +180,7 @@ fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Res
         return Ok(());
     };
     let name = String::from_utf8_lossy(&bytes[*i + 1..*i + 1 + len]);
-    let valid = name
-        .chars()
-        .next()
-        .is_some_and(|c| c.is_alphabetic() || c == '_')
-        && name.chars().all(|c| c.is_alphanumeric() || c == '_');
-    if !valid {
+    if !is_identifier(&name) {
         return Err(Error::invalid(
             path,
             format!(
@@ -311,12 +315,7 @@ fn children(path: &Path, prim: &Prim) -> Result<Vec<Prim>> {
     for kid in &kids {
         let full = kid.path().as_str();
         let name = full.rsplit('/').next().unwrap_or(full);
-        let identifier = name
-            .chars()
-            .next()
-            .is_some_and(|c| c.is_alphabetic() || c == '_')
-            && name.chars().all(|c| c.is_alphanumeric() || c == '_');
-        if !identifier || !full.starts_with(prim.path().as_str()) {
+        if !is_identifier(name) || !full.starts_with(prim.path().as_str()) {
             let shown: String = full.chars().take(80).collect();
             return Err(prim_err(
                 path,
@@ -419,13 +418,7 @@ fn value(path: &Path, prim: &Prim, name: &str) -> Result<Option<Value>> {
 /// (`"xformOp:translaunts0, 0), (~/quad.primvars…"`) sent openusd's instancing into endless
 /// recursion (a stack overflow, an abort).
 fn property_path(path: &Path, prim: &sdf::Path, name: &str) -> Result<sdf::Path> {
-    let identifier = |s: &str| {
-        s.chars()
-            .next()
-            .is_some_and(|c| c.is_alphabetic() || c == '_')
-            && s.chars().all(|c| c.is_alphanumeric() || c == '_')
-    };
-    if !name.split(':').all(identifier) {
+    if !name.split(':').all(is_identifier) {
         let shown: String = name.chars().take(60).collect();
         let more = if shown.len() < name.len() { "…" } else { "" };
         return Err(prim_err(
