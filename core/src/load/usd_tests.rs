@@ -795,6 +795,20 @@ fn a_reader_panic_is_an_error() {
     );
 }
 
+/// Both prim walks (the mesh loader's and the displacement lookup's) refuse `p`, each with
+/// an error holding every one of `wants`.
+fn both_walks_refuse(p: &Path, wants: &[&str]) {
+    for e in [
+        load_mesh(p, &MeshOptions::default()).unwrap_err(),
+        displacement(p).unwrap_err(),
+    ] {
+        let e = e.to_string();
+        for want in wants {
+            assert!(e.contains(want), "expected '{want}' in: {e}");
+        }
+    }
+}
+
 /// A fuzzed binary layer whose prim `/quad` is composed as its own child: both prim walks
 /// recursed until the stack overflowed (23 000 levels, an abort). Prims deeper than
 /// `MAX_PRIM_DEPTH` are an error naming the file (shown on a 300-deep binary layer); a
@@ -826,16 +840,7 @@ fn a_prim_hierarchy_that_never_ends_is_an_error_not_a_stack_overflow() {
     let data = openusd::usda::parse(&layer("Y", &nest(300))).unwrap();
     let deep = d.join("deep.usdc");
     openusd::usdc::CrateWriter::write_to_file(&data, &deep).unwrap();
-    for e in [
-        load_mesh(&deep, &MeshOptions::default()).unwrap_err(),
-        displacement(&deep).unwrap_err(),
-    ] {
-        let e = e.to_string();
-        assert!(
-            e.contains("deep.usdc") && e.contains("more than 256 levels deep"),
-            "{e}"
-        );
-    }
+    both_walks_refuse(&deep, &["deep.usdc", "more than 256 levels deep"]);
     let deep = write(&d, "deep.usda", &layer("Y", &nest(60)));
     assert_eq!(
         load_mesh(&deep, &MeshOptions::default())
@@ -859,16 +864,7 @@ fn a_binary_prim_name_that_is_not_an_identifier_is_an_error() {
         include_bytes!("../../../fuzz/corpus/usdc/overflow-prim-name"),
     )
     .unwrap();
-    for e in [
-        load_mesh(&p, &MeshOptions::default()).unwrap_err(),
-        displacement(&p).unwrap_err(),
-    ] {
-        let e = e.to_string();
-        assert!(
-            e.contains("name.usdc") && e.contains("\"/;-)\"") && e.contains("not a USD identifier"),
-            "{e}"
-        );
-    }
+    both_walks_refuse(&p, &["name.usdc", "\"/;-)\"", "not a USD identifier"]);
 }
 
 /// A fuzzed binary layer lists a property named `nor}als` on its mesh. `Prim::attributes`
