@@ -5,7 +5,8 @@
 //!
 //! Watertight by construction, so a leak found by the reference is a leak of the surface:
 //! * every base edge (keyed by its two vertex indices, unordered) gets one segment count
-//!   `n_e = max(1, ceil(k · edge length in texels))`, the same for both of its faces, and is
+//!   `n_e = max(1, ceil(k · edge length in texels))` (or more where its normals turn far:
+//!   `TURN_PER_SEGMENT`), the same for both of its faces, and is
 //!   split into exactly those `n_e` segments on both sides (no T-junctions);
 //! * a face whose three edges agree on `n` is the plain `n × n` barycentric grid; otherwise
 //!   (`n = max n_e`) the grid's interior points form an inner triangle and each base edge is
@@ -75,8 +76,13 @@ fn edge_key(a: u32, b: u32) -> (u32, u32) {
     (a.min(b), a.max(b))
 }
 
-/// `k ·` the length of edge a–b in texels, unclamped. UV-degenerate edges (zero length in UV)
-/// fall back to world length over the prism's world texel size.
+/// `k ·` the length of edge a–b in texels, or `k ·` its normals' turn over `TURN_PER_SEGMENT`
+/// where that is more, unclamped. UV-degenerate edges (zero length in UV)
+/// fall back to the length of their displaced image over the prism's world texel size: the
+/// base edge's length plus the prism's largest `|D|` times the turn of the normal along it
+/// (as `bake::inserted_texel_world` measures a crease strip), so that a strip's rung, a
+/// zero-length edge whose normals differ, follows the rounded edge's arc instead of one
+/// chord of it.
 fn edge_segments_wanted(
     table: &PrismTable,
     map: &HeightMap,
@@ -91,11 +97,27 @@ fn edge_segments_wanted(
     let texels = if texels > 1e-6 {
         texels
     } else if p.texel_world > 0.0 {
-        (table.positions[b as usize] - table.positions[a as usize]).length() / p.texel_world
+        let reach = p.d_min.abs().max(p.d_max.abs());
+        let (a, b) = (a as usize, b as usize);
+        let world = (table.positions[b] - table.positions[a]).length()
+            + reach * (table.normals[b] - table.normals[a]).length();
+        world / p.texel_world
     } else {
         0.0
     };
-    (k * texels).ceil()
+    let turn = normal_turn(table.normals[a as usize], table.normals[b as usize]);
+    (k * texels).max(k * turn / TURN_PER_SEGMENT).ceil()
+}
+
+/// At `k = 1`, the most a base edge's normal turns per segment (`k` divides it): the chord
+/// of a displaced arc of radius `|D|` turning by `θ` lies `|D| θ²/8` inside it, so a crease
+/// strip's rung (a zero-length edge that turns the normal by up to 60°, whose displaced
+/// image is a sub-texel arc) is not one chord; at `k = 2`, 5° per segment: `1e-3 |D|`.
+pub const TURN_PER_SEGMENT: f32 = 10.0 * std::f32::consts::PI / 180.0;
+
+/// The angle between two unit normals (atan2: accurate near 0 and π).
+fn normal_turn(a: Vec3, b: Vec3) -> f32 {
+    a.cross(b).length().atan2(a.dot(b))
 }
 
 /// Segment count per base edge: the max over the edge's faces (they differ only on the
@@ -659,10 +681,9 @@ mod tests {
             assert_eq!(capped, 0);
             for (&(a, b), &n) in &counts {
                 let texels = ((table.uvs[b as usize] - table.uvs[a as usize]) * 16.0).length();
-                assert!(
-                    n as f32 >= k * texels && (n as f32) < k * texels + 1.0,
-                    "{n} {texels}"
-                );
+                let turn = normal_turn(table.normals[a as usize], table.normals[b as usize]);
+                let want = (k * texels).max(k * turn / TURN_PER_SEGMENT);
+                assert!(n as f32 >= want && (n as f32) < want + 1.0, "{n} {texels}");
             }
         }
         let (_, capped) = edge_segment_counts(&table, &map, &identity(&table), 1e6);

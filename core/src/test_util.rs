@@ -261,3 +261,81 @@ pub(crate) fn rays_per_second(
     std::hint::black_box(hits);
     rays.len() as f64 / t0.elapsed().as_secs_f64()
 }
+
+/// Rays at a scene's crease strips (inserted prisms): for each, one ray per point of a few
+/// barycentrics, from `back` world units out along the displaced surface's normal there,
+/// aimed back at the point. What they hit is for the reference to say (the rest of the
+/// object may be in the way); most end in a strip.
+pub(crate) fn rays_at_strips(scene: &crate::accel::Scene, back: f32) -> Vec<crate::trace::Ray> {
+    use crate::bake::PRISM_INSERTED;
+    use crate::canonical::{surface_point, PrismGeom};
+    let table = &scene.table;
+    let mut rays = Vec::new();
+    for (i, p) in table.prisms.iter().enumerate() {
+        if p.flags & PRISM_INSERTED == 0 {
+            continue;
+        }
+        let g = PrismGeom::new(table, p);
+        for b in [
+            Vec3::splat(1.0 / 3.0),
+            Vec3::new(0.6, 0.2, 0.2),
+            Vec3::new(0.2, 0.2, 0.6),
+        ] {
+            let sp = surface_point(&g, &scene.prism_displacement(i as u32), b);
+            let n = sp.geometric_normal;
+            if !n.is_finite() || n == Vec3::ZERO {
+                continue;
+            }
+            rays.push(crate::trace::Ray {
+                origin: sp.position + n * back,
+                dir: -n,
+                t_min: 0.0,
+                t_max: 2.0 * back,
+            });
+        }
+    }
+    rays
+}
+
+/// `rays_at_strips` traced by `isect` and the reference: returns (rays whose reference hit is
+/// in a strip, of those the ones `isect` misses or hits more than `tol_texels` of the base
+/// mesh's median world texel size away in `t`).
+pub(crate) fn strip_hits_against_reference(
+    scene: &crate::accel::Scene,
+    reference: &dyn crate::trace::Intersector,
+    isect: &dyn crate::trace::Intersector,
+    tol_texels: f32,
+) -> (usize, Vec<String>) {
+    use crate::bake::PRISM_INSERTED;
+    let mut texels: Vec<f32> = scene
+        .table
+        .prisms
+        .iter()
+        .filter(|p| p.flags & PRISM_INSERTED == 0 && p.texel_world > 0.0)
+        .map(|p| p.texel_world)
+        .collect();
+    texels.sort_by(f32::total_cmp);
+    let tol = tol_texels * texels[texels.len() / 2];
+    let (mut in_strips, mut wrong) = (0, Vec::new());
+    for (i, r) in rays_at_strips(scene, 0.5).iter().enumerate() {
+        let ctx = crate::trace::RayContext {
+            pixel: i as u32,
+            ..Default::default()
+        };
+        let Some(truth) = reference.intersect(r, &ctx) else {
+            continue;
+        };
+        if scene.table.prisms[truth.prism as usize].flags & PRISM_INSERTED == 0 {
+            continue;
+        }
+        in_strips += 1;
+        match isect.intersect(r, &ctx) {
+            Some(h) if (h.t - truth.t).abs() <= tol => {}
+            got => wrong.push(format!(
+                "ray {i} {r:?}: reference t {} prism {} b {}, got {got:?}",
+                truth.t, truth.prism, truth.bary
+            )),
+        }
+    }
+    (in_strips, wrong)
+}

@@ -27,8 +27,8 @@
 use super::weld::Quantizer;
 use super::{strip, CornerFan, RepairOptions, RepairReport, StitchedEdge, Work, INSERTED_ORIGIN};
 use crate::mesh::FACE_INSERTED;
-use glam::Vec3;
-use std::collections::HashMap;
+use glam::{Vec2, Vec3};
+use std::collections::{HashMap, HashSet};
 
 type EdgeKey = (u32, u32);
 type PosKey = [i64; 3];
@@ -188,8 +188,14 @@ struct Ladders {
     /// Away-from-the-solid direction per (position, ordered normal pair): the sum of
     /// `strip::edge_hint` over the hard edges that end there with that pair of normals.
     hints: HashMap<(PosKey, [[u32; 3]; 2]), Vec3>,
+    /// The (position, ordered normal pair) keys where some hard edge's two records differ in
+    /// UV: their arcs take at least two steps (a single quad has no rung for seam twins), on
+    /// every ladder of the key alike, so that they all have the same normals.
+    seamed: HashSet<(PosKey, [[u32; 3]; 2])>,
     /// (record with the smaller normal bits, the other) → ladder from the first to the second.
     made: HashMap<(u32, u32), Vec<u32>>,
+    /// Inserted records by (position, normal bits, UV bits).
+    records: HashMap<(PosKey, [u32; 3], [u32; 2]), u32>,
     pos: Vec<PosKey>,
     step: f32,
 }
@@ -197,6 +203,7 @@ struct Ladders {
 impl Ladders {
     fn new(w: &Work, pos: &[PosKey], hard: &[HardEdge], step: f32) -> Self {
         let mut hints: HashMap<(PosKey, [[u32; 3]; 2]), Vec3> = HashMap::new();
+        let mut seamed = HashSet::new();
         for e in hard {
             let p = |i: u32| w.positions[i as usize];
             let third = |t: usize, x: u32, y: u32| {
@@ -217,23 +224,40 @@ impl Ladders {
                     let (bx, by) = (normal_bits(nx), normal_bits(ny));
                     let key = (pos[x as usize], [bx.min(by), bx.max(by)]);
                     *hints.entry(key).or_insert(Vec3::ZERO) += h;
+                    if w.uvs[x as usize] != w.uvs[y as usize] {
+                        seamed.insert(key);
+                    }
                 }
             }
         }
         Ladders {
             hints,
+            seamed,
             made: HashMap::new(),
+            records: HashMap::new(),
             pos: pos.to_vec(),
             step,
         }
     }
 
     /// Records from `from` to `to` (one position). Equal normals: just `[to]` (a crease
-    /// ending there; a UV seam if the records differ).
+    /// ending there), or `[from, to]` where their UVs differ (a UV seam ends the crease
+    /// there: the seam twins, see `insert_strip`).
+    ///
+    /// Where the two records' UVs differ (the crease is also a UV seam), the inserted records
+    /// do not interpolate the UVs, which would squeeze whatever the atlas holds between the
+    /// two islands into the rounded edge: the first half of the ladder keeps `from`'s UV, the
+    /// second half `to`'s, and the middle rung has two records, one with each (seam twins:
+    /// same position and normal). The strip's two halves then carry each side's own relief
+    /// along the edge and meet at a UV seam, which the seam stitch closes like any other.
     fn ladder(&mut self, w: &mut Work, from: u32, to: u32) -> Vec<u32> {
         let (nf, nt) = (w.normals[from as usize], w.normals[to as usize]);
         if same_normal(nf, nt) {
-            return vec![to];
+            return if w.uvs[from as usize] != w.uvs[to as usize] {
+                vec![from, to]
+            } else {
+                vec![to]
+            };
         }
         let swapped = normal_bits(nf) > normal_bits(nt);
         let (lo, hi) = if swapped { (to, from) } else { (from, to) };
@@ -243,16 +267,51 @@ impl Ladders {
                 let (nlo, nhi) = (w.normals[lo as usize], w.normals[hi as usize]);
                 let key = (self.pos[lo as usize], [normal_bits(nlo), normal_bits(nhi)]);
                 let hint = self.hints.get(&key).copied().unwrap_or(Vec3::ZERO);
-                let arc = strip::NormalArc::new(nlo, nhi, hint, self.step);
+                let mut arc = strip::NormalArc::new(nlo, nhi, hint, self.step);
+                if self.seamed.contains(&key) {
+                    // Rung 1 of 2 is the arc's midpoint.
+                    arc.segments = arc.segments.max(2);
+                }
+                let (uv_lo, uv_hi) = (w.uvs[lo as usize], w.uvs[hi as usize]);
+                let seam = uv_lo != uv_hi;
                 let mut r = vec![lo];
-                for j in 1..arc.segments {
-                    let s = j as f32 / arc.segments as f32;
-                    w.positions.push(w.positions[lo as usize]);
-                    w.normals.push(arc.point(j));
-                    w.uvs.push(w.uvs[lo as usize].lerp(w.uvs[hi as usize], s));
-                    w.vertex_origin.push(w.vertex_origin[lo as usize]);
-                    self.pos.push(self.pos[lo as usize]);
-                    r.push((w.positions.len() - 1) as u32);
+                let mut push = |w: &mut Work, normal: Vec3, uv: Vec2| {
+                    // One record per (position, normal, UV): where a UV seam crosses the
+                    // crease, a half-strip on one side of it takes the other side's UV, and
+                    // the two ladders then share those rungs by index.
+                    let key = (
+                        self.pos[lo as usize],
+                        normal_bits(normal),
+                        uv.to_array().map(f32::to_bits),
+                    );
+                    let v = *self.records.entry(key).or_insert_with(|| {
+                        w.positions.push(w.positions[lo as usize]);
+                        w.normals.push(normal);
+                        w.uvs.push(uv);
+                        w.vertex_origin.push(w.vertex_origin[lo as usize]);
+                        self.pos.push(self.pos[lo as usize]);
+                        (w.positions.len() - 1) as u32
+                    });
+                    r.push(v);
+                };
+                let segments = arc.segments;
+                // The seam twins sit on the middle rung (one step short of it for an odd
+                // count): on a rung, so that every ladder of the pair of normals has the same
+                // normals, twins or not (where a UV seam crosses the crease, the two sides'
+                // ladders meet as plain UV seams).
+                let twin = seam.then_some(segments / 2);
+                for j in 1..segments {
+                    let uv = match twin {
+                        // Equal UVs.
+                        None => uv_lo,
+                        Some(t) if j < t => uv_lo,
+                        Some(t) if j == t => {
+                            push(w, arc.point(j), uv_lo);
+                            uv_hi
+                        }
+                        Some(_) => uv_hi,
+                    };
+                    push(w, arc.point(j), uv);
                 }
                 r.push(hi);
                 self.made.insert((lo, hi), r.clone());
@@ -266,6 +325,14 @@ impl Ladders {
     }
 }
 
+/// Where a ladder's seam twins are (`Ladders::ladder`): the index of the first of two
+/// consecutive records with one normal.
+fn seam_twins(w: &Work, ladder: &[u32]) -> Option<usize> {
+    ladder
+        .windows(2)
+        .position(|p| same_normal(w.normals[p[0] as usize], w.normals[p[1] as usize]))
+}
+
 /// Close one hard edge with the strip between its two ladders (`strip::zip`): one quad for
 /// a narrow edge, the two halves of it where one end is a crease ending, several quads whose
 /// normals turn through the outside of a wide edge.
@@ -273,15 +340,35 @@ fn insert_strip(w: &mut Work, ladders: &mut Ladders, e: &HardEdge, report: &mut 
     let la = ladders.ladder(w, e.a, e.a2);
     let lb = ladders.ladder(w, e.b, e.b2);
     let group = w.face_group[e.t1];
-    let inserted: Vec<u32> = strip::zip(&la, &lb)
+    let (ta, tb) = (seam_twins(w, &la), seam_twins(w, &lb));
+    let triangles = match (ta, tb) {
+        (None, None) => strip::zip(&la, &lb),
+        (ta, tb) => {
+            // A UV seam runs along the strip (`Ladders::ladder`): zip the two halves apart,
+            // each ladder split at its seam twins or, without twins there, at its middle rung
+            // (which both halves share).
+            let halves = |l: &[u32], t: Option<usize>| {
+                let (end, start) = t.map_or(((l.len() - 1) / 2, (l.len() - 1) / 2), |t| (t, t + 1));
+                (l[..=end].to_vec(), l[start..].to_vec())
+            };
+            let (a1, a2) = halves(&la, ta);
+            let (b1, b2) = halves(&lb, tb);
+            let mut t = strip::zip(&a1, &b1);
+            t.extend(strip::zip(&a2, &b2));
+            t
+        }
+    };
+    let inserted: Vec<u32> = triangles
         .into_iter()
         .filter_map(|tri| push_inserted(w, tri, group))
         .collect();
     report.inserted_triangles += inserted.len();
+    // Steps of the normal arc (a seam twin is no step).
+    let steps = |l: &[u32], t: Option<usize>| (l.len() - 1 - usize::from(t.is_some())) as u32;
     report.stitched_edges.push(StitchedEdge {
         faces: [w.face_origin[e.t1], w.face_origin[e.t2]],
         vertices: [e.a, e.b, e.a2, e.b2],
-        segments: [(la.len() - 1) as u32, (lb.len() - 1) as u32],
+        segments: [steps(&la, ta), steps(&lb, tb)],
         inserted,
     });
 }

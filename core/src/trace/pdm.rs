@@ -1763,47 +1763,24 @@ mod tests {
         }
     }
 
-    /// Regression: two leak rays of `examples/rock` (rays 895 and 2394 of 10^5) through the
-    /// knife edge's crease strips. A strip's inserted vertices interpolate the UVs of the two
-    /// sides' islands, so its relief is squeezed into the rounded edge: these rays cross the
-    /// canonical surface twice within ~5e-4 (a thin dip), well inside one `dt` when the
-    /// strip's texel size was the base edge's. `bake::inserted_texel_world` measures it on
-    /// the displaced strip, and the march resolves the dip.
+    /// Regression: the rock's crease strips. Their relief once was the atlas between two UV
+    /// islands squeezed into the rounded edge, and two leak rays crossed a dip of it within
+    /// one `dt` (`bake::inserted_texel_world` now measures the step on the displaced strip).
+    /// Rays aimed at points of every strip must find the reference's strip hits, at its `t`.
     #[test]
-    fn former_rock_leaks_through_squeezed_strip_relief() {
-        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
+    fn rays_at_the_rock_strips_hit_where_the_reference_does() {
+        let (scene, reference) = crate::test_util::example_with_reference("rock/rock.glb");
         let pdm = Pdm::new(scene, PdmOptions::default());
-        let rays = [
-            (
-                895,
-                Vec3::new(3.3535738, -2.2690098, 2.5615988),
-                Vec3::new(-0.46161956, 0.70123106, -0.5433069),
-                3.5975955,
-            ),
-            (
-                2394,
-                Vec3::new(3.1534061, 0.54019725, 3.675978),
-                Vec3::new(-0.6907371, -0.16357262, -0.70436233),
-                3.5975957,
-            ),
-        ];
-        for (pixel, origin, dir, t_max) in rays {
-            let ray = Ray {
-                origin,
-                dir,
-                t_min: 0.0,
-                t_max,
-            };
-            let hit = pdm
-                .intersect(&ray, &ctx(pixel, 0))
-                .expect("the strip's dip");
-            let flags = scene.table.prisms[hit.prism as usize].flags;
-            assert_ne!(
-                flags & crate::bake::PRISM_INSERTED,
-                0,
-                "ray {pixel}: {hit:?}"
-            );
-        }
+        let (in_strips, wrong) =
+            crate::test_util::strip_hits_against_reference(scene, reference, &pdm, 0.1);
+        assert!(in_strips >= 200, "{in_strips} rays end in strips");
+        // One ray (of 285) is off by 0.12 texel where this method and the other agree with
+        // the point aimed at: the reference's chords.
+        assert!(
+            wrong.len() * 100 <= in_strips,
+            "{} of {in_strips}: {wrong:#?}",
+            wrong.len()
+        );
     }
 
     #[test]
