@@ -8,11 +8,12 @@
 //! is folded two-to-one, so no prism march has a well-defined sign there
 //! (docs/watertightness.md). So a wide edge gets a *strip* of quads instead: at each end the
 //! normal turns from `n1` to `n2` along a `NormalArc` in steps of at most
-//! `RepairOptions::strip_step_angle` (60°), one inserted vertex (same position) per intermediate normal. Its UV: interpolated where
-//! the two sides share the UV; where the crease is also a UV seam, each half of the strip
-//! keeps its side's UV and the halves meet at a seam (`stitch::Ladders::ladder`). The displaced
-//! strip is then a rounded edge of radius `D`, and every inserted triangle has normals within
-//! about one step of each other, so `|m|` stays near 1.
+//! `RepairOptions::strip_step_angle` (60°), one inserted vertex (same position) per
+//! intermediate normal, with the UV the two sides share; where the crease is also a UV seam,
+//! each half of the strip keeps its side's UV and the halves meet at a seam
+//! (`stitch::Ladders::ladder`). The displaced strip is then a rounded edge of radius `D`, and
+//! every inserted triangle has normals within about one step of each other, so `|m|` stays
+//! near 1.
 //!
 //! Which way to turn: the short great-circle arc, through `n1 + n2`, where that is well
 //! defined (a convex edge rounds outwards, a concave one inwards). Near `n1 ≈ −n2` the short
