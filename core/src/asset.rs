@@ -188,11 +188,22 @@ pub fn expand_paths(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
+/// Revision of what repair and bake make of the same inputs: bump it whenever a change to
+/// either gives another table (the file format's `VERSION` only covers the layout), so that
+/// tables cached by an older build (`table_cache`) are not served as this build's.
+/// 2: crease strips on UV seams keep each side's UV.
+pub const PIPELINE_REVISION: u32 = 2;
+
 /// blake3 of everything the table depends on.
 pub fn input_hash(spec: &AssetSpec, repair: &RepairOptions) -> Result<[u8; 32]> {
+    input_hash_at(spec, repair, PIPELINE_REVISION)
+}
+
+fn input_hash_at(spec: &AssetSpec, repair: &RepairOptions, revision: u32) -> Result<[u8; 32]> {
     let mut h = blake3::Hasher::new();
     h.update(b"prismbake-table");
     h.update(&prism_file::VERSION.to_le_bytes());
+    h.update(&revision.to_le_bytes());
     let mesh_bytes = std::fs::read(&spec.mesh).map_err(|e| Error::io(&spec.mesh, e))?;
     h.update(&(mesh_bytes.len() as u64).to_le_bytes());
     h.update(&mesh_bytes);
@@ -336,4 +347,24 @@ pub fn load_table(
         ));
     }
     Ok((table, map))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Would break if the cache key lost the pipeline revision: a table baked by an older
+    // build's repair would then be served as this build's.
+    #[test]
+    fn the_table_cache_key_changes_with_the_pipeline_revision() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rock/rock.glb");
+        let spec = resolve(&path, &Overrides::default()).unwrap();
+        let opts = RepairOptions::default();
+        let now = input_hash(&spec, &opts).unwrap();
+        assert_eq!(now, input_hash_at(&spec, &opts, PIPELINE_REVISION).unwrap());
+        assert_ne!(
+            now,
+            input_hash_at(&spec, &opts, PIPELINE_REVISION - 1).unwrap()
+        );
+    }
 }

@@ -1,5 +1,6 @@
 //! A cache of baked prism tables keyed by `asset::input_hash` (mesh bytes, map bytes,
-//! parameters, repair options, format version), so rendering the same mesh + map again skips
+//! parameters, repair options, format version, `asset::PIPELINE_REVISION`), so rendering the
+//! same mesh + map again skips
 //! repair and bake. Files are `<cache>/prismbake/<hash hex>.prisms`, written atomically; a
 //! file that does not read back, or whose stored hash or map size disagree, is ignored (and
 //! overwritten by the next bake). Nothing is ever evicted: delete the folder to reclaim space.
