@@ -641,7 +641,27 @@ pub(crate) mod fixtures {
         mesh
     }
 
-    /// Scale every position of a mesh (normals and UVs unchanged).
+    /// The closed displaced spheres that every method's leak test runs on, with the normal
+    /// tilt of each: 320 faces with relief ±0.07 and radial normals (where the paper's prisms
+    /// coincide with the shared-wall ones), the same with normals tilted by up to ~0.3 rad (where
+    /// they do not, docs/watertightness.md), a coarse 80-face one with relief ±0.27 and tilted
+    /// normals, and the coarse one with stronger tangential jitter and radial normals.
+    pub fn leak_spheres() -> Vec<(f32, super::Scene)> {
+        [
+            (2, 0.15, 0.3, 0.0),
+            (2, 0.15, 0.3, 0.3),
+            (1, 0.6, 0.3, 0.3),
+            (1, 0.6, 0.4, 0.0),
+        ]
+        .into_iter()
+        .map(|(subdiv, scale, jitter, tilt)| {
+            let mesh = tilt_normals(sphere_mesh(subdiv, jitter), tilt);
+            let map = relief_map(64);
+            (tilt, super::Scene::new(table(&mesh, &map, scale), map))
+        })
+        .collect()
+    }
+
     /// The jittered icosphere at `size` with `map` displaced by `scale × size`.
     pub fn sphere_scene(subdiv: u32, map: HeightMap, scale: f32, size: f32) -> super::Scene {
         let mesh = scaled(sphere_mesh(subdiv, 0.25), size);
@@ -649,6 +669,7 @@ pub(crate) mod fixtures {
         super::Scene::new(table, map)
     }
 
+    /// Scale every position of a mesh (normals and UVs unchanged).
     pub fn scaled(mut mesh: BaseMesh, s: f32) -> BaseMesh {
         for p in mesh.positions.iter_mut() {
             *p *= s;

@@ -15,6 +15,9 @@ pub mod pdm;
 pub mod prism_hit;
 pub mod rmip;
 
+#[cfg(test)]
+mod closed_meshes;
+
 /// Miss / no-prism sentinels (mirrored in WGSL).
 pub const NO_PRISM: u32 = u32::MAX;
 

@@ -1415,13 +1415,9 @@ mod tests {
         // must let none through; the paper's parallel-offset prisms are reported (33 and 180
         // on the tilted assets when this was written; the scanning-sign march over shared walls
         // let 2 and 89 through, docs/watertightness.md).
-        // Three assets: 320 faces with relief ±0.07, radial normals (where the paper's prism
-        // happens to coincide with ours) and tilted normals; a coarse 80-face one, ±0.27.
+        // The four spheres of `leak_spheres`, the same for every method.
         let rays = rays_to_inner_points(100_000, 1.0, 1);
-        for (subdiv, scale, tilt) in [(2, 0.15, 0.0), (2, 0.15, 0.3), (1, 0.6, 0.3)] {
-            let mesh = tilt_normals(sphere_mesh(subdiv, 0.3), tilt);
-            let map = relief_map(64);
-            let scene = Scene::new(table(&mesh, &map, scale), map);
+        for (tilt, scene) in leak_spheres() {
             let shared = leaks(&scene, PdmOptions::default(), &rays);
             let whole = leaks(
                 &scene,

@@ -132,12 +132,10 @@ fn agrees_with_reference_on_the_example_assets() {
 fn closed_displaced_sphere_does_not_leak() {
     // Breaks if the detection surface has cracks between prisms or micro-triangles, if a
     // box test loses a piece of the curve, or if a root is dropped: every ray aimed at a
-    // point inside the closed displaced sphere must hit before reaching it. Both precisions.
+    // point inside the closed displaced sphere must hit before reaching it. The four spheres of
+    // PDM's leak test (`leak_spheres`, tilted normals among them), both precisions.
     let rays = rays_to_inner_points(50_000, 1.0, 1);
-    for (subdiv, scale, jitter) in [(2, 0.15, 0.25), (1, 0.6, 0.4)] {
-        let mesh = sphere_mesh(subdiv, jitter);
-        let map = relief_map(64);
-        let scene = Scene::new(table(&mesh, &map, scale), map);
+    for (_, scene) in leak_spheres() {
         for precision in [Precision::F32, Precision::F64] {
             let nl = Nonlinear::new(&scene, opts(precision));
             let leaks = rays

@@ -44,13 +44,10 @@ fn leaks(rmip: &Rmip, rays: &[(Ray, f32)]) -> usize {
 #[test]
 fn closed_displaced_sphere_does_not_leak() {
     // Rays from outside aimed at points inside a closed displaced sphere must all hit before
-    // reaching them; two assets (fine mesh / mild relief, coarse mesh / strong relief), at two
-    // marching scales (mostly subdivision vs mostly marching) and without inversion.
+    // reaching them; the four spheres of PDM's leak test (`leak_spheres`: fine / coarse mesh,
+    // mild / strong relief, radial / tilted normals), at two marching scales (mostly subdivision vs mostly marching) and without inversion.
     let rays = rays_to_inner_points(30_000, 1.0, 1);
-    for (subdiv, scale, jitter) in [(2, 0.15, 0.25), (1, 0.6, 0.4)] {
-        let mesh = sphere_mesh(subdiv, jitter);
-        let map = relief_map(64);
-        let scene = Scene::new(table(&mesh, &map, scale), map);
+    for (_, scene) in leak_spheres() {
         for opts in [
             RmipOptions::default(),
             RmipOptions {
