@@ -5,6 +5,7 @@ mod util;
 mod bad_input;
 mod bake;
 mod beauty;
+mod bench;
 mod gpu;
 mod render;
 mod seams;

@@ -53,7 +53,7 @@ pub struct RenderArgs {
     pub disp: DispArgs,
     #[command(flatten)]
     pub repair: RepairArgs,
-    /// Intersection method: pdm, reference or rmip.
+    /// Intersection method: pdm, reference, rmip or nonlinear.
     #[arg(long, default_value = "pdm")]
     pub method: String,
     /// Where to render: cpu; gpu (any wgpu adapter, software Vulkan included; an error without

@@ -66,6 +66,9 @@ pub struct BenchRow {
     pub through: usize,
     pub memory_bytes: usize,
     pub bytes_per_triangle: f64,
+    /// Wall time to build the method's structures from the baked scene (the reference's
+    /// tessellation and BVH, PDM's cells, RMIP's pyramid, the nonlinear method's mipmap).
+    pub build_seconds: f64,
 }
 
 /// The rays every method traces; `limit[i]` clips ray i (leak rays end at their target).
@@ -271,33 +274,40 @@ pub fn run_bench(
     cfg: &BenchConfig,
     log: &dyn Fn(&str),
 ) -> Vec<BenchRow> {
+    let t = Instant::now();
     let reference = Reference::new(scene.surface(), cfg.ref_density);
+    let ref_build = t.elapsed().as_secs_f64();
     let set = make_rays(scene, cam, &reference, cfg);
     let truth = trace_all(&reference, &set.rays, cfg.seed);
     let threads = rayon::current_num_threads() as f64;
     // Every setting's intersector is built up front and the timed repetitions take turns
     // (setting 1, 2, …, then 1, 2, … again), so that a machine that speeds up or slows down
     // during the run shifts every method alike and the ratios between them hold.
-    let built: Vec<(&str, Method, Box<dyn Intersector + '_>)> = cfg
+    let built: Vec<(&str, Method, Box<dyn Intersector + '_>, f64)> = cfg
         .settings
         .iter()
         .filter(|(_, mc)| mc.method != Method::Reference)
-        .map(|(label, mc)| (label.as_str(), mc.method, make_intersector(mc, scene)))
+        .map(|(label, mc)| {
+            let t = Instant::now();
+            let isect = make_intersector(mc, scene);
+            (label.as_str(), mc.method, isect, t.elapsed().as_secs_f64())
+        })
         .collect();
     let ref_label = format!("k={}", cfg.ref_density);
-    let runs: Vec<(&str, Method, &dyn Intersector)> = std::iter::once((
+    let runs: Vec<(&str, Method, &dyn Intersector, f64)> = std::iter::once((
         ref_label.as_str(),
         Method::Reference,
         &reference as &dyn Intersector,
+        ref_build,
     ))
-    .chain(built.iter().map(|(l, m, b)| (*l, *m, b.as_ref())))
+    .chain(built.iter().map(|(l, m, b, s)| (*l, *m, b.as_ref(), *s)))
     .collect();
     // Only the camera (and secondary) rays are timed: the leak rays are a watertightness
     // test, aimed at the surface from everywhere, and would otherwise dominate the time.
     let timed = &set.rays[..set.leak_start];
     let mut rows: Vec<BenchRow> = Vec::with_capacity(runs.len());
     for rep in 0..cfg.repeats.max(1) {
-        for (i, &(label, method, isect)) in runs.iter().enumerate() {
+        for (i, &(label, method, isect, build_seconds)) in runs.iter().enumerate() {
             let t = Instant::now();
             let hits = trace_all(isect, timed, cfg.seed);
             let seconds = t.elapsed().as_secs_f64();
@@ -308,6 +318,7 @@ pub fn run_bench(
             }
             let mut row = measure(scene, &set, cfg, asset, label, method, isect, hits, &truth);
             row.set_time(seconds, threads);
+            row.build_seconds = build_seconds;
             rows.push(row);
         }
     }
@@ -384,6 +395,7 @@ fn measure(
         through,
         memory_bytes: memory,
         bytes_per_triangle: memory as f64 / triangles,
+        build_seconds: 0.0,
     }
 }
 
@@ -406,13 +418,13 @@ pub fn method_name(m: Method) -> String {
 }
 
 pub fn to_csv(rows: &[BenchRow]) -> String {
-    let mut s = String::from("asset,method,setting,seams,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,through,memory_bytes,bytes_per_triangle\n");
+    let mut s = String::from("asset,method,setting,seams,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,through,memory_bytes,bytes_per_triangle,build_seconds\n");
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{},{:.1}\n",
+            "{},{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{},{:.1},{:.4}\n",
             r.asset, method_name(r.method), r.setting, r.seams.name(), r.rays, r.seconds, r.rays_per_s, r.rays_per_s_per_core, r.ns_per_ray,
             r.steps_per_ray, r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
-            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.through, r.memory_bytes, r.bytes_per_triangle
+            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.through, r.memory_bytes, r.bytes_per_triangle, r.build_seconds
         ));
     }
     s
@@ -420,7 +432,7 @@ pub fn to_csv(rows: &[BenchRow]) -> String {
 
 pub fn to_table(rows: &[BenchRow]) -> String {
     let mut s = format!(
-        "{:<10} {:<10} {:<12} {:<6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>7} {:>9}\n",
+        "{:<10} {:<10} {:<12} {:<6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>7} {:>9} {:>8}\n",
         "asset",
         "method",
         "setting",
@@ -435,7 +447,8 @@ pub fn to_table(rows: &[BenchRow]) -> String {
         "n_p99°",
         "leaks",
         "through",
-        "B/tri"
+        "B/tri",
+        "build s"
     );
     for r in rows {
         let name = std::path::Path::new(&r.asset)
@@ -443,10 +456,10 @@ pub fn to_table(rows: &[BenchRow]) -> String {
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default();
         s.push_str(&format!(
-            "{:<10} {:<10} {:<12} {:<6} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>7} {:>9.0}\n",
+            "{:<10} {:<10} {:<12} {:<6} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>7} {:>9.0} {:>8.3}\n",
             name, method_name(r.method), r.setting, r.seams.name(), r.rays_per_s / 1e6, r.rays_per_s_per_core / 1e6, r.steps_per_ray,
             100.0 * r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
-            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.through, r.bytes_per_triangle
+            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.through, r.bytes_per_triangle, r.build_seconds
         ));
     }
     s
@@ -465,14 +478,23 @@ mod tests {
     }
 
     #[test]
-    fn only_camera_rays_are_timed_and_leak_rays_are_tested_once() {
+    fn every_method_runs_on_the_same_rays_and_only_camera_rays_are_timed() {
         let scene = scene();
         let (lo, hi) = scene.table.bounds();
         let cam = Camera::frame_bounds(lo, hi, UpAxis::Y, 40.0, 1.0);
         let cfg = BenchConfig {
             width: 24,
             height: 16,
-            settings: vec![("dt=auto".into(), MethodConfig::default())],
+            settings: [Method::Pdm, Method::Rmip, Method::Nonlinear]
+                .into_iter()
+                .map(|method| {
+                    let mc = MethodConfig {
+                        method,
+                        ..Default::default()
+                    };
+                    (method_name(method), mc)
+                })
+                .collect(),
             ref_density: 2.0,
             secondary_rays: 0,
             leak_rays: 500,
@@ -480,7 +502,16 @@ mod tests {
             repeats: 2,
         };
         let rows = run_bench("sphere", &scene, &cam, &cfg, &|_| {});
-        assert_eq!(rows.len(), 2, "reference and pdm");
+        let methods: Vec<Method> = rows.iter().map(|r| r.method).collect();
+        assert_eq!(
+            methods,
+            [
+                Method::Reference,
+                Method::Pdm,
+                Method::Rmip,
+                Method::Nonlinear
+            ]
+        );
         for r in &rows {
             assert_eq!(
                 r.rays,
@@ -490,8 +521,17 @@ mod tests {
             );
             assert_eq!(r.leak_rays, 500);
             assert!((r.rays_per_s - r.rays as f64 / r.seconds).abs() <= 1e-6 * r.rays_per_s);
-            // The closed sphere: every leak ray crosses the surface, for both methods.
+            // The closed sphere: every leak ray crosses the surface, for every method.
             assert_eq!((r.leaks, r.through), (0, 0), "{}", r.setting);
+            // Same rays, same surface: every method agrees with the reference.
+            assert!(
+                r.mismatch_rate <= 0.005,
+                "{}: {}",
+                r.setting,
+                r.mismatch_rate
+            );
+            assert!(r.depth_err_median_texels <= 0.5, "{}", r.setting);
+            assert!(r.memory_bytes > 0 && r.build_seconds > 0.0, "{}", r.setting);
         }
     }
 

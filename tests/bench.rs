@@ -1,0 +1,108 @@
+//! `bench` and `render --method` end to end for every method: the same rays, one row per
+//! method and setting with time, error, leaks, memory and build time, and a plot per asset.
+
+use crate::util::*;
+
+#[test]
+fn bench_runs_every_method_on_the_same_rays() {
+    let out = temp_dir("bench-methods");
+    run(&[
+        "bench",
+        s(&example("torus/torus.obj")),
+        "--methods",
+        "pdm,rmip,nonlinear",
+        "--dt",
+        "auto:1,auto:0.5",
+        "--marching-scale",
+        "2,8",
+        "--precision",
+        "f32,f64",
+        "--res",
+        "24x16",
+        "--leak-rays",
+        "3000",
+        "--ref-density",
+        "1",
+        "--repeats",
+        "1",
+        "-o",
+        s(&out),
+    ])
+    .assert_success();
+    let rows: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    let settings: Vec<(String, String)> = rows
+        .iter()
+        .map(|r| {
+            (
+                r["method"].as_str().unwrap().to_string(),
+                r["setting"].as_str().unwrap().to_string(),
+            )
+        })
+        .collect();
+    let count = |m: &str| settings.iter().filter(|(method, _)| method == m).count();
+    // Each method's own knob is swept: two dt, two marching scales, two precisions.
+    assert_eq!(
+        (
+            count("reference"),
+            count("pdm"),
+            count("rmip"),
+            count("nonlinear")
+        ),
+        (1, 2, 2, 2),
+        "{settings:?}"
+    );
+    for r in rows {
+        let what = format!("{} {}", r["method"], r["setting"]);
+        assert_eq!(r["rays"], 24 * 16, "{what}");
+        assert_eq!(r["leak_rays"], 3000, "{what}");
+        // The closed torus: nothing passes through, for any method.
+        assert_eq!(r["through"], 0, "{what}");
+        assert_eq!(r["leaks"], 0, "{what}");
+        assert!(r["mismatch_rate"].as_f64().unwrap() <= 0.01, "{what}");
+        assert!(r["rays_per_s"].as_f64().unwrap() > 0.0, "{what}");
+        assert!(r["memory_bytes"].as_u64().unwrap() > 0, "{what}");
+        assert!(r["build_seconds"].as_f64().unwrap() > 0.0, "{what}");
+    }
+    let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
+    assert!(csv.lines().next().unwrap().ends_with(",build_seconds"));
+    assert_eq!(csv.lines().count(), 1 + rows.len());
+    let plot = image::open(out.join("torus.png")).expect("time-vs-error plot");
+    assert!(plot.width() > 100 && plot.height() > 100);
+}
+
+#[test]
+fn every_method_renders_the_same_silhouette() {
+    let sphere = example("sphere/sphere.glb");
+    let mask = |method: &str| {
+        let dir = temp_dir(&format!("render-{method}"));
+        run(&[
+            "render",
+            s(&sphere),
+            "--method",
+            method,
+            "--res",
+            "40x40",
+            "--aov",
+            "mask,depth",
+            "-o",
+            s(&dir),
+        ])
+        .assert_success();
+        let img = image::open(dir.join("mask.png")).unwrap().to_luma8();
+        img.pixels().map(|p| p.0[0] > 127).collect::<Vec<bool>>()
+    };
+    let pdm = mask("pdm");
+    let covered = pdm.iter().filter(|&&c| c).count();
+    assert!(covered > 100 && covered < 1500, "coverage {covered}");
+    for method in ["rmip", "nonlinear"] {
+        let other = mask(method);
+        let differ = pdm.iter().zip(&other).filter(|(a, b)| a != b).count();
+        // Silhouette pixels may flip on a grazing sample; 0.5% of 1600 is 8.
+        assert!(
+            differ <= 8,
+            "{method}: {differ} mask pixels differ from pdm"
+        );
+    }
+}
