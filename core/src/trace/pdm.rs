@@ -457,11 +457,11 @@ impl<'a> Pdm<'a> {
     }
 
     /// A candidate cell's first test: the part of the ray inside its slabs (`Some(None)` for a
-    /// cell that is its whole prism, `None` if the ray misses the slabs). They reject most
-    /// candidates before the prism is set up.
+    /// cell marched on its prism's exact interval, `Cell::exact`; `None` if the ray misses the
+    /// slabs). They reject most candidates before the prism is set up.
     #[inline]
     fn cell_slabs(&self, c: &Cell, ray: &Ray) -> Option<Option<(f32, f32)>> {
-        if c.whole {
+        if c.exact {
             return Some(None);
         }
         let origin = self.frames[c.prism as usize].origin;
