@@ -18,14 +18,6 @@ use rayon::prelude::*;
 /// Rays per asset (the stress size; the bench runs 10⁶).
 const RAYS: usize = 100_000;
 
-/// Rays the nonlinear method (f32 and f64 alike) lets through, by asset: known, not yet fixed.
-/// Sphere ray 67437 crosses the stitched surface 0.0013 (in barycentrics) from a pole-fan
-/// seam edge of prism 949, about 50 texels before its end; the reference and PDM hit it
-/// there, and neither prism 949 nor its neighbour across the seam finds a crossing in the
-/// nonlinear search, whose seam-band leaves test the sign only at the ends of each cell's
-/// curve span (`Nonlinear::stitched_leaf`). Any other ray through fails the test.
-const NONLINEAR_KNOWN: &[(&str, &[usize])] = &[("sphere/sphere.glb", &[67437])];
-
 fn through(isect: &dyn Intersector, rays: &[super::Ray]) -> Vec<usize> {
     rays.par_iter()
         .enumerate()
@@ -77,12 +69,8 @@ fn no_method_lets_a_ray_through_the_closed_example_meshes() {
         let all = std::iter::once(("reference", reference as &dyn Intersector))
             .chain(methods.iter().map(|(label, m)| (*label, m.as_ref())));
         for (label, isect) in all {
-            let mut passed = through(isect, &rays);
+            let passed = through(isect, &rays);
             eprintln!("{name} {label}: {} of {RAYS} rays through", passed.len());
-            if label.starts_with("nonlinear") {
-                let known = NONLINEAR_KNOWN.iter().find(|(n, _)| *n == name);
-                passed.retain(|i| !known.is_some_and(|(_, k)| k.contains(i)));
-            }
             assert!(
                 passed.is_empty(),
                 "{name} {label}: {} rays pass through the closed surface, first {:?}",

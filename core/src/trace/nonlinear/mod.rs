@@ -85,6 +85,8 @@ const EDGE_TOL: f64 = 1e-5;
 const CELL_TOL: f64 = 1e-4;
 /// Shared-wall `t` interval widening, relative to the prism's longest edge.
 const INTERVAL_PAD: f32 = 1e-4;
+/// Sign tests per curve span in a leaf next to a seam band (`Nonlinear::stitched_leaf`).
+const STITCHED_SAMPLES: usize = 16;
 /// Fixed stack: ≤ 3 siblings waiting per level plus the 4 roots.
 const STACK: usize = 4 + 3 * 64;
 
@@ -500,10 +502,17 @@ impl<'a> Nonlinear<'a> {
     /// A leaf that reaches a seam band: the detection surface there is the micro-triangles
     /// stitched like the canonical height (`PrismDisplacement::at_by` over `micro_height`), so
     /// it meets the plain micro-triangles of the neighbouring cells and prisms without a slit.
-    /// Each curve span is searched for a sign change of `λ|m(b)| − D*_micro(b)` at its ends,
-    /// refined by Illinois regula falsi (a span that enters and leaves the surface inside one
-    /// cell is missed, as in RMIP's march), then moved onto the exact stitched surface by the
-    /// same secant step as `refine`.
+    /// Each curve span is searched for sign changes of `λ|m(b)| − D*_micro(b)` at
+    /// `STITCHED_SAMPLES` equal steps, each refined by Illinois regula falsi (a crossing pair
+    /// closer than a step is missed, as in RMIP's march), then moved onto the exact stitched
+    /// surface by the same secant step as `refine`.
+    ///
+    /// Testing the span's two ends alone let a ray of the example sphere through (the closed
+    /// example meshes' test, ray 67437): next to a pole-fan seam the stitched surface dips
+    /// below the ray for a tenth of a cell's span, right at the wall between two prisms. The
+    /// span of the prism that holds the dip reached past the wall, where the ray is above the
+    /// surface again, so both its ends were above; the neighbour's span found the crossing
+    /// 1.3·10⁻⁴ outside its own triangle.
     #[allow(clippy::too_many_arguments)]
     fn stitched_leaf<T: Real>(
         &self,
@@ -520,30 +529,45 @@ impl<'a> Nonlinear<'a> {
             let bv = Vec3::new(b[0].to_f32(), b[1].to_f32(), b[2].to_f32());
             l * pr.curve.m_len(&b) - T::of32(st.disp.at_by(bv, micro))
         };
+        let c = Cand {
+            t: T::ZERO,
+            b: [T::ZERO; 3],
+            l: T::ZERO,
+            d: [T::ZERO; 4],
+            cell,
+            lower: None,
+            f: (T::ZERO, T::ZERO),
+        };
         let mut best: Option<Cand<T>> = None;
         let mut best_t = best_t;
         for &(a, b) in &node.iv.iv[..node.iv.n] {
             *steps += 1;
-            let Some(l) = illinois(g, a, b) else {
-                continue;
-            };
-            let c = Cand {
-                t: T::ZERO,
-                b: [T::ZERO; 3],
-                l: T::ZERO,
-                d: [T::ZERO; 4],
-                cell,
-                lower: None,
-                f: (T::ZERO, T::ZERO),
-            };
-            if let Some(h) = self.accept(pr, &c, l, best_t) {
-                let h = if self.opts.refine {
-                    self.refine_stitched(pr, st, h).unwrap_or(h)
+            let (mut l0, mut g0) = (a, g(a));
+            for j in 1..=STITCHED_SAMPLES {
+                let l1 = if j == STITCHED_SAMPLES {
+                    b
                 } else {
-                    h
+                    a + (b - a) * T::of(j as f64 / STITCHED_SAMPLES as f64)
                 };
-                best_t = h.t;
-                best = Some(h);
+                let g1 = g(l1);
+                let crossed = (g0 < T::ZERO) != (g1 < T::ZERO);
+                let span = (l0, l1);
+                (l0, g0) = (l1, g1);
+                if !crossed {
+                    continue;
+                }
+                let Some(l) = illinois(g, span.0, span.1) else {
+                    continue;
+                };
+                if let Some(h) = self.accept(pr, &c, l, best_t) {
+                    let h = if self.opts.refine {
+                        self.refine_stitched(pr, st, h).unwrap_or(h)
+                    } else {
+                        h
+                    };
+                    best_t = h.t;
+                    best = Some(h);
+                }
             }
         }
         best
