@@ -540,6 +540,58 @@ mod tests {
         }
     }
 
+    /// Cells split where the quarters' ranges shrink and stay whole where they do not: a
+    /// smooth relief (range proportional to the size) is split to the target, texel noise (every
+    /// quarter spans nearly the whole range) leaves prisms whole. Either way a prism's cells
+    /// tile its triangle. Breaks if the cost comparison is turned around or the bottom-up
+    /// choice drops or repeats a piece.
+    #[test]
+    fn cells_split_only_where_their_ranges_shrink() {
+        use crate::accel::fixtures::{relief_map, sphere_mesh, table};
+        use crate::rng::{pcg_hash, to_unit_float};
+        let noise = HeightMap::new(
+            64,
+            64,
+            (0..64 * 64u32)
+                .map(|i| to_unit_float(pcg_hash(i)))
+                .collect(),
+            crate::heightmap::Wrap::Repeat,
+        );
+        let mesh = sphere_mesh(1, 0.3);
+        let area = |t: &[Vec3; 3]| (t[1] - t[0]).cross(t[2] - t[0]).length() / 2.0;
+        let whole = area(&[Vec3::X, Vec3::Y, Vec3::Z]);
+        let mut counts = vec![];
+        for map in [relief_map(64), noise] {
+            let table = table(&mesh, &map, 0.1);
+            let stitch = StitchField::empty();
+            let mut cells = 0;
+            for i in 0..table.prisms.len() {
+                // Room to split: at least 16 cells per prism.
+                assert!(split_level(&table, &map, i) >= 2, "prism {i}: footprint");
+                let c = prism_cells(&table, &map, &stitch, i);
+                let covered: f32 = c.iter().map(|c| area(&c.corners)).sum();
+                assert!(
+                    (covered - whole).abs() < 1e-5 * whole,
+                    "prism {i}: {covered}"
+                );
+                cells += c.len();
+            }
+            counts.push((table.prisms.len(), cells));
+        }
+        let [(prisms, smooth), (_, noisy)] = counts[..] else {
+            unreachable!()
+        };
+        assert!(
+            smooth > 8 * prisms,
+            "smooth relief: {smooth} cells for {prisms} prisms"
+        );
+        eprintln!("{prisms} prisms: {smooth} cells on smooth relief, {noisy} on noise");
+        assert!(
+            noisy < prisms + prisms / 4,
+            "noise: {noisy} cells for {prisms} prisms"
+        );
+    }
+
     /// Midpoint subdivision tiles the triangle: `4^k` pieces of equal area, same orientation.
     #[test]
     fn subdivision_tiles_the_triangle() {
