@@ -247,7 +247,7 @@ impl QuadBvh {
             return;
         }
         let r = QuadRay::new(ray);
-        fast_stack!((Child, f32), (96, 192), self.depth, stack, {
+        fast_stack!((Child, f32), (48, 96, 192), self.depth, stack, {
             let mut current = (self.root, t_root);
             loop {
                 let (node, t) = current;
