@@ -231,6 +231,24 @@ pub(crate) fn rays_to_inner_points(
         .collect()
 }
 
+/// Rays of `rays_to_inner_points` that pass their inner point without a hit (missing
+/// entirely, or hitting the far side from inside); ray `i` is pixel `i` (its jitter).
+pub(crate) fn leaks(
+    isect: &dyn crate::trace::Intersector,
+    rays: &[(crate::trace::Ray, f32)],
+) -> usize {
+    rays.iter()
+        .enumerate()
+        .filter(|(i, (ray, inner))| {
+            let ctx = crate::trace::RayContext {
+                pixel: *i as u32,
+                ..Default::default()
+            };
+            isect.intersect(ray, &ctx).is_none_or(|h| h.t > *inner)
+        })
+        .count()
+}
+
 /// Distance of a hit's ray point from the canonical surface, in texels of its prism: project
 /// it onto the lines `P(b) + λ m(b)` and compare `λ|m|` with `D(uv(b))`.
 pub(crate) fn canonical_error_texels(

@@ -12,12 +12,12 @@ use crate::mesh::BaseMesh;
 use crate::render::camera::Camera;
 use crate::render::{render_aovs, RenderSettings};
 use crate::repair::{repair, RepairOptions};
-use crate::test_util::Rng;
+use crate::test_util::{leaks, Rng};
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
 use crate::trace::rmip::{Rmip, RmipOptions};
-use crate::trace::{Intersector, Ray, RayContext};
+use crate::trace::Ray;
 
 const W: u32 = 96;
 const H: u32 = 64;
@@ -359,19 +359,6 @@ fn rays_to_inner_points(n: usize, seed: u32) -> Vec<(Ray, f32)> {
             (Ray::new(o, (target - o).normalize()), (target - o).length())
         })
         .collect()
-}
-
-fn leaks(isect: &dyn Intersector, rays: &[(Ray, f32)]) -> usize {
-    rays.iter()
-        .enumerate()
-        .filter(|(i, (ray, inner))| {
-            let ctx = RayContext {
-                pixel: *i as u32,
-                ..Default::default()
-            };
-            isect.intersect(ray, &ctx).is_none_or(|h| h.t > *inner)
-        })
-        .count()
 }
 
 #[test]

@@ -1395,17 +1395,9 @@ mod tests {
         }
     }
 
-    /// Rays that pass their inner point without a hit (missing entirely, or hitting the far
-    /// side from inside), for the given options.
+    /// Leaks of PDM with the given options (`test_util::leaks`).
     fn leaks(scene: &Scene, opts: PdmOptions, rays: &[(Ray, f32)]) -> usize {
-        let pdm = Pdm::new(scene, opts);
-        rays.iter()
-            .enumerate()
-            .filter(|(i, (ray, t_inner))| {
-                pdm.intersect(ray, &ctx(*i as u32, 0))
-                    .is_none_or(|h| h.t > *t_inner)
-            })
-            .count()
+        crate::test_util::leaks(&Pdm::new(scene, opts), rays)
     }
 
     #[test]

@@ -10,7 +10,7 @@ use crate::render::camera::Camera;
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
 
-use crate::test_util::{canonical_error_texels, rays_per_second, rays_to_inner_points, Rng};
+use crate::test_util::{canonical_error_texels, leaks, rays_per_second, rays_to_inner_points, Rng};
 
 fn ctx() -> RayContext {
     RayContext::default()
@@ -138,10 +138,7 @@ fn closed_displaced_sphere_does_not_leak() {
     for (_, scene) in leak_spheres() {
         for precision in [Precision::F32, Precision::F64] {
             let nl = Nonlinear::new(&scene, opts(precision));
-            let leaks = rays
-                .iter()
-                .filter(|(ray, t_inner)| nl.intersect(ray, &ctx()).is_none_or(|h| h.t > *t_inner))
-                .count();
+            let leaks = leaks(&nl, &rays);
             let occl_leaks = rays
                 .iter()
                 .filter(|(ray, t_inner)| {

@@ -7,7 +7,7 @@ use crate::render::camera::Camera;
 use crate::trace::pdm::{Pdm, PdmOptions};
 use crate::trace::reference::Reference;
 
-use crate::test_util::{canonical_error_texels, rays_per_second, rays_to_inner_points, Rng};
+use crate::test_util::{canonical_error_texels, leaks, rays_per_second, rays_to_inner_points, Rng};
 
 fn ctx() -> RayContext {
     RayContext::default()
@@ -32,13 +32,6 @@ fn flat_map_hits_the_analytic_sphere() {
         );
         assert!(hit.shading_normal.dot(want.normalize()) > 0.999);
     }
-}
-
-/// Rays that pass their inner point without a hit.
-fn leaks(rmip: &Rmip, rays: &[(Ray, f32)]) -> usize {
-    rays.iter()
-        .filter(|(ray, t_inner)| rmip.intersect(ray, &ctx()).is_none_or(|h| h.t > *t_inner))
-        .count()
 }
 
 #[test]
