@@ -60,13 +60,16 @@ fn bench_runs_every_method_on_the_same_rays() {
         // The closed torus: nothing passes through, for any method.
         assert_eq!(r["through"], 0, "{what}");
         assert_eq!(r["leaks"], 0, "{what}");
+        assert_eq!(r["leaks_inside"], 0, "{what}");
         assert!(r["mismatch_rate"].as_f64().unwrap() <= 0.01, "{what}");
         assert!(r["rays_per_s"].as_f64().unwrap() > 0.0, "{what}");
         assert!(r["memory_bytes"].as_u64().unwrap() > 0, "{what}");
         assert!(r["build_seconds"].as_f64().unwrap() > 0.0, "{what}");
     }
     let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
-    assert!(csv.lines().next().unwrap().ends_with(",build_seconds"));
+    let header = csv.lines().next().unwrap();
+    assert!(header.ends_with(",build_seconds"), "{header}");
+    assert!(header.contains(",leaks,leaks_inside,through,"), "{header}");
     assert_eq!(csv.lines().count(), 1 + rows.len());
     let plot = image::open(out.join("torus.png")).expect("time-vs-error plot");
     assert!(plot.width() > 100 && plot.height() > 100);

@@ -60,6 +60,12 @@ pub struct BenchRow {
     pub leak_rays: usize,
     /// Leak rays the reference hits and this method misses.
     pub leaks: usize,
+    /// Of `leaks`, those whose end lies inside the reference's closed surface (winding number
+    /// at least 1/2, `Reference::winding_number`): the method let them through the solid.
+    /// The others end outside it (where the displaced surface folds over itself, or past a
+    /// thin feature): the reference crossed the surface an even number of times, and the
+    /// method missed a pair of crossings, not a wall.
+    pub leaks_inside: usize,
     /// Leak rays with no hit at all before their target inside the closed object: they
     /// passed through the surface (a crack, or a hole of the method), whatever the reference
     /// does.
@@ -234,7 +240,7 @@ fn compare(
     set: &RaySet,
     hits: &[Option<Hit>],
     truth: &[Option<Hit>],
-) -> (f64, f64, f64, f64, f64, usize) {
+) -> (f64, f64, f64, f64, f64, Vec<usize>) {
     let mut mismatches = 0usize;
     let mut depth = Vec::new();
     let mut normal = Vec::new();
@@ -253,8 +259,12 @@ fn compare(
         .iter()
         .zip(&truth[set.leak_start..])
         .zip(&set.rays[set.leak_start..])
-        .filter(|((h, r), ray)| h.is_none() && r.is_some_and(|r| clear_of_the_end(scene, &r, ray)))
-        .count();
+        .enumerate()
+        .filter(|(_, ((h, r), ray))| {
+            h.is_none() && r.is_some_and(|r| clear_of_the_end(scene, &r, ray))
+        })
+        .map(|(i, _)| set.leak_start + i)
+        .collect();
     let n = set.leak_start.max(1) as f64;
     (
         mismatches as f64 / n,
@@ -316,7 +326,9 @@ pub fn run_bench(
                 rows[i].set_time(best, threads);
                 continue;
             }
-            let mut row = measure(scene, &set, cfg, asset, label, method, isect, hits, &truth);
+            let mut row = measure(
+                scene, &set, cfg, asset, label, method, isect, &reference, hits, &truth,
+            );
             row.set_time(seconds, threads);
             row.build_seconds = build_seconds;
             rows.push(row);
@@ -346,6 +358,7 @@ fn measure(
     label: &str,
     method: Method,
     isect: &dyn Intersector,
+    reference: &Reference,
     mut hits: Vec<Option<Hit>>,
     truth: &[Option<Hit>],
 ) -> BenchRow {
@@ -363,6 +376,13 @@ fn measure(
         .map(|h| h.steps as u64)
         .sum();
     let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, set, &hits, truth);
+    let leaks_inside = leaks
+        .iter()
+        .filter(|&&i| {
+            let r = &set.rays[i];
+            reference.winding_number(r.at(r.t_max)) >= 0.5
+        })
+        .count();
     let through = hits[set.leak_start..]
         .iter()
         .filter(|h| h.is_none())
@@ -391,7 +411,8 @@ fn measure(
         normal_err_median_deg: nmed,
         normal_err_p99_deg: np99,
         leak_rays: set.rays.len() - set.leak_start,
-        leaks,
+        leaks: leaks.len(),
+        leaks_inside,
         through,
         memory_bytes: memory,
         bytes_per_triangle: memory as f64 / triangles,
@@ -418,13 +439,13 @@ pub fn method_name(m: Method) -> String {
 }
 
 pub fn to_csv(rows: &[BenchRow]) -> String {
-    let mut s = String::from("asset,method,setting,seams,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,through,memory_bytes,bytes_per_triangle,build_seconds\n");
+    let mut s = String::from("asset,method,setting,seams,rays,seconds,rays_per_s,rays_per_s_per_core,ns_per_ray,steps_per_ray,mismatch_rate,depth_err_median_texels,depth_err_p99_texels,normal_err_median_deg,normal_err_p99_deg,leak_rays,leaks,leaks_inside,through,memory_bytes,bytes_per_triangle,build_seconds\n");
     for r in rows {
         s.push_str(&format!(
-            "{},{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{},{:.1},{:.4}\n",
+            "{},{},{},{},{},{:.6},{:.1},{:.1},{:.2},{:.3},{:.6},{:.6},{:.6},{:.4},{:.4},{},{},{},{},{},{:.1},{:.4}\n",
             r.asset, method_name(r.method), r.setting, r.seams.name(), r.rays, r.seconds, r.rays_per_s, r.rays_per_s_per_core, r.ns_per_ray,
             r.steps_per_ray, r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
-            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.through, r.memory_bytes, r.bytes_per_triangle, r.build_seconds
+            r.normal_err_p99_deg, r.leak_rays, r.leaks, r.leaks_inside, r.through, r.memory_bytes, r.bytes_per_triangle, r.build_seconds
         ));
     }
     s
@@ -432,7 +453,7 @@ pub fn to_csv(rows: &[BenchRow]) -> String {
 
 pub fn to_table(rows: &[BenchRow]) -> String {
     let mut s = format!(
-        "{:<10} {:<10} {:<12} {:<6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>7} {:>9} {:>8}\n",
+        "{:<10} {:<10} {:<12} {:<6} {:>9} {:>9} {:>8} {:>8} {:>9} {:>9} {:>8} {:>8} {:>11} {:>6} {:>7} {:>9} {:>8}\n",
         "asset",
         "method",
         "setting",
@@ -446,6 +467,7 @@ pub fn to_table(rows: &[BenchRow]) -> String {
         "n_med°",
         "n_p99°",
         "leaks",
+        "inside",
         "through",
         "B/tri",
         "build s"
@@ -456,10 +478,10 @@ pub fn to_table(rows: &[BenchRow]) -> String {
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default();
         s.push_str(&format!(
-            "{:<10} {:<10} {:<12} {:<6} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>7} {:>9.0} {:>8.3}\n",
+            "{:<10} {:<10} {:<12} {:<6} {:>9.3} {:>9.3} {:>8.1} {:>7.3}% {:>9.4} {:>9.4} {:>8.2} {:>8.2} {:>5}/{:<5} {:>6} {:>7} {:>9.0} {:>8.3}\n",
             name, method_name(r.method), r.setting, r.seams.name(), r.rays_per_s / 1e6, r.rays_per_s_per_core / 1e6, r.steps_per_ray,
             100.0 * r.mismatch_rate, r.depth_err_median_texels, r.depth_err_p99_texels, r.normal_err_median_deg,
-            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.through, r.bytes_per_triangle, r.build_seconds
+            r.normal_err_p99_deg, r.leaks, r.leak_rays, r.leaks_inside, r.through, r.bytes_per_triangle, r.build_seconds
         ));
     }
     s
