@@ -192,7 +192,8 @@ pub fn expand_paths(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
 /// either gives another table (the file format's `VERSION` only covers the layout), so that
 /// tables cached by an older build (`table_cache`) are not served as this build's.
 /// 2: crease strips on UV seams keep each side's UV.
-pub const PIPELINE_REVISION: u32 = 2;
+/// 3: a crease strip's texel size is at most half its widest rung arc.
+pub const PIPELINE_REVISION: u32 = 3;
 
 /// blake3 of everything the table depends on.
 pub fn input_hash(spec: &AssetSpec, repair: &RepairOptions) -> Result<[u8; 32]> {

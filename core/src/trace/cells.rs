@@ -205,7 +205,10 @@ fn subdivide(t: [Vec3; 3], level: u32, out: &mut Vec<[Vec3; 3]>) {
 /// How many times prism `i` is split (0: one cell, the prism itself).
 fn split_level(table: &PrismTable, map: &HeightMap, i: usize) -> u32 {
     let p = &table.prisms[i];
-    if p.flags & (PRISM_FLAT | PRISM_DEGENERATE_NORMALS) != 0 {
+    // Crease strips stay whole: their march needs the exact interval (on slabs a few strip
+    // rays were missed), and their step, a fraction of the sliver's width
+    // (`bake::inserted_texel_world`), would make every split look like it pays.
+    if p.flags & (PRISM_FLAT | PRISM_DEGENERATE_NORMALS | PRISM_INSERTED) != 0 {
         return 0;
     }
     let uv = table.prism_uvs(p);

@@ -32,40 +32,45 @@ fn through(isect: &dyn Intersector, rays: &[super::Ray]) -> Vec<usize> {
         .collect()
 }
 
+/// Every method, by name, on one scene.
+fn methods(scene: &crate::accel::Scene) -> Vec<(&'static str, Box<dyn Intersector + '_>)> {
+    vec![
+        ("pdm", Box::new(Pdm::new(scene, PdmOptions::default()))),
+        (
+            "pdm whole prisms",
+            Box::new(Pdm::new(
+                scene,
+                PdmOptions {
+                    cells: false,
+                    ..Default::default()
+                },
+            )),
+        ),
+        ("rmip", Box::new(Rmip::new(scene, RmipOptions::default()))),
+        (
+            "nonlinear f32",
+            Box::new(Nonlinear::new(scene, NonlinearOptions::default())),
+        ),
+        (
+            "nonlinear f64",
+            Box::new(Nonlinear::new(
+                scene,
+                NonlinearOptions {
+                    precision: Precision::F64,
+                    ..Default::default()
+                },
+            )),
+        ),
+    ]
+}
+
 #[test]
 fn no_method_lets_a_ray_through_the_closed_example_meshes() {
     for name in ["sphere/sphere.glb", "torus/torus.obj"] {
         let (scene, reference) = crate::test_util::example_with_reference(name);
         let rays = leak_rays(scene, RAYS, 0x1ea4);
         assert_eq!(rays.len(), RAYS);
-        let methods: Vec<(&str, Box<dyn Intersector + '_>)> = vec![
-            ("pdm", Box::new(Pdm::new(scene, PdmOptions::default()))),
-            (
-                "pdm whole prisms",
-                Box::new(Pdm::new(
-                    scene,
-                    PdmOptions {
-                        cells: false,
-                        ..Default::default()
-                    },
-                )),
-            ),
-            ("rmip", Box::new(Rmip::new(scene, RmipOptions::default()))),
-            (
-                "nonlinear f32",
-                Box::new(Nonlinear::new(scene, NonlinearOptions::default())),
-            ),
-            (
-                "nonlinear f64",
-                Box::new(Nonlinear::new(
-                    scene,
-                    NonlinearOptions {
-                        precision: Precision::F64,
-                        ..Default::default()
-                    },
-                )),
-            ),
-        ];
+        let methods = methods(scene);
         let all = std::iter::once(("reference", reference as &dyn Intersector))
             .chain(methods.iter().map(|(label, m)| (*label, m.as_ref())));
         for (label, isect) in all {
@@ -78,5 +83,54 @@ fn no_method_lets_a_ray_through_the_closed_example_meshes() {
                 &passed[..passed.len().min(8)]
             );
         }
+    }
+}
+
+/// The rock: closed by position, but its displaced fin folds over itself (the flange is 0.02
+/// thick at its root under a relief of ±0.025), so some leak rays end outside the solid and
+/// the reference itself lets 3% of them through. A ray counts here only if its end is inside
+/// the reference's closed surface (`Reference::winding_number`), the reference hits the
+/// surface clear of the end (`bench::LEAK_END_TOL_TEXELS`, as the bench counts leaks) and the
+/// method hits nothing before it.
+///
+/// Not yet 0: every method lets 2 of the 10⁵ through. Ray 13140 grazes the surface (|cos| 0.1)
+/// and the reference hits it 0.45 texel before its end, 0.045 texel from the surface along
+/// the normal, below the reference's own chord error: all four methods agree that it passes.
+/// Ray 1281 (PDM) crosses a crease strip's fan at a hard corner, below the base (λ < 0, where
+/// the strips' level triangles fold over), a sliver finer than the strip's step. Before the
+/// strips' step followed their rung width (`bake::inserted_texel_world`), PDM let 5 through.
+const ROCK_THROUGH_BOUND: usize = 2;
+
+#[test]
+fn rays_into_the_rock_are_stopped() {
+    let (scene, reference) = crate::test_util::example_with_reference("rock/rock.glb");
+    let rays = leak_rays(scene, RAYS, 0x1ea4);
+    let counted = |i: &usize| {
+        let r = &rays[*i];
+        let ctx = RayContext {
+            pixel: *i as u32,
+            ..Default::default()
+        };
+        reference.intersect(r, &ctx).is_some_and(|h| {
+            let texel = scene.table.prisms[h.prism as usize].texel_world;
+            h.t <= r.t_max - crate::bench::LEAK_END_TOL_TEXELS * texel
+        }) && reference.winding_number(r.at(r.t_max)) >= 0.5
+    };
+    let all = std::iter::once(("reference", reference as &dyn Intersector)).chain(
+        methods(scene)
+            .into_iter()
+            .map(|(label, m)| (label, &*Box::leak(m) as &dyn Intersector)),
+    );
+    for (label, isect) in all {
+        let leaked: Vec<usize> = through(isect, &rays).into_iter().filter(counted).collect();
+        eprintln!(
+            "rock {label}: {} of {RAYS} rays into the solid go through: {leaked:?}",
+            leaked.len()
+        );
+        assert!(
+            leaked.len() <= ROCK_THROUGH_BOUND,
+            "rock {label}: {} rays into the solid go through: {leaked:?}",
+            leaked.len()
+        );
     }
 }
