@@ -1,8 +1,12 @@
-//! Where the leak rays of `prismbake bench` get through: for each ray the reference hits and
-//! the probed method (PDM, or RMIP / nonlinear) does not, the prism the reference hit (inserted
-//! crease prism or not, stitched or not), its barycentrics, and what the other methods find on
-//! the ray lengthened by 4 texels.
-//! `cargo run --release -p prismbake-core --example leak_probe ASSET [N] [pdm|rmip|nonlinear]`
+//! Where the leak rays of `prismbake bench` get through: for each leak (the reference hits clear
+//! of the ray's end, `bench::LEAK_END_TOL_TEXELS`, the probed method — PDM, or RMIP /
+//! nonlinear — nothing), the winding number of the ray's end with respect to the reference's
+//! closed micro-mesh (1: inside the solid, so the ray went through the surface; 0: outside,
+//! where the displaced surface folds over itself, and the method missed a pair of crossings),
+//! the prism the reference hit (inserted crease prism or not, stitched or not), its
+//! barycentrics, and what the other methods find on the ray lengthened by 4 texels.
+//! `cargo run --release -p prismbake-core --example leak_probe ASSET [N] [pdm|rmip|nonlinear] [SEED]`
+//! (the bench's rays are `SEED` 0x1ea4; default 0)
 
 use prismbake::accel::Scene;
 use prismbake::asset::{self, Overrides};
@@ -39,8 +43,12 @@ fn main() {
         Some("nonlinear") => &nl,
         _ => &pdm,
     };
-    let rays = leak_rays(&scene, n, 0);
-    let (mut leaks, mut inserted, mut stitched, mut near_edge) = (0, 0, 0, 0);
+    let seed = args.get(4).map_or(0, |s| {
+        let s = s.trim_start_matches("0x");
+        u32::from_str_radix(s, 16).expect("SEED in hex")
+    });
+    let rays = leak_rays(&scene, n, seed);
+    let (mut leaks, mut inserted, mut stitched, mut near_edge, mut inside) = (0, 0, 0, 0, 0);
     for (i, r) in rays.iter().enumerate() {
         let ctx = RayContext {
             pixel: i as u32,
@@ -49,11 +57,15 @@ fn main() {
         let Some(truth) = reference.intersect(r, &ctx) else {
             continue;
         };
-        if probed.intersect(r, &ctx).is_some() {
+        let p = &scene.table.prisms[truth.prism as usize];
+        if truth.t > r.t_max - prismbake::bench::LEAK_END_TOL_TEXELS * p.texel_world
+            || probed.intersect(r, &ctx).is_some()
+        {
             continue;
         }
         leaks += 1;
-        let p = &scene.table.prisms[truth.prism as usize];
+        let winding = reference.winding_number(r.at(r.t_max));
+        inside += (winding >= 0.5) as usize;
         let ins = p.flags & PRISM_INSERTED != 0;
         let st = scene.stitch().record_index(truth.prism).is_some();
         let edge = truth.bary.min_element() < 0.02;
@@ -65,7 +77,7 @@ fn main() {
         let ext = probed.intersect(&longer, &ctx);
         if leaks <= 25 {
             println!(
-                "ray {i}: ref prism {} inserted {ins} stitched {st} bary {:.4?} (t_max - t)/texel {:.4} longer ray: probed prism {:?} (t - t_ref)/texel {:?}",
+                "ray {i}: winding {winding:.2} ref prism {} inserted {ins} stitched {st} bary {:.4?} (t_max - t)/texel {:.4} longer ray: probed prism {:?} (t - t_ref)/texel {:?}",
                 truth.prism, truth.bary, (r.t_max - truth.t) / p.texel_world,
                 ext.map(|h| h.prism), ext.map(|h| (h.t - truth.t) / p.texel_world)
             );
@@ -79,5 +91,5 @@ fn main() {
             );
         }
     }
-    println!("{leaks} leaks of {n}: {inserted} in inserted prisms, {stitched} in stitched prisms, {near_edge} within 0.02 of an edge");
+    println!("{leaks} leaks of {n}, {inside} ending inside: {inserted} in inserted prisms, {stitched} in stitched prisms, {near_edge} within 0.02 of an edge");
 }

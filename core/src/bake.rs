@@ -357,7 +357,7 @@ pub fn inserted_texel_world(
 /// An inserted prism's texel size is at most this fraction of its widest rung arc
 /// (`inserted_texel_world`): at the default step (half a texel) a ray crossing the sliver
 /// where it is widest takes about eight samples in it. Measured on the rock's 10⁶ leak rays
-/// (`core/examples/leak_diag.rs`): rays into the solid that PDM let through went 48 → 20 at
+/// (`core/examples/leak_probe.rs`): rays into the solid that PDM let through went 48 → 20 at
 /// 0.5 and → 11 at 0.25, for +9.8% and +17.5% of PDM's instructions on the rock's camera
 /// view (the strips on the fin's edge march finer).
 pub const STRIP_TEXELS_PER_RUNG: f32 = 0.25;

@@ -116,11 +116,9 @@ fn rays_into_the_rock_are_stopped() {
             h.t <= r.t_max - crate::bench::LEAK_END_TOL_TEXELS * texel
         }) && reference.winding_number(r.at(r.t_max)) >= 0.5
     };
-    let all = std::iter::once(("reference", reference as &dyn Intersector)).chain(
-        methods(scene)
-            .into_iter()
-            .map(|(label, m)| (label, &*Box::leak(m) as &dyn Intersector)),
-    );
+    let methods = methods(scene);
+    let all = std::iter::once(("reference", reference as &dyn Intersector))
+        .chain(methods.iter().map(|(label, m)| (*label, m.as_ref())));
     for (label, isect) in all {
         let leaked: Vec<usize> = through(isect, &rays).into_iter().filter(counted).collect();
         eprintln!(
