@@ -93,13 +93,24 @@ fn no_method_lets_a_ray_through_the_closed_example_meshes() {
 /// surface clear of the end (`bench::LEAK_END_TOL_TEXELS`, as the bench counts leaks) and the
 /// method hits nothing before it.
 ///
-/// Not yet 0: every method lets 2 of the 10⁵ through. Ray 13140 grazes the surface (|cos| 0.1)
-/// and the reference hits it 0.45 texel before its end, 0.045 texel from the surface along
-/// the normal, below the reference's own chord error: all four methods agree that it passes.
-/// Ray 1281 (PDM) crosses a crease strip's fan at a hard corner, below the base (λ < 0, where
-/// the strips' level triangles fold over), a sliver finer than the strip's step. Before the
-/// strips' step followed their rung width (`bake::inserted_texel_world`), PDM let 5 through.
-const ROCK_THROUGH_BOUND: usize = 2;
+/// Not yet 0. Ray 13140 grazes the surface (|cos| 0.1) and the reference hits it 0.45 texel
+/// before its end, 0.045 texel from the surface along the normal, below the reference's own
+/// chord error: every method agrees that it passes. RMIP and the nonlinear method also let
+/// 29332 through, which crosses a crease strip's sliver below its base (λ < 0, where the
+/// strips' level triangles fold over).
+///
+/// PDM is held to 1 (13140). It let 5 through before the strips' step followed their rung
+/// width (`bake::inserted_texel_world`), and 2 (1281, 29332: the same slivers) until its march
+/// interpolated the barycentrics homogeneously across the strips' `λ = 0` pole
+/// (`pdm::inside_span`), looked for the inside between a sample just outside the triangle and
+/// one far outside, and solved them from the level triangle's widest corner.
+fn rock_through_bound(method: &str) -> usize {
+    match method {
+        "reference" => 0,
+        "pdm" | "pdm whole prisms" => 1,
+        _ => 2,
+    }
+}
 
 #[test]
 fn rays_into_the_rock_are_stopped() {
@@ -126,7 +137,7 @@ fn rays_into_the_rock_are_stopped() {
             leaked.len()
         );
         assert!(
-            leaked.len() <= ROCK_THROUGH_BOUND,
+            leaked.len() <= rock_through_bound(label),
             "rock {label}: {} rays into the solid go through: {leaked:?}",
             leaked.len()
         );

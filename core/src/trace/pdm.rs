@@ -158,6 +158,8 @@ struct Frame {
     scale: f32,
     /// The ray-independent part of the level cubic (`level_cubic`).
     cubic: CubicBasis,
+    /// The corner the barycentrics are solved from (`triangle_barycentric`).
+    apex: u8,
 }
 
 /// One prism in its local frame, with its height (the map, or the stitched height next to
@@ -298,6 +300,7 @@ impl Frame {
         Frame {
             origin,
             cubic: CubicBasis::new(&geom, p.lambda_lo.abs().max(p.lambda_hi.abs())),
+            apex: widest_corner(&geom.v),
             geom,
             a,
             ng,
@@ -307,6 +310,17 @@ impl Frame {
 }
 
 impl<'s> Local<'s> {
+    /// The signed area of the level triangle `T(λ)` (twice it), measured along the sum of the
+    /// corner directions: positive where `T(λ)` faces the way the base does, negative where it
+    /// has flipped over (a crease strip below its base), zero where it collapses.
+    fn level_area(&self, l: f32) -> f32 {
+        let g = &self.f.geom;
+        let c: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + g.n[i] * l);
+        (c[1] - c[0])
+            .cross(c[2] - c[0])
+            .dot(g.n[0] + g.n[1] + g.n[2])
+    }
+
     #[inline]
     fn new(scene: &'s Scene, f: &'s Frame, prism: u32) -> Self {
         Local {
@@ -352,29 +366,57 @@ impl LevelTrack {
     }
 }
 
-/// Barycentrics of `s` in triangle `c` by five dot products (Ericson 2004; paper App. C).
+/// Barycentrics of `s` in triangle `c` by five dot products (Ericson 2004; paper App. C),
+/// with the two edges taken from corner `apex` (`Frame::apex`). Their Gram determinant
+/// `|e_1|²|e_2|² − (e_1·e_2)²` cancels catastrophically in f32 when the edges are nearly
+/// parallel: from the sharp corner of a sliver (a crease strip's level triangle near its
+/// zero-length rung, a few 10⁻⁴ wide and 0.05 long), `b` came out in steps of about 1/8. From
+/// the corner opposite the longest edge (the widest angle, ≥ 60°) the edges are far from
+/// parallel.
 #[inline]
-fn triangle_barycentric(s: Vec3, c: &[Vec3; 3]) -> Vec3 {
-    let x0 = c[1] - c[0];
-    let x1 = c[2] - c[0];
-    let x2 = s - c[0];
+fn triangle_barycentric(s: Vec3, c: &[Vec3; 3], apex: u8) -> Vec3 {
+    let (k, i, j) = match apex {
+        1 => (1, 2, 0),
+        2 => (2, 0, 1),
+        _ => (0, 1, 2),
+    };
+    let x0 = c[i] - c[k];
+    let x1 = c[j] - c[k];
+    let x2 = s - c[k];
     let d00 = x0.dot(x0);
     let d01 = x0.dot(x1);
     let d11 = x1.dot(x1);
     let d20 = x2.dot(x0);
     let d21 = x2.dot(x1);
     let inv = 1.0 / (d00 * d11 - d01 * d01);
-    let b1 = (d11 * d20 - d01 * d21) * inv;
-    let b2 = (d00 * d21 - d01 * d20) * inv;
-    Vec3::new(1.0 - b1 - b2, b1, b2)
+    let bi = (d11 * d20 - d01 * d21) * inv;
+    let bj = (d00 * d21 - d01 * d20) * inv;
+    let bk = 1.0 - bi - bj;
+    match apex {
+        1 => Vec3::new(bj, bk, bi),
+        2 => Vec3::new(bi, bj, bk),
+        _ => Vec3::new(bk, bi, bj),
+    }
 }
 
-/// On the straight segment from `b0` to `b1` (barycentrics), the middle of the part inside
-/// the triangle (as a fraction of the segment), if it has one.
+/// The corner opposite the longest edge of triangle `v` (`triangle_barycentric`).
+fn widest_corner(v: &[Vec3; 3]) -> u8 {
+    let edge = |k: usize| (v[(k + 2) % 3] - v[(k + 1) % 3]).length_squared();
+    (0..3u8).fold(0, |best, k| {
+        if edge(k as usize) > edge(best as usize) {
+            k
+        } else {
+            best
+        }
+    })
+}
+
+/// On the straight segment from `h0` to `h1`, the part where every component is `≥ 0` (as
+/// fractions of the segment), if it has one.
 #[inline]
-fn inside_span(b0: Vec3, b1: Vec3) -> Option<f32> {
+fn nonnegative_span(h0: Vec3, h1: Vec3) -> Option<(f32, f32)> {
     let (mut lo, mut hi) = (0.0f32, 1.0f32);
-    for (a, b) in b0.to_array().into_iter().zip(b1.to_array()) {
+    for (a, b) in h0.to_array().into_iter().zip(h1.to_array()) {
         // a + s (b − a) ≥ 0
         let slope = b - a;
         if slope == 0.0 {
@@ -387,7 +429,40 @@ fn inside_span(b0: Vec3, b1: Vec3) -> Option<f32> {
             hi = hi.min(-a / slope);
         }
     }
-    (lo < hi).then_some(0.5 * (lo + hi))
+    (lo < hi).then_some((lo, hi))
+}
+
+/// Between two samples, the middle of the first part of the straight segment inside the
+/// triangle (as a fraction of the segment), if it has one. The barycentrics are interpolated
+/// homogeneously: `β = b S(λ)`, with `S` the level triangle's signed area (`Local::level_area`),
+/// are the sub-triangles' signed areas, polynomial in the point and `λ` and so nearly affine
+/// along a short segment, where `b` itself has a pole wherever the level triangle collapses (a
+/// crease strip at `λ = 0`, whose level triangles flip over there). A point is inside where
+/// every `β_i` has the sign of `S = Σ β_i`.
+#[inline]
+fn inside_span(local: &Local, a: &Sample, b: &Sample) -> Option<f32> {
+    let (h0, h1) = (
+        a.b * local.level_area(a.lambda),
+        b.b * local.level_area(b.lambda),
+    );
+    let (h0, h1) = if h0.is_finite() && h1.is_finite() && h0 != Vec3::ZERO && h1 != Vec3::ZERO {
+        (h0, h1)
+    } else {
+        (a.b, b.b)
+    };
+    let up = nonnegative_span(h0, h1);
+    let down = nonnegative_span(-h0, -h1);
+    let (lo, hi) = match (up, down) {
+        (Some(u), Some(d)) => {
+            if u.0 <= d.0 {
+                u
+            } else {
+                d
+            }
+        }
+        (u, d) => u.or(d)?,
+    };
+    Some(0.5 * (lo + hi))
 }
 
 /// The level at `t` interpolated between two samples: Newton's start there (the level is
@@ -401,6 +476,29 @@ fn lambda_between(a: &Sample, b: &Sample, t: f32) -> f32 {
         0.5
     };
     a.lambda + (b.lambda - a.lambda) * w
+}
+
+/// The part of a ray a candidate prism is marched on.
+#[derive(Clone, Copy, Debug)]
+enum Part {
+    /// The whole prism's exact interval (`intersect_prism`, the prism BVH).
+    Prism,
+    /// A cell's slab interval: marched strictly first, then on the exact interval cut to it
+    /// (`march_shared_wall`).
+    Slabs(f32, f32),
+    /// An exact cell's slab interval (`Cell::exact`, a crease strip): the exact interval cut
+    /// to it.
+    Exact(f32, f32),
+}
+
+impl Part {
+    /// Where the ray enters the part: no hit in it is nearer.
+    fn t0(&self) -> f32 {
+        match *self {
+            Part::Slabs(t0, _) | Part::Exact(t0, _) => t0,
+            Part::Prism => f32::NEG_INFINITY,
+        }
+    }
 }
 
 /// A strict march (over a cell's slabs) met a sample away from the triangle.
@@ -453,34 +551,29 @@ impl<'a> Pdm<'a> {
         prism: u32,
         steps: &mut u32,
     ) -> Option<Hit> {
-        self.intersect_part(ray, ctx, prism, None, steps)
+        self.intersect_part(ray, ctx, prism, Part::Prism, steps)
     }
 
-    /// A candidate cell's first test: the part of the ray inside its slabs (`Some(None)` for a
-    /// cell marched on its prism's exact interval, `Cell::exact`; `None` if the ray misses the
-    /// slabs). They reject most candidates before the prism is set up.
+    /// A candidate cell's first test: the part of the ray inside its slabs (`None` if the ray
+    /// misses them). They reject most candidates before the prism is set up.
     #[inline]
-    fn cell_slabs(&self, c: &Cell, ray: &Ray) -> Option<Option<(f32, f32)>> {
-        if c.exact {
-            return Some(None);
-        }
+    fn cell_part(&self, c: &Cell, ray: &Ray) -> Option<Part> {
         let origin = self.frames[c.prism as usize].origin;
-        Some(Some(c.clip(
-            ray.origin - origin,
-            ray.dir,
-            ray.t_min,
-            ray.t_max,
-        )?))
+        let (t0, t1) = c.clip(ray.origin - origin, ray.dir, ray.t_min, ray.t_max)?;
+        Some(if c.exact {
+            Part::Exact(t0, t1)
+        } else {
+            Part::Slabs(t0, t1)
+        })
     }
 
-    /// `intersect_prism` over the part of the ray in a cell's slabs (`cell_slabs`; the whole
-    /// prism if `None`).
+    /// `intersect_prism` over a part of the ray (`Part`).
     fn intersect_part(
         &self,
         ray: &Ray,
         ctx: &RayContext,
         prism: u32,
-        slabs: Option<(f32, f32)>,
+        part: Part,
         steps: &mut u32,
     ) -> Option<Hit> {
         let p = &self.scene.table.prisms[prism as usize];
@@ -492,7 +585,7 @@ impl<'a> Pdm<'a> {
         } else {
             match self.opts.construction {
                 Construction::SharedWall => {
-                    self.march_shared_wall(&local, p, prism, slabs, ro, ray, ctx, steps)?
+                    self.march_shared_wall(&local, p, prism, part, ro, ray, ctx, steps)?
                 }
                 Construction::ParallelOffset => {
                     self.march_scan(&local, p, prism, ro, ray, ctx, steps)?
@@ -544,7 +637,7 @@ impl<'a> Pdm<'a> {
     /// Scanning sample at point `s` (local) with scanning triangle `c` at height `h`.
     #[inline]
     fn scan(&self, local: &Local, t: f32, s: Vec3, c: &[Vec3; 3], h: f32) -> Sample {
-        let b = triangle_barycentric(s, c);
+        let b = triangle_barycentric(s, c, local.f.apex);
         let a = local.f.a[0] * b.x + local.f.a[1] * b.y + local.f.a[2] * b.z;
         Sample {
             t,
@@ -653,7 +746,7 @@ impl<'a> Pdm<'a> {
         let s = ro + ray.dir * t;
         let h = s.dot(local.f.ng);
         let c = std::array::from_fn(|i| local.f.geom.v[i] + local.f.a[i] * h);
-        let bary = triangle_barycentric(s, &c);
+        let bary = triangle_barycentric(s, &c, local.f.apex);
         let ok = bary.min_element() >= -EDGE_TOL && t >= te && t <= tx;
         ok.then_some((t, bary))
     }
@@ -665,7 +758,7 @@ impl<'a> Pdm<'a> {
     fn scan_level_estimate(local: &Local, x: Vec3) -> f32 {
         let h = x.dot(local.f.ng);
         let c = std::array::from_fn(|i| local.f.geom.v[i] + local.f.a[i] * h);
-        let b = triangle_barycentric(x, &c);
+        let b = triangle_barycentric(x, &c, local.f.apex);
         let mn = local.f.geom.normal_dir(b).dot(local.f.ng);
         if mn > crate::bake::M_LO_FLOOR {
             h / mn
@@ -718,7 +811,7 @@ impl<'a> Pdm<'a> {
             .or_else(|| level_at(&lt.cubic, u, lt.mid, lt.tol, lt.lo, lt.hi))?;
         let g = &local.f.geom;
         let c: [Vec3; 3] = std::array::from_fn(|i| g.v[i] + g.n[i] * l);
-        let b = triangle_barycentric(lt.base + d * u, &c);
+        let b = triangle_barycentric(lt.base + d * u, &c, local.f.apex);
         Some(Sample {
             t,
             g: l * g.normal_dir(b).length() - local.disp.at(b),
@@ -732,26 +825,33 @@ impl<'a> Pdm<'a> {
     /// sample stays at the triangle; if one leaves it (or has no level), the cell is marched
     /// again on the prism's exact interval cut to the slabs, as the whole prism would be: the
     /// walls are then samples, and no part of the triangle between two samples outside it is
-    /// stepped over.
+    /// stepped over. An exact cell (a crease strip) takes that second march at once.
     #[allow(clippy::too_many_arguments)]
     fn march_shared_wall(
         &self,
         local: &Local,
         p: &Prism,
         prism: u32,
-        slabs: Option<(f32, f32)>,
+        part: Part,
         ro: Vec3,
         ray: &Ray,
         ctx: &RayContext,
         steps: &mut u32,
     ) -> Option<(f32, Vec3)> {
-        if let Some(span) = slabs {
-            if let Ok(hit) = self.march_levels(local, p, prism, span, true, ro, ray, ctx, steps) {
-                return hit;
+        let cut = match part {
+            Part::Prism => None,
+            Part::Slabs(t0, t1) => {
+                let strict =
+                    self.march_levels(local, p, prism, (t0, t1), true, ro, ray, ctx, steps);
+                if let Ok(hit) = strict {
+                    return hit;
+                }
+                Some((t0, t1))
             }
-        }
+            Part::Exact(t0, t1) => Some((t0, t1)),
+        };
         let (mut te, mut tx) = Self::prism_interval(local, p, ro, ray)?;
-        if let Some((t0, t1)) = slabs {
+        if let Some((t0, t1)) = cut {
             (te, tx) = (te.max(t0), tx.min(t1));
             if te > tx {
                 return None;
@@ -904,18 +1004,9 @@ impl<'a> Pdm<'a> {
                 (true, true) => {}
                 (false, false) => {
                     // Both outside: the segment may still cut across a corner of the
-                    // triangle, between two other edges. Sample the middle of the straight
-                    // segment's part inside (b is nearly affine along it), then cross the
-                    // boundary into it and out of it again.
-                    let Some(s) = inside_span(pv.b, cur.b) else {
-                        return self.detect(local, lt, ray, prev, cur, te, tx);
-                    };
-                    let t = pv.t + (cur.t - pv.t) * s;
-                    *n += 1;
-                    if let Some(m) = self
-                        .level_sample(local, lt, ray.dir, t, 0.5 * (pv.lambda + cur.lambda))
-                        .filter(Self::detectable)
-                    {
+                    // triangle, between two other edges. Sample the middle of its part
+                    // inside, then cross the boundary into it and out of it again.
+                    if let Some(m) = self.inside_sample(local, lt, ray, &pv, &cur, n) {
                         let hit = self
                             .cross_boundary(local, lt, ray, prev, pv, m, span, n)
                             .or_else(|| self.detect(local, lt, ray, prev, m, te, tx))
@@ -925,14 +1016,50 @@ impl<'a> Pdm<'a> {
                         }
                     }
                 }
-                _ => {
-                    if let Some(hit) = self.cross_boundary(local, lt, ray, prev, pv, cur, span, n) {
-                        return Some(hit);
+                (leaving, _) => {
+                    // One end is near the triangle. If that end is itself outside (within
+                    // `DETECT_TOL`), the segment can pass through the inside between the two
+                    // and out again (a sliver of a crease strip, thinner than the step):
+                    // sample that inside part as above, and cross the boundary from it.
+                    let near = if leaving { &pv } else { &cur };
+                    let through = (near.b.min_element() < 0.0)
+                        .then(|| self.inside_sample(local, lt, ray, &pv, &cur, n))
+                        .flatten()
+                        .filter(|m| m.b.min_element() > near.b.min_element());
+                    let hit = match through {
+                        Some(m) if leaving => self
+                            .detect(local, lt, ray, prev, m, te, tx)
+                            .or_else(|| self.cross_boundary(local, lt, ray, prev, m, cur, span, n)),
+                        Some(m) => self
+                            .cross_boundary(local, lt, ray, prev, pv, m, span, n)
+                            .or_else(|| self.detect(local, lt, ray, prev, m, te, tx)),
+                        None => self.cross_boundary(local, lt, ray, prev, pv, cur, span, n),
+                    };
+                    if hit.is_some() {
+                        return hit;
                     }
                 }
             }
         }
         self.detect(local, lt, ray, prev, cur, te, tx)
+    }
+
+    /// A sample in the middle of the part of the segment from `a` to `b` inside the triangle
+    /// (`inside_span`), if it has one and the sample is `detectable`; `n` counts it.
+    fn inside_sample(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        ray: &Ray,
+        a: &Sample,
+        b: &Sample,
+        n: &mut u32,
+    ) -> Option<Sample> {
+        let s = inside_span(local, a, b)?;
+        let t = a.t + (b.t - a.t) * s;
+        *n += 1;
+        self.level_sample(local, lt, ray.dir, t, 0.5 * (a.lambda + b.lambda))
+            .filter(Self::detectable)
     }
 
     /// One march sample `cur`: a sign change of `g` from the previous sample inside the
@@ -1239,18 +1366,22 @@ impl Intersector for Pdm<'_> {
                 let mut covered = Covered::NONE;
                 cells.bvh().closest_hit_ordered(
                     ray,
-                    |r, i, t_leaf| {
-                        let slabs = self.cell_slabs(&cells.cells[i as usize], r)?;
-                        Some((slabs.map_or(t_leaf, |s| s.0), slabs))
+                    |r, i, _| {
+                        let part = self.cell_part(&cells.cells[i as usize], r)?;
+                        Some((part.t0(), part))
                     },
-                    |r, i, slabs| {
+                    |r, i, part| {
                         let c = &cells.cells[i as usize];
                         // The best hit may have come nearer since the cell was entered.
-                        let slabs = match slabs {
-                            Some((t0, t1)) => Some(covered.rest(c.prism, t0, t1.min(r.t_max))?),
-                            None => None,
+                        let part = match part {
+                            Part::Slabs(t0, t1) => {
+                                let (t0, t1) = covered.rest(c.prism, t0, t1.min(r.t_max))?;
+                                Part::Slabs(t0, t1)
+                            }
+                            Part::Exact(t0, t1) => Part::Exact(t0, t1.min(r.t_max)),
+                            Part::Prism => Part::Prism,
                         };
-                        self.intersect_part(r, ctx, c.prism, slabs, &mut steps)
+                        self.intersect_part(r, ctx, c.prism, part, &mut steps)
                     },
                 )
             }
@@ -1268,8 +1399,8 @@ impl Intersector for Pdm<'_> {
         match &self.cells {
             Some(cells) => cells.bvh().any_hit(ray, |r, i| {
                 let c = &cells.cells[i as usize];
-                self.cell_slabs(c, r).is_some_and(|slabs| {
-                    self.intersect_part(r, ctx, c.prism, slabs, &mut steps)
+                self.cell_part(c, r).is_some_and(|part| {
+                    self.intersect_part(r, ctx, c.prism, part, &mut steps)
                         .is_some()
                 })
             }),
@@ -1313,6 +1444,41 @@ mod tests {
 
     // Breaks if a cell were skipped that starts before the covered part, or belongs to another
     // prism, or reaches past it.
+    #[test]
+    fn barycentrics_of_a_sliver_are_solved_from_its_widest_corner() {
+        // A crease strip's level triangle near its zero-length rung: 0.05 long, 4·10⁻⁵ wide.
+        let (a, b) = (Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.05, 0.01, 0.0));
+        let c = [
+            a,
+            b + Vec3::new(0.0, 0.0, 2e-5),
+            b - Vec3::new(0.0, 0.0, 2e-5),
+        ];
+        let truth = [0.3f64, 0.3, 0.4];
+        let s = (0..3).fold(Vec3::ZERO, |acc, i| acc + c[i] * truth[i] as f32);
+        let error = |apex: u8| {
+            let got = triangle_barycentric(s, &c, apex);
+            (0..3)
+                .map(|i| (got[i] as f64 - truth[i]).abs())
+                .fold(0.0, f64::max)
+        };
+        let widest = widest_corner(&c);
+        assert_ne!(widest, 0, "the sharp corner is not the widest");
+        assert!(
+            error(widest) < 1e-3,
+            "from the widest corner: {}",
+            error(widest)
+        );
+        // From the sharp corner the Gram determinant cancels: what the strips' rays met.
+        assert!(error(0) > 1e-2, "from the sharp corner: {}", error(0));
+        // Every corner of a well-shaped triangle does.
+        let fat = [Vec3::ZERO, Vec3::X, Vec3::new(0.3, 0.8, 0.1)];
+        let s = fat[0] * 0.2 + fat[1] * 0.5 + fat[2] * 0.3;
+        for apex in 0..3 {
+            let got = triangle_barycentric(s, &fat, apex);
+            assert!((got - Vec3::new(0.2, 0.5, 0.3)).abs().max_element() < 1e-6);
+        }
+    }
+
     #[test]
     fn covered_skips_only_cells_inside_an_earlier_march_of_their_prism() {
         let mut c = Covered::NONE;
