@@ -37,6 +37,8 @@ struct Local {
     ng: vec3f,
     // Longest base edge.
     scale: f32,
+    // The corner the barycentrics are solved from (widest_corner).
+    apex: u32,
 }
 
 // Local::new.
@@ -57,14 +59,45 @@ fn local_frame(p: Prism) -> Local {
     let scale = max(max(max(length(v1), length(v2)), length(v2 - v1)), F32_MIN_POSITIVE);
     let uv = array<vec2f, 3>(vec2f(va.u, va.v), vec2f(vb.u, vb.v), vec2f(vc.u, vc.v));
     let geom = PrismGeom(array<vec3f, 3>(vec3f(0.0), v1, v2), n, uv);
-    return Local(origin, prism_displacement(p, uv), geom, a, ng, scale);
+    return Local(origin, prism_displacement(p, uv), geom, a, ng, scale, widest_corner(geom.v));
 }
 
-// Barycentrics of s in triangle c by five dot products (Ericson 2004; paper App. C).
-fn triangle_barycentric(s: vec3f, c: array<vec3f, 3>) -> vec3f {
-    let x0 = c[1] - c[0];
-    let x1 = c[2] - c[0];
-    let x2 = s - c[0];
+// The corner opposite the longest edge of triangle v (triangle_barycentric).
+fn widest_corner(v: array<vec3f, 3>) -> u32 {
+    let e0 = dot(v[2] - v[1], v[2] - v[1]);
+    let e1 = dot(v[0] - v[2], v[0] - v[2]);
+    let e2 = dot(v[1] - v[0], v[1] - v[0]);
+    var best = 0u;
+    var longest = e0;
+    if (e1 > longest) {
+        best = 1u;
+        longest = e1;
+    }
+    if (e2 > longest) {
+        best = 2u;
+    }
+    return best;
+}
+
+// Barycentrics of s in triangle c by five dot products (Ericson 2004; paper App. C), with the
+// two edges taken from corner `apex`: from a sliver's sharp corner the Gram determinant
+// cancels in f32 (the CPU's triangle_barycentric).
+fn triangle_barycentric(s: vec3f, c: array<vec3f, 3>, apex: u32) -> vec3f {
+    var ck = c[0];
+    var ci = c[1];
+    var cj = c[2];
+    if (apex == 1u) {
+        ck = c[1];
+        ci = c[2];
+        cj = c[0];
+    } else if (apex == 2u) {
+        ck = c[2];
+        ci = c[0];
+        cj = c[1];
+    }
+    let x0 = ci - ck;
+    let x1 = cj - ck;
+    let x2 = s - ck;
     let d00 = dot(x0, x0);
     let d01 = dot(x0, x1);
     let d11 = dot(x1, x1);
@@ -78,9 +111,15 @@ fn triangle_barycentric(s: vec3f, c: array<vec3f, 3>) -> vec3f {
         return vec3f(-1.0);
     }
     let inv = 1.0 / denom;
-    let b1 = (d11 * d20 - d01 * d21) * inv;
-    let b2 = (d00 * d21 - d01 * d20) * inv;
-    return vec3f(1.0 - b1 - b2, b1, b2);
+    let bi = (d11 * d20 - d01 * d21) * inv;
+    let bj = (d00 * d21 - d01 * d20) * inv;
+    let bk = 1.0 - bi - bj;
+    if (apex == 1u) {
+        return vec3f(bj, bk, bi);
+    } else if (apex == 2u) {
+        return vec3f(bi, bj, bk);
+    }
+    return vec3f(bk, bi, bj);
 }
 
 // A march sample (pdm::Sample; `ok` false stands for the CPU's None): ray parameter, the
@@ -294,7 +333,7 @@ fn scan_level_estimate(local: Local, x: vec3f) -> f32 {
     let h = dot(x, local.ng);
     let g = local.geom;
     let c = array<vec3f, 3>(g.v[0] + local.a[0] * h, g.v[1] + local.a[1] * h, g.v[2] + local.a[2] * h);
-    let b = triangle_barycentric(x, c);
+    let b = triangle_barycentric(x, c, local.apex);
     let mn = dot(geom_normal_dir(g, b), local.ng);
     if (mn > M_LO_FLOOR) {
         return h / mn;
@@ -325,7 +364,7 @@ fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> S
     let l = lv.l;
     let g = local.geom;
     let c = array<vec3f, 3>(g.v[0] + g.n[0] * l, g.v[1] + g.n[1] * l, g.v[2] + g.n[2] * l);
-    let b = triangle_barycentric(lt.base + d * u, c);
+    let b = triangle_barycentric(lt.base + d * u, c, local.apex);
     return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement_at(local.disp, b), b, l);
 }
 
