@@ -6,7 +6,7 @@
 //! the prism the reference hit (inserted crease prism or not, stitched or not), its
 //! barycentrics, and what the other methods find on the ray lengthened by 4 texels.
 //! `cargo run --release -p prismbake-core --example leak_probe ASSET [N] [pdm|rmip|nonlinear] [SEED]`
-//! (the bench's rays are `SEED` 0x1ea4; default 0)
+//! (`bench --seed`, default 0, gives the bench's rays; the tests use 0x1ea4)
 
 use prismbake::accel::Scene;
 use prismbake::asset::{self, Overrides};
