@@ -14,6 +14,9 @@
 
 const EDGE_TOL: f32 = 1e-5;
 const DETECT_TOL: f32 = 0.05;
+// The entry sample on a wall may miss the triangle by this much before other levels are tried
+// (pdm::ENTRY_TOL: a folded prism's ghost level).
+const ENTRY_TOL: f32 = 1e-3;
 const INTERVAL_PAD: f32 = 1e-4;
 const MAX_STEPS: u32 = 16384u;
 const REFINE_ITERS: u32 = 24u;
@@ -469,7 +472,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             // (the last of equals, as the CPU's max_by over [mid, mid - q, mid + q, first]).
             if (ek == 0u) {
                 first = s;
-                fresh = s.ok && min_element(s.b) >= -DETECT_TOL;
+                fresh = s.ok && min_element(s.b) >= -ENTRY_TOL;
                 sample = s;
             } else if (s.ok && (!ebest.ok || min_element(s.b) >= min_element(ebest.b))) {
                 ebest = s;
