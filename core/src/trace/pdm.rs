@@ -1927,6 +1927,22 @@ mod tests {
         }
     }
 
+    /// Regression: leak rays of the tests' seed through the slivers of the rock's crease strips,
+    /// each found by one of the march's ways into a sliver: 1281 and 29 332 by the homogeneous
+    /// barycentrics across the `λ = 0` pole (`inside_span`), 281 894 by the search between a
+    /// sample just outside the triangle and one far outside (`Pdm::inside_sample`), 328 502
+    /// by barycentrics solved from the level triangle's widest corner (`widest_corner`).
+    #[test]
+    fn rays_through_the_rock_strips_slivers_are_stopped() {
+        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
+        let pdm = Pdm::new(scene, PdmOptions::default());
+        let rays = crate::bench::leak_rays(scene, 1_000_000, 0x1ea4);
+        for i in [1281usize, 29_332, 281_894, 328_502] {
+            let hit = pdm.intersect(&rays[i], &ctx(i as u32, 0));
+            assert!(hit.is_some(), "ray {i} passed through the rock");
+        }
+    }
+
     /// Regression: where a rock prism folds, the entry on its wall also lies on a ghost level
     /// that misses the triangle by less than `DETECT_TOL`, and the march stayed on it
     /// (`ENTRY_TOL`). Two of the bench's leak rays (seed 0), ending inside the solid.
