@@ -87,9 +87,10 @@ struct Slab {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Cell {
     pub prism: u32,
-    /// An unsplit crease strip (`PRISM_INSERTED`): the march takes the exact prism interval.
-    /// Its zero-area base leaves the slabs mostly the corners' box, and the strict march on
-    /// that superset found no crossing on three of the 285 strip rays of
+    /// An unsplit crease strip (`PRISM_INSERTED`): the march takes the exact prism interval
+    /// cut to the slabs (`pdm::Part::Exact`), not the strict march on the slabs. Its zero-area
+    /// base leaves the slabs mostly the corners' box, and the strict march on that superset
+    /// found no crossing on three of the 285 strip rays of
     /// `pdm::tests::rays_at_the_rock_strips_hit_where_the_reference_does`, where the exact
     /// interval finds them. Every other cell, a prism left whole included, is clipped by its
     /// slabs, a fraction of the cost of the exact walls.
