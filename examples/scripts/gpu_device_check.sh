@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# The prepared real-GPU run of docs/gpu.md ("Running on a real GPU"): one script, one call, so
+# a session that is lent a GPU machine spends its minutes measuring, not typing.
+#
+#   examples/scripts/gpu_device_check.sh [PRISMBAKE] [OUT]
+#
+# PRISMBAKE: the release binary (default target/release/prismbake; build it first, where the
+# machine has no toolchain carry it). OUT: where the renders and summary.json go (default
+# $OUT, else ./gpu_check). Per asset: 2048² primary rays (AOVs depth,normal,mask) as a 3-frame
+# turntable and 2048² beauty at SPP samples per pixel as a 2-frame one, the fastest frame after
+# the first timed (the first includes pipeline compilation); the same AOV job at 512² on the
+# CPU for the ratio. Prints
+# ms/frame and Mrays/s (primary rays: pixels × spp / seconds) per job and writes them to
+# summary.json.
+#
+# Smaller runs (to check the script itself on lavapipe): RES=256 SPP=2 ASSETS=sphere.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+BIN=${1:-target/release/prismbake}
+DEST=${2:-${OUT:-gpu_check}}
+RES=${RES:-2048}
+SPP=${SPP:-64}
+ASSETS=${ASSETS:-"sphere torus rock"}
+mkdir -p "$DEST"
+[ -x "$BIN" ] || { echo "gpu_device_check: no binary at $BIN (cargo build --release -p prismbake-cli)" >&2; exit 2; }
+
+asset_path() {
+  case "$1" in
+    sphere) echo examples/sphere/sphere.glb ;;
+    torus) echo examples/torus/torus.obj ;;
+    rock) echo examples/rock/rock.glb ;;
+    *) echo "gpu_device_check: unknown asset $1" >&2; exit 2 ;;
+  esac
+}
+
+# job NAME RES SPP FRAMES DEVICE ASSET -- extra render flags: runs one render with --json, keeps
+# its summary as DEST/NAME.json.
+job() {
+  local name=$1 res=$2 spp=$3 frames=$4 device=$5 asset=$6
+  shift 6
+  local turntable=()
+  [ "$frames" -gt 1 ] && turntable=(--turntable "$frames")
+  echo "== $name: $asset ${res}² spp $spp frames $frames on $device" >&2
+  "$BIN" render "$asset" --device "$device" --res "${res}x${res}" --spp "$spp" \
+    "${turntable[@]}" --json -o "$DEST/$name" "$@" > "$DEST/$name.json"
+}
+
+for a in $ASSETS; do
+  path=$(asset_path "$a")
+  job "${a}_aov_gpu" "$RES" 1 3 gpu "$path" --aov depth,normal,mask
+  job "${a}_beauty_gpu" "$RES" "$SPP" 2 gpu "$path" --aov beauty
+  job "${a}_aov_cpu_512" 512 1 3 cpu "$path" --aov depth,normal,mask
+done
+
+python3 - "$DEST" "$RES" "$SPP" "$ASSETS" <<'PY'
+import json, pathlib, sys
+dest, res, spp, assets = pathlib.Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
+rows = []
+for a in assets:
+    for job, r, s in ((f"{a}_aov_gpu", res, 1), (f"{a}_beauty_gpu", res, spp), (f"{a}_aov_cpu_512", 512, 1)):
+        d = json.loads((dest / f"{job}.json").read_text())
+        frames = [f["seconds"] for f in d["frames"]]
+        timed = frames[1:] if len(frames) > 1 else frames
+        sec = min(timed)
+        rows.append({"job": job, "device": d.get("device"), "res": r, "spp": s,
+                     "ms_per_frame": round(sec * 1e3, 2),
+                     "mrays_per_s": round(r * r * s / sec / 1e6, 2),
+                     "frame_seconds": frames})
+(dest / "summary.json").write_text(json.dumps(rows, indent=1))
+for row in rows:
+    print(f"{row['job']:<22} {row['res']}² spp {row['spp']:<3} {row['ms_per_frame']:>10.2f} ms/frame "
+          f"{row['mrays_per_s']:>9.2f} Mrays/s  ({row['device']})")
+PY
