@@ -383,11 +383,9 @@ impl LevelTrack {
 /// parallel.
 #[inline]
 fn triangle_barycentric(s: Vec3, c: &[Vec3; 3], apex: u8) -> Vec3 {
-    let (k, i, j) = match apex {
-        1 => (1, 2, 0),
-        2 => (2, 0, 1),
-        _ => (0, 1, 2),
-    };
+    // Corners `k, i, j` in cyclic order from the apex.
+    const CYCLE: [[usize; 3]; 3] = [[0, 1, 2], [1, 2, 0], [2, 0, 1]];
+    let [k, i, j] = CYCLE[apex as usize % 3];
     let x0 = c[i] - c[k];
     let x1 = c[j] - c[k];
     let x2 = s - c[k];
@@ -399,12 +397,11 @@ fn triangle_barycentric(s: Vec3, c: &[Vec3; 3], apex: u8) -> Vec3 {
     let inv = 1.0 / (d00 * d11 - d01 * d01);
     let bi = (d11 * d20 - d01 * d21) * inv;
     let bj = (d00 * d21 - d01 * d20) * inv;
-    let bk = 1.0 - bi - bj;
-    match apex {
-        1 => Vec3::new(bj, bk, bi),
-        2 => Vec3::new(bi, bj, bk),
-        _ => Vec3::new(bk, bi, bj),
-    }
+    let mut b = [0.0; 3];
+    b[k] = 1.0 - bi - bj;
+    b[i] = bi;
+    b[j] = bj;
+    Vec3::from_array(b)
 }
 
 /// The corner opposite the longest edge of triangle `v` (`triangle_barycentric`).
