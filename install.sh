@@ -15,6 +15,11 @@ if command -v apt-get >/dev/null; then
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need[@]}"
   fi
+  # Opt-in: a faster lavapipe (the GPU path without a GPU) from bookworm-backports.
+  if [ "${PRISMBAKE_MESA_BACKPORTS:-0}" = 1 ]; then
+    . scripts/mesa_backports.sh
+    mesa_backports "$SUDO"
+  fi
 fi
 
 if ! command -v cargo >/dev/null; then

@@ -16,6 +16,11 @@ if command -v apt-get >/dev/null; then
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need[@]}"
   fi
+  # The GPU tests run on lavapipe: Debian 13's Mesa, from bookworm-backports on Debian 12.
+  if [ "${PRISMBAKE_SYSTEM_MESA:-0}" != 1 ]; then
+    . scripts/mesa_backports.sh
+    mesa_backports "$SUDO"
+  fi
 fi
 if ! command -v cargo >/dev/null && [ -f "$HOME/.cargo/env" ]; then . "$HOME/.cargo/env"; fi
 

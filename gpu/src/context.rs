@@ -250,12 +250,20 @@ impl GpuContext {
         &self.adapter_info.name
     }
 
-    /// "name (backend, device type)", for logs.
+    /// "name (backend, device type, driver version)", for logs: the driver version tells
+    /// lavapipes apart, whose names only carry the LLVM version (docs/gpu.md, "lavapipe
+    /// versions").
     pub fn adapter_description(&self) -> String {
-        format!(
-            "{} ({:?}, {:?})",
-            self.adapter_info.name, self.adapter_info.backend, self.adapter_info.device_type
-        )
+        let info = &self.adapter_info;
+        let driver = info.driver_info.trim();
+        if driver.is_empty() {
+            format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+        } else {
+            format!(
+                "{} ({:?}, {:?}, {driver})",
+                info.name, info.backend, info.device_type
+            )
+        }
     }
 
     /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).
