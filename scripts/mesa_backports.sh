@@ -17,7 +17,7 @@ mesa_backports() {
   if echo "deb http://deb.debian.org/debian bookworm-backports main" \
        | $sudo tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null \
      && $sudo apt-get update -qq \
-     && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq -t bookworm-backports \
+     && DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq -o Dpkg::Use-Pty=0 -t bookworm-backports \
           mesa-vulkan-drivers; then
     echo "lavapipe: Mesa $(dpkg-query -W -f='${Version}' mesa-vulkan-drivers)" >&2
   else
