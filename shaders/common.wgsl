@@ -221,3 +221,11 @@ fn solve3(c0: vec3f, c1: vec3f, c2: vec3f, f: vec3f) -> Solve3 {
 fn finite(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
 }
+
+// i32::rem_euclid for n > 0 with one integer remainder (`((x % n) + n) % n` takes two). SIMD
+// units have no integer division: lavapipe divides lane by lane, so per height sample the
+// remainders cost more than the rest of the bilinear lookup (docs/gpu.md).
+fn wrap_repeat(x: i32, n: i32) -> i32 {
+    let r = x % n;
+    return select(r, r + n, r < 0);
+}

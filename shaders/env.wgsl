@@ -86,7 +86,7 @@ fn env_coord(x: f32) -> i32 {
 fn texel_index(uv: vec2f) -> vec2<u32> {
     let w = i32(lighting.env_width);
     let h = i32(lighting.env_height);
-    let x = ((env_coord(uv.x * f32(lighting.env_width)) % w) + w) % w;
+    let x = wrap_repeat(env_coord(uv.x * f32(lighting.env_width)), w);
     let y = clamp(env_coord(uv.y * f32(lighting.env_height)), 0, h - 1);
     return vec2<u32>(u32(x), u32(y));
 }
@@ -104,7 +104,7 @@ fn lerp3(a: vec3f, b: vec3f, s: f32) -> vec3f {
 
 fn env_texel_wrapped(x: i32, y: i32) -> vec3f {
     let w = i32(lighting.env_width);
-    let xx = ((x % w) + w) % w;
+    let xx = wrap_repeat(x, w);
     let yy = clamp(y, 0, i32(lighting.env_height) - 1);
     return env_texel(u32(xx), u32(yy));
 }

@@ -2,21 +2,30 @@
 // texel centres at (i + 0.5) / N, row 0 at the top (v up), repeat or clamp wrap, read with
 // plain loads from a storage buffer so every texel and weight is the CPU's.
 
-// Texel (x, y) with the wrap mode applied; x, y may be any integers.
-fn texel(x: i32, y: i32) -> f32 {
+// The texel indices of integer coordinates x and x + 1 along an axis of n texels, wrap mode
+// applied: repeat (rem_euclid) wraps x once and steps to its neighbour, clamp clamps both.
+fn axis_pair(x: i32, n: i32) -> vec2<i32> {
+    if (scene.wrap == 0u) {
+        let i = wrap_repeat(x, n);
+        return vec2<i32>(i, select(i + 1, 0, i + 1 == n));
+    }
+    return vec2<i32>(clamp(x, 0, n - 1), clamp(x + 1, 0, n - 1));
+}
+
+// The four texels of the bilinear footprint whose top-left texel is (x, y) (any integers),
+// wrap mode applied: (x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1), the texels the CPU's
+// HeightMap::texel reads. Each axis is wrapped once, not once per texel.
+fn footprint(x: i32, y: i32) -> vec4f {
     let w = i32(scene.map_width);
     let h = i32(scene.map_height);
-    var xx: i32;
-    var yy: i32;
-    if (scene.wrap == 0u) {
-        // rem_euclid
-        xx = ((x % w) + w) % w;
-        yy = ((y % h) + h) % h;
-    } else {
-        xx = clamp(x, 0, w - 1);
-        yy = clamp(y, 0, h - 1);
-    }
-    return height_map[u32(yy * w + xx)];
+    let xs = axis_pair(x, w);
+    let ys = axis_pair(y, h);
+    return vec4f(
+        height_map[u32(ys.x * w + xs.x)],
+        height_map[u32(ys.x * w + xs.y)],
+        height_map[u32(ys.y * w + xs.x)],
+        height_map[u32(ys.y * w + xs.y)],
+    );
 }
 
 // Bound on continuous texel coordinates before they become integers. A NaN, infinite or huge
@@ -47,10 +56,11 @@ fn sample_map(uv: vec2f) -> f32 {
     let ty = p.y - fy;
     let x = i32(fx);
     let y = i32(fy);
-    let a = texel(x, y);
-    let b = texel(x + 1, y);
-    let c = texel(x, y + 1);
-    let d = texel(x + 1, y + 1);
+    let q = footprint(x, y);
+    let a = q.x;
+    let b = q.y;
+    let c = q.z;
+    let d = q.w;
     let top = a + (b - a) * tx;
     let bottom = c + (d - c) * tx;
     return top + (bottom - top) * ty;
@@ -70,10 +80,11 @@ fn sample_grad(uv: vec2f) -> SampleGrad {
     let ty = p.y - fy;
     let x = i32(fx);
     let y = i32(fy);
-    let a = texel(x, y);
-    let b = texel(x + 1, y);
-    let c = texel(x, y + 1);
-    let d = texel(x + 1, y + 1);
+    let q = footprint(x, y);
+    let a = q.x;
+    let b = q.y;
+    let c = q.z;
+    let d = q.w;
     let top = a + (b - a) * tx;
     let bottom = c + (d - c) * tx;
     let value = top + (bottom - top) * ty;

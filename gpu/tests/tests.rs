@@ -5,6 +5,7 @@
 mod util;
 
 mod beauty;
+mod heightmap;
 mod layout;
 mod parity;
 mod rng;

@@ -1,0 +1,194 @@
+//! The WGSL height lookup is the CPU's: `sample_map` and `sample_grad` evaluated on the adapter
+//! at UVs on and off the map (texel centres, texel edges, the map's borders, far outside it)
+//! equal `HeightMap::sample` and `HeightMap::sample_grad` under both wrap modes. Breaks if the
+//! GPU reads another texel than the CPU anywhere — a wrap at the border, say, which the parity
+//! renders see only in the few pixels whose footprint crosses it.
+
+use crate::util::ctx;
+use glam::Vec2;
+use prismbake::rng;
+use prismbake::{HeightMap, Wrap};
+use prismbake_gpu::layout::GpuSceneParams;
+use prismbake_gpu::shaders;
+use wgpu::util::DeviceExt;
+
+const PROBE: &str = r#"
+// Per case: in = (u, v, _, _), out = (sample_map, sample_grad's value, its gradient).
+@group(1) @binding(0) var<storage, read_write> io: array<vec4f>;
+
+@compute @workgroup_size(64)
+fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= arrayLength(&io)) {
+        return;
+    }
+    let uv = io[gid.x].xy;
+    let sg = sample_grad(uv);
+    io[gid.x] = vec4f(sample_map(uv), sg.value, sg.grad);
+}
+"#;
+
+/// `[sample, sample_grad value, gradient u, gradient v]` per UV, on the adapter.
+fn run_probe(map: &HeightMap, uvs: &[Vec2]) -> Vec<[f32; 4]> {
+    let ctx = ctx();
+    let device = ctx.device();
+    let src = format!("{}\n{}\n{}", shaders::COMMON, shaders::HEIGHTMAP, PROBE);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("height map probe"),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("height map probe"),
+        layout: None,
+        module: &module,
+        entry_point: Some("probe"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let params = GpuSceneParams {
+        map_width: map.width,
+        map_height: map.height,
+        wrap: match map.wrap {
+            Wrap::Repeat => 0,
+            Wrap::Clamp => 1,
+        },
+        ..Default::default()
+    };
+    let init = |label, contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage,
+        })
+    };
+    let scene = init(
+        "scene",
+        bytemuck::bytes_of(&params),
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let texels = init(
+        "height map",
+        bytemuck::cast_slice(&map.data),
+        wgpu::BufferUsages::STORAGE,
+    );
+    let data: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
+    let bytes = std::mem::size_of_val(&data[..]) as u64;
+    let io = init(
+        "io",
+        bytemuck::cast_slice(&data),
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let readback = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let scene_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: scene.as_entire_binding(),
+            }, // scene
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: texels.as_entire_binding(),
+            }, // height_map
+        ],
+    });
+    let io_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(1),
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: io.as_entire_binding(),
+        }], // io
+    });
+    let mut enc = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &scene_group, &[]);
+        pass.set_bind_group(1, &io_group, &[]);
+        pass.dispatch_workgroups((uvs.len() as u32).div_ceil(64), 1, 1);
+    }
+    enc.copy_buffer_to_buffer(&io, 0, &readback, 0, bytes);
+    ctx.queue().submit([enc.finish()]);
+    readback
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .expect("poll");
+    let view = readback.slice(..).get_mapped_range().expect("mapped");
+    bytemuck::cast_slice(&view).to_vec()
+}
+
+/// UVs where a wrong texel shows: every texel centre and texel edge of the map and of the
+/// ring of texels around it (the borders, where the wrap modes differ), the corners, then
+/// pseudo-random UVs far outside the map.
+fn probe_uvs(w: u32, h: u32) -> Vec<Vec2> {
+    let mut uvs = Vec::new();
+    for j in -4..(2 * h as i32 + 4) {
+        for i in -4..(2 * w as i32 + 4) {
+            // Half-texel steps: centres ((k + 0.5) / n) and edges (k / n), a little off both.
+            let u = i as f32 * 0.5 / w as f32;
+            let v = j as f32 * 0.5 / h as f32;
+            for off in [0.0, 0.013, -0.007] {
+                uvs.push(Vec2::new(u + off / w as f32, v - off / h as f32));
+            }
+        }
+    }
+    uvs.extend([
+        Vec2::ZERO,
+        Vec2::ONE,
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 1.0),
+    ]);
+    let mut s = 7u32;
+    let mut next = || {
+        s = rng::pcg_hash(s);
+        s as f32 / u32::MAX as f32
+    };
+    for _ in 0..2048 {
+        uvs.push(Vec2::new(next() * 40.0 - 20.0, next() * 40.0 - 20.0));
+    }
+    uvs
+}
+
+#[test]
+fn height_lookups_read_the_cpus_texels_under_both_wraps() {
+    // A non-square map of distinct values, so that any other texel gives another height.
+    let (w, h) = (7u32, 5u32);
+    let data: Vec<f32> = (0..w * h)
+        .map(|i| rng::pcg_hash(i + 1) as f32 / u32::MAX as f32)
+        .collect();
+    for wrap in [Wrap::Repeat, Wrap::Clamp] {
+        let map = HeightMap::new(w, h, data.clone(), wrap);
+        let uvs = probe_uvs(w, h);
+        let gpu = run_probe(&map, &uvs);
+        let mut worst = 0.0f32;
+        for (uv, g) in uvs.iter().zip(&gpu) {
+            let value = map.sample(*uv);
+            let (value_g, grad) = map.sample_grad(*uv);
+            let want = [value, value_g, grad.x, grad.y];
+            for k in 0..4 {
+                // The same arithmetic up to FMA contraction: ~1e-7 of the values and of the
+                // gradient (texel differences × map size); a wrong texel moves them by ~0.1–1.
+                let scale = if k < 2 { 1.0 } else { (w.max(h)) as f32 };
+                let err = (g[k] - want[k]).abs() / scale;
+                worst = worst.max(err);
+                assert!(
+                    err <= 1e-5,
+                    "{wrap:?} uv {uv}: GPU {:?}, CPU {want:?} (component {k})",
+                    g
+                );
+            }
+        }
+        eprintln!(
+            "{wrap:?}: {} UVs, largest difference {worst:.1e}",
+            uvs.len()
+        );
+    }
+}
