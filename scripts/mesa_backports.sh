@@ -1,8 +1,8 @@
 # Sourced by test.sh and install.sh: on Debian 12, replace the system's Mesa 22.3 Vulkan
 # drivers with bookworm-backports' (Mesa 25, the version Debian 13 ships). lavapipe, Mesa's
 # software Vulkan and the GPU path's device on machines without a GPU, renders the example
-# assets' AOVs 1.7-1.9x faster there: Mesa 22.3 runs the body of every `if` in a shader, under
-# a mask, whether any SIMD lane takes it or not; later versions branch over it (docs/gpu.md,
+# assets' AOVs 4-10x faster there: Mesa 22.3 runs the body of every `if` in a shader, under a
+# mask, whether any SIMD lane takes it or not; later versions branch over it (docs/gpu.md,
 # "lavapipe versions").
 #
 # mesa_backports SUDO: does nothing off Debian 12 or with Mesa >= 24 installed; on failure

@@ -22,6 +22,10 @@ const MAX_STEPS: u32 = 16384u;
 const REFINE_ITERS: u32 = 24u;
 const LEVEL_ITERS: u32 = 8u;
 const DOMAIN_EDGE_ITERS: u32 = 10u;
+// Pdm::cross_boundary: secant steps at most, and the margin just outside the boundary it
+// aims at.
+const EDGE_ITERS: u32 = 6u;
+const EDGE_SAMPLE: f32 = 0.01;
 // march_levels' states.
 const MODE_ENTRY: u32 = 0u;
 const MODE_MARCH: u32 = 1u;
@@ -375,6 +379,358 @@ fn inside_detect(b: vec3f) -> bool {
     return min_element(b) >= -DETECT_TOL;
 }
 
+fn no_sample() -> Sample {
+    return Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+}
+
+// Local::level_area: twice the signed area of the level triangle T(λ) along the sum of the
+// corner directions (negative where T(λ) has flipped over, zero where it collapses).
+fn level_area(local: Local, l: f32) -> f32 {
+    let g = local.geom;
+    let c0 = g.v[0] + g.n[0] * l;
+    let c1 = g.v[1] + g.n[1] * l;
+    let c2 = g.v[2] + g.n[2] * l;
+    return dot(cross(c1 - c0, c2 - c0), g.n[0] + g.n[1] + g.n[2]);
+}
+
+// The CPU's Option<(f32, f32)> of a span of a segment.
+struct Span {
+    ok: bool,
+    lo: f32,
+    hi: f32,
+}
+
+// pdm::nonnegative_span: on the segment from h0 to h1, the part where every component is ≥ 0
+// (as fractions of the segment).
+fn nonnegative_span(h0: vec3f, h1: vec3f) -> Span {
+    var lo = 0.0;
+    var hi = 1.0;
+    for (var k = 0; k < 3; k++) {
+        let a = h0[k];
+        let slope = h1[k] - a;
+        if (slope == 0.0) {
+            if (a < 0.0) {
+                return Span(false, 0.0, 0.0);
+            }
+        } else if (slope > 0.0) {
+            lo = max(lo, -a / slope);
+        } else {
+            hi = min(hi, -a / slope);
+        }
+    }
+    return Span(lo < hi, lo, hi);
+}
+
+fn finite3(v: vec3f) -> bool {
+    return finite(v.x) && finite(v.y) && finite(v.z);
+}
+
+// pdm::inside_span: the middle of the first part of the straight segment between two samples
+// inside the triangle (a fraction of the segment; ok false: none), on the homogeneous
+// barycentrics b·S(λ), which stay smooth where b has a pole (a crease strip's collapsing
+// level triangle).
+fn inside_span(local: Local, a: Sample, b: Sample) -> Span {
+    var h0 = a.b * level_area(local, a.lambda);
+    var h1 = b.b * level_area(local, b.lambda);
+    if (!(finite3(h0) && finite3(h1) && any(h0 != vec3f(0.0)) && any(h1 != vec3f(0.0)))) {
+        h0 = a.b;
+        h1 = b.b;
+    }
+    let pos = nonnegative_span(h0, h1);
+    let neg = nonnegative_span(-h0, -h1);
+    var best = pos;
+    if (neg.ok && (!pos.ok || neg.lo < pos.lo)) {
+        best = neg;
+    }
+    let mid = 0.5 * (best.lo + best.hi);
+    return Span(best.ok, mid, mid);
+}
+
+// feed_boundary's work list: cross the boundary between two samples (Pdm::cross_boundary)
+// or detect one sample (Pdm::detect).
+const OP_CROSS: u32 = 1u;
+const OP_DETECT: u32 = 2u;
+
+struct BoundaryOp {
+    kind: u32,
+    a: Sample,
+    b: Sample,
+}
+
+// Why feed_boundary detects a sample, and so what follows when it finds no hit: the next
+// operation (an OP_DETECT, a cross step just outside the boundary, the cross's nearest
+// sample), or the cross's next step (a cross step inside).
+const DETECT_OP: u32 = 0u;
+const DETECT_STEP: u32 = 1u;
+const DETECT_STEP_OUTSIDE: u32 = 2u;
+const DETECT_NEAREST: u32 = 3u;
+
+// The boundary cases of Pdm::feed, run before the next sample with a level, `cur`, is
+// detected (`last`: the latest such sample; it becomes `cur`). Where the segment from `last`
+// to `cur` crosses the triangle's boundary, cuts across a corner of the triangle with both
+// ends outside, or passes through a sliver between an end just outside and one far outside,
+// the inside part is sampled (Pdm::inside_sample) and the boundary crossed
+// (Pdm::cross_boundary), detecting crossings of the surface on the way (Pdm::detect, with
+// level_crossing and refine_levels), so that none between them is stepped over. The CPU's
+// functions call one another; here they are the states of one loop that takes one
+// level_sample per pass (as march_levels does), so that the kernel holds one more copy of
+// level_sample, not one per call site (Mesa inlines every call: with the calls transcribed,
+// lavapipe took 49 s to compile the AOV kernel, 7 s before).
+fn feed_boundary(local: Local, lt: LevelTrack, ray: Ray, prev: ptr<function, Sample>, last: ptr<function, Sample>, cur: Sample, te: f32, tx: f32, n: ptr<function, u32>) -> PrismHit {
+    let pv = *last;
+    *last = cur;
+    if (!pv.ok) {
+        return no_prism_hit();
+    }
+    let pv_in = inside_detect(pv.b);
+    let cur_in = inside_detect(cur.b);
+    if (pv_in && cur_in) {
+        return no_prism_hit();
+    }
+    // Both ends outside: the segment may cut across a corner of the triangle. One end near
+    // the triangle but outside it: the segment may pass through a sliver and out again.
+    // Either way the inside part's middle is sampled first.
+    let both_out = !pv_in && !cur_in;
+    let leaving = pv_in;
+    var near = cur;
+    if (leaving) {
+        near = pv;
+    }
+    var ops: array<BoundaryOp, 3>;
+    var nops = 0u;
+    var oi = 0u;
+    var inside_pending = both_out || min_element(near.b) < 0.0;
+    if (!inside_pending) {
+        ops[0] = BoundaryOp(OP_CROSS, pv, cur);
+        nops = 1u;
+    }
+    // Pdm::cross_boundary's state: the secant bracket, the direction, the nearest sample
+    // inside, the steps taken.
+    var crossing = false;
+    var c0 = no_sample();
+    var c1 = no_sample();
+    var c_leaving = false;
+    var nearest = no_sample();
+    var ci = 0u;
+    var step = no_sample();
+    // Pdm::detect's state: the sample, why, and its refinement (refine_levels' bracket).
+    var detecting = false;
+    var dx = no_sample();
+    var why = DETECT_OP;
+    var refining = false;
+    var r0 = no_sample();
+    var r1 = no_sample();
+    var rg0 = 0.0;
+    var rg1 = 0.0;
+    var rside = 0;
+    var ri = 0u;
+    var rlin = no_sample();
+    let refine = frame.refine != 0u;
+    let tol_g = 1e-6 * local.scale;
+    loop {
+        // Move through the states that take no sample, up to the next sample or the end.
+        var ts = 0.0;
+        var gs = 0.0;
+        var need = false;
+        loop {
+            if (inside_pending) {
+                let span = inside_span(local, pv, cur);
+                if (span.ok) {
+                    ts = pv.t + (cur.t - pv.t) * span.lo;
+                    gs = 0.5 * (pv.lambda + cur.lambda);
+                    *n += 1u;
+                    need = true;
+                    break;
+                }
+                inside_pending = false;
+                if (!both_out) {
+                    ops[0] = BoundaryOp(OP_CROSS, pv, cur);
+                    nops = 1u;
+                }
+                continue;
+            }
+            if (detecting) {
+                if (!refining) {
+                    let pvs = *prev;
+                    if (dx.ok && inside_detect(dx.b) && pvs.ok && ((pvs.g > 0.0) != (dx.g > 0.0))) {
+                        r0 = pvs;
+                        r1 = dx;
+                        rg0 = pvs.g;
+                        rg1 = dx.g;
+                        rside = 0;
+                        ri = 0u;
+                        rlin = no_sample();
+                        refining = true;
+                        continue;
+                    }
+                } else {
+                    if (!refine && ri == 0u) {
+                        ts = r0.t + (r1.t - r0.t) * (r0.g / (r0.g - r1.g));
+                        gs = lambda_between(r0, r1, ts);
+                        need = true;
+                        break;
+                    }
+                    if (refine && ri < REFINE_ITERS && !bracket_converged(r0, r1, tol_g, local.scale)) {
+                        ts = (r0.t * rg1 - r1.t * rg0) / (rg1 - rg0);
+                        gs = lambda_between(r0, r1, ts);
+                        need = true;
+                        break;
+                    }
+                    // The refinement is over: Pdm::level_crossing's test.
+                    var res = rlin;
+                    if (refine) {
+                        res = r1;
+                        if (abs(r0.g) <= abs(r1.g)) {
+                            res = r0;
+                        }
+                    }
+                    if (res.ok && min_element(res.b) >= -EDGE_TOL && res.t >= te && res.t <= tx && res.t >= ray.t_min && res.t <= ray.t_max) {
+                        return PrismHit(true, res.t, res.b);
+                    }
+                    refining = false;
+                }
+                // No hit: a detectable sample becomes the previous one.
+                if (dx.ok && inside_detect(dx.b)) {
+                    *prev = dx;
+                }
+                detecting = false;
+                if (why == DETECT_STEP) {
+                    // Pdm::cross_boundary goes on after the sample it detected.
+                    if (inside_detect(step.b)) {
+                        nearest = step;
+                    }
+                    if ((min_element(step.b) + EDGE_SAMPLE > 0.0) == (min_element(c0.b) + EDGE_SAMPLE > 0.0)) {
+                        c0 = step;
+                    } else {
+                        c1 = step;
+                    }
+                } else {
+                    crossing = false;
+                    oi += 1u;
+                }
+                continue;
+            }
+            if (oi >= nops) {
+                break;
+            }
+            let op = ops[oi];
+            if (op.kind == OP_DETECT) {
+                dx = op.a;
+                why = DETECT_OP;
+                detecting = true;
+                continue;
+            }
+            if (!crossing) {
+                c0 = op.a;
+                c1 = op.b;
+                c_leaving = inside_detect(op.a.b);
+                nearest = no_sample();
+                ci = 0u;
+                crossing = true;
+            }
+            let f0 = min_element(c0.b) + EDGE_SAMPLE;
+            let f1 = min_element(c1.b) + EDGE_SAMPLE;
+            if (ci < EDGE_ITERS && (f0 > 0.0) != (f1 > 0.0)) {
+                ts = c0.t + (c1.t - c0.t) * (f0 / (f0 - f1));
+                gs = lambda_between(c0, c1, ts);
+                ci += 1u;
+                *n += 1u;
+                need = true;
+                break;
+            }
+            // The cross is over: entering, its nearest sample inside is detected.
+            if (nearest.ok && !c_leaving) {
+                dx = nearest;
+                nearest = no_sample();
+                why = DETECT_NEAREST;
+                detecting = true;
+                continue;
+            }
+            crossing = false;
+            oi += 1u;
+        }
+        if (!need) {
+            break;
+        }
+        let s = level_sample(local, lt, ray.dir, ts, gs);
+        if (inside_pending) {
+            // Pdm::inside_sample's sample: the work list of feed's case.
+            inside_pending = false;
+            let m_ok = s.ok && inside_detect(s.b);
+            if (both_out) {
+                if (!m_ok) {
+                    break;
+                }
+                ops[0] = BoundaryOp(OP_CROSS, pv, s);
+                ops[1] = BoundaryOp(OP_DETECT, s, s);
+                ops[2] = BoundaryOp(OP_CROSS, s, cur);
+                nops = 3u;
+            } else if (m_ok && min_element(s.b) > min_element(near.b)) {
+                if (leaving) {
+                    ops[0] = BoundaryOp(OP_DETECT, s, s);
+                    ops[1] = BoundaryOp(OP_CROSS, s, cur);
+                } else {
+                    ops[0] = BoundaryOp(OP_CROSS, pv, s);
+                    ops[1] = BoundaryOp(OP_DETECT, s, s);
+                }
+                nops = 2u;
+            } else {
+                ops[0] = BoundaryOp(OP_CROSS, pv, cur);
+                nops = 1u;
+            }
+        } else if (refining) {
+            // refine_levels' Illinois step, or level_crossing's one linear sample.
+            if (!refine) {
+                rlin = s;
+                ri = 1u;
+            } else if (!s.ok) {
+                ri = REFINE_ITERS;
+            } else {
+                if ((s.g > 0.0) == (r1.g > 0.0)) {
+                    r1 = s;
+                    rg1 = s.g;
+                    if (rside == -1) {
+                        rg0 *= 0.5;
+                    }
+                    rside = -1;
+                } else {
+                    r0 = s;
+                    rg0 = s.g;
+                    if (rside == 1) {
+                        rg1 *= 0.5;
+                    }
+                    rside = 1;
+                }
+                ri += 1u;
+            }
+        } else {
+            // A step of Pdm::cross_boundary.
+            if (!s.ok) {
+                ci = EDGE_ITERS;
+            } else {
+                let m = min_element(s.b);
+                let just_outside = m >= -DETECT_TOL && m < 0.0;
+                if ((c_leaving && inside_detect(s.b)) || just_outside) {
+                    dx = s;
+                    step = s;
+                    why = select(DETECT_STEP, DETECT_STEP_OUTSIDE, just_outside);
+                    detecting = true;
+                } else {
+                    if (inside_detect(s.b)) {
+                        nearest = s;
+                    }
+                    if ((m + EDGE_SAMPLE > 0.0) == (min_element(c0.b) + EDGE_SAMPLE > 0.0)) {
+                        c0 = s;
+                    } else {
+                        c1 = s;
+                    }
+                }
+            }
+        }
+    }
+    return no_prism_hit();
+}
+
 // Pdm::march_levels: PDM in the shared-wall prism on the exact canonical sign.
 fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: RayContext, steps: ptr<function, u32>) -> PrismHit {
     let d = ray.dir;
@@ -398,6 +754,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
 
     var guess = scan_level_estimate(local, ro + d * te);
     var prev = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
+    // The latest sample with a level fed to the crossing test, domain edges included
+    // (feed_boundary).
+    var last = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     // The last sample with a level; whether (and where, last) a sample had none since then.
     var last_ok = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     var failed = false;
@@ -576,6 +935,11 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     continue;
                 }
                 guess = cur.lambda;
+                let crossed = feed_boundary(local, lt, ray, &prev, &last, cur, te, tx, &n);
+                if (crossed.ok) {
+                    *steps += n;
+                    return crossed;
+                }
                 if (inside_detect(cur.b)) {
                     below = prev;
                     prev = cur;
