@@ -31,6 +31,7 @@ const MODE_ENTRY: u32 = 0u;
 const MODE_MARCH: u32 = 1u;
 const MODE_EDGE: u32 = 2u;
 const MODE_REFINE: u32 = 3u;
+const MODE_BOUNDARY: u32 = 4u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 
 // pdm::Local: one prism in a local frame (origin at V_0).
@@ -446,7 +447,7 @@ fn inside_span(local: Local, a: Sample, b: Sample) -> Span {
     return Span(best.ok, mid, mid);
 }
 
-// feed_boundary's work list: cross the boundary between two samples (Pdm::cross_boundary)
+// The boundary search's work list: cross the boundary between two samples (Pdm::cross_boundary)
 // or detect one sample (Pdm::detect).
 const OP_CROSS: u32 = 1u;
 const OP_DETECT: u32 = 2u;
@@ -457,7 +458,7 @@ struct BoundaryOp {
     b: Sample,
 }
 
-// Why feed_boundary detects a sample, and so what follows when it finds no hit: the next
+// Why the boundary search detects a sample, and so what follows when it finds no hit: the next
 // operation (an OP_DETECT, a cross step just outside the boundary, the cross's nearest
 // sample), or the cross's next step (a cross step inside).
 const DETECT_OP: u32 = 0u;
@@ -466,269 +467,297 @@ const DETECT_STEP_OUTSIDE: u32 = 2u;
 const DETECT_NEAREST: u32 = 3u;
 
 // The boundary cases of Pdm::feed, run before the next sample with a level, `cur`, is
-// detected (`last`: the latest such sample; it becomes `cur`). Where the segment from `last`
+// detected, with the latest such sample `pv` (Pdm::feed's `last`). Where the segment from `pv`
 // to `cur` crosses the triangle's boundary, cuts across a corner of the triangle with both
 // ends outside, or passes through a sliver between an end just outside and one far outside,
 // the inside part is sampled (Pdm::inside_sample) and the boundary crossed
 // (Pdm::cross_boundary), detecting crossings of the surface on the way (Pdm::detect, with
 // level_crossing and refine_levels), so that none between them is stepped over. The CPU's
-// functions call one another; here they are the states of one loop that takes one
-// level_sample per pass (as march_levels does), so that the kernel holds one more copy of
-// level_sample, not one per call site (Mesa inlines every call: with the calls transcribed,
-// lavapipe took 49 s to compile the AOV kernel, 7 s before).
-fn feed_boundary(local: Local, lt: LevelTrack, ray: Ray, prev: ptr<function, Sample>, last: ptr<function, Sample>, cur: Sample, te: f32, tx: f32, n: ptr<function, u32>) -> PrismHit {
-    let pv = *last;
-    *last = cur;
-    if (!pv.ok) {
-        return no_prism_hit();
-    }
+// functions call one another; here they are the states of a machine (`Boundary`) that asks
+// march_levels for one sample at a time: march_levels takes it on its own pass, with its one
+// level_sample call site (MODE_BOUNDARY). Transcribed as calls, the kernel inlined ~28 copies
+// of level_sample and lavapipe took 49 s to compile it; as a loop of its own, with one more
+// copy, Mesa 22's lavapipe ran that loop, masked, after every march sample (rock frames 2×,
+// sphere 3× slower there).
+struct Boundary {
+    pv: Sample,
+    cur: Sample,
+    both_out: bool,
+    leaving: bool,
+    near: Sample,
+    // feed's chain of or_else: at most cross, detect, cross; `oi` the next. Three fields,
+    // not an array: indexed by a variable, an array would keep the whole state in memory.
+    op0: BoundaryOp,
+    op1: BoundaryOp,
+    op2: BoundaryOp,
+    nops: u32,
+    oi: u32,
+    // Pdm::inside_sample still to take.
+    inside_pending: bool,
+    // Pdm::cross_boundary: the secant bracket, the direction, the nearest sample inside, the
+    // steps taken, the step being detected.
+    crossing: bool,
+    c0: Sample,
+    c1: Sample,
+    c_leaving: bool,
+    nearest: Sample,
+    ci: u32,
+    step: Sample,
+    // Pdm::detect: the sample, why, and its refinement (refine_levels' bracket; `rlin` the
+    // one linear sample without refinement).
+    detecting: bool,
+    dx: Sample,
+    why: u32,
+    refining: bool,
+    r0: Sample,
+    r1: Sample,
+    rg0: f32,
+    rg1: f32,
+    rside: i32,
+    ri: u32,
+    rlin: Sample,
+    // The sample asked for: whether, where, Newton's start.
+    need: bool,
+    ts: f32,
+    gs: f32,
+}
+
+// Start the machine for the segment from pv to cur (pv has a level; not both detectable).
+fn boundary_begin(pv: Sample, cur: Sample) -> Boundary {
+    var q: Boundary;
+    q.pv = pv;
+    q.cur = cur;
     let pv_in = inside_detect(pv.b);
-    let cur_in = inside_detect(cur.b);
-    if (pv_in && cur_in) {
-        return no_prism_hit();
+    q.both_out = !pv_in && !inside_detect(cur.b);
+    q.leaving = pv_in;
+    q.near = cur;
+    if (pv_in) {
+        q.near = pv;
     }
-    // Both ends outside: the segment may cut across a corner of the triangle. One end near
-    // the triangle but outside it: the segment may pass through a sliver and out again.
-    // Either way the inside part's middle is sampled first.
-    let both_out = !pv_in && !cur_in;
-    let leaving = pv_in;
-    var near = cur;
-    if (leaving) {
-        near = pv;
+    q.nops = 0u;
+    q.oi = 0u;
+    q.inside_pending = q.both_out || min_element(q.near.b) < 0.0;
+    if (!q.inside_pending) {
+        q.op0 = BoundaryOp(OP_CROSS, pv, cur);
+        q.nops = 1u;
     }
-    var ops: array<BoundaryOp, 3>;
-    var nops = 0u;
-    var oi = 0u;
-    var inside_pending = both_out || min_element(near.b) < 0.0;
-    if (!inside_pending) {
-        ops[0] = BoundaryOp(OP_CROSS, pv, cur);
-        nops = 1u;
-    }
-    // Pdm::cross_boundary's state: the secant bracket, the direction, the nearest sample
-    // inside, the steps taken.
-    var crossing = false;
-    var c0 = no_sample();
-    var c1 = no_sample();
-    var c_leaving = false;
-    var nearest = no_sample();
-    var ci = 0u;
-    var step = no_sample();
-    // Pdm::detect's state: the sample, why, and its refinement (refine_levels' bracket).
-    var detecting = false;
-    var dx = no_sample();
-    var why = DETECT_OP;
-    var refining = false;
-    var r0 = no_sample();
-    var r1 = no_sample();
-    var rg0 = 0.0;
-    var rg1 = 0.0;
-    var rside = 0;
-    var ri = 0u;
-    var rlin = no_sample();
+    q.crossing = false;
+    q.detecting = false;
+    q.refining = false;
+    q.need = false;
+    return q;
+}
+
+// Move the machine through the states that take no sample, up to the next sample it asks for
+// (`need`, `ts`, `gs`) or its end (`need` false). Returns the hit if a detection found one.
+fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr<function, Sample>, te: f32, tx: f32, n: ptr<function, u32>) -> PrismHit {
+    var q = *b;
+    var hit = no_prism_hit();
     let refine = frame.refine != 0u;
     let tol_g = 1e-6 * local.scale;
+    q.need = false;
     loop {
-        // Move through the states that take no sample, up to the next sample or the end.
-        var ts = 0.0;
-        var gs = 0.0;
-        var need = false;
-        loop {
-            if (inside_pending) {
-                let span = inside_span(local, pv, cur);
-                if (span.ok) {
-                    ts = pv.t + (cur.t - pv.t) * span.lo;
-                    gs = 0.5 * (pv.lambda + cur.lambda);
-                    *n += 1u;
-                    need = true;
+        if (q.inside_pending) {
+            let span = inside_span(local, q.pv, q.cur);
+            if (span.ok) {
+                q.ts = q.pv.t + (q.cur.t - q.pv.t) * span.lo;
+                q.gs = 0.5 * (q.pv.lambda + q.cur.lambda);
+                *n += 1u;
+                q.need = true;
+                break;
+            }
+            q.inside_pending = false;
+            if (!q.both_out) {
+                q.op0 = BoundaryOp(OP_CROSS, q.pv, q.cur);
+                q.nops = 1u;
+            }
+            continue;
+        }
+        if (q.detecting) {
+            if (!q.refining) {
+                let pvs = *prev;
+                if (q.dx.ok && inside_detect(q.dx.b) && pvs.ok && ((pvs.g > 0.0) != (q.dx.g > 0.0))) {
+                    q.r0 = pvs;
+                    q.r1 = q.dx;
+                    q.rg0 = pvs.g;
+                    q.rg1 = q.dx.g;
+                    q.rside = 0;
+                    q.ri = 0u;
+                    q.rlin = no_sample();
+                    q.refining = true;
+                    continue;
+                }
+            } else {
+                if (!refine && q.ri == 0u) {
+                    q.ts = q.r0.t + (q.r1.t - q.r0.t) * (q.r0.g / (q.r0.g - q.r1.g));
+                    q.gs = lambda_between(q.r0, q.r1, q.ts);
+                    q.need = true;
                     break;
                 }
-                inside_pending = false;
-                if (!both_out) {
-                    ops[0] = BoundaryOp(OP_CROSS, pv, cur);
-                    nops = 1u;
+                if (refine && q.ri < REFINE_ITERS && !bracket_converged(q.r0, q.r1, tol_g, local.scale)) {
+                    q.ts = (q.r0.t * q.rg1 - q.r1.t * q.rg0) / (q.rg1 - q.rg0);
+                    q.gs = lambda_between(q.r0, q.r1, q.ts);
+                    q.need = true;
+                    break;
                 }
-                continue;
-            }
-            if (detecting) {
-                if (!refining) {
-                    let pvs = *prev;
-                    if (dx.ok && inside_detect(dx.b) && pvs.ok && ((pvs.g > 0.0) != (dx.g > 0.0))) {
-                        r0 = pvs;
-                        r1 = dx;
-                        rg0 = pvs.g;
-                        rg1 = dx.g;
-                        rside = 0;
-                        ri = 0u;
-                        rlin = no_sample();
-                        refining = true;
-                        continue;
+                // The refinement is over: Pdm::level_crossing's test.
+                var res = q.rlin;
+                if (refine) {
+                    res = q.r1;
+                    if (abs(q.r0.g) <= abs(q.r1.g)) {
+                        res = q.r0;
                     }
+                }
+                if (res.ok && min_element(res.b) >= -EDGE_TOL && res.t >= te && res.t <= tx && res.t >= ray.t_min && res.t <= ray.t_max) {
+                    hit = PrismHit(true, res.t, res.b);
+                    break;
+                }
+                q.refining = false;
+            }
+            // No hit: a detectable sample becomes the previous one.
+            if (q.dx.ok && inside_detect(q.dx.b)) {
+                *prev = q.dx;
+            }
+            q.detecting = false;
+            if (q.why == DETECT_STEP) {
+                // Pdm::cross_boundary goes on after the sample it detected.
+                if (inside_detect(q.step.b)) {
+                    q.nearest = q.step;
+                }
+                if ((min_element(q.step.b) + EDGE_SAMPLE > 0.0) == (min_element(q.c0.b) + EDGE_SAMPLE > 0.0)) {
+                    q.c0 = q.step;
                 } else {
-                    if (!refine && ri == 0u) {
-                        ts = r0.t + (r1.t - r0.t) * (r0.g / (r0.g - r1.g));
-                        gs = lambda_between(r0, r1, ts);
-                        need = true;
-                        break;
-                    }
-                    if (refine && ri < REFINE_ITERS && !bracket_converged(r0, r1, tol_g, local.scale)) {
-                        ts = (r0.t * rg1 - r1.t * rg0) / (rg1 - rg0);
-                        gs = lambda_between(r0, r1, ts);
-                        need = true;
-                        break;
-                    }
-                    // The refinement is over: Pdm::level_crossing's test.
-                    var res = rlin;
-                    if (refine) {
-                        res = r1;
-                        if (abs(r0.g) <= abs(r1.g)) {
-                            res = r0;
-                        }
-                    }
-                    if (res.ok && min_element(res.b) >= -EDGE_TOL && res.t >= te && res.t <= tx && res.t >= ray.t_min && res.t <= ray.t_max) {
-                        return PrismHit(true, res.t, res.b);
-                    }
-                    refining = false;
+                    q.c1 = q.step;
                 }
-                // No hit: a detectable sample becomes the previous one.
-                if (dx.ok && inside_detect(dx.b)) {
-                    *prev = dx;
-                }
-                detecting = false;
-                if (why == DETECT_STEP) {
-                    // Pdm::cross_boundary goes on after the sample it detected.
-                    if (inside_detect(step.b)) {
-                        nearest = step;
-                    }
-                    if ((min_element(step.b) + EDGE_SAMPLE > 0.0) == (min_element(c0.b) + EDGE_SAMPLE > 0.0)) {
-                        c0 = step;
-                    } else {
-                        c1 = step;
-                    }
-                } else {
-                    crossing = false;
-                    oi += 1u;
-                }
-                continue;
+            } else {
+                q.crossing = false;
+                q.oi += 1u;
             }
-            if (oi >= nops) {
-                break;
-            }
-            let op = ops[oi];
-            if (op.kind == OP_DETECT) {
-                dx = op.a;
-                why = DETECT_OP;
-                detecting = true;
-                continue;
-            }
-            if (!crossing) {
-                c0 = op.a;
-                c1 = op.b;
-                c_leaving = inside_detect(op.a.b);
-                nearest = no_sample();
-                ci = 0u;
-                crossing = true;
-            }
-            let f0 = min_element(c0.b) + EDGE_SAMPLE;
-            let f1 = min_element(c1.b) + EDGE_SAMPLE;
-            if (ci < EDGE_ITERS && (f0 > 0.0) != (f1 > 0.0)) {
-                ts = c0.t + (c1.t - c0.t) * (f0 / (f0 - f1));
-                gs = lambda_between(c0, c1, ts);
-                ci += 1u;
-                *n += 1u;
-                need = true;
-                break;
-            }
-            // The cross is over: entering, its nearest sample inside is detected.
-            if (nearest.ok && !c_leaving) {
-                dx = nearest;
-                nearest = no_sample();
-                why = DETECT_NEAREST;
-                detecting = true;
-                continue;
-            }
-            crossing = false;
-            oi += 1u;
+            continue;
         }
-        if (!need) {
+        if (q.oi >= q.nops) {
             break;
         }
-        let s = level_sample(local, lt, ray.dir, ts, gs);
-        if (inside_pending) {
-            // Pdm::inside_sample's sample: the work list of feed's case.
-            inside_pending = false;
-            let m_ok = s.ok && inside_detect(s.b);
-            if (both_out) {
-                if (!m_ok) {
-                    break;
-                }
-                ops[0] = BoundaryOp(OP_CROSS, pv, s);
-                ops[1] = BoundaryOp(OP_DETECT, s, s);
-                ops[2] = BoundaryOp(OP_CROSS, s, cur);
-                nops = 3u;
-            } else if (m_ok && min_element(s.b) > min_element(near.b)) {
-                if (leaving) {
-                    ops[0] = BoundaryOp(OP_DETECT, s, s);
-                    ops[1] = BoundaryOp(OP_CROSS, s, cur);
-                } else {
-                    ops[0] = BoundaryOp(OP_CROSS, pv, s);
-                    ops[1] = BoundaryOp(OP_DETECT, s, s);
-                }
-                nops = 2u;
-            } else {
-                ops[0] = BoundaryOp(OP_CROSS, pv, cur);
-                nops = 1u;
+        var op = q.op2;
+        if (q.oi == 0u) {
+            op = q.op0;
+        } else if (q.oi == 1u) {
+            op = q.op1;
+        }
+        if (op.kind == OP_DETECT) {
+            q.dx = op.a;
+            q.why = DETECT_OP;
+            q.detecting = true;
+            continue;
+        }
+        if (!q.crossing) {
+            q.c0 = op.a;
+            q.c1 = op.b;
+            q.c_leaving = inside_detect(op.a.b);
+            q.nearest = no_sample();
+            q.ci = 0u;
+            q.crossing = true;
+        }
+        let f0 = min_element(q.c0.b) + EDGE_SAMPLE;
+        let f1 = min_element(q.c1.b) + EDGE_SAMPLE;
+        if (q.ci < EDGE_ITERS && (f0 > 0.0) != (f1 > 0.0)) {
+            q.ts = q.c0.t + (q.c1.t - q.c0.t) * (f0 / (f0 - f1));
+            q.gs = lambda_between(q.c0, q.c1, q.ts);
+            q.ci += 1u;
+            *n += 1u;
+            q.need = true;
+            break;
+        }
+        // The cross is over: entering, its nearest sample inside is detected.
+        if (q.nearest.ok && !q.c_leaving) {
+            q.dx = q.nearest;
+            q.nearest = no_sample();
+            q.why = DETECT_NEAREST;
+            q.detecting = true;
+            continue;
+        }
+        q.crossing = false;
+        q.oi += 1u;
+    }
+    *b = q;
+    return hit;
+}
+
+// Take the sample the machine asked for.
+fn boundary_consume(b: ptr<function, Boundary>, s: Sample) {
+    var q = *b;
+    if (q.inside_pending) {
+        // Pdm::inside_sample's sample: the work list of feed's case.
+        q.inside_pending = false;
+        let m_ok = s.ok && inside_detect(s.b);
+        if (q.both_out) {
+            if (m_ok) {
+                q.op0 = BoundaryOp(OP_CROSS, q.pv, s);
+                q.op1 = BoundaryOp(OP_DETECT, s, s);
+                q.op2 = BoundaryOp(OP_CROSS, s, q.cur);
+                q.nops = 3u;
             }
-        } else if (refining) {
-            // refine_levels' Illinois step, or level_crossing's one linear sample.
-            if (!refine) {
-                rlin = s;
-                ri = 1u;
-            } else if (!s.ok) {
-                ri = REFINE_ITERS;
+        } else if (m_ok && min_element(s.b) > min_element(q.near.b)) {
+            if (q.leaving) {
+                q.op0 = BoundaryOp(OP_DETECT, s, s);
+                q.op1 = BoundaryOp(OP_CROSS, s, q.cur);
             } else {
-                if ((s.g > 0.0) == (r1.g > 0.0)) {
-                    r1 = s;
-                    rg1 = s.g;
-                    if (rside == -1) {
-                        rg0 *= 0.5;
-                    }
-                    rside = -1;
-                } else {
-                    r0 = s;
-                    rg0 = s.g;
-                    if (rside == 1) {
-                        rg1 *= 0.5;
-                    }
-                    rside = 1;
-                }
-                ri += 1u;
+                q.op0 = BoundaryOp(OP_CROSS, q.pv, s);
+                q.op1 = BoundaryOp(OP_DETECT, s, s);
             }
+            q.nops = 2u;
         } else {
-            // A step of Pdm::cross_boundary.
-            if (!s.ok) {
-                ci = EDGE_ITERS;
-            } else {
-                let m = min_element(s.b);
-                let just_outside = m >= -DETECT_TOL && m < 0.0;
-                if ((c_leaving && inside_detect(s.b)) || just_outside) {
-                    dx = s;
-                    step = s;
-                    why = select(DETECT_STEP, DETECT_STEP_OUTSIDE, just_outside);
-                    detecting = true;
-                } else {
-                    if (inside_detect(s.b)) {
-                        nearest = s;
-                    }
-                    if ((m + EDGE_SAMPLE > 0.0) == (min_element(c0.b) + EDGE_SAMPLE > 0.0)) {
-                        c0 = s;
-                    } else {
-                        c1 = s;
-                    }
+            q.op0 = BoundaryOp(OP_CROSS, q.pv, q.cur);
+            q.nops = 1u;
+        }
+    } else if (q.refining) {
+        // refine_levels' Illinois step, or level_crossing's one linear sample.
+        if (frame.refine == 0u) {
+            q.rlin = s;
+            q.ri = 1u;
+        } else if (!s.ok) {
+            q.ri = REFINE_ITERS;
+        } else {
+            if ((s.g > 0.0) == (q.r1.g > 0.0)) {
+                q.r1 = s;
+                q.rg1 = s.g;
+                if (q.rside == -1) {
+                    q.rg0 *= 0.5;
                 }
+                q.rside = -1;
+            } else {
+                q.r0 = s;
+                q.rg0 = s.g;
+                if (q.rside == 1) {
+                    q.rg1 *= 0.5;
+                }
+                q.rside = 1;
+            }
+            q.ri += 1u;
+        }
+    } else if (!s.ok) {
+        // A step of Pdm::cross_boundary without a level ends its steps.
+        q.ci = EDGE_ITERS;
+    } else {
+        let m = min_element(s.b);
+        let just_outside = m >= -DETECT_TOL && m < 0.0;
+        if ((q.c_leaving && inside_detect(s.b)) || just_outside) {
+            q.dx = s;
+            q.step = s;
+            q.why = select(DETECT_STEP, DETECT_STEP_OUTSIDE, just_outside);
+            q.detecting = true;
+        } else {
+            if (inside_detect(s.b)) {
+                q.nearest = s;
+            }
+            if ((m + EDGE_SAMPLE > 0.0) == (min_element(q.c0.b) + EDGE_SAMPLE > 0.0)) {
+                q.c0 = s;
+            } else {
+                q.c1 = s;
             }
         }
     }
-    return no_prism_hit();
+    *b = q;
 }
 
 // Pdm::march_levels: PDM in the shared-wall prism on the exact canonical sign.
@@ -755,7 +784,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var guess = scan_level_estimate(local, ro + d * te);
     var prev = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     // The latest sample with a level fed to the crossing test, domain edges included
-    // (feed_boundary).
+    // (the boundary search, Boundary).
     var last = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     // The last sample with a level; whether (and where, last) a sample had none since then.
     var last_ok = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
@@ -797,6 +826,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var g1 = 0.0;
     var side = 0;
     var ri = 0u;
+    // The boundary search of the item being fed (Boundary), and whether it is over.
+    var bnd: Boundary;
+    var bnd_done = false;
     let refine = frame.refine != 0u;
     let tol_g = 1e-6 * local.scale;
     loop {
@@ -814,6 +846,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         } else if (mode == MODE_EDGE) {
             ts = 0.5 * (good.t + bad);
             gs = good.lambda;
+        } else if (mode == MODE_BOUNDARY) {
+            ts = bnd.ts;
+            gs = bnd.gs;
         } else if (mode == MODE_REFINE) {
             ts = (s0.t * g1 - s1.t * g0) / (g1 - g0);
             if (!refine) {
@@ -858,6 +893,18 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             if (ei == DOMAIN_EDGE_ITERS) {
                 edge = good;
                 feed_k = 0u;
+                feeding = true;
+            }
+        } else if (mode == MODE_BOUNDARY) {
+            // A sample of the boundary search; when it is over, the item it ran for is fed on.
+            boundary_consume(&bnd, s);
+            let crossed = boundary_settle(&bnd, local, ray, &prev, te, tx, &n);
+            if (crossed.ok) {
+                *steps += n;
+                return crossed;
+            }
+            if (!bnd.need) {
+                bnd_done = true;
                 feeding = true;
             }
         } else if (mode == MODE_REFINE) {
@@ -920,6 +967,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             // The edge, then the main sample: the first sign change from `prev` starts a
             // refinement; past both, the next march sample.
             var found = false;
+            var searching = false;
             var below = prev;
             var cur = sample;
             loop {
@@ -930,16 +978,31 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                 if (feed_k == 0u) {
                     cur = edge;
                 }
-                feed_k += 1u;
                 if (!cur.ok) {
+                    feed_k += 1u;
                     continue;
                 }
-                guess = cur.lambda;
-                let crossed = feed_boundary(local, lt, ray, &prev, &last, cur, te, tx, &n);
-                if (crossed.ok) {
-                    *steps += n;
-                    return crossed;
+                if (!bnd_done) {
+                    // Pdm::feed: the boundary cases between the latest sample and this one
+                    // first (Boundary), on passes of their own if they need samples.
+                    guess = cur.lambda;
+                    let pv = last;
+                    last = cur;
+                    if (pv.ok && !(inside_detect(pv.b) && inside_detect(cur.b))) {
+                        bnd = boundary_begin(pv, cur);
+                        let crossed = boundary_settle(&bnd, local, ray, &prev, te, tx, &n);
+                        if (crossed.ok) {
+                            *steps += n;
+                            return crossed;
+                        }
+                        if (bnd.need) {
+                            searching = true;
+                            break;
+                        }
+                    }
                 }
+                bnd_done = false;
+                feed_k += 1u;
                 if (inside_detect(cur.b)) {
                     below = prev;
                     prev = cur;
@@ -949,7 +1012,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     }
                 }
             }
-            if (found) {
+            if (searching) {
+                mode = MODE_BOUNDARY;
+            } else if (found) {
                 s0 = below;
                 s1 = cur;
                 g0 = below.g;

@@ -175,7 +175,7 @@ fn jittered_samples_match_the_cpu() {
 /// Pixels where the CPU's ray stops on a crease strip (a `PRISM_INSERTED` prism) and the GPU's
 /// goes on past it (farther by more than 1e-4 of the depth, or a miss): the rays through a
 /// strip's slivers that the CPU's boundary search (`Pdm::feed`: `inside_sample`,
-/// `cross_boundary`) stops, and `feed_boundary` on the GPU.
+/// `cross_boundary`) stops, and the GPU's `Boundary` machine (pdm.wgsl).
 fn strip_pass_throughs(rel: &str, size: u32) -> (usize, usize) {
     use prismbake::bake::PRISM_INSERTED;
     let ex = example_scene(rel);
@@ -207,7 +207,7 @@ fn rays_the_cpu_stops_on_the_rock_strips_stop_on_the_gpu() {
     let (through, strips) = strip_pass_throughs("rock/rock.glb", 512);
     eprintln!("rock 512²: {through} of {strips} strip pixels pass through on the GPU");
     // Measured on lavapipe: 2 of 399 (the CPU marches the strips' cells on their slab
-    // interval, the GPU whole prisms); 56 of 399 without feed_boundary.
+    // interval, the GPU whole prisms); 56 of 399 without the boundary search.
     assert!(strips >= 300, "only {strips} pixels on the rock's strips");
     assert!(
         through <= 5,
