@@ -82,6 +82,32 @@ pub struct RaySet {
     pub rays: Vec<Ray>,
     pub primary: usize,
     pub leak_start: usize,
+    /// Per leak ray some method let through: whether its end lies inside the reference's
+    /// closed surface. The winding number sums every micro-triangle (a few ms a ray on the
+    /// rock, ~0.1 s on the sphere's reference), and methods often leak the same rays.
+    inside: std::sync::Mutex<std::collections::HashMap<usize, bool>>,
+}
+
+impl RaySet {
+    /// Whether leak ray `i` ends inside the reference's closed surface (winding number at
+    /// least 1/2), computed once per ray.
+    fn ends_inside(&self, i: usize, reference: &Reference) -> bool {
+        let cached = self
+            .inside
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get(&i)
+            .copied();
+        cached.unwrap_or_else(|| {
+            let r = &self.rays[i];
+            let inside = reference.winding_number(r.at(r.t_max)) >= 0.5;
+            self.inside
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(i, inside);
+            inside
+        })
+    }
 }
 
 fn trace_all(isect: &dyn Intersector, rays: &[Ray], seed: u32) -> Vec<Option<Hit>> {
@@ -138,6 +164,7 @@ pub fn make_rays(scene: &Scene, cam: &Camera, reference: &Reference, cfg: &Bench
         rays,
         primary,
         leak_start,
+        inside: Default::default(),
     }
 }
 
@@ -378,10 +405,7 @@ fn measure(
     let (mismatch, dmed, dp99, nmed, np99, leaks) = compare(scene, set, &hits, truth);
     let leaks_inside = leaks
         .iter()
-        .filter(|&&i| {
-            let r = &set.rays[i];
-            reference.winding_number(r.at(r.t_max)) >= 0.5
-        })
+        .filter(|&&i| set.ends_inside(i, reference))
         .count();
     let through = hits[set.leak_start..]
         .iter()
