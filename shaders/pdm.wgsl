@@ -452,11 +452,10 @@ fn inside_span(local: Local, a: Sample, b: Sample) -> Span {
 const OP_CROSS: u32 = 1u;
 const OP_DETECT: u32 = 2u;
 
-struct BoundaryOp {
-    kind: u32,
-    a: Sample,
-    b: Sample,
-}
+// An operation's samples, by index: the segment's two ends and the inside sample.
+const AT_PV: u32 = 0u;
+const AT_CUR: u32 = 1u;
+const AT_INSIDE: u32 = 2u;
 
 // Why the boundary search detects a sample, and so what follows when it finds no hit: the next
 // operation (an OP_DETECT, a cross step just outside the boundary, the cross's nearest
@@ -482,14 +481,16 @@ const DETECT_NEAREST: u32 = 3u;
 struct Boundary {
     pv: Sample,
     cur: Sample,
+    // Pdm::inside_sample's sample.
+    m: Sample,
     both_out: bool,
     leaving: bool,
-    near: Sample,
-    // feed's chain of or_else: at most cross, detect, cross; `oi` the next. Three fields,
-    // not an array: indexed by a variable, an array would keep the whole state in memory.
-    op0: BoundaryOp,
-    op1: BoundaryOp,
-    op2: BoundaryOp,
+    // feed's chain of or_else: at most cross, detect, cross; `oi` the next. Each is (kind, its
+    // first sample, its second) with the samples as AT_* indices; three fields, not an array:
+    // indexed by a variable, an array would keep the whole state in memory.
+    op0: vec3<u32>,
+    op1: vec3<u32>,
+    op2: vec3<u32>,
     nops: u32,
     oi: u32,
     // Pdm::inside_sample still to take.
@@ -502,8 +503,7 @@ struct Boundary {
     c_leaving: bool,
     nearest: Sample,
     ci: u32,
-    step: Sample,
-    // Pdm::detect: the sample, why, and its refinement (refine_levels' bracket; `rlin` the
+    // Pdm::detect: the sample (with DETECT_STEP also the cross step), why, and its refinement (refine_levels' bracket; `rlin` the
     // one linear sample without refinement).
     detecting: bool,
     dx: Sample,
@@ -522,6 +522,25 @@ struct Boundary {
     gs: f32,
 }
 
+// The sample an operation names (AT_*).
+fn boundary_sample(q: Boundary, at: u32) -> Sample {
+    if (at == AT_PV) {
+        return q.pv;
+    }
+    if (at == AT_CUR) {
+        return q.cur;
+    }
+    return q.m;
+}
+
+// min b_i of the end near the triangle (detectable, or the entering end when neither is).
+fn boundary_near_min(q: Boundary) -> f32 {
+    if (q.leaving) {
+        return min_element(q.pv.b);
+    }
+    return min_element(q.cur.b);
+}
+
 // Start the machine for the segment from pv to cur (pv has a level; not both detectable).
 fn boundary_begin(pv: Sample, cur: Sample) -> Boundary {
     var q: Boundary;
@@ -530,15 +549,11 @@ fn boundary_begin(pv: Sample, cur: Sample) -> Boundary {
     let pv_in = inside_detect(pv.b);
     q.both_out = !pv_in && !inside_detect(cur.b);
     q.leaving = pv_in;
-    q.near = cur;
-    if (pv_in) {
-        q.near = pv;
-    }
     q.nops = 0u;
     q.oi = 0u;
-    q.inside_pending = q.both_out || min_element(q.near.b) < 0.0;
+    q.inside_pending = q.both_out || boundary_near_min(q) < 0.0;
     if (!q.inside_pending) {
-        q.op0 = BoundaryOp(OP_CROSS, pv, cur);
+        q.op0 = vec3<u32>(OP_CROSS, AT_PV, AT_CUR);
         q.nops = 1u;
     }
     q.crossing = false;
@@ -568,7 +583,7 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
             }
             q.inside_pending = false;
             if (!q.both_out) {
-                q.op0 = BoundaryOp(OP_CROSS, q.pv, q.cur);
+                q.op0 = vec3<u32>(OP_CROSS, AT_PV, AT_CUR);
                 q.nops = 1u;
             }
             continue;
@@ -621,13 +636,13 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
             q.detecting = false;
             if (q.why == DETECT_STEP) {
                 // Pdm::cross_boundary goes on after the sample it detected.
-                if (inside_detect(q.step.b)) {
-                    q.nearest = q.step;
+                if (inside_detect(q.dx.b)) {
+                    q.nearest = q.dx;
                 }
-                if ((min_element(q.step.b) + EDGE_SAMPLE > 0.0) == (min_element(q.c0.b) + EDGE_SAMPLE > 0.0)) {
-                    q.c0 = q.step;
+                if ((min_element(q.dx.b) + EDGE_SAMPLE > 0.0) == (min_element(q.c0.b) + EDGE_SAMPLE > 0.0)) {
+                    q.c0 = q.dx;
                 } else {
-                    q.c1 = q.step;
+                    q.c1 = q.dx;
                 }
             } else {
                 q.crossing = false;
@@ -644,16 +659,16 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
         } else if (q.oi == 1u) {
             op = q.op1;
         }
-        if (op.kind == OP_DETECT) {
-            q.dx = op.a;
+        if (op.x == OP_DETECT) {
+            q.dx = boundary_sample(q, op.y);
             q.why = DETECT_OP;
             q.detecting = true;
             continue;
         }
         if (!q.crossing) {
-            q.c0 = op.a;
-            q.c1 = op.b;
-            q.c_leaving = inside_detect(op.a.b);
+            q.c0 = boundary_sample(q, op.y);
+            q.c1 = boundary_sample(q, op.z);
+            q.c_leaving = inside_detect(q.c0.b);
             q.nearest = no_sample();
             q.ci = 0u;
             q.crossing = true;
@@ -689,25 +704,26 @@ fn boundary_consume(b: ptr<function, Boundary>, s: Sample) {
     if (q.inside_pending) {
         // Pdm::inside_sample's sample: the work list of feed's case.
         q.inside_pending = false;
+        q.m = s;
         let m_ok = s.ok && inside_detect(s.b);
         if (q.both_out) {
             if (m_ok) {
-                q.op0 = BoundaryOp(OP_CROSS, q.pv, s);
-                q.op1 = BoundaryOp(OP_DETECT, s, s);
-                q.op2 = BoundaryOp(OP_CROSS, s, q.cur);
+                q.op0 = vec3<u32>(OP_CROSS, AT_PV, AT_INSIDE);
+                q.op1 = vec3<u32>(OP_DETECT, AT_INSIDE, AT_INSIDE);
+                q.op2 = vec3<u32>(OP_CROSS, AT_INSIDE, AT_CUR);
                 q.nops = 3u;
             }
-        } else if (m_ok && min_element(s.b) > min_element(q.near.b)) {
+        } else if (m_ok && min_element(s.b) > boundary_near_min(q)) {
             if (q.leaving) {
-                q.op0 = BoundaryOp(OP_DETECT, s, s);
-                q.op1 = BoundaryOp(OP_CROSS, s, q.cur);
+                q.op0 = vec3<u32>(OP_DETECT, AT_INSIDE, AT_INSIDE);
+                q.op1 = vec3<u32>(OP_CROSS, AT_INSIDE, AT_CUR);
             } else {
-                q.op0 = BoundaryOp(OP_CROSS, q.pv, s);
-                q.op1 = BoundaryOp(OP_DETECT, s, s);
+                q.op0 = vec3<u32>(OP_CROSS, AT_PV, AT_INSIDE);
+                q.op1 = vec3<u32>(OP_DETECT, AT_INSIDE, AT_INSIDE);
             }
             q.nops = 2u;
         } else {
-            q.op0 = BoundaryOp(OP_CROSS, q.pv, q.cur);
+            q.op0 = vec3<u32>(OP_CROSS, AT_PV, AT_CUR);
             q.nops = 1u;
         }
     } else if (q.refining) {
@@ -743,7 +759,6 @@ fn boundary_consume(b: ptr<function, Boundary>, s: Sample) {
         let just_outside = m >= -DETECT_TOL && m < 0.0;
         if ((q.c_leaving && inside_detect(s.b)) || just_outside) {
             q.dx = s;
-            q.step = s;
             q.why = select(DETECT_STEP, DETECT_STEP_OUTSIDE, just_outside);
             q.detecting = true;
         } else {
