@@ -1,7 +1,7 @@
 # Sourced by test.sh and install.sh: on Debian 12, replace the system's Mesa 22.3 Vulkan
 # drivers with bookworm-backports' (Mesa 25, the version Debian 13 ships). lavapipe, Mesa's
 # software Vulkan and the GPU path's device on machines without a GPU, renders the example
-# assets' AOVs 4-10x faster there: Mesa 22.3 runs the body of every `if` in a shader, under a
+# assets' AOVs 3-4x faster there: Mesa 22.3 runs the body of every `if` in a shader, under a
 # mask, whether any SIMD lane takes it or not; later versions branch over it (docs/gpu.md,
 # "lavapipe versions").
 #
