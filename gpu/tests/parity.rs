@@ -214,3 +214,14 @@ fn rays_the_cpu_stops_on_the_rock_strips_stop_on_the_gpu() {
         "{through} of {strips} strip pixels pass through on the GPU"
     );
 }
+
+// The paper's one linear sample per crossing instead of the refinement (`PdmOptions::refine`
+// off; `Frame::refine` 0): the march's own crossings and the boundary search's.
+#[test]
+fn rock_matches_the_cpu_without_refinement() {
+    let opts = PdmOptions {
+        refine: false,
+        ..PdmOptions::default()
+    };
+    check_asset_with("rock/rock.glb", 1, opts, false);
+}
