@@ -95,6 +95,14 @@ pub struct GpuSceneParams {
     pub _pad: u32,
 }
 
+/// `GpuSceneParams::wrap` of a map's wrap mode (heightmap.wgsl's `scene.wrap`).
+pub fn wrap_code(wrap: prismbake::Wrap) -> u32 {
+    match wrap {
+        prismbake::Wrap::Repeat => 0,
+        prismbake::Wrap::Clamp => 1,
+    }
+}
+
 /// Per-dispatch constants, 112 bytes (uniform): the camera basis (computed on the host,
 /// exactly as `Camera::ray` does), the tile, sampling and PDM options.
 #[repr(C)]

@@ -14,13 +14,14 @@
 //! `NO_STITCH` and the shaders evaluate the raw `D(uv(b))`.
 
 use crate::context::GpuContext;
-use crate::layout::{GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams, GpuVertex, NO_STITCH};
+use crate::layout::{
+    wrap_code, GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams, GpuVertex, NO_STITCH,
+};
 use crate::GpuError;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::BvhBuildParams;
 use prismbake::accel::{prism_aabbs, Scene};
 use prismbake::seam::{SeamMode, StitchField};
-use prismbake::Wrap;
 use std::time::Duration;
 use wgpu::util::DeviceExt;
 
@@ -119,10 +120,7 @@ impl GpuScene {
         let params = GpuSceneParams {
             map_width: map.width,
             map_height: map.height,
-            wrap: match map.wrap {
-                Wrap::Repeat => 0,
-                Wrap::Clamp => 1,
-            },
+            wrap: wrap_code(map.wrap),
             node_count: bvh.nodes.len() as u32,
             disp_scale: table.params.scale,
             disp_midlevel: table.params.midlevel,

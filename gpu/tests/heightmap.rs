@@ -4,13 +4,12 @@
 //! GPU reads another texel than the CPU anywhere — a wrap at the border, say, which the parity
 //! renders see only in the few pixels whose footprint crosses it.
 
-use crate::util::ctx;
+use crate::util;
 use glam::Vec2;
 use prismbake::rng;
 use prismbake::{HeightMap, Wrap};
-use prismbake_gpu::layout::GpuSceneParams;
+use prismbake_gpu::layout::{wrap_code, GpuSceneParams};
 use prismbake_gpu::shaders;
-use wgpu::util::DeviceExt;
 
 const PROBE: &str = r#"
 // Per case: in = (u, v, _, _), out = (sample_map, sample_grad's value, its gradient).
@@ -29,100 +28,35 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 /// `[sample, sample_grad value, gradient u, gradient v]` per UV, on the adapter.
 fn run_probe(map: &HeightMap, uvs: &[Vec2]) -> Vec<[f32; 4]> {
-    let ctx = ctx();
-    let device = ctx.device();
-    let src = format!("{}\n{}\n{}", shaders::COMMON, shaders::HEIGHTMAP, PROBE);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("height map probe"),
-        source: wgpu::ShaderSource::Wgsl(src.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("height map probe"),
-        layout: None,
-        module: &module,
-        entry_point: Some("probe"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
     let params = GpuSceneParams {
         map_width: map.width,
         map_height: map.height,
-        wrap: match map.wrap {
-            Wrap::Repeat => 0,
-            Wrap::Clamp => 1,
-        },
+        wrap: wrap_code(map.wrap),
         ..Default::default()
     };
-    let init = |label, contents: &[u8], usage| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents,
-            usage,
-        })
-    };
-    let scene = init(
-        "scene",
-        bytemuck::bytes_of(&params),
-        wgpu::BufferUsages::UNIFORM,
-    );
-    let texels = init(
-        "height map",
-        bytemuck::cast_slice(&map.data),
-        wgpu::BufferUsages::STORAGE,
-    );
-    let data: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
-    let bytes = std::mem::size_of_val(&data[..]) as u64;
-    let io = init(
-        "io",
-        bytemuck::cast_slice(&data),
-        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-    );
-    let readback = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size: bytes,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let scene_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: scene.as_entire_binding(),
-            }, // scene
-            wgpu::BindGroupEntry {
-                binding: 5,
-                resource: texels.as_entire_binding(),
-            }, // height_map
+    let src = format!("{}\n{}\n{}", shaders::COMMON, shaders::HEIGHTMAP, PROBE);
+    let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
+    util::run_probe(
+        "height map probe",
+        &src,
+        (1, 0),
+        &io,
+        &[
+            // scene, height_map (common.wgsl's bindings)
+            (
+                0,
+                0,
+                bytemuck::bytes_of(&params),
+                wgpu::BufferUsages::UNIFORM,
+            ),
+            (
+                0,
+                5,
+                bytemuck::cast_slice(&map.data),
+                wgpu::BufferUsages::STORAGE,
+            ),
         ],
-    });
-    let io_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(1),
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: io.as_entire_binding(),
-        }], // io
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &scene_group, &[]);
-        pass.set_bind_group(1, &io_group, &[]);
-        pass.dispatch_workgroups((uvs.len() as u32).div_ceil(64), 1, 1);
-    }
-    enc.copy_buffer_to_buffer(&io, 0, &readback, 0, bytes);
-    ctx.queue().submit([enc.finish()]);
-    readback
-        .slice(..)
-        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .expect("poll");
-    let view = readback.slice(..).get_mapped_range().expect("mapped");
-    bytemuck::cast_slice(&view).to_vec()
+    )
 }
 
 /// UVs where a wrong texel shows: every texel centre and texel edge of the map and of the

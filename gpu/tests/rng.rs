@@ -2,10 +2,9 @@
 //! on the adapter for frozen and pseudo-random counters equal `prismbake::rng`. Breaks if either
 //! side changes the hash (which would silently change every jittered image on one device only).
 
-use crate::util::ctx;
+use crate::util;
 use prismbake::rng::{self, Purpose};
 use prismbake_gpu::shaders;
-use wgpu::util::DeviceExt;
 
 const PROBE: &str = r#"
 // Per case: in = (x, pixel, sample, bounce, purpose, seed), out = (pcg, counters, random bits).
@@ -25,62 +24,12 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
 "#;
 
 fn run_probe(cases: &[[u32; 6]]) -> Vec<[u32; 3]> {
-    let ctx = ctx();
-    let device = ctx.device();
-    let src = format!("{}\n{}", shaders::RNG, PROBE);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("rng probe"),
-        source: wgpu::ShaderSource::Wgsl(src.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some("rng probe"),
-        layout: None,
-        module: &module,
-        entry_point: Some("probe"),
-        compilation_options: Default::default(),
-        cache: None,
-    });
     let data: Vec<u32> = cases
         .iter()
         .flat_map(|c| c.iter().copied().chain([0, 0, 0]))
         .collect();
-    let bytes = (data.len() * 4) as u64;
-    let io = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("io"),
-        contents: bytemuck::cast_slice(&data),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-    });
-    let readback = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size: bytes,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: io.as_entire_binding(),
-        }], // io
-    });
-    let mut enc = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups((cases.len() as u32).div_ceil(64), 1, 1);
-    }
-    enc.copy_buffer_to_buffer(&io, 0, &readback, 0, bytes);
-    ctx.queue().submit([enc.finish()]);
-    readback
-        .slice(..)
-        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .expect("poll");
-    let view = readback.slice(..).get_mapped_range().expect("mapped");
-    let out: &[u32] = bytemuck::cast_slice(&view);
+    let src = format!("{}\n{}", shaders::RNG, PROBE);
+    let out = util::run_probe("rng probe", &src, (0, 0), &data, &[]);
     out.chunks(9).map(|c| [c[6], c[7], c[8]]).collect()
 }
 

@@ -61,3 +61,97 @@ pub fn example_scene(rel: &str) -> ExampleScene {
         hi,
     }
 }
+
+/// Run a probe kernel: entry point `probe` of the WGSL `src`, `@workgroup_size(64)`, one
+/// invocation per element of `io` (a read-write storage array bound at `io_at` = (group,
+/// binding)), with the read-only buffers `inputs` bound as (group, binding, contents). Returns
+/// `io` as the kernel left it.
+pub fn run_probe<T: bytemuck::Pod>(
+    label: &str,
+    src: &str,
+    io_at: (u32, u32),
+    io: &[T],
+    inputs: &[(u32, u32, &[u8], wgpu::BufferUsages)],
+) -> Vec<T> {
+    use wgpu::util::DeviceExt;
+    let ctx = ctx();
+    let device = ctx.device();
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: &module,
+        entry_point: Some("probe"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let init = |label: &str, contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents,
+            usage,
+        })
+    };
+    let bytes = std::mem::size_of_val(io) as u64;
+    let io_buf = init(
+        "io",
+        bytemuck::cast_slice(io),
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    let readback = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut bound: Vec<(u32, u32, wgpu::Buffer)> = inputs
+        .iter()
+        .map(|&(g, b, data, usage)| (g, b, init("input", data, usage)))
+        .collect();
+    bound.push((io_at.0, io_at.1, io_buf));
+    let mut groups: Vec<u32> = bound.iter().map(|&(g, _, _)| g).collect();
+    groups.sort_unstable();
+    groups.dedup();
+    let bind_groups: Vec<(u32, wgpu::BindGroup)> = groups
+        .iter()
+        .map(|&g| {
+            let entries: Vec<wgpu::BindGroupEntry> = bound
+                .iter()
+                .filter(|(bg, _, _)| *bg == g)
+                .map(|(_, binding, buf)| wgpu::BindGroupEntry {
+                    binding: *binding,
+                    resource: buf.as_entire_binding(),
+                })
+                .collect();
+            let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &pipeline.get_bind_group_layout(g),
+                entries: &entries,
+            });
+            (g, group)
+        })
+        .collect();
+    let mut enc = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        for (g, group) in &bind_groups {
+            pass.set_bind_group(*g, group, &[]);
+        }
+        pass.dispatch_workgroups((io.len() as u32).div_ceil(64), 1, 1);
+    }
+    let io_buf = &bound.last().expect("io is bound").2;
+    enc.copy_buffer_to_buffer(io_buf, 0, &readback, 0, bytes);
+    ctx.queue().submit([enc.finish()]);
+    readback
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .expect("poll");
+    let view = readback.slice(..).get_mapped_range().expect("mapped");
+    bytemuck::cast_slice(&view).to_vec()
+}
