@@ -379,6 +379,7 @@ pub fn render_beauty(
     let mut sums = vec![PixelSums::default(); w * h];
     let mut counters = BeautyCounters::default();
     let done = AtomicUsize::new(0);
+    let raster = cam.raster(w as u32, h as u32);
     for sample in 0..spp {
         let row_counters: Vec<BeautyCounters> = sums
             .par_chunks_mut(w)
@@ -395,7 +396,7 @@ pub fn render_beauty(
                             rng::random(pixel, sample, 1, Purpose::PixelJitter, settings.seed),
                         )
                     };
-                    let ray = cam.ray(Vec2::new(x as f32, y as f32) + jitter, w as u32, h as u32);
+                    let ray = raster.ray(Vec2::new(x as f32, y as f32) + jitter);
                     let ctx = RayContext {
                         pixel,
                         sample,

@@ -84,12 +84,50 @@ impl Camera {
 
     /// The ray through image position `p` in pixels (origin top-left) of a `w`×`h` image.
     pub fn ray(&self, p: Vec2, w: u32, h: u32) -> Ray {
+        self.raster(w, h).ray(p)
+    }
+
+    /// The view set up once for a `w`×`h` image: `Raster::ray` per pixel then skips the basis
+    /// (two normalisations, a cross product) and the field of view's tangent that every ray
+    /// shares.
+    pub fn raster(&self, w: u32, h: u32) -> Raster {
         let (right, up, back) = self.basis();
-        let tan = (self.yfov_deg.to_radians() * 0.5).tan();
-        let aspect = w as f32 / h as f32;
-        let x = (2.0 * p.x / w as f32 - 1.0) * tan * aspect;
-        let y = (1.0 - 2.0 * p.y / h as f32) * tan;
-        Ray::new(self.from, (right * x + up * y - back).normalize())
+        Raster {
+            from: self.from,
+            right,
+            up,
+            back,
+            tan: (self.yfov_deg.to_radians() * 0.5).tan(),
+            aspect: w as f32 / h as f32,
+            w: w as f32,
+            h: h as f32,
+        }
+    }
+}
+
+/// A camera's rays for one image size (`Camera::raster`).
+#[derive(Clone, Copy, Debug)]
+pub struct Raster {
+    from: Vec3,
+    right: Vec3,
+    up: Vec3,
+    back: Vec3,
+    tan: f32,
+    aspect: f32,
+    w: f32,
+    h: f32,
+}
+
+impl Raster {
+    /// The ray through image position `p` in pixels (origin top-left).
+    #[inline]
+    pub fn ray(&self, p: Vec2) -> Ray {
+        let x = (2.0 * p.x / self.w - 1.0) * self.tan * self.aspect;
+        let y = (1.0 - 2.0 * p.y / self.h) * self.tan;
+        Ray::new(
+            self.from,
+            (self.right * x + self.up * y - self.back).normalize(),
+        )
     }
 }
 

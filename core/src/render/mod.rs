@@ -138,6 +138,7 @@ pub fn render_aovs(
 ) -> AovImage {
     let (w, h) = (s.width, s.height);
     let done = AtomicUsize::new(0);
+    let raster = cam.raster(w, h);
     let rows: Vec<Vec<PixelAcc>> = (0..h)
         .into_par_iter()
         .map(|y| {
@@ -154,7 +155,7 @@ pub fn render_aovs(
                                 rng::random(pixel, sample, 1, Purpose::PixelJitter, s.seed),
                             )
                         };
-                        let ray = cam.ray(Vec2::new(x as f32, y as f32) + jitter, w, h);
+                        let ray = raster.ray(Vec2::new(x as f32, y as f32) + jitter);
                         let ctx = RayContext {
                             pixel,
                             sample,
