@@ -74,6 +74,9 @@ fn gpu_beauty_turntable_writes_every_frame_and_a_contact_sheet() {
         "4 frames in a 2x2 grid"
     );
     assert_eq!(gpu["frames"].as_array().unwrap().len(), 4);
+    // lavapipe (and every desktop Vulkan driver) has timestamp queries: each frame reports the
+    // kernels' own time, inside its trace time.
+    assert_frame_times(&gpu, true);
     assert!(gpu["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
     assert!(gpu["beauty_rays"]["env_shadow_rays"].as_u64().unwrap() > 0);
 
@@ -82,6 +85,7 @@ fn gpu_beauty_turntable_writes_every_frame_and_a_contact_sheet() {
     // (gpu/tests/beauty.rs measures ~1e-5; 1e-3 leaves room, a real divergence is ≫ 1%).
     let cpu = render("cpu", &cpu_out);
     assert_eq!(files_in(&cpu_out), want);
+    assert_frame_times(&cpu, false);
     for kind in ["rays", "key_shadow_rays", "env_shadow_rays"] {
         let (c, g) = (
             cpu["beauty_rays"][kind].as_u64().unwrap() as f64,

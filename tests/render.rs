@@ -130,7 +130,7 @@ fn renders_a_baked_table() {
     let table = dir.join("t.prisms");
     run(&["bake", s(&example("sphere/sphere.glb")), "-o", s(&table)]).assert_success();
     let out = dir.join("img");
-    run(&[
+    let summary = run(&[
         "render",
         s(&table),
         "--res",
@@ -140,9 +140,10 @@ fn renders_a_baked_table() {
         "-o",
         s(&out),
         "--json",
-    ])
-    .assert_success();
+    ]);
+    summary.assert_success();
     assert!(out.join("mask.exr").is_file());
+    assert_frame_times(&summary.json(), false);
 }
 
 #[test]

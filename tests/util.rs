@@ -74,6 +74,27 @@ impl Output {
     }
 }
 
+/// A `render --json` summary's frame times hold together: each frame's trace time and file
+/// time are > 0 and add up to its wall time, and the device's own clock (GPU timestamps) is
+/// reported, inside the trace time, exactly when `device_clock` (`null` on the CPU).
+pub fn assert_frame_times(summary: &serde_json::Value, device_clock: bool) {
+    let frames = summary["frames"].as_array().expect("frames");
+    assert!(!frames.is_empty());
+    for f in frames {
+        let get = |k: &str| {
+            f[k].as_f64()
+                .unwrap_or_else(|| panic!("frame lacks {k}: {f}"))
+        };
+        let (all, trace, write) = (get("seconds"), get("trace_seconds"), get("write_seconds"));
+        assert!(trace > 0.0 && write > 0.0, "{f}");
+        assert!((trace + write - all).abs() <= 1e-9 * all.max(1.0), "{f}");
+        match f["device_seconds"].as_f64() {
+            Some(d) => assert!(device_clock && d > 0.0 && d <= trace, "{f}"),
+            None => assert!(!device_clock && f["device_seconds"].is_null(), "{f}"),
+        }
+    }
+}
+
 /// Run `prismbake ARGS` with `cwd` as working directory.
 pub fn run_in(cwd: &Path, args: &[&str]) -> Output {
     let bin = env!("CARGO_BIN_EXE_prismbake");

@@ -404,9 +404,14 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
     }
     for f in &summary.render.frames {
         eprintln!(
-            "{}frame: {:.3} s, {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
+            "{}frame: {:.3} s (trace {:.3} s{}, files {:.3} s), {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
             f.frame.map(|i| format!("[{i:04}] ")).unwrap_or_default(),
             f.seconds,
+            f.trace_seconds,
+            f.device_seconds
+                .map(|d| format!(" of which kernels {d:.4} s"))
+                .unwrap_or_default(),
+            f.write_seconds,
             f.mrays_per_s,
             f.steps_per_ray,
             100.0 * f.coverage

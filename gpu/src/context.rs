@@ -8,6 +8,7 @@
 //! built on first use, so an AOV-only run never compiles it.
 
 use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, WORKGROUP};
+use crate::timer::KernelTimer;
 use crate::{shaders, GpuError};
 use std::sync::{Mutex, OnceLock};
 
@@ -47,6 +48,8 @@ pub struct GpuContext {
     beauty: OnceLock<Result<BeautyKernel, String>>,
     /// The persistent buffers serve one dispatch at a time.
     pub(crate) busy: Mutex<()>,
+    /// The kernels' own time, where the adapter has timestamp queries.
+    pub(crate) timer: Option<Mutex<KernelTimer>>,
 }
 
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -135,7 +138,8 @@ impl GpuContext {
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("prismbake"),
-                required_features: wgpu::Features::empty(),
+                // The kernels' own time (`KernelTimer`) where the adapter can measure it.
+                required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
                 required_limits,
                 ..Default::default()
             })
@@ -228,6 +232,7 @@ impl GpuContext {
             ],
         });
         debug_assert_eq!(MAX_TILE % WORKGROUP, 0);
+        let timer = KernelTimer::new(&device, &queue).map(Mutex::new);
         Ok(GpuContext {
             adapter_info,
             device,
@@ -242,6 +247,7 @@ impl GpuContext {
             beauty_layout,
             beauty: OnceLock::new(),
             busy: Mutex::new(()),
+            timer,
         })
     }
 
@@ -264,6 +270,20 @@ impl GpuContext {
                 info.name, info.backend, info.device_type
             )
         }
+    }
+
+    /// Whether the kernels' own time is measured (the adapter has timestamp queries).
+    pub fn has_kernel_timer(&self) -> bool {
+        self.timer.is_some()
+    }
+
+    /// The kernels' own time since the last call, summed over their dispatches (GPU
+    /// timestamps, `KernelTimer`); `None` where the adapter has no timestamp queries.
+    pub fn take_kernel_seconds(&self) -> Result<Option<f64>, GpuError> {
+        self.timer
+            .as_ref()
+            .map(|t| t.lock().unwrap_or_else(|e| e.into_inner()).take(self))
+            .transpose()
     }
 
     /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).
@@ -363,10 +383,22 @@ impl GpuContext {
         size: u64,
         f: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
+        self.read_back_into(encoder, src, &self.readback, size, f)
+    }
+
+    /// `read_back` through the mappable buffer `dst` (`MAP_READ | COPY_DST`).
+    pub(crate) fn read_back_into<R>(
+        &self,
+        encoder: wgpu::CommandEncoder,
+        src: &wgpu::Buffer,
+        dst: &wgpu::Buffer,
+        size: u64,
+        f: impl FnOnce(&[u8]) -> R,
+    ) -> Result<R, GpuError> {
         let mut encoder = encoder;
-        encoder.copy_buffer_to_buffer(src, 0, &self.readback, 0, size);
+        encoder.copy_buffer_to_buffer(src, 0, dst, 0, size);
         self.queue.submit([encoder.finish()]);
-        let slice = self.readback.slice(0..size);
+        let slice = dst.slice(0..size);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
@@ -383,7 +415,7 @@ impl GpuContext {
                 .map_err(|e| GpuError::Device(format!("read-back: {e}")))?;
             f(&view)
         };
-        self.readback.unmap();
+        dst.unmap();
         Ok(out)
     }
 }

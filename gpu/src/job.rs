@@ -92,6 +92,11 @@ impl FrameRenderer for GpuFrames<'_> {
         })
         .map_err(gpu_err)
     }
+
+    fn take_device_seconds(&self) -> Option<f64> {
+        // A failed read of the timestamps loses the figure, not the frame.
+        self.ctx.take_kernel_seconds().ok().flatten()
+    }
 }
 
 /// Run a lookdev job (AOVs and/or beauty, stills or turntables) on `ctx`'s adapter;

@@ -10,6 +10,8 @@
 //!   AOVs as `prismbake::render::AovImage`, so `render::output::write_frame` writes it.
 //! * `GpuBeautyScene::upload(&ctx, &beauty_scene)` and `render_beauty(..)` — one beauty frame
 //!   as `prismbake::render::beauty::BeautyImage` (`render::output::write_beauty`).
+//! * `GpuContext::take_kernel_seconds()` — the kernels' own time (GPU timestamps around every
+//!   dispatch) since the last call, where the adapter has timestamp queries.
 //! * `job::run` — a whole lookdev job (AOVs, beauty, turntables, contact sheets, the table
 //!   cache) through `prismbake::render::lookdev`, with `job::GpuFrames` as its renderer.
 //!
@@ -32,6 +34,7 @@ pub mod layout;
 pub mod render;
 pub mod scene;
 pub mod shaders;
+mod timer;
 
 pub use beauty::{render_beauty, GpuBeautyScene};
 pub use context::GpuContext;

@@ -89,6 +89,10 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
         ctx.device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
     };
+    let mut timer = ctx
+        .timer
+        .as_ref()
+        .map(|t| t.lock().unwrap_or_else(|e| e.into_inner()));
     for &(tx, ty) in &tiles {
         let (tw, th) = ((w - tx).min(MAX_TILE), (h - ty).min(MAX_TILE));
         let bytes = (tw * th) as u64 * std::mem::size_of::<T>() as u64;
@@ -108,7 +112,7 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
             {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some(kernel.label),
-                    timestamp_writes: None,
+                    timestamp_writes: timer.as_mut().map(|t| t.pass_writes()),
                 });
                 pass.set_pipeline(kernel.pipeline);
                 pass.set_bind_group(0, &scene.group, &[]);
@@ -119,6 +123,9 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
             }
             ctx.queue.submit([enc.finish()]);
             ctx.wait()?;
+            if let Some(t) = timer.as_mut() {
+                t.flush_if_full(ctx)?;
+            }
             done += 1;
             progress((done * h as u64 / passes) as usize);
         }

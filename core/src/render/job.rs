@@ -253,10 +253,18 @@ pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     cam
 }
 
+/// One frame's figures. `seconds` is the whole frame; `trace_seconds` the renderer's call
+/// alone (rays traced, and on a GPU the uniforms written, the dispatches waited for and the
+/// image read back), `write_seconds` its files and previews; `device_seconds` the GPU's own
+/// timestamps summed over the frame's dispatches (kernel time alone), where the adapter has
+/// timestamp queries (`null` on the CPU). `mrays_per_s` is over `trace_seconds`.
 #[derive(Debug, Serialize)]
 pub struct FrameStats {
     pub frame: Option<u32>,
     pub seconds: f64,
+    pub trace_seconds: f64,
+    pub write_seconds: f64,
+    pub device_seconds: Option<f64>,
     pub rays: u64,
     pub mrays_per_s: f64,
     pub steps_per_ray: f64,
@@ -352,15 +360,19 @@ pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<
             };
             let t = Instant::now();
             let img = render_aovs(isect, &cam, &job.settings, &|rows| progress(i, rows));
-            let seconds = t.elapsed().as_secs_f64();
+            let trace_seconds = t.elapsed().as_secs_f64();
             summary
                 .files
                 .extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
+            let seconds = t.elapsed().as_secs_f64();
             summary.frames.push(FrameStats {
                 frame: *frame,
                 seconds,
+                trace_seconds,
+                write_seconds: seconds - trace_seconds,
+                device_seconds: None,
                 rays: img.rays,
-                mrays_per_s: img.rays as f64 / seconds / 1e6,
+                mrays_per_s: img.rays as f64 / trace_seconds / 1e6,
                 steps_per_ray: img.total_steps as f64 / img.rays.max(1) as f64,
                 coverage: img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64,
             });

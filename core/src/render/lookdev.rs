@@ -163,6 +163,12 @@ pub trait FrameRenderer {
         scene: &BeautyScene,
         progress: &(dyn Fn(usize) + Sync),
     ) -> Result<BeautyImage>;
+    /// The device's own time for the work rendered since the last call (GPU timestamp
+    /// queries), reset by the call; `None` where there is no such clock (the CPU, an adapter
+    /// without timestamp queries).
+    fn take_device_seconds(&self) -> Option<f64> {
+        None
+    }
 }
 
 /// The CPU renderer over any intersector (rayon).
@@ -424,6 +430,8 @@ pub fn render_all(
             _ => s.cam0,
         };
         let t = Instant::now();
+        // Time in the renderer's calls; the rest of the frame is files and previews.
+        let mut trace_seconds = 0.0;
         let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
         if !aov_list.is_empty() {
             let report = |rows: usize| {
@@ -431,7 +439,9 @@ pub fn render_all(
                     progress(i, rows)
                 }
             };
+            let traced = Instant::now();
             let img = renderer.render_aovs(&cam, &job.settings, &report)?;
+            trace_seconds += traced.elapsed().as_secs_f64();
             summary.render.files.extend(output::write_frame(
                 &job.out_dir,
                 &img,
@@ -448,8 +458,10 @@ pub fn render_all(
             }
         }
         if want_beauty {
+            let traced = Instant::now();
             let img =
                 renderer.render_beauty(&cam, &job.settings, &bscene, &|rows| progress(i, rows))?;
+            trace_seconds += traced.elapsed().as_secs_f64();
             summary
                 .render
                 .files
@@ -472,8 +484,11 @@ pub fn render_all(
         summary.render.frames.push(FrameStats {
             frame: *frame,
             seconds,
+            trace_seconds,
+            write_seconds: seconds - trace_seconds,
+            device_seconds: renderer.take_device_seconds(),
             rays,
-            mrays_per_s: rays as f64 / seconds / 1e6,
+            mrays_per_s: rays as f64 / trace_seconds / 1e6,
             steps_per_ray: steps as f64 / rays.max(1) as f64,
             coverage,
         });
