@@ -65,6 +65,10 @@ const EDGE_TOL: f32 = 1e-5;
 /// Scanning barycentrics only approximate the canonical ones (different direction field);
 /// samples this far outside still take part in crossing detection in shared-wall prisms.
 const DETECT_TOL: f32 = 0.05;
+/// A detectable sample farther than this outside the triangle (barycentric units) and its
+/// neighbour inside, with the same sign: the march adds a sample on the wall between them
+/// (`Pdm::wall_sample`). Above the exact interval's pad, so walls marched exactly take none.
+const WALL_SAMPLE_TOL: f32 = 1e-3;
 /// Where the ray crosses the triangle's boundary the march adds a sample this far outside
 /// it (barycentric units; well inside `DETECT_TOL`).
 const EDGE_SAMPLE: f32 = 0.01;
@@ -1000,7 +1004,19 @@ impl<'a> Pdm<'a> {
         let span = (te, tx);
         if let Some(pv) = last.replace(cur) {
             match (Self::detectable(&pv), Self::detectable(&cur)) {
-                (true, true) => {}
+                (true, true) => {
+                    // Both near the triangle, one of them outside it: that one sampled the
+                    // prism's surface continued past its wall, where the neighbour's may lie
+                    // on the other side of the ray. With the same sign at both ends, a
+                    // crossing inside the triangle between the inside one and the wall would
+                    // be lost (a strict march's last sample past a corner of the fan around a
+                    // vertex): sample the wall first.
+                    if let Some(w) = self.wall_sample(local, lt, ray, &pv, &cur, n) {
+                        if let Some(hit) = self.detect(local, lt, ray, prev, w, te, tx) {
+                            return Some(hit);
+                        }
+                    }
+                }
                 (false, false) => {
                     // Both outside: the segment may still cut across a corner of the
                     // triangle, between two other edges. Sample the middle of its part
@@ -1041,6 +1057,41 @@ impl<'a> Pdm<'a> {
             }
         }
         self.detect(local, lt, ray, prev, cur, te, tx)
+    }
+
+    /// Where one of two successive samples with the same sign lies inside the triangle and the
+    /// other past a wall by more than `WALL_SAMPLE_TOL`: the sample where the ray meets that
+    /// wall (the outside one's most negative barycentric interpolated to 0 along the
+    /// segment: nearly affine there); `n` counts it.
+    fn wall_sample(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        ray: &Ray,
+        a: &Sample,
+        b: &Sample,
+        n: &mut u32,
+    ) -> Option<Sample> {
+        if (a.g > 0.0) != (b.g > 0.0) {
+            return None;
+        }
+        let outside = |s: &Sample| s.b.min_element() < -WALL_SAMPLE_TOL;
+        let out = match (outside(a), outside(b)) {
+            (false, true) => b,
+            (true, false) => a,
+            _ => return None,
+        };
+        let k = (0..3)
+            .min_by(|&i, &j| out.b[i].total_cmp(&out.b[j]))
+            .expect("three barycentrics");
+        let (fa, fb) = (a.b[k], b.b[k]);
+        if (fa >= 0.0) == (fb >= 0.0) {
+            return None;
+        }
+        let t = a.t + (b.t - a.t) * (fa / (fa - fb));
+        *n += 1;
+        self.level_sample(local, lt, ray.dir, t, lambda_between(a, b, t))
+            .filter(Self::detectable)
     }
 
     /// A sample in the middle of the part of the segment from `a` to `b` inside the triangle
@@ -1924,6 +1975,17 @@ mod tests {
     #[test]
     fn rays_through_the_rock_strips_slivers_are_stopped() {
         rock_leak_rays_are_stopped(0x1ea4, &[1281, 29_332, 281_894, 328_502]);
+    }
+
+    /// Regression: a strict march (a cell's slabs) whose last sample lay past a wall, within
+    /// `DETECT_TOL`, with the same sign as the sample inside before it: the surface continued
+    /// past the wall hid a crossing inside the triangle (`Pdm::wall_sample`). Rays of the
+    /// bench's and the tests' leak sets that ended inside the rock's solid (ray 285 485 past
+    /// the corner of a vertex's fan: prism 466's slab exit at b = (−0.0008, −0.0018, 1.0026)).
+    #[test]
+    fn crossings_before_a_wall_sampled_past_are_found() {
+        rock_leak_rays_are_stopped(0, &[77_262, 184_506, 285_485, 671_890]);
+        rock_leak_rays_are_stopped(0x1ea4, &[298_170, 529_736]);
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
