@@ -911,6 +911,9 @@ impl<'a> Pdm<'a> {
         let r = self.jitter(ctx, prism);
         let mut t = te;
         let mut n = 0;
+        // Whether a sample lay inside the triangle (a strict march with none is redone on the
+        // exact interval).
+        let mut seen_inside = false;
         loop {
             n += 1;
             let sample = if n == 1 {
@@ -923,6 +926,7 @@ impl<'a> Pdm<'a> {
                 *steps += n;
                 return Err(LeftTheTriangle);
             }
+            seen_inside |= sample.is_some_and(|s| s.b.min_element() >= 0.0);
             // Where the ray leaves (or re-enters) the region in which a level exists, the
             // edge of that region is a sample too: a crossing between the last sample with a
             // level and the first without one would be lost otherwise (a grazing exit, where
@@ -981,6 +985,15 @@ impl<'a> Pdm<'a> {
             }
         }
         *steps += n;
+        if strict && !seen_inside {
+            // Every sample lay outside the triangle (within `DETECT_TOL`): either the ray
+            // passes beside it, or the march followed a ghost level whose triangle the ray
+            // misses while the level that continues the neighbours' holds a crossing inside
+            // (rock leak ray 674 471 of seed 0: b₁ ≈ −0.019 at every sample on the ghost, a
+            // hit at b₁ = 0.0012 on the other level). The exact interval settles it: its
+            // entry tries the other levels (`entry_sample`).
+            return Err(LeftTheTriangle);
+        }
         Ok(None)
     }
 
@@ -1986,6 +1999,15 @@ mod tests {
     fn crossings_before_a_wall_sampled_past_are_found() {
         rock_leak_rays_are_stopped(0, &[77_262, 184_506, 285_485, 671_890]);
         rock_leak_rays_are_stopped(0x1ea4, &[298_170, 529_736]);
+    }
+
+    /// Regression: a strict march whose every sample lay outside the triangle (within
+    /// `DETECT_TOL`) on a ghost level, while the other level holds the crossing inside; it
+    /// is redone on the exact interval. A ray of the bench's leak set that ended inside the
+    /// rock's solid.
+    #[test]
+    fn strict_marches_that_never_meet_the_triangle_are_redone_exactly() {
+        rock_leak_rays_are_stopped(0, &[674_471]);
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
