@@ -17,6 +17,10 @@ const DETECT_TOL: f32 = 0.05;
 // The entry sample on a wall may miss the triangle by this much before other levels are tried
 // (pdm::ENTRY_TOL: a folded prism's ghost level).
 const ENTRY_TOL: f32 = 1e-3;
+// How far past the prism's λ range (relative to its longest edge) the entry's level may lie
+// before other levels are tried (pdm::ENTRY_LEVEL_PAD: a ghost level can hold the point inside
+// its triangle too).
+const ENTRY_LEVEL_PAD: f32 = 1e-3;
 const INTERVAL_PAD: f32 = 1e-4;
 const MAX_STEPS: u32 = 16384u;
 const REFINE_ITERS: u32 = 24u;
@@ -305,6 +309,21 @@ fn level_at(c: LevelCubic, t: f32, guess: f32, tol: f32, lo: f32, hi: f32) -> Le
     }
     // Rounding noise above `tol`: accept a small last step.
     return Level(abs(step) <= 1e3 * tol, l);
+}
+
+// Pdm::entry_sample's order of the entry's tries: a level in the prism's range (lo, hi) before
+// one outside it, then the more inside b; true if `s` is not worse than `best` (the last of
+// equals wins, as the CPU's max_by).
+fn entry_not_worse(s: Sample, best: Sample, lo: f32, hi: f32) -> bool {
+    if (!best.ok) {
+        return true;
+    }
+    let s_in = s.lambda >= lo && s.lambda <= hi;
+    let best_in = best.lambda >= lo && best.lambda <= hi;
+    if (s_in != best_in) {
+        return s_in;
+    }
+    return min_element(s.b) >= min_element(best.b);
 }
 
 // pdm::LevelTrack: the level cubic along the ray rebased at its entry point base = o + t0 d
@@ -827,6 +846,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     var first = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     var ebest = Sample(false, 0.0, 0.0, vec3f(0.0), 0.0);
     let quarter = 0.25 * (lt.hi - lt.lo);
+    // The levels an entry on the exact interval (the prism's boundary) can have.
+    let entry_lo = p.lambda_lo - ENTRY_LEVEL_PAD * local.scale;
+    let entry_hi = p.lambda_hi + ENTRY_LEVEL_PAD * local.scale;
     // The level domain's edge: the bisection's ends and steps, and the edge sample found.
     var good = sample;
     var bad = 0.0;
@@ -877,18 +899,19 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         var fresh = false;
         var feeding = false;
         if (mode == MODE_ENTRY) {
-            // The first try if it is inside, else the retries' best and then the first try
-            // (the last of equals, as the CPU's max_by over [mid, mid - q, mid + q, first]).
+            // The first try if it is inside and in the range, else the retries' best and then
+            // the first try (the last of equals, as the CPU's max_by over [mid, mid - q,
+            // mid + q, first]).
             if (ek == 0u) {
                 first = s;
-                fresh = s.ok && min_element(s.b) >= -ENTRY_TOL;
+                fresh = s.ok && min_element(s.b) >= -ENTRY_TOL && s.lambda >= entry_lo && s.lambda <= entry_hi;
                 sample = s;
-            } else if (s.ok && (!ebest.ok || min_element(s.b) >= min_element(ebest.b))) {
+            } else if (s.ok && entry_not_worse(s, ebest, entry_lo, entry_hi)) {
                 ebest = s;
             }
             ek += 1u;
             if (!fresh && ek == 4u) {
-                if (first.ok && (!ebest.ok || min_element(first.b) >= min_element(ebest.b))) {
+                if (first.ok && entry_not_worse(first, ebest, entry_lo, entry_hi)) {
                     ebest = first;
                 }
                 sample = ebest;

@@ -80,6 +80,10 @@ const EDGE_SAMPLE: f32 = 0.01;
 /// ghost against −0.0007 on the level that continues the neighbour's). A strict march's entry
 /// is on a cell's slab, mostly outside the triangle, and keeps `DETECT_TOL`.
 const ENTRY_TOL: f32 = 1e-3;
+/// How far past the prism's λ range (relative to its longest edge) the level of an entry
+/// on the exact interval may lie before other levels are tried (`Pdm::entry_sample`): ten
+/// times `INTERVAL_PAD`, the interval's own widening.
+const ENTRY_LEVEL_PAD: f32 = 1e-3;
 /// Secant steps placing that sample.
 const EDGE_ITERS: u32 = 6;
 /// Shared-wall interval widening, relative to the prism's longest edge.
@@ -772,8 +776,13 @@ impl<'a> Pdm<'a> {
     /// estimate, and the level cubic can have another root in the padded range whose level
     /// triangle misses the point (a ghost level, `b` far outside); every later sample is
     /// warm-started from this one, so the march would stay on that branch and skip a crossing.
-    /// If `b` is outside by more than `tol`, retry from the middle and the quarters of the
-    /// range and keep the level whose `b` is most inside.
+    /// If `b` is outside by more than `tol`, or (`range`: an entry on the exact interval, on
+    /// the prism's walls or caps) the level lies outside the prism's λ range, retry from the
+    /// middle and the quarters of the range and keep the level in the range, then the one
+    /// whose `b` is most inside. (A ghost can also hold the point inside its triangle: rock
+    /// prism 330, seed 0x1ea4 ray 864 980, entered on its wall with 331 at λ −0.048, outside
+    /// the range [−0.027, 0.024], where the level that continues 331's is −0.015.)
+    #[allow(clippy::too_many_arguments)]
     fn entry_sample(
         &self,
         local: &Local,
@@ -782,9 +791,11 @@ impl<'a> Pdm<'a> {
         t: f32,
         guess: f32,
         tol: f32,
+        range: Option<(f32, f32)>,
     ) -> Option<Sample> {
+        let in_range = |s: &Sample| range.is_none_or(|(lo, hi)| (lo..=hi).contains(&s.lambda));
         let first = self.level_sample(local, lt, d, t, guess);
-        if first.is_some_and(|s| s.b.min_element() >= -tol) {
+        if first.is_some_and(|s| s.b.min_element() >= -tol && in_range(&s)) {
             return first;
         }
         let quarter = 0.25 * (lt.hi - lt.lo);
@@ -792,7 +803,11 @@ impl<'a> Pdm<'a> {
             .into_iter()
             .filter_map(|g0| self.level_sample(local, lt, d, t, g0))
             .chain(first)
-            .max_by(|a, b| a.b.min_element().total_cmp(&b.b.min_element()))
+            .max_by(|a, b| {
+                in_range(a)
+                    .cmp(&in_range(b))
+                    .then(a.b.min_element().total_cmp(&b.b.min_element()))
+            })
     }
 
     /// Exact canonical sample at `t`: the level `λ` of the ray point (Newton on the level
@@ -917,8 +932,15 @@ impl<'a> Pdm<'a> {
         loop {
             n += 1;
             let sample = if n == 1 {
-                let tol = if strict { DETECT_TOL } else { ENTRY_TOL };
-                self.entry_sample(local, &lt, d, t, guess, tol)
+                // An entry on the exact interval lies on the prism's boundary, so at a level
+                // in its range; a strict march's entry is on a cell's slab, anywhere.
+                let (tol, range) = if strict {
+                    (DETECT_TOL, None)
+                } else {
+                    let pad = ENTRY_LEVEL_PAD * local.f.scale;
+                    (ENTRY_TOL, Some((p.lambda_lo - pad, p.lambda_hi + pad)))
+                };
+                self.entry_sample(local, &lt, d, t, guess, tol, range)
             } else {
                 self.level_sample(local, &lt, d, t, guess)
             };
@@ -2008,6 +2030,16 @@ mod tests {
     #[test]
     fn strict_marches_that_never_meet_the_triangle_are_redone_exactly() {
         rock_leak_rays_are_stopped(0, &[674_471]);
+    }
+
+    /// Regression: an entry on the exact interval whose first level lay far outside the
+    /// prism's λ range with the point inside its triangle (a ghost the `b` test accepts); the
+    /// march stayed on it, below the surface, and never crossed. The level in the range
+    /// continues the neighbour's (`Pdm::entry_sample`). A ray of the tests' leak set that
+    /// ended inside the rock's solid.
+    #[test]
+    fn entries_take_a_level_in_the_prisms_range() {
+        rock_leak_rays_are_stopped(0x1ea4, &[864_980]);
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
