@@ -2,7 +2,7 @@
 //! folder — validated up front, then run frame by frame.
 
 use super::camera::Camera;
-use super::{output, render_aovs, Aov, RenderSettings};
+use super::{Aov, RenderSettings};
 use crate::accel::Scene;
 use crate::asset::{self, AssetSpec};
 use crate::bake::PrismTable;
@@ -19,7 +19,6 @@ use crate::trace::{Intersector, NormalMode};
 use glam::Vec3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -321,62 +320,4 @@ pub fn with_intersector<R>(
     f: impl FnOnce(&dyn Intersector) -> R,
 ) -> R {
     f(make_intersector(cfg, scene).as_ref())
-}
-
-/// Run the job; `progress(frame_index, rows_done)` reports progress.
-pub fn run(job: &RenderJob, progress: &(dyn Fn(usize, usize) + Sync)) -> Result<RenderSummary> {
-    job.validate()?;
-    prepare_out_dir(&job.out_dir)?;
-    let t0 = Instant::now();
-    let loaded = load_input(&job.input, &job.repair)?;
-    let cam0 = base_camera(
-        &loaded,
-        &job.camera,
-        job.settings.width as f32 / job.settings.height as f32,
-    );
-    let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
-    let frames: Vec<Option<u32>> = match job.turntable {
-        None => vec![None],
-        Some(n) => {
-            let (a, b) = job.frames.unwrap_or((0, n - 1));
-            (a..=b).map(Some).collect()
-        }
-    };
-    with_intersector(&job.method, &scene, |isect| {
-        let setup_seconds = t0.elapsed().as_secs_f64();
-        let mut summary = RenderSummary {
-            method: job.method.method,
-            device: format!("cpu ({} threads)", rayon::current_num_threads()),
-            prisms: scene.table.prisms.len(),
-            setup_seconds,
-            method_memory_bytes: isect.memory_bytes(),
-            frames: vec![],
-            files: vec![],
-        };
-        for (i, frame) in frames.iter().enumerate() {
-            let cam = match (frame, job.turntable) {
-                (Some(f), Some(n)) => cam0.turntable(*f, n),
-                _ => cam0,
-            };
-            let t = Instant::now();
-            let img = render_aovs(isect, &cam, &job.settings, &|rows| progress(i, rows));
-            let trace_seconds = t.elapsed().as_secs_f64();
-            summary
-                .files
-                .extend(output::write_frame(&job.out_dir, &img, &job.aovs, *frame)?);
-            let seconds = t.elapsed().as_secs_f64();
-            summary.frames.push(FrameStats {
-                frame: *frame,
-                seconds,
-                trace_seconds,
-                write_seconds: seconds - trace_seconds,
-                device_seconds: None,
-                rays: img.rays,
-                mrays_per_s: img.rays as f64 / trace_seconds / 1e6,
-                steps_per_ray: img.total_steps as f64 / img.rays.max(1) as f64,
-                coverage: img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64,
-            });
-        }
-        Ok(summary)
-    })
 }
