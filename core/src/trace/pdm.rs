@@ -97,6 +97,8 @@ const LEVEL_ITERS: u32 = 8;
 /// Bisections locating where the ray leaves the region in which a level exists (to 1/1024
 /// of the step there).
 const DOMAIN_EDGE_ITERS: u32 = 10;
+/// Samples `dip_probe` takes at most in one gap between march samples.
+const DIP_PROBES: u32 = 4;
 
 /// March step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -511,7 +513,7 @@ struct LeftTheTriangle;
 
 /// A march sample: height difference (ray minus surface, along the scanning direction) and
 /// the scanning barycentrics.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 struct Sample {
     t: f32,
     g: f32,
@@ -923,6 +925,10 @@ impl<'a> Pdm<'a> {
         let mut last: Option<Sample> = None;
         // The last two loop samples, while each had a level (the next guess).
         let mut trail: [Option<Sample>; 2] = [None, None];
+        // The latest loop samples near the triangle (`dip_probe`), a ring of four, and how
+        // many of them came in a row.
+        let mut dips = [Sample::default(); 4];
+        let mut dip_count = 0usize;
         let r = self.jitter(ctx, prism);
         let mut t = te;
         let mut n = 0;
@@ -983,10 +989,28 @@ impl<'a> Pdm<'a> {
                         return Ok(Some(hit));
                     }
                     trail = [trail[1], Some(cur)];
+                    if Self::detectable(&cur) {
+                        dips[dip_count & 3] = cur;
+                        dip_count += 1;
+                        // The last four, oldest first.
+                        let g = |i: usize| dips[(dip_count + i) & 3].g;
+                        if dip_count >= 4 && Self::may_dip([g(0), g(1), g(2), g(3)]) {
+                            let last4 = std::array::from_fn(|i| dips[(dip_count + i) & 3]);
+                            if let Some(hit) =
+                                self.dip_probe(local, &lt, ray, last4, (te, tx), &mut n)
+                            {
+                                *steps += n;
+                                return Ok(Some(hit));
+                            }
+                        }
+                    } else {
+                        dip_count = 0;
+                    }
                 }
                 None => {
                     failed_at = Some(t);
                     trail = [None, None];
+                    dip_count = 0;
                 }
             }
             if t >= tx || n >= MAX_STEPS {
@@ -1092,6 +1116,74 @@ impl<'a> Pdm<'a> {
             }
         }
         self.detect(local, lt, ray, prev, cur, te, tx)
+    }
+
+    /// Four successive samples `[a, b, c, d]` on one side of the surface whose values fall from
+    /// `a` to `b` and rise from `c` to `d`: the surface may reach the ray between `b` and `c`
+    /// and leave it again before `c` (a fold or a ridge thinner than a step). Where the lines
+    /// through `a, b` and `c, d` meet between `b` and `c` on the other side, that point is
+    /// sampled; a sign change there is resolved into the crossing after `b`; `n` counts it.
+    #[cold]
+    #[inline(never)]
+    fn dip_probe(
+        &self,
+        local: &Local,
+        lt: &LevelTrack,
+        ray: &Ray,
+        [a, b, c, d]: [Sample; 4],
+        (te, tx): (f32, f32),
+        n: &mut u32,
+    ) -> Option<(f32, Vec3)> {
+        // All four on this side (`may_dip`).
+        let above = b.g > 0.0;
+        let side = if above { 1.0 } else { -1.0 };
+        // Where the line through `p, q` (falling to `q`) meets the line through `r, s` (rising
+        // from `r`) between `q` and `r`, if it lies on the other side of the surface.
+        let apex = |p: &Sample, q: &Sample, r: &Sample, s: &Sample| -> Option<(f32, f32)> {
+            let kl = side * (q.g - p.g) / (q.t - p.t);
+            let kr = side * (s.g - r.g) / (s.t - r.t);
+            if !(kl < 0.0 && kr > 0.0 && kl.is_finite() && kr.is_finite()) {
+                return None;
+            }
+            let t = (side * (r.g - q.g) + kl * q.t - kr * r.t) / (kl - kr);
+            let v = side * q.g + kl * (t - q.t);
+            (t > q.t && t < r.t && v < 0.0).then_some((t, v))
+        };
+        // The gap between the middle two of four samples, and where its lines meet.
+        let mut gap = (a, b, c, d);
+        let mut at = apex(&a, &b, &c, &d);
+        for _ in 0..DIP_PROBES {
+            let (t, _) = at?;
+            let (p, q, r, s) = gap;
+            *n += 1;
+            let m = self
+                .level_sample(local, lt, ray.dir, t, lambda_between(&q, &r, t))
+                .filter(Self::detectable)?;
+            if (m.g > 0.0) != above {
+                return self.level_crossing(local, lt, ray, q, m, te, tx);
+            }
+            // Still on this side: go on in the half whose lines dip lower.
+            let (left, right) = ((p, q, m, r), (q, m, r, s));
+            let (al, ar) = (apex(&p, &q, &m, &r), apex(&q, &m, &r, &s));
+            (gap, at) = match (al, ar) {
+                (Some(l), Some(r)) if r.1 < l.1 => (right, ar),
+                (None, Some(_)) => (right, ar),
+                _ => (left, al),
+            };
+        }
+        None
+    }
+
+    /// `dip_probe`'s cheap test on four samples' `g`: all on one side, falling into the middle
+    /// gap and rising out of it.
+    #[inline(always)]
+    fn may_dip([a, b, c, d]: [f32; 4]) -> bool {
+        let above = b > 0.0;
+        (a > 0.0) == above
+            && (c > 0.0) == above
+            && (d > 0.0) == above
+            && b.abs() < a.abs()
+            && d.abs() > c.abs()
     }
 
     /// Where one of two successive samples with the same sign lies inside the triangle and the
@@ -2040,6 +2132,41 @@ mod tests {
     #[test]
     fn entries_take_a_level_in_the_prisms_range() {
         rock_leak_rays_are_stopped(0x1ea4, &[864_980]);
+    }
+
+    /// Regression: rays that pass through a fold or ridge of the rock's surface thinner than
+    /// a step (mostly at stitched seams): four samples on one side, falling into a gap and
+    /// rising out of it, with no sign change (`Pdm::dip_probe`). Four rays of the bench's
+    /// leak set (seed 0) that the reference (k = 2), RMIP and the nonlinear method hit, and
+    /// PDM did not; the hit lies where a march at a tenth of the step finds it.
+    #[test]
+    fn folds_thinner_than_a_step_are_probed() {
+        let indices = [5264, 130_250, 368_546, 487_821];
+        rock_leak_rays_are_stopped(0, &indices);
+        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
+        let pdm = Pdm::new(scene, PdmOptions::default());
+        let fine = Pdm::new(
+            scene,
+            PdmOptions {
+                dt: StepSize::Auto(0.05),
+                jitter: false,
+                ..Default::default()
+            },
+        );
+        let rays = crate::bench::leak_rays(scene, indices[3] + 1, 0);
+        for i in indices {
+            let c = ctx(i as u32, 0);
+            let hit = pdm.intersect(&rays[i], &c).expect("stopped");
+            let truth = fine.intersect(&rays[i], &c).expect("the fine march hits");
+            let texel = scene.table.prisms[truth.prism as usize].texel_world;
+            assert!(
+                (hit.t - truth.t).abs() <= 0.05 * texel,
+                "ray {i}: PDM at t {} against the fine march's {} ({} texels)",
+                hit.t,
+                truth.t,
+                (hit.t - truth.t) / texel
+            );
+        }
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
