@@ -36,6 +36,9 @@ const MODE_MARCH: u32 = 1u;
 const MODE_EDGE: u32 = 2u;
 const MODE_REFINE: u32 = 3u;
 const MODE_BOUNDARY: u32 = 4u;
+const MODE_DIP: u32 = 5u;
+// Pdm::dip_probe: samples at most in one gap between march samples.
+const DIP_PROBES: u32 = 4u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
 
 // pdm::Local: one prism in a local frame (origin at V_0).
@@ -866,6 +869,22 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     // The boundary search of the item being fed (Boundary), and whether it is over.
     var bnd: Boundary;
     var bnd_done = false;
+    // Pdm::dip_probe: the latest loop samples near the triangle (oldest first) and how many
+    // came in a row; the gap being probed (between dq and dr, with the lines through dp, dq
+    // and dr, ds), where its lines meet, the probes taken, and whether the march's current
+    // sample has had its dip test.
+    var dip0 = sample;
+    var dip1 = sample;
+    var dip2 = sample;
+    var dip3 = sample;
+    var dip_count = 0u;
+    var dp = sample;
+    var dq = sample;
+    var dr = sample;
+    var ds = sample;
+    var dip_at = DipApex(false, 0.0, 0.0);
+    var dip_k = 0u;
+    var dip_tested = false;
     let refine = frame.refine != 0u;
     let tol_g = 1e-6 * local.scale;
     loop {
@@ -886,6 +905,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         } else if (mode == MODE_BOUNDARY) {
             ts = bnd.ts;
             gs = bnd.gs;
+        } else if (mode == MODE_DIP) {
+            ts = dip_at.t;
+            gs = lambda_between(dq, dr, ts);
         } else if (mode == MODE_REFINE) {
             ts = (s0.t * g1 - s1.t * g0) / (g1 - g0);
             if (!refine) {
@@ -944,6 +966,43 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             if (!bnd.need) {
                 bnd_done = true;
                 feeding = true;
+            }
+        } else if (mode == MODE_DIP) {
+            // A probe of the gap (Pdm::dip_probe): on the other side, the crossing after dq
+            // (Pdm::level_crossing: the refinement below); on this side, on in the half whose
+            // lines dip lower; else the march goes on.
+            n += 1u;
+            dip_k += 1u;
+            let above = dq.g > 0.0;
+            var go_on = !(s.ok && inside_detect(s.b));
+            if (!go_on && (s.g > 0.0) != above) {
+                s0 = dq;
+                s1 = s;
+                g0 = dq.g;
+                g1 = s.g;
+                side = 0;
+                ri = 0u;
+                // Nothing left to feed if the crossing is not this prism's.
+                feed_k = 2u;
+                mode = MODE_REFINE;
+            } else if (!go_on) {
+                let al = dip_apex(dp, dq, s, dr);
+                let ar = dip_apex(dq, s, dr, ds);
+                if (ar.ok && (!al.ok || ar.v < al.v)) {
+                    dp = dq;
+                    dq = s;
+                    dip_at = ar;
+                } else {
+                    ds = dr;
+                    dr = s;
+                    dip_at = al;
+                }
+                go_on = !dip_at.ok || dip_k == DIP_PROBES;
+            }
+            if (go_on) {
+                feed_k = 2u;
+                feeding = true;
+                mode = MODE_MARCH;
             }
         } else if (mode == MODE_REFINE) {
             // Illinois (refine_levels), or the one linear sample without `refine`.
@@ -1072,18 +1131,73 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     trail0.ok = false;
                     trail1.ok = false;
                 }
-                if (t >= tx || n >= MAX_STEPS) {
-                    break;
+                // Pdm::dip_probe, once per march sample: four in a row near the triangle, on
+                // one side, falling into the middle gap and rising out of it.
+                if (!dip_tested) {
+                    dip_tested = true;
+                    if (sample.ok && inside_detect(sample.b)) {
+                        dip0 = dip1;
+                        dip1 = dip2;
+                        dip2 = dip3;
+                        dip3 = sample;
+                        dip_count += 1u;
+                        if (dip_count >= 4u && may_dip(dip0.g, dip1.g, dip2.g, dip3.g)) {
+                            dip_at = dip_apex(dip0, dip1, dip2, dip3);
+                            if (dip_at.ok) {
+                                dp = dip0;
+                                dq = dip1;
+                                dr = dip2;
+                                ds = dip3;
+                                dip_k = 0u;
+                                mode = MODE_DIP;
+                            }
+                        }
+                    } else {
+                        dip_count = 0u;
+                    }
                 }
-                t = next_march_t(t, n, r, dt, tx);
-                guess = extrapolated_level(trail0, trail1, t, guess);
-                n += 1u;
-                mode = MODE_MARCH;
+                if (mode != MODE_DIP) {
+                    if (t >= tx || n >= MAX_STEPS) {
+                        break;
+                    }
+                    t = next_march_t(t, n, r, dt, tx);
+                    guess = extrapolated_level(trail0, trail1, t, guess);
+                    n += 1u;
+                    dip_tested = false;
+                    mode = MODE_MARCH;
+                }
             }
         }
     }
     *steps += n;
     return no_prism_hit();
+}
+
+// Pdm::dip_probe's cheap test on four samples' g (Pdm::may_dip).
+fn may_dip(a: f32, b: f32, c: f32, d: f32) -> bool {
+    let above = b > 0.0;
+    return (a > 0.0) == above && (c > 0.0) == above && (d > 0.0) == above && abs(b) < abs(a) && abs(d) > abs(c);
+}
+
+// Where the line through p, q (falling to q) meets the line through r, s (rising from r)
+// between q and r, if it lies on the other side of the surface (dip_probe's `apex`): the
+// ray parameter and the lines' value there (signed towards q's side).
+struct DipApex {
+    ok: bool,
+    t: f32,
+    v: f32,
+}
+
+fn dip_apex(p: Sample, q: Sample, r: Sample, s: Sample) -> DipApex {
+    let side = select(-1.0, 1.0, q.g > 0.0);
+    let kl = side * (q.g - p.g) / (q.t - p.t);
+    let kr = side * (s.g - r.g) / (s.t - r.t);
+    if (!(kl < 0.0 && kr > 0.0 && finite(kl) && finite(kr))) {
+        return DipApex(false, 0.0, 0.0);
+    }
+    let t = (side * (r.g - q.g) + kl * q.t - kr * r.t) / (kl - kr);
+    let v = side * q.g + kl * (t - q.t);
+    return DipApex(t > q.t && t < r.t && v < 0.0, t, v);
 }
 
 // refine_levels' stopping test: an end on the surface (|g| ≤ tol_g) or the bracket shrunk to
