@@ -869,19 +869,16 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
     // The boundary search of the item being fed (Boundary), and whether it is over.
     var bnd: Boundary;
     var bnd_done = false;
-    // Pdm::dip_probe: the latest loop samples near the triangle (oldest first) and how many
-    // came in a row; the gap being probed (between dq and dr, with the lines through dp, dq
-    // and dr, ds), where its lines meet, the probes taken, and whether the march's current
-    // sample has had its dip test.
-    var dip0 = sample;
+    // Pdm::dip_probe: the three loop samples near the triangle before the current one
+    // (oldest first; of the oldest only (t, g)) and how many came in a row. While a gap is
+    // probed they hold it: between dip1 and dip2, the lines through dip0, dip1 and dip2, ds
+    // (the march's current sample's (t, g) at first); then where its lines meet, the probes
+    // taken, and whether the march's current sample has had its dip test.
+    var dip0 = vec2f(0.0);
     var dip1 = sample;
     var dip2 = sample;
-    var dip3 = sample;
     var dip_count = 0u;
-    var dp = sample;
-    var dq = sample;
-    var dr = sample;
-    var ds = sample;
+    var ds = vec2f(0.0);
     var dip_at = DipApex(false, 0.0, 0.0);
     var dip_k = 0u;
     var dip_tested = false;
@@ -907,7 +904,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             gs = bnd.gs;
         } else if (mode == MODE_DIP) {
             ts = dip_at.t;
-            gs = lambda_between(dq, dr, ts);
+            gs = lambda_between(dip1, dip2, ts);
         } else if (mode == MODE_REFINE) {
             ts = (s0.t * g1 - s1.t * g0) / (g1 - g0);
             if (!refine) {
@@ -973,12 +970,12 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             // lines dip lower; else the march goes on.
             n += 1u;
             dip_k += 1u;
-            let above = dq.g > 0.0;
+            let above = dip1.g > 0.0;
             var go_on = !(s.ok && inside_detect(s.b));
             if (!go_on && (s.g > 0.0) != above) {
-                s0 = dq;
+                s0 = dip1;
                 s1 = s;
-                g0 = dq.g;
+                g0 = dip1.g;
                 g1 = s.g;
                 side = 0;
                 ri = 0u;
@@ -986,15 +983,15 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                 feed_k = 2u;
                 mode = MODE_REFINE;
             } else if (!go_on) {
-                let al = dip_apex(dp, dq, s, dr);
-                let ar = dip_apex(dq, s, dr, ds);
+                let al = dip_apex(dip0, tg(dip1), tg(s), tg(dip2));
+                let ar = dip_apex(tg(dip1), tg(s), tg(dip2), ds);
                 if (ar.ok && (!al.ok || ar.v < al.v)) {
-                    dp = dq;
-                    dq = s;
+                    dip0 = tg(dip1);
+                    dip1 = s;
                     dip_at = ar;
                 } else {
-                    ds = dr;
-                    dr = s;
+                    ds = tg(dip2);
+                    dip2 = s;
                     dip_at = al;
                 }
                 go_on = !dip_at.ok || dip_k == DIP_PROBES;
@@ -1136,21 +1133,22 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                 if (!dip_tested) {
                     dip_tested = true;
                     if (sample.ok && inside_detect(sample.b)) {
-                        dip0 = dip1;
-                        dip1 = dip2;
-                        dip2 = dip3;
-                        dip3 = sample;
                         dip_count += 1u;
-                        if (dip_count >= 4u && may_dip(dip0.g, dip1.g, dip2.g, dip3.g)) {
-                            dip_at = dip_apex(dip0, dip1, dip2, dip3);
+                        if (dip_count >= 4u && may_dip(dip0.y, dip1.g, dip2.g, sample.g)) {
+                            dip_at = dip_apex(dip0, tg(dip1), tg(dip2), tg(sample));
                             if (dip_at.ok) {
-                                dp = dip0;
-                                dq = dip1;
-                                dr = dip2;
-                                ds = dip3;
+                                ds = tg(sample);
                                 dip_k = 0u;
                                 mode = MODE_DIP;
                             }
+                        }
+                        if (mode == MODE_DIP) {
+                            // The ring holds the gap now; it starts again after the probe.
+                            dip_count = 0u;
+                        } else {
+                            dip0 = tg(dip1);
+                            dip1 = dip2;
+                            dip2 = sample;
                         }
                     } else {
                         dip_count = 0u;
@@ -1188,16 +1186,22 @@ struct DipApex {
     v: f32,
 }
 
-fn dip_apex(p: Sample, q: Sample, r: Sample, s: Sample) -> DipApex {
-    let side = select(-1.0, 1.0, q.g > 0.0);
-    let kl = side * (q.g - p.g) / (q.t - p.t);
-    let kr = side * (s.g - r.g) / (s.t - r.t);
+// p, q, r, s: the samples' (t, g).
+fn dip_apex(p: vec2f, q: vec2f, r: vec2f, s: vec2f) -> DipApex {
+    let side = select(-1.0, 1.0, q.y > 0.0);
+    let kl = side * (q.y - p.y) / (q.x - p.x);
+    let kr = side * (s.y - r.y) / (s.x - r.x);
     if (!(kl < 0.0 && kr > 0.0 && finite(kl) && finite(kr))) {
         return DipApex(false, 0.0, 0.0);
     }
-    let t = (side * (r.g - q.g) + kl * q.t - kr * r.t) / (kl - kr);
-    let v = side * q.g + kl * (t - q.t);
-    return DipApex(t > q.t && t < r.t && v < 0.0, t, v);
+    let t = (side * (r.y - q.y) + kl * q.x - kr * r.x) / (kl - kr);
+    let v = side * q.y + kl * (t - q.x);
+    return DipApex(t > q.x && t < r.x && v < 0.0, t, v);
+}
+
+// A sample's (t, g): all dip_apex needs of it.
+fn tg(s: Sample) -> vec2f {
+    return vec2f(s.t, s.g);
 }
 
 // refine_levels' stopping test: an end on the surface (|g| ≤ tol_g) or the bracket shrunk to

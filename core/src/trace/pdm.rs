@@ -996,11 +996,17 @@ impl<'a> Pdm<'a> {
                         let g = |i: usize| dips[(dip_count + i) & 3].g;
                         if dip_count >= 4 && Self::may_dip([g(0), g(1), g(2), g(3)]) {
                             let last4 = std::array::from_fn(|i| dips[(dip_count + i) & 3]);
+                            let before = n;
                             if let Some(hit) =
                                 self.dip_probe(local, &lt, ray, last4, (te, tx), &mut n)
                             {
                                 *steps += n;
                                 return Ok(Some(hit));
+                            }
+                            if n > before {
+                                // After a probe the ring starts again (the GPU's march keeps
+                                // the gap in it while it probes).
+                                dip_count = 0;
                             }
                         }
                     } else {
