@@ -2176,7 +2176,8 @@ mod tests {
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
-    /// (`bench::leak_rays`, with the ray index as the pixel, as the bench and `leak_probe`).
+    /// (`bench::leak_rays`, with the ray index as the pixel, as `leak_probe`; the bench
+    /// numbers a leak ray's pixel after its primary rays, so its jitter differs).
     fn rock_leak_rays_are_stopped(seed: u32, indices: &[usize]) {
         let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
         let pdm = Pdm::new(scene, PdmOptions::default());
