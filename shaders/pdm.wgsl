@@ -917,6 +917,10 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         // What it is for. `fresh`: a new main sample to feed; `feeding`: go on feeding.
         var fresh = false;
         var feeding = false;
+        // A sign change between these two starts a refinement (Pdm::level_crossing).
+        var bracketed = false;
+        var lo_end = s;
+        var hi_end = s;
         if (mode == MODE_ENTRY) {
             // The first try if it is inside and in the range, else the retries' best and then
             // the first try (the last of equals, as the CPU's max_by over [mid, mid - q,
@@ -973,15 +977,10 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             let above = dip1.g > 0.0;
             var go_on = !(s.ok && inside_detect(s.b));
             if (!go_on && (s.g > 0.0) != above) {
-                s0 = dip1;
-                s1 = s;
-                g0 = dip1.g;
-                g1 = s.g;
-                side = 0;
-                ri = 0u;
+                bracketed = true;
+                lo_end = dip1;
                 // Nothing left to feed if the crossing is not this prism's.
                 feed_k = 2u;
-                mode = MODE_REFINE;
             } else if (!go_on) {
                 let al = dip_apex(dip0, tg(dip1), tg(s), tg(dip2));
                 let ar = dip_apex(tg(dip1), tg(s), tg(dip2), ds);
@@ -1109,13 +1108,9 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             if (searching) {
                 mode = MODE_BOUNDARY;
             } else if (found) {
-                s0 = below;
-                s1 = cur;
-                g0 = below.g;
-                g1 = cur.g;
-                side = 0;
-                ri = 0u;
-                mode = MODE_REFINE;
+                bracketed = true;
+                lo_end = below;
+                hi_end = cur;
             } else {
                 if (sample.ok) {
                     last_ok = sample;
@@ -1165,6 +1160,15 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     mode = MODE_MARCH;
                 }
             }
+        }
+        if (bracketed) {
+            s0 = lo_end;
+            s1 = hi_end;
+            g0 = lo_end.g;
+            g1 = hi_end.g;
+            side = 0;
+            ri = 0u;
+            mode = MODE_REFINE;
         }
     }
     *steps += n;
