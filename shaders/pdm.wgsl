@@ -969,7 +969,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                 feeding = true;
             }
         } else if (mode == MODE_DIP) {
-            // A probe of the gap (Pdm::dip_probe): on the other side, the crossing after dq
+            // A probe of the gap (Pdm::dip_probe): on the other side, the crossing after dip1
             // (Pdm::level_crossing: the refinement below); on this side, on in the half whose
             // lines dip lower; else the march goes on.
             n += 1u;
