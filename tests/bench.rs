@@ -61,6 +61,8 @@ fn bench_runs_every_method_on_the_same_rays() {
         assert_eq!(r["through"], 0, "{what}");
         assert_eq!(r["leaks"], 0, "{what}");
         assert_eq!(r["leaks_inside"], 0, "{what}");
+        // The local k = 8 check is on by default (nothing to confirm here).
+        assert_eq!(r["leaks_confirmed"], 0, "{what}");
         assert!(r["mismatch_rate"].as_f64().unwrap() <= 0.01, "{what}");
         assert!(r["rays_per_s"].as_f64().unwrap() > 0.0, "{what}");
         assert!(r["memory_bytes"].as_u64().unwrap() > 0, "{what}");
@@ -69,7 +71,10 @@ fn bench_runs_every_method_on_the_same_rays() {
     let csv = std::fs::read_to_string(out.join("bench.csv")).unwrap();
     let header = csv.lines().next().unwrap();
     assert!(header.ends_with(",build_seconds"), "{header}");
-    assert!(header.contains(",leaks,leaks_inside,through,"), "{header}");
+    assert!(
+        header.contains(",leaks,leaks_inside,leaks_confirmed,through,"),
+        "{header}"
+    );
     assert_eq!(csv.lines().count(), 1 + rows.len());
     let plot = image::open(out.join("torus.png")).expect("time-vs-error plot");
     assert!(plot.width() > 100 && plot.height() > 100);

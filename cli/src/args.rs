@@ -350,6 +350,11 @@ pub struct BenchArgs {
     pub seams: Vec<String>,
     #[arg(long, default_value_t = 2.0)]
     pub ref_density: f32,
+    /// Density of the local reference that checks each leak (only the prisms the ray crosses
+    /// are tessellated); a leak it does not hit is a fold of the coarser reference's chords.
+    /// 0: no check.
+    #[arg(long, default_value_t = 8.0)]
+    pub confirm_density: f32,
     /// Timed repetitions per setting (the fastest counts).
     #[arg(long, default_value_t = 2)]
     pub repeats: u32,

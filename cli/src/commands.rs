@@ -657,6 +657,7 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         height: a.res.1,
         settings,
         ref_density: a.ref_density,
+        confirm_density: a.confirm_density,
         secondary_rays: a.secondary,
         leak_rays: a.leak_rays,
         seed: a.seed,

@@ -455,7 +455,16 @@ fn tessellate_face(surface: &Surface, prism: u32, grid: &FaceGrid) -> FaceTess {
 /// output does not depend on the thread count. Warns on stderr when an edge needs more than
 /// `MAX_SEGMENTS` segments (the count is also in `capped_edges`).
 pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
+    tessellate_prisms(surface, k, None)
+}
+
+/// `tessellate`, but only the prisms with `keep[prism]` (all with `None`): the same
+/// micro-vertices and micro-triangles over them as the whole tessellation has (the segment
+/// counts are still every edge's), at a fraction of the cost — a local check at a higher `k`
+/// (the bench's leak confirmation). `tri_prism` keeps the table's prism indices.
+pub fn tessellate_prisms(surface: &Surface, k: f32, keep: Option<&[bool]>) -> TessMesh {
     let (table, map) = (surface.table, surface.map);
+    let kept = |i: usize| keep.is_none_or(|keep| keep.get(i).copied().unwrap_or(false));
     let rep = seam_representatives(surface);
     let (counts, capped_edges) = edge_segment_counts(table, map, &rep, k);
     if capped_edges > 0 {
@@ -499,8 +508,16 @@ pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
     // Edge interiors, in key order, evaluated from the lower representative through the
     // first face that has the edge.
     let mut owner: HashMap<(u32, u32), (u32, usize)> = HashMap::with_capacity(counts.len());
+    // The edges the kept faces use.
+    let mut used: std::collections::HashSet<(u32, u32)> = std::collections::HashSet::new();
     for (i, p) in table.prisms.iter().enumerate() {
         for e in 0..3 {
+            if kept(i) {
+                used.insert(edge_key(
+                    rep[p.tri[e] as usize],
+                    rep[p.tri[(e + 1) % 3] as usize],
+                ));
+            }
             let key = edge_key(rep[p.tri[e] as usize], rep[p.tri[(e + 1) % 3] as usize]);
             owner.entry(key).or_insert((i as u32, e));
         }
@@ -508,7 +525,7 @@ pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
     let mut splits: HashMap<(u32, u32), EdgeSplit> = HashMap::with_capacity(counts.len());
     let mut edge_list = Vec::with_capacity(counts.len());
     let mut next = positions.len() as u32;
-    for (&key, &n) in &counts {
+    for (&key, &n) in counts.iter().filter(|(key, _)| used.contains(key)) {
         splits.insert(key, EdgeSplit { n, start: next });
         edge_list.push((key, n));
         next += n - 1;
@@ -540,7 +557,10 @@ pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
     // Faces: segment counts and interior offsets first (a prefix sum keeps indices stable).
     let mut grids = Vec::with_capacity(table.prisms.len());
     let mut next = positions.len() as u32;
-    for prism in &table.prisms {
+    for (i, prism) in table.prisms.iter().enumerate() {
+        if !kept(i) {
+            continue;
+        }
         let corners = prism.tri.map(|v| rep[v as usize]);
         let edges: [(EdgeSplit, bool); 3] = std::array::from_fn(|e| {
             let (a, b) = (corners[e], corners[(e + 1) % 3]);
@@ -548,15 +568,14 @@ pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
         });
         let grid = FaceGrid::new(prism, corners, edges, next);
         next += grid.interior_count() as u32;
-        grids.push(grid);
+        grids.push((i as u32, grid));
     }
-    let faces: Vec<FaceTess> = grids
+    let faces: Vec<(u32, FaceTess)> = grids
         .par_iter()
-        .enumerate()
-        .map(|(i, g)| tessellate_face(surface, i as u32, g))
+        .map(|(i, g)| (*i, tessellate_face(surface, *i, g)))
         .collect();
 
-    let tri_total = faces.iter().map(|f| f.triangles.len()).sum();
+    let tri_total = faces.iter().map(|(_, f)| f.triangles.len()).sum();
     let mut mesh = TessMesh {
         positions,
         triangles: Vec::with_capacity(tri_total),
@@ -564,10 +583,10 @@ pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
         tri_bary: Vec::with_capacity(tri_total),
         capped_edges,
     };
-    for (p, face) in faces.into_iter().enumerate() {
+    for (p, face) in faces {
         mesh.positions.extend(face.interior);
         mesh.tri_prism
-            .extend(std::iter::repeat_n(p as u32, face.triangles.len()));
+            .extend(std::iter::repeat_n(p, face.triangles.len()));
         mesh.triangles.extend(face.triangles);
         mesh.tri_bary.extend(face.bary);
     }
@@ -596,6 +615,37 @@ mod tests {
             }
         }
         (undirected, consistent)
+    }
+
+    /// A subset's micro-triangles are the whole tessellation's over those prisms, corner for
+    /// corner (the local check in the bench relies on it); the other prisms get none.
+    #[test]
+    fn a_subset_is_the_whole_tessellation_over_its_prisms() {
+        let (table, map) = test_sphere_table(2, 32, 0.15);
+        let surface = Surface::open(&table, &map);
+        let whole = tessellate(&surface, 2.0);
+        let keep: Vec<bool> = (0..table.prisms.len()).map(|i| i % 3 == 1).collect();
+        let part = tessellate_prisms(&surface, 2.0, Some(&keep));
+        let corners = |m: &TessMesh, p: u32| -> Vec<[Vec3; 3]> {
+            m.triangles
+                .iter()
+                .zip(&m.tri_prism)
+                .filter(|(_, &q)| q == p)
+                .map(|(t, _)| t.map(|v| m.positions[v as usize]))
+                .collect()
+        };
+        let mut compared = 0;
+        for p in 0..table.prisms.len() as u32 {
+            let got = corners(&part, p);
+            if keep[p as usize] {
+                assert_eq!(got, corners(&whole, p), "prism {p}");
+                compared += got.len();
+            } else {
+                assert!(got.is_empty(), "prism {p} was not asked for");
+            }
+        }
+        assert!(compared > whole.triangle_count() / 4, "{compared}");
+        assert!(part.positions.len() < whole.positions.len());
     }
 
     #[test]
