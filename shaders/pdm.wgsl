@@ -374,7 +374,13 @@ fn scan_level_estimate(local: Local, x: vec3f) -> f32 {
 // Pdm::level_sample: the exact canonical sample at t — level λ (Newton from `guess`, retried
 // from the middle of the prism), barycentrics in T(λ), g = λ|m(b)| − D(b) (D* next to
 // stitched seams).
-fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> Sample {
+fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32, given: Given) -> Sample {
+    let g = local.geom;
+    if (given.ok) {
+        // The boundary machine's wall sample: its level and barycentrics are its own.
+        let b = given.b;
+        return Sample(true, t, given.l * length(geom_normal_dir(g, b)) - displacement_at(local.disp, b), b, given.l);
+    }
     let u = t - lt.t0;
     // Newton from `guess`, then from the middle: one call site in a loop that a lane leaves
     // once it has a level (a lock-step implementation then runs the retry only for groups
@@ -392,10 +398,66 @@ fn level_sample(local: Local, lt: LevelTrack, d: vec3f, t: f32, guess: f32) -> S
         return Sample(false, t, 0.0, vec3f(0.0), 0.0);
     }
     let l = lv.l;
-    let g = local.geom;
     let c = array<vec3f, 3>(g.v[0] + g.n[0] * l, g.v[1] + g.n[1] * l, g.v[2] + g.n[2] * l);
     let b = triangle_barycentric(lt.base + d * u, c, local.apex);
     return Sample(true, t, l * length(geom_normal_dir(g, b)) - displacement_at(local.disp, b), b, l);
+}
+
+// A sample asked for at a level and barycentrics of its own, not at a ray parameter (ok false:
+// the usual sample at t).
+struct Given {
+    ok: bool,
+    l: f32,
+    b: vec3f,
+}
+
+// The boundary point of Pdm::wall_crossing: where the segment from `outside` to `inside`
+// enters the triangle, in homogeneous barycentrics (inside_span: nearly affine along a short
+// segment, where b has a pole), its ray parameter and level interpolated.
+struct WallPoint {
+    ok: bool,
+    t: f32,
+    l: f32,
+    b: vec3f,
+}
+
+fn wall_point(local: Local, outside: Sample, inside: Sample) -> WallPoint {
+    let none = WallPoint(false, 0.0, 0.0, vec3f(0.0));
+    let s_in = level_area(local, inside.lambda);
+    let h0 = outside.b * level_area(local, outside.lambda);
+    let h1 = inside.b * s_in;
+    if (!(finite3(h0) && finite3(h1)) || s_in == 0.0) {
+        return none;
+    }
+    // The last wall crossed: the largest fraction at which a component that is outside at
+    // `outside` (of the other sign than the area) reaches zero.
+    let a = h0 * sign(s_in);
+    let c = h1 * sign(s_in);
+    var k = 3u;
+    var f = 0.0;
+    for (var i = 0u; i < 3u; i++) {
+        if (a[i] < 0.0 && c[i] >= 0.0) {
+            let fi = a[i] / (a[i] - c[i]);
+            if (k == 3u || fi > f) {
+                k = i;
+                f = fi;
+            }
+        }
+    }
+    if (k == 3u) {
+        return none;
+    }
+    let h = h0 + (h1 - h0) * f;
+    let sum = h.x + h.y + h.z;
+    if (sum == 0.0 || !finite(sum)) {
+        return none;
+    }
+    var bw = h / sum;
+    bw[k] = 0.0;
+    if (min_element(bw) < -EDGE_TOL) {
+        return none;
+    }
+    return WallPoint(true, outside.t + (inside.t - outside.t) * f, outside.lambda + (inside.lambda - outside.lambda) * f, bw);
 }
 
 fn inside_detect(b: vec3f) -> bool {
@@ -525,6 +587,11 @@ struct Boundary {
     c_leaving: bool,
     nearest: Sample,
     ci: u32,
+    // Pdm::wall_crossing once the cross is over, entering: 0 not asked, 1 its wall sample
+    // asked for (`wall`: where), 2 answered (`wall_hit`).
+    wall_state: u32,
+    wall: WallPoint,
+    wall_hit: PrismHit,
     // Pdm::detect: the sample (with DETECT_STEP also the cross step), why, and its refinement (refine_levels' bracket; `rlin` the
     // one linear sample without refinement).
     detecting: bool,
@@ -582,6 +649,7 @@ fn boundary_begin(pv: Sample, cur: Sample) -> Boundary {
     q.detecting = false;
     q.refining = false;
     q.need = false;
+    q.wall_state = 0u;
     return q;
 }
 
@@ -693,6 +761,7 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
             q.c_leaving = inside_detect(q.c0.b);
             q.nearest = no_sample();
             q.ci = 0u;
+            q.wall_state = 0u;
             q.crossing = true;
         }
         let f0 = min_element(q.c0.b) + EDGE_SAMPLE;
@@ -705,8 +774,27 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
             q.need = true;
             break;
         }
-        // The cross is over: entering, its nearest sample inside is detected.
+        // The cross is over: entering, the crossing between the wall and its nearest sample
+        // inside (Pdm::wall_crossing, from the wall's own sample), else that sample is
+        // detected.
         if (q.nearest.ok && !q.c_leaving) {
+            if (q.wall_state == 0u) {
+                q.wall_state = 2u;
+                q.wall_hit = no_prism_hit();
+                q.wall = wall_point(local, q.c0, q.nearest);
+                if (q.wall.ok) {
+                    q.wall_state = 1u;
+                    q.ts = q.wall.t;
+                    q.gs = q.wall.l;
+                    q.need = true;
+                    break;
+                }
+            }
+            let w = q.wall_hit;
+            if (w.ok && min_element(w.b) >= -EDGE_TOL && w.t >= max(te, ray.t_min) && w.t <= min(tx, ray.t_max)) {
+                hit = w;
+                break;
+            }
             q.dx = q.nearest;
             q.nearest = no_sample();
             q.why = DETECT_NEAREST;
@@ -723,7 +811,15 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
 // Take the sample the machine asked for.
 fn boundary_consume(b: ptr<function, Boundary>, s: Sample) {
     var q = *b;
-    if (q.inside_pending) {
+    if (q.wall_state == 1u) {
+        // The wall's sample: a sign other than the nearest sample's is a crossing between.
+        q.wall_state = 2u;
+        let i = q.nearest;
+        if (s.ok && finite(s.g) && s.g != 0.0 && (s.g > 0.0) != (i.g > 0.0)) {
+            let w = i.g / (i.g - s.g);
+            q.wall_hit = PrismHit(true, i.t + (q.wall.t - i.t) * w, i.b + (q.wall.b - i.b) * w);
+        }
+    } else if (q.inside_pending) {
         // Pdm::inside_sample's sample: the work list of feed's case.
         q.inside_pending = false;
         q.m = s;
@@ -888,6 +984,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         // The sample this pass takes.
         var ts = t;
         var gs = guess;
+        var given = Given(false, 0.0, vec3f(0.0));
         if (mode == MODE_ENTRY) {
             if (ek == 1u) {
                 gs = lt.mid;
@@ -902,6 +999,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
         } else if (mode == MODE_BOUNDARY) {
             ts = bnd.ts;
             gs = bnd.gs;
+            given = Given(bnd.wall_state == 1u, bnd.wall.l, bnd.wall.b);
         } else if (mode == MODE_DIP) {
             ts = dip_at.t;
             gs = lambda_between(dip1, dip2, ts);
@@ -912,7 +1010,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             }
             gs = lambda_between(s0, s1, ts);
         }
-        let s = level_sample(local, lt, d, ts, gs);
+        let s = level_sample(local, lt, d, ts, gs, given);
 
         // What it is for. `fresh`: a new main sample to feed; `feeding`: go on feeding.
         var fresh = false;

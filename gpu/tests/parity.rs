@@ -259,6 +259,26 @@ fn rock_folds_thinner_than_a_step_are_probed() {
     }
 }
 
+// Rock leak rays of seed 0 as centre rays, each entering a crease strip's sliver where the
+// triangle's boundary lies within a few ulps of `t` (core
+// `pdm::tests::crossings_between_a_wall_and_the_next_ulp_are_found` has another): the
+// crossing between the wall and the first sample inside is found from the wall's own sample
+// (`Pdm::wall_crossing`; here the boundary machine's wall request). Without it the CPU and
+// the GPU missed 106 292 and hit 138 248 2.1 texels past the reference's hit.
+#[test]
+fn rock_crossings_between_a_wall_and_the_next_ulp_are_found() {
+    for i in [106_292, 138_248] {
+        let (cpu, gpu) = rock_leak_ray_as_centre_ray(0, i);
+        let (Some(cpu), Some(gpu)) = (cpu, gpu) else {
+            panic!("ray {i}: cpu {cpu:?} gpu {gpu:?}");
+        };
+        assert!(
+            (gpu - cpu).abs() < 1e-4 * cpu,
+            "ray {i}: gpu depth {gpu} vs cpu {cpu}"
+        );
+    }
+}
+
 /// The rock's leak ray `index` of `seed` (`bench::leak_rays`) as the centre ray of a 1×1
 /// camera, rendered with PDM's defaults on the CPU and the GPU: their depths, if they hit.
 fn rock_leak_ray_as_centre_ray(seed: u32, index: usize) -> (Option<f32>, Option<f32>) {

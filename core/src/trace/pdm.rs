@@ -1332,9 +1332,81 @@ impl<'a> Pdm<'a> {
             }
         }
         match nearest {
-            Some(s) if !leaving => self.detect(local, lt, ray, prev, s, te, tx),
+            Some(s) if !leaving => {
+                // Where the boundary lies within a few ulps of `t` (a crease strip's sliver
+                // around its `λ = 0` pole, where `b` sweeps across the triangle in less than
+                // one step of f32 `t`), no sample lands just outside it, and a crossing between
+                // the wall and `s` would be lost: take the wall's own sample.
+                let wall = self.wall_crossing(local, &s0, &s);
+                if let Some((t, b)) = wall.filter(|&(t, b)| {
+                    b.min_element() >= -EDGE_TOL && t >= te.max(ray.t_min) && t <= tx.min(ray.t_max)
+                }) {
+                    return Some((t, b));
+                }
+                self.detect(local, lt, ray, prev, s, te, tx)
+            }
             _ => None,
         }
+    }
+
+    /// The crossing between the triangle's boundary and the sample `inside`, entering from
+    /// `outside`, if the surface's sign on the boundary differs from `inside`'s: the boundary
+    /// point found in homogeneous barycentrics (`inside_span`: nearly affine along a short
+    /// segment, where `b` has a pole) with the level interpolated, and the crossing
+    /// interpolated between it and `inside`. No level is solved at a ray parameter, so this
+    /// holds where f32 `t` cannot resolve the boundary.
+    #[cold]
+    #[inline(never)]
+    fn wall_crossing(
+        &self,
+        local: &Local,
+        outside: &Sample,
+        inside: &Sample,
+    ) -> Option<(f32, Vec3)> {
+        let (s_out, s_in) = (
+            local.level_area(outside.lambda),
+            local.level_area(inside.lambda),
+        );
+        let (h0, h1) = (outside.b * s_out, inside.b * s_in);
+        if !(h0.is_finite() && h1.is_finite()) || s_in == 0.0 {
+            return None;
+        }
+        // The last wall crossed: the largest fraction at which a component that is outside at
+        // `outside` (of the other sign than the area) reaches zero.
+        let (h0a, h1a) = (h0.to_array(), h1.to_array());
+        let mut wall: Option<(usize, f32)> = None;
+        for k in 0..3 {
+            let (a, b) = (h0a[k] * s_in.signum(), h1a[k] * s_in.signum());
+            if a < 0.0 && b >= 0.0 {
+                let f = a / (a - b);
+                if wall.is_none_or(|(_, g)| f > g) {
+                    wall = Some((k, f));
+                }
+            }
+        }
+        let (k, f) = wall?;
+        let h = h0 + (h1 - h0) * f;
+        let sum = h.x + h.y + h.z;
+        if sum == 0.0 || !sum.is_finite() {
+            return None;
+        }
+        let mut bw = (h / sum).to_array();
+        bw[k] = 0.0;
+        let bw = Vec3::from_array(bw);
+        if bw.min_element() < -EDGE_TOL {
+            return None;
+        }
+        let lambda = outside.lambda + (inside.lambda - outside.lambda) * f;
+        let tw = outside.t + (inside.t - outside.t) * f;
+        let gw = lambda * local.f.geom.normal_dir(bw).length() - local.disp.at(bw);
+        if !gw.is_finite() || gw == 0.0 || (gw > 0.0) == (inside.g > 0.0) {
+            return None;
+        }
+        let w = inside.g / (inside.g - gw);
+        Some((
+            inside.t + (tw - inside.t) * w,
+            inside.b + (bw - inside.b) * w,
+        ))
     }
 
     /// The sample nearest to `bad` (a ray parameter with no level in range) on the segment
@@ -2173,6 +2245,16 @@ mod tests {
                 (hit.t - truth.t) / texel
             );
         }
+    }
+
+    /// Regression: rock leak ray 693 287 of seed 0 (ending inside the solid) enters a crease
+    /// strip's sliver around its `λ = 0` pole, where `b` sweeps across the triangle within a
+    /// few ulps of `t` (b₀ from −1.9 to 0.11 in 8 ulps): no sample lands just outside the
+    /// boundary, and the crossing between the wall and the first sample inside was lost
+    /// (`Pdm::wall_crossing`).
+    #[test]
+    fn crossings_between_a_wall_and_the_next_ulp_are_found() {
+        rock_leak_rays_are_stopped(0, &[693_287]);
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
