@@ -131,22 +131,7 @@ impl RaySet {
             .get(&i)
             .copied();
         cached.unwrap_or_else(|| {
-            let ray = &self.rays[i];
-            let mut keep = vec![false; scene.table.prisms.len()];
-            scene.closest_hit(ray, |_, prism| {
-                keep[prism as usize] = true;
-                None
-            });
-            let surface = scene.surface();
-            let mesh = crate::tessellate::tessellate_prisms(&surface, k, Some(&keep));
-            let fine = Reference::from_mesh(surface, k, &mesh, DEFAULT_ACCEL);
-            let ctx = RayContext {
-                pixel: i as u32,
-                ..Default::default()
-            };
-            let hit = fine
-                .intersect(ray, &ctx)
-                .is_some_and(|h| clear_of_the_end(scene, &h, ray));
+            let hit = confirms_leak(scene, &self.rays[i], i as u32, k);
             self.confirmed
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
@@ -154,6 +139,28 @@ impl RaySet {
             hit
         })
     }
+}
+
+/// Whether the canonical surface tessellated at density `k` hits `ray` clear of its end
+/// (`LEAK_END_TOL_TEXELS`): only the prisms whose boxes the ray crosses are tessellated
+/// (`tessellate_prisms`, the same micro-triangles over them as the whole asset's), so a leak
+/// of any asset can be checked at a density whose whole tessellation would not fit in memory.
+/// `pixel` seeds nothing (the reference has no jitter); it is the hit's context.
+pub fn confirms_leak(scene: &Scene, ray: &Ray, pixel: u32, k: f32) -> bool {
+    let mut keep = vec![false; scene.table.prisms.len()];
+    scene.closest_hit(ray, |_, prism| {
+        keep[prism as usize] = true;
+        None
+    });
+    let surface = scene.surface();
+    let mesh = crate::tessellate::tessellate_prisms(&surface, k, Some(&keep));
+    let fine = Reference::from_mesh(surface, k, &mesh, DEFAULT_ACCEL);
+    let ctx = RayContext {
+        pixel,
+        ..Default::default()
+    };
+    fine.intersect(ray, &ctx)
+        .is_some_and(|h| clear_of_the_end(scene, &h, ray))
 }
 
 fn trace_all(isect: &dyn Intersector, rays: &[Ray], seed: u32) -> Vec<Option<Hit>> {
