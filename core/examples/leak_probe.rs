@@ -11,7 +11,8 @@
 //! (`bench::confirms_leak`, the bench's own check: only the prisms the ray crosses are
 //! tessellated, so it works on any asset).
 //! `cargo run --release -p prismbake-core --example leak_probe ASSET [N] [pdm|rmip|nonlinear] [SEED] [CONFIRM_K]`
-//! (`bench --seed`, default 0, gives the bench's rays; the tests use 0x1ea4)
+//! (`bench --seed`, default 0, gives the bench's rays and jitter: the same leaks as the bench;
+//! the tests use 0x1ea4)
 
 use prismbake::accel::Scene;
 use prismbake::asset::{self, Overrides};
@@ -57,8 +58,10 @@ fn main() {
     let mut confirmed = 0;
     let (mut leaks, mut inserted, mut stitched, mut near_edge, mut inside) = (0, 0, 0, 0, 0);
     for (i, r) in rays.iter().enumerate() {
+        // The bench's context for leak ray i (pixel i, the seed).
         let ctx = RayContext {
             pixel: i as u32,
+            seed,
             ..Default::default()
         };
         let Some(truth) = reference.intersect(r, &ctx) else {

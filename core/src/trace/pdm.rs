@@ -2258,8 +2258,8 @@ mod tests {
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
-    /// (`bench::leak_rays`, with the ray index as the pixel, as `leak_probe`; the bench
-    /// numbers a leak ray's pixel after its primary rays, so its jitter differs).
+    /// (`bench::leak_rays`, with the ray index as the pixel and context seed 0: the bench's
+    /// and `leak_probe`'s jitter for the rays of seed 0).
     fn rock_leak_rays_are_stopped(seed: u32, indices: &[usize]) {
         let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
         let pdm = Pdm::new(scene, PdmOptions::default());
