@@ -37,6 +37,8 @@ const MODE_EDGE: u32 = 2u;
 const MODE_REFINE: u32 = 3u;
 const MODE_BOUNDARY: u32 = 4u;
 const MODE_DIP: u32 = 5u;
+// Pdm's SECANT_MIN_STEP: the shortest step the secant cut leaves (a fraction of dt).
+const SECANT_MIN_STEP: f32 = 0.125;
 // Pdm::dip_probe: samples at most in one gap between march samples.
 const DIP_PROBES: u32 = 4u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
@@ -1251,7 +1253,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
                     if (t >= tx || n >= MAX_STEPS) {
                         break;
                     }
-                    t = next_march_t(t, n, r, dt, tx);
+                    t = next_march_t(t, n, r, dt, tx, trail0, trail1);
                     guess = extrapolated_level(trail0, trail1, t, guess);
                     n += 1u;
                     dip_tested = false;
@@ -1314,11 +1316,28 @@ fn bracket_converged(s0: Sample, s1: Sample, tol_g: f32, scale: f32) -> bool {
 }
 
 // The march's next sample after the n-th at t: the first step jittered (paper §5.3).
-fn next_march_t(t: f32, n: u32, r: f32, dt: f32, tx: f32) -> f32 {
+// The next march sample's t: a step (the first one jittered), cut to where the line through
+// the last two loop samples `a`, `b` meets the surface when they approach it on one side
+// (Pdm::approaching), at least SECANT_MIN_STEP of a step on.
+fn next_march_t(t: f32, n: u32, r: f32, dt: f32, tx: f32, a: Sample, b: Sample) -> f32 {
+    var t_next = t + dt;
     if (n == 1u && r > 0.0) {
-        return min(t + r * dt, tx);
+        t_next = t + r * dt;
     }
-    return min(t + dt, tx);
+    if (a.ok && b.ok && b.t == t && approaching(a, b)) {
+        let t_star = b.t - b.g * ((b.t - a.t) / (b.g - a.g));
+        if (t_star < t_next) {
+            t_next = max(t_star, t + SECANT_MIN_STEP * dt);
+        }
+    }
+    return min(t_next, tx);
+}
+
+// Pdm::approaching: two successive loop samples near the triangle, on one side, g shrinking
+// towards the surface.
+fn approaching(a: Sample, b: Sample) -> bool {
+    return inside_detect(a.b) && inside_detect(b.b) && ((a.g > 0.0) == (b.g > 0.0))
+        && abs(b.g) < abs(a.g) && b.t > a.t;
 }
 
 // Newton's start at t from the last two samples' line (the level is smooth along the ray),

@@ -279,6 +279,25 @@ fn rock_crossings_between_a_wall_and_the_next_ulp_are_found() {
     }
 }
 
+// Rock leak rays of seed 0 as centre rays (core
+// `pdm::tests::approaches_cut_their_step_to_the_secant`): their first crossing is a fold
+// thinner than a step, found where the march cuts its step to the line through its last two
+// samples (`next_march_t`). Without the cut the GPU hit both 4.1 and 22.7 texels later, where
+// the CPU used to.
+#[test]
+fn rock_approaches_cut_their_step_to_the_secant() {
+    for i in [10_160, 22_768] {
+        let (cpu, gpu) = rock_leak_ray_as_centre_ray(0, i);
+        let (Some(cpu), Some(gpu)) = (cpu, gpu) else {
+            panic!("ray {i}: cpu {cpu:?} gpu {gpu:?}");
+        };
+        assert!(
+            (gpu - cpu).abs() < 1e-4 * cpu,
+            "ray {i}: gpu depth {gpu} vs cpu {cpu}"
+        );
+    }
+}
+
 /// The rock's leak ray `index` of `seed` (`bench::leak_rays`) as the centre ray of a 1×1
 /// camera, rendered with PDM's defaults on the CPU and the GPU: their depths, if they hit.
 fn rock_leak_ray_as_centre_ray(seed: u32, index: usize) -> (Option<f32>, Option<f32>) {
