@@ -247,16 +247,7 @@ fn rock_entry_levels_stay_in_the_prisms_range() {
 // rays 5264 and 487 821 and hit 368 546 and 575 926 0.03 and 0.28 farther, past the fold.
 #[test]
 fn rock_folds_thinner_than_a_step_are_probed() {
-    for i in [5264, 368_546, 487_821, 575_926] {
-        let (cpu, gpu) = rock_leak_ray_as_centre_ray(0, i);
-        let (Some(cpu), Some(gpu)) = (cpu, gpu) else {
-            panic!("ray {i}: cpu {cpu:?} gpu {gpu:?}");
-        };
-        assert!(
-            (gpu - cpu).abs() < 1e-4 * cpu,
-            "ray {i}: gpu depth {gpu} vs cpu {cpu}"
-        );
-    }
+    centre_rays_hit_where_the_cpu_does(0, &[5264, 368_546, 487_821, 575_926]);
 }
 
 // Rock leak rays of seed 0 as centre rays, each entering a crease strip's sliver where the
@@ -267,16 +258,7 @@ fn rock_folds_thinner_than_a_step_are_probed() {
 // the GPU missed 106 292 and hit 138 248 2.1 texels past the reference's hit.
 #[test]
 fn rock_crossings_between_a_wall_and_the_next_ulp_are_found() {
-    for i in [106_292, 138_248] {
-        let (cpu, gpu) = rock_leak_ray_as_centre_ray(0, i);
-        let (Some(cpu), Some(gpu)) = (cpu, gpu) else {
-            panic!("ray {i}: cpu {cpu:?} gpu {gpu:?}");
-        };
-        assert!(
-            (gpu - cpu).abs() < 1e-4 * cpu,
-            "ray {i}: gpu depth {gpu} vs cpu {cpu}"
-        );
-    }
+    centre_rays_hit_where_the_cpu_does(0, &[106_292, 138_248]);
 }
 
 // Rock leak rays of seed 0 as centre rays (core
@@ -286,8 +268,14 @@ fn rock_crossings_between_a_wall_and_the_next_ulp_are_found() {
 // the CPU used to.
 #[test]
 fn rock_approaches_cut_their_step_to_the_secant() {
-    for i in [10_160, 22_768] {
-        let (cpu, gpu) = rock_leak_ray_as_centre_ray(0, i);
+    centre_rays_hit_where_the_cpu_does(0, &[10_160, 22_768]);
+}
+
+/// Each of the rock's leak rays `indices` of `seed` as the centre ray: both devices hit, at
+/// depths within 1e-4 of each other (relative).
+fn centre_rays_hit_where_the_cpu_does(seed: u32, indices: &[usize]) {
+    for &i in indices {
+        let (cpu, gpu) = rock_leak_ray_as_centre_ray(seed, i);
         let (Some(cpu), Some(gpu)) = (cpu, gpu) else {
             panic!("ray {i}: cpu {cpu:?} gpu {gpu:?}");
         };

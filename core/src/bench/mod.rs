@@ -102,20 +102,9 @@ impl RaySet {
     /// Whether leak ray `i` ends inside the reference's closed surface (winding number at
     /// least 1/2), computed once per ray.
     fn ends_inside(&self, i: usize, reference: &Reference) -> bool {
-        let cached = self
-            .inside
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(&i)
-            .copied();
-        cached.unwrap_or_else(|| {
+        once_per_ray(&self.inside, i, || {
             let r = &self.rays[i];
-            let inside = reference.winding_number(r.at(r.t_max)) >= 0.5;
-            self.inside
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .insert(i, inside);
-            inside
+            reference.winding_number(r.at(r.t_max)) >= 0.5
         })
     }
 
@@ -124,21 +113,25 @@ impl RaySet {
     /// for the price of a few prisms) has a hit on leak ray `i` clear of its end, computed once
     /// per ray.
     fn confirmed(&self, i: usize, scene: &Scene, k: f32) -> bool {
-        let cached = self
-            .confirmed
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .get(&i)
-            .copied();
-        cached.unwrap_or_else(|| {
-            let hit = confirms_leak(scene, &self.rays[i], i as u32, k);
-            self.confirmed
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .insert(i, hit);
-            hit
+        once_per_ray(&self.confirmed, i, || {
+            confirms_leak(scene, &self.rays[i], i as u32, k)
         })
     }
+}
+
+/// `cache[i]`, computed by `f` the first time (the lock is not held while it runs).
+fn once_per_ray(
+    cache: &std::sync::Mutex<std::collections::HashMap<usize, bool>>,
+    i: usize,
+    f: impl FnOnce() -> bool,
+) -> bool {
+    let lock = || cache.lock().unwrap_or_else(|e| e.into_inner());
+    let cached = lock().get(&i).copied();
+    cached.unwrap_or_else(|| {
+        let v = f();
+        lock().insert(i, v);
+        v
+    })
 }
 
 /// Whether the canonical surface tessellated at density `k` hits `ray` clear of its end

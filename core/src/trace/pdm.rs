@@ -2242,30 +2242,7 @@ mod tests {
     fn folds_thinner_than_a_step_are_probed() {
         let indices = [5264, 130_250, 368_546, 487_821];
         rock_leak_rays_are_stopped(0, &indices);
-        let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
-        let pdm = Pdm::new(scene, PdmOptions::default());
-        let fine = Pdm::new(
-            scene,
-            PdmOptions {
-                dt: StepSize::Auto(0.05),
-                jitter: false,
-                ..Default::default()
-            },
-        );
-        let rays = crate::bench::leak_rays(scene, indices[3] + 1, 0);
-        for i in indices {
-            let c = ctx(i as u32, 0);
-            let hit = pdm.intersect(&rays[i], &c).expect("stopped");
-            let truth = fine.intersect(&rays[i], &c).expect("the fine march hits");
-            let texel = scene.table.prisms[truth.prism as usize].texel_world;
-            assert!(
-                (hit.t - truth.t).abs() <= 0.05 * texel,
-                "ray {i}: PDM at t {} against the fine march's {} ({} texels)",
-                hit.t,
-                truth.t,
-                (hit.t - truth.t) / texel
-            );
-        }
+        rock_leak_rays_hit_where_the_fine_march_does(&indices, |i| ctx(i as u32, 0));
     }
 
     /// Two rock leak rays of seed 0 (as pixel 0, the GPU test's centre rays) whose first
@@ -2276,6 +2253,15 @@ mod tests {
     /// (`Pdm::approaching`), the next sample lands in the fold.
     #[test]
     fn approaches_cut_their_step_to_the_secant() {
+        rock_leak_rays_hit_where_the_fine_march_does(&[10_160, 22_768], |_| ctx(0, 0));
+    }
+
+    /// PDM (defaults) hits each of the rock's leak rays `indices` of seed 0 (traced with the
+    /// context `ctx_of(index)`) within 0.05 texel of a march at a twentieth of the step.
+    fn rock_leak_rays_hit_where_the_fine_march_does(
+        indices: &[usize],
+        ctx_of: impl Fn(usize) -> RayContext,
+    ) {
         let (scene, _) = crate::test_util::example_with_reference("rock/rock.glb");
         let pdm = Pdm::new(scene, PdmOptions::default());
         let fine = Pdm::new(
@@ -2286,9 +2272,10 @@ mod tests {
                 ..Default::default()
             },
         );
-        let rays = crate::bench::leak_rays(scene, 22_769, 0);
-        for i in [10_160, 22_768] {
-            let c = ctx(0, 0);
+        let n = indices.iter().max().map_or(0, |&i| i + 1);
+        let rays = crate::bench::leak_rays(scene, n, 0);
+        for &i in indices {
+            let c = ctx_of(i);
             let hit = pdm.intersect(&rays[i], &c).expect("hit");
             let truth = fine.intersect(&rays[i], &c).expect("the fine march hits");
             let texel = scene.table.prisms[truth.prism as usize].texel_world;
