@@ -710,10 +710,7 @@ fn boundary_settle(b: ptr<function, Boundary>, local: Local, ray: Ray, prev: ptr
                 // The refinement is over: Pdm::level_crossing's test.
                 var res = q.rlin;
                 if (refine) {
-                    res = q.r1;
-                    if (abs(q.r0.g) <= abs(q.r1.g)) {
-                        res = q.r0;
-                    }
+                    res = refine_result(local, q.r0, q.r1, tol_g);
                 }
                 if (res.ok && min_element(res.b) >= -EDGE_TOL && res.t >= te && res.t <= tx && res.t >= ray.t_min && res.t <= ray.t_max) {
                     hit = PrismHit(true, res.t, res.b);
@@ -1125,10 +1122,7 @@ fn march_levels(local: Local, p: Prism, prism: u32, ro: vec3f, ray: Ray, ctx: Ra
             }
             if (done) {
                 if (refine) {
-                    res = s1;
-                    if (abs(s0.g) <= abs(s1.g)) {
-                        res = s0;
-                    }
+                    res = refine_result(local, s0, s1, tol_g);
                 }
                 // Pdm::level_crossing's test: a hit in this triangle and span.
                 if (res.ok && min_element(res.b) >= -EDGE_TOL && res.t >= te && res.t <= tx && res.t >= ray.t_min && res.t <= ray.t_max) {
@@ -1308,6 +1302,36 @@ fn tg(s: Sample) -> vec2f {
     return vec2f(s.t, s.g);
 }
 
+// refine_levels' result: the end nearer the surface, or, where the bracket shrank to f32's
+// resolution of t with both ends far from the surface (a crease strip's sliver at its pole,
+// where b jumps across the triangle from one float to the next), the crossing between the
+// two floats (Pdm::between_floats).
+fn refine_result(local: Local, s0: Sample, s1: Sample, tol_g: f32) -> Sample {
+    let tol_t = 1e-7 * (abs(s0.t) + abs(s1.t) + local.scale);
+    if (min(abs(s0.g), abs(s1.g)) > tol_g && abs(s1.t - s0.t) <= tol_t) {
+        return between_floats(local, s0, s1);
+    }
+    if (abs(s0.g) <= abs(s1.g)) {
+        return s0;
+    }
+    return s1;
+}
+
+// Pdm::between_floats: t, the level and the homogeneous barycentrics (inside_span)
+// interpolated by g between two samples on either side of the surface.
+fn between_floats(local: Local, a: Sample, b: Sample) -> Sample {
+    let w = a.g / (a.g - b.g);
+    let h0 = a.b * level_area(local, a.lambda);
+    let h1 = b.b * level_area(local, b.lambda);
+    let h = h0 + (h1 - h0) * w;
+    let sum = h.x + h.y + h.z;
+    var bw = a.b + (b.b - a.b) * w;
+    if (sum != 0.0 && finite3(h) && finite(sum)) {
+        bw = h / sum;
+    }
+    return Sample(true, a.t + (b.t - a.t) * w, 0.0, bw, a.lambda + (b.lambda - a.lambda) * w);
+}
+
 // refine_levels' stopping test: an end on the surface (|g| ≤ tol_g) or the bracket shrunk to
 // rounding.
 fn bracket_converged(s0: Sample, s1: Sample, tol_g: f32, scale: f32) -> bool {
@@ -1315,7 +1339,6 @@ fn bracket_converged(s0: Sample, s1: Sample, tol_g: f32, scale: f32) -> bool {
     return abs(s0.g) <= tol_g || abs(s1.g) <= tol_g || abs(s1.t - s0.t) <= tol_t;
 }
 
-// The march's next sample after the n-th at t: the first step jittered (paper §5.3).
 // The next march sample's t: a step (the first one jittered), cut to where the line through
 // the last two loop samples `a`, `b` meets the surface when they approach it on one side
 // (Pdm::approaching), at least SECANT_MIN_STEP of a step on.

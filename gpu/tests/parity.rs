@@ -271,6 +271,15 @@ fn rock_approaches_cut_their_step_to_the_secant() {
     centre_rays_hit_where_the_cpu_does(0, &[10_160, 22_768]);
 }
 
+// Rock leak ray 942 906 of seed 0 as the centre ray (core
+// `pdm::tests::crossings_between_two_floats_are_interpolated`): its crossing at a crease
+// strip's collapsed corner lies between two neighbouring floats of `t`, and the refinement's
+// result is interpolated between them (`refine_result`).
+#[test]
+fn rock_crossings_between_two_floats_are_interpolated() {
+    centre_rays_hit_where_the_cpu_does(0, &[942_906]);
+}
+
 /// Each of the rock's leak rays `indices` of `seed` as the centre ray: both devices hit, at
 /// depths within 1e-4 of each other (relative).
 fn centre_rays_hit_where_the_cpu_does(seed: u32, indices: &[usize]) {

@@ -1523,12 +1523,46 @@ impl<'a> Pdm<'a> {
                 side = 1;
             }
         }
+        if s0.g.abs().min(s1.g.abs()) > tol_g && (s1.t - s0.t).abs() <= tol_t {
+            // The bracket shrank to f32's resolution of `t` with `g` still far from zero on
+            // both sides: the surface is crossed between two neighbouring floats (a crease
+            // strip's sliver at its `λ = 0` pole, where `b` jumps across the triangle from one
+            // float to the next). The crossing is between the two samples: interpolated by `g`.
+            return Self::between_floats(local, &s0, &s1);
+        }
         if s0.g.abs() <= s1.g.abs() {
             s0
         } else {
             s1
         }
     }
+
+    /// The crossing between two samples on either side of the surface at neighbouring ray
+    /// parameters (`refine_levels`): `t`, the level and the homogeneous barycentrics
+    /// (`inside_span`: smooth where `b` has a pole) interpolated by `g`.
+    #[cold]
+    #[inline(never)]
+    fn between_floats(local: &Local, a: &Sample, b: &Sample) -> Sample {
+        let w = a.g / (a.g - b.g);
+        let (h0, h1) = (
+            a.b * local.level_area(a.lambda),
+            b.b * local.level_area(b.lambda),
+        );
+        let h = h0 + (h1 - h0) * w;
+        let sum = h.x + h.y + h.z;
+        let bw = if sum != 0.0 && h.is_finite() && sum.is_finite() {
+            h / sum
+        } else {
+            a.b + (b.b - a.b) * w
+        };
+        Sample {
+            t: a.t + (b.t - a.t) * w,
+            g: 0.0,
+            b: bw,
+            lambda: a.lambda + (b.lambda - a.lambda) * w,
+        }
+    }
+
     /// Constant displacement `D`: meet the triangle `V_i + D n_i`, then Newton on
     /// `P(b) + D m̂(b) = o + t d` for `(b1, b2, t)`.
     fn flat_hit(&self, local: &Local, dval: f32, ro: Vec3, ray: &Ray) -> Option<(f32, Vec3)> {
@@ -2297,6 +2331,17 @@ mod tests {
     #[test]
     fn crossings_between_a_wall_and_the_next_ulp_are_found() {
         rock_leak_rays_are_stopped(0, &[693_287]);
+    }
+
+    /// Regression: rock leak ray 942 906 of seed 0 (ending inside the solid) passes the corner
+    /// of crease strip 785 where its zero-length rung collapses the level triangles (`λ` ≈
+    /// 0.0003): between two neighbouring floats of `t`, `g` jumps from +0.0044 to −0.0029 and
+    /// `b₀` from +0.045 to −0.045, so the refinement's bracket shrinks to rounding with
+    /// neither end on the surface, and its end sample lay outside the triangle
+    /// (`Pdm::between_floats`).
+    #[test]
+    fn crossings_between_two_floats_are_interpolated() {
+        rock_leak_rays_are_stopped(0, &[942_906]);
     }
 
     /// PDM (defaults) hits each of the rock's leak rays `indices` of `seed`
