@@ -81,6 +81,28 @@ fn bench_runs_every_method_on_the_same_rays() {
 }
 
 #[test]
+fn bench_refuses_reference_densities_out_of_range_before_writing() {
+    let torus = example("torus/torus.obj");
+    for (flag, value) in [
+        ("--confirm-density", "-1"),
+        ("--confirm-density", "1000"),
+        ("--ref-density", "0"),
+        ("--ref-density", "NaN"),
+    ] {
+        let out = temp_dir("bench-bad-density");
+        let dir = out.join("results");
+        // `--flag=value`: clap reads a bare `-1` as an option.
+        let arg = format!("{flag}={value}");
+        run(&["bench", s(&torus), &arg, "-o", s(&dir)])
+            .assert_error(&[&format!("{flag} {value}"), "(0, 64]"]);
+        assert!(
+            !dir.exists(),
+            "{flag} {value}: the output folder was created"
+        );
+    }
+}
+
+#[test]
 fn every_method_renders_the_same_silhouette() {
     let sphere = example("sphere/sphere.glb");
     let mask = |method: &str| {

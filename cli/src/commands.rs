@@ -669,6 +669,18 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             cfg.width, cfg.height
         )));
     }
+    if !(cfg.ref_density > 0.0 && cfg.ref_density <= 64.0) {
+        return Err(Error::Param(format!(
+            "--ref-density {}: must be in (0, 64]",
+            cfg.ref_density
+        )));
+    }
+    if !(cfg.confirm_density == 0.0 || (cfg.confirm_density > 0.0 && cfg.confirm_density <= 64.0)) {
+        return Err(Error::Param(format!(
+            "--confirm-density {}: must be 0 (no check) or in (0, 64]",
+            cfg.confirm_density
+        )));
+    }
     let seam_modes: Vec<SeamMode> = a
         .seams
         .iter()
