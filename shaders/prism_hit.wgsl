@@ -5,6 +5,8 @@
 
 // Barycentric / patch-parameter slack (prism_hit::PARAM_EPS).
 const PARAM_EPS: f32 = 1e-5;
+// prism_hit::PLANE_MIN_SINE: the base triangle's plane bounds the surface above this sine.
+const PLANE_MIN_SINE: f32 = 1e-3;
 
 // Inside interval of a ray in a prism, clipped to [t_min, t_max]; ok = false: missed.
 struct Interval {
@@ -170,7 +172,7 @@ fn box_exit(o: vec3f, d: vec3f, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> f32
 
 // prism_hit::clip_to_surface_bounds: [t0, t1] cut to where the prism's surface can be, within
 // `reach` of the base triangle v — its box grown by `reach` and the slab of that half-width
-// around its plane (a zero-area base has no plane: the box alone). An axis with d = 0 keeps
+// around its plane (a (nearly) zero-area base has no plane: the box alone). An axis with d = 0 keeps
 // everything if the origin lies in its slab and nothing otherwise (the CPU's ±∞).
 fn clip_to_surface_bounds(o: vec3f, d: vec3f, t0: f32, t1: f32, v: array<vec3f, 3>, reach: f32) -> Interval {
     let lo = min(min(v[0], v[1]), v[2]) - vec3f(reach);
@@ -190,7 +192,15 @@ fn clip_to_surface_bounds(o: vec3f, d: vec3f, t0: f32, t1: f32, v: array<vec3f, 
         a = max(a, min(ta, tb));
         b = min(b, max(ta, tb));
     }
-    let ng = normalize_or_zero(cross(v[1] - v[0], v[2] - v[0]));
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let c = cross(e1, e2);
+    let len = length(c);
+    // prism_hit::base_plane_normal: no plane where the corners are (nearly) collinear.
+    if (!(len > PLANE_MIN_SINE * length(e1) * length(e2))) {
+        return Interval(a <= b, a, b);
+    }
+    let ng = c / len;
     let s0 = dot(o - v[0], ng);
     let sd = dot(d, ng);
     if (sd == 0.0) {

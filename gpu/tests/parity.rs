@@ -195,11 +195,24 @@ fn strip_pass_throughs(rel: &str, size: u32) -> (usize, usize) {
             && scene.table.prisms[cpu.prism[i] as usize - 1].flags & PRISM_INSERTED != 0
     };
     let strips = (0..cpu.mask.len()).filter(|&i| on_strip(i)).count();
-    let through = (0..cpu.mask.len())
+    let through: Vec<usize> = (0..cpu.mask.len())
         .filter(|&i| on_strip(i))
         .filter(|&i| gpu.mask[i] < 0.5 || gpu.depth[i] > cpu.depth[i] * (1.0 + 1e-4))
-        .count();
-    (through, strips)
+        .collect();
+    // The first few, for a driver where this fails: which prism each side stopped on.
+    for &i in through.iter().take(8) {
+        eprintln!(
+            "  pixel {i}: cpu prism {} depth {} steps {}; gpu prism {} depth {} steps {} mask {}",
+            cpu.prism[i],
+            cpu.depth[i],
+            cpu.steps[i],
+            gpu.prism[i],
+            gpu.depth[i],
+            gpu.steps[i],
+            gpu.mask[i]
+        );
+    }
+    (through.len(), strips)
 }
 
 #[test]

@@ -8,5 +8,6 @@ mod beauty;
 mod heightmap;
 mod layout;
 mod parity;
+mod prism_hit;
 mod rng;
 mod seams;

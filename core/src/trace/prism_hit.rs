@@ -294,8 +294,27 @@ pub fn clip_to_surface_bounds(
 ) -> Option<(f32, f32)> {
     let (lo, hi) = surface_box(v, reach);
     let range = clip_to_box(o, d, t0, t1, lo, hi)?;
-    let ng = (v[1] - v[0]).cross(v[2] - v[0]).normalize_or_zero();
-    clip_to_slab(o, d, range, v[0], ng, reach)
+    match base_plane_normal(v) {
+        Some(ng) => clip_to_slab(o, d, range, v[0], ng, reach),
+        None => Some(range),
+    }
+}
+
+/// Smallest sine of the base triangle's angle at `v[0]` for which its plane bounds the
+/// surface: the cross product's rounding (~1e-7 of |e1||e2|) then tilts the plane by at most
+/// ~1e-4 rad, within `INTERVAL_PAD`'s widening of the slab over the triangle's length.
+pub const PLANE_MIN_SINE: f32 = 1e-3;
+
+/// The unit normal of base triangle `v`, or `None` where its corners are (nearly) collinear
+/// — the zero-area prisms crease repair inserts, whose cross product is rounding noise: a
+/// plane from it points anywhere, and its slab would cut the strip's surface off (by a
+/// different plane on every device: a GPU's cross product rounds otherwise).
+#[inline]
+pub fn base_plane_normal(v: &[Vec3; 3]) -> Option<Vec3> {
+    let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+    let c = e1.cross(e2);
+    let len = c.length();
+    (len > PLANE_MIN_SINE * e1.length() * e2.length()).then(|| c / len)
 }
 
 /// Cheap early-out before the walls: `true` if the segment `[t_min, t_max]` lies wholly
