@@ -12,10 +12,16 @@ use crate::timer::KernelTimer;
 use crate::{shaders, GpuError};
 use std::sync::{Mutex, OnceLock};
 
-/// Largest tile of one dispatch, in pixels per side: bounds the output buffers (512² × 64 B =
-/// 16 MiB for beauty sums, far under the 128 MiB binding cap) and the length of one
-/// submission on GPUs with a watchdog.
+/// Tile of one dispatch on a software adapter, in pixels per side: lavapipe's time does not
+/// depend on it, so it keeps the output buffers small (512² × 64 B = 16 MiB of beauty sums).
 pub const MAX_TILE: u32 = 512;
+
+/// Tile of one dispatch on a hardware adapter: a 2048² frame in one dispatch. Each dispatch
+/// waits for its slowest lanes (the long marches of a few rays); on an NVIDIA H200 a 2048²
+/// AOV frame took 6.4–11.7 ms in one dispatch against 10.7–18.6 ms in sixteen 512² ones
+/// (docs/gpu.md, "A real GPU"). Costs 192 MiB of AOV tile, 256 MiB of read-back and, once
+/// beauty runs, 256 MiB of sums; `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
+pub const HARDWARE_TILE: u32 = 2048;
 
 /// Storage buffers the beauty kernel binds in its one stage: the scene's six (prisms,
 /// vertices, BVH nodes and indices, height map, seam stitch records), its sums and the
@@ -50,6 +56,23 @@ pub struct GpuContext {
     pub(crate) busy: Mutex<()>,
     /// The kernels' own time, where the adapter has timestamp queries.
     pub(crate) timer: Option<Mutex<KernelTimer>>,
+    /// Pixels per side of one dispatch's tile (`MAX_TILE` or `HARDWARE_TILE`, or
+    /// `PRISMBAKE_GPU_TILE`).
+    pub(crate) tile: u32,
+}
+
+/// The tile side: `PRISMBAKE_GPU_TILE` (a multiple of the workgroup, 64..=4096), else
+/// `MAX_TILE` on a software adapter and `HARDWARE_TILE` on others, cut to the largest whose
+/// output buffers the device binds (`limit` bytes).
+fn tile_side(software: bool, limit: u64) -> u32 {
+    let pixel = std::mem::size_of::<GpuAovPixel>().max(std::mem::size_of::<GpuBeautySums>());
+    let fits = ((limit / pixel as u64) as f64).sqrt() as u32 / WORKGROUP * WORKGROUP;
+    std::env::var("PRISMBAKE_GPU_TILE")
+        .ok()
+        .and_then(|v| v.parse::<u32>().ok())
+        .filter(|t| (64..=4096).contains(t) && t % WORKGROUP == 0)
+        .unwrap_or(if software { MAX_TILE } else { HARDWARE_TILE })
+        .min(fits.max(WORKGROUP))
 }
 
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
@@ -200,7 +223,14 @@ impl GpuContext {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let tile_bytes = (MAX_TILE * MAX_TILE) as u64 * std::mem::size_of::<GpuAovPixel>() as u64;
+        let tile = tile_side(
+            adapter_info.device_type == wgpu::DeviceType::Cpu,
+            device
+                .limits()
+                .max_storage_buffer_binding_size
+                .min(device.limits().max_buffer_size),
+        );
+        let tile_bytes = (tile * tile) as u64 * std::mem::size_of::<GpuAovPixel>() as u64;
         let aov_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("aov tile"),
             size: tile_bytes,
@@ -209,8 +239,7 @@ impl GpuContext {
                 | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let beauty_tile_bytes =
-            (MAX_TILE * MAX_TILE) as u64 * std::mem::size_of::<GpuBeautySums>() as u64;
+        let beauty_tile_bytes = (tile * tile) as u64 * std::mem::size_of::<GpuBeautySums>() as u64;
         let readback = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("tile readback"),
             size: tile_bytes.max(beauty_tile_bytes),
@@ -231,7 +260,7 @@ impl GpuContext {
                 }, // aov_out
             ],
         });
-        debug_assert_eq!(MAX_TILE % WORKGROUP, 0);
+        debug_assert_eq!(tile % WORKGROUP, 0);
         let timer = KernelTimer::new(&device, &queue).map(Mutex::new);
         Ok(GpuContext {
             adapter_info,
@@ -248,6 +277,7 @@ impl GpuContext {
             beauty: OnceLock::new(),
             busy: Mutex::new(()),
             timer,
+            tile,
         })
     }
 
@@ -270,6 +300,11 @@ impl GpuContext {
                 info.name, info.backend, info.device_type
             )
         }
+    }
+
+    /// Pixels per side of one dispatch's tile (frames larger than it take several dispatches).
+    pub fn tile(&self) -> u32 {
+        self.tile
     }
 
     /// Whether the kernels' own time is measured (the adapter has timestamp queries).
@@ -339,7 +374,7 @@ impl GpuContext {
         .await?;
         let sums_buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("beauty sums tile"),
-            size: (MAX_TILE * MAX_TILE) as u64 * std::mem::size_of::<GpuBeautySums>() as u64,
+            size: (self.tile * self.tile) as u64 * std::mem::size_of::<GpuBeautySums>() as u64,
             usage: wgpu::BufferUsages::STORAGE
                 | wgpu::BufferUsages::COPY_SRC
                 | wgpu::BufferUsages::COPY_DST,

@@ -166,6 +166,43 @@ fn rock_matches_the_cpu_below_lavapipes_loop_cap() {
     check_asset_with("rock/rock.glb", 1, opts, true);
 }
 
+/// A frame wider and taller than one dispatch's tile is rendered tile by tile: every pixel
+/// still gets its own ray, random numbers and place in the image (breaks if a tile's origin
+/// or size reaches the kernel wrong, or the read-back puts rows in the wrong place).
+#[test]
+fn frames_larger_than_a_tile_match_the_cpu() {
+    let ex = example_scene("torus/torus.obj");
+    // Zoomed in so that the torus crosses into the last tiles.
+    let cam = prismbake::render::camera::Camera {
+        yfov_deg: ex.cam.yfov_deg * 0.5,
+        ..ex.cam
+    };
+    let side = ctx().tile() + 24;
+    let (w, h) = (side, side);
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        spp: 1,
+        seed: 7,
+    };
+    let opts = PdmOptions::default();
+    let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &cam, &settings, &|_| {});
+    let gpu_scene = GpuScene::upload(ctx(), &ex.scene).expect("upload");
+    let gpu = render_aovs(ctx(), &gpu_scene, &cam, &settings, &opts, &|_| {}).expect("gpu render");
+    let a = compare(&cpu, &gpu, |_| true);
+    eprintln!(
+        "{}",
+        report(&format!("torus {w}x{h} (tile {})", ctx().tile()), &a)
+    );
+    assert_parity("torus, several tiles", &a, (w * h / 20) as usize);
+    // The last tile's pixels (right and bottom edges) are where a misplaced tile shows.
+    let edge = compare(&cpu, &gpu, |i| {
+        i as u32 % w >= ctx().tile() || i as u32 / w >= ctx().tile()
+    });
+    assert!(edge.both_hit > 0, "the torus does not reach the last tiles");
+    assert_parity("torus, last tiles", &edge, 1);
+}
+
 #[test]
 fn jittered_samples_match_the_cpu() {
     // spp > 1: the hashed pixel jitter and the per-sample march jitter must be the CPU's.
