@@ -31,8 +31,9 @@ def test_device_check_times_every_job(prismbake, tmp_path):
         assert r["mrays_per_s_from"] == "kernel"
     assert rows[2]["kernel_ms"] is None and rows[2]["mrays_per_s_from"] == "trace"
     assert "trace" in proc.stdout and "kernels" in proc.stdout and "Mrays/s" in proc.stdout
-    # The renders themselves were written.
+    # The renders themselves were written, after the card's warm-up frame.
     assert (tmp_path / "rock_aov_gpu" / "mask_0002.exr").is_file()
+    assert (tmp_path / "warmup" / "beauty.exr").is_file()
 
 
 def test_device_check_says_when_the_binary_is_missing(tmp_path):
