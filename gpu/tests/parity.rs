@@ -215,16 +215,8 @@ fn jittered_samples_match_the_cpu() {
 /// `cross_boundary`) stops, and the GPU's `Boundary` machine (pdm.wgsl).
 fn strip_pass_throughs(rel: &str, size: u32) -> (usize, usize) {
     use prismbake::bake::PRISM_INSERTED;
-    let ex = example_scene(rel);
+    let (ex, settings, opts, cpu) = crate::util::cpu_render(rel, size);
     let (scene, cam) = (&ex.scene, &ex.cam);
-    let settings = RenderSettings {
-        width: size,
-        height: size,
-        spp: 1,
-        seed: 7,
-    };
-    let opts = PdmOptions::default();
-    let cpu = render::render_aovs(&Pdm::new(scene, opts), cam, &settings, &|_| {});
     let gpu_scene = GpuScene::upload(ctx(), scene).expect("upload");
     let gpu = render_aovs(ctx(), &gpu_scene, cam, &settings, &opts, &|_| {}).expect("gpu render");
     let on_strip = |i: usize| {

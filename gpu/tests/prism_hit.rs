@@ -6,11 +6,9 @@
 //! Breaks if a driver's arithmetic (its division, square root, fused multiply-adds, or
 //! assumptions about infinities) changes whether a ray enters such a prism.
 
-use crate::util::{ctx, example_scene};
+use crate::util::{cpu_render, ctx};
 use glam::{Vec2, Vec3};
 use prismbake::bake::PRISM_INSERTED;
-use prismbake::render::{self, RenderSettings};
-use prismbake::trace::pdm::{Pdm, PdmOptions};
 use prismbake::trace::prism_hit::{clip_to_surface_bounds, ray_prism_interval};
 use prismbake_gpu::render::frame_uniform;
 use prismbake_gpu::shaders;
@@ -70,17 +68,9 @@ fn same(cpu: Span, gpu: [f32; 4]) -> bool {
 
 #[test]
 fn rock_strip_rays_enter_their_prisms_as_on_the_cpu() {
-    let ex = example_scene("rock/rock.glb");
-    let (scene, cam) = (&ex.scene, &ex.cam);
     let size = 512;
-    let settings = RenderSettings {
-        width: size,
-        height: size,
-        spp: 1,
-        seed: 7,
-    };
-    let opts = PdmOptions::default();
-    let cpu = render::render_aovs(&Pdm::new(scene, opts), cam, &settings, &|_| {});
+    let (ex, settings, opts, cpu) = cpu_render("rock/rock.glb", size);
+    let (scene, cam) = (&ex.scene, &ex.cam);
     let table = &scene.table;
     let raster = cam.raster(size, size);
     let mut io: Vec<[f32; 4]> = Vec::new();

@@ -23,6 +23,31 @@ pub fn ctx() -> &'static GpuContext {
     })
 }
 
+/// An example asset rendered on the CPU with PDM's defaults at `size`² (one sample at the pixel
+/// centre, seed 7): the scene, the settings and options used, and the image.
+pub fn cpu_render(
+    rel: &str,
+    size: u32,
+) -> (
+    ExampleScene,
+    prismbake::render::RenderSettings,
+    prismbake::trace::pdm::PdmOptions,
+    prismbake::render::AovImage,
+) {
+    use prismbake::render::{self, RenderSettings};
+    use prismbake::trace::pdm::{Pdm, PdmOptions};
+    let ex = example_scene(rel);
+    let settings = RenderSettings {
+        width: size,
+        height: size,
+        spp: 1,
+        seed: 7,
+    };
+    let opts = PdmOptions::default();
+    let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &ex.cam, &settings, &|_| {});
+    (ex, settings, opts, cpu)
+}
+
 pub fn example(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
         .join("../examples")
