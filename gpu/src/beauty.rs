@@ -143,6 +143,8 @@ impl GpuBeautyScene {
                 }, // env_tables
             ],
         });
+        // A buffer the driver refused (out of memory) shows here, not as a panic.
+        ctx.check()?;
         Ok(GpuBeautyScene {
             group,
             uniform,

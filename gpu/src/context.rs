@@ -10,7 +10,7 @@
 use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, WORKGROUP};
 use crate::timer::KernelTimer;
 use crate::{shaders, GpuError};
-use std::sync::{Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock};
 
 /// Tile of one dispatch on a software adapter, in pixels per side: lavapipe's time does not
 /// depend on it, so it keeps the output buffers small (512² × 64 B = 16 MiB of beauty sums).
@@ -56,6 +56,10 @@ pub struct GpuContext {
     pub(crate) busy: Mutex<()>,
     /// The kernels' own time, where the adapter has timestamp queries.
     pub(crate) timer: Option<Mutex<KernelTimer>>,
+    /// The first wgpu error that no error scope caught (validation, out of memory, a lost
+    /// device: a GPU watchdog's reset, say), held for the next `check`/`wait` to return
+    /// instead of wgpu's default of panicking.
+    driver_error: Arc<Mutex<Option<String>>>,
     /// Pixels per side of one dispatch's tile (`MAX_TILE` or `HARDWARE_TILE`, or
     /// `PRISMBAKE_GPU_TILE`).
     pub(crate) tile: u32,
@@ -174,6 +178,14 @@ impl GpuContext {
                 ))
             })?;
 
+        let driver_error = Arc::new(Mutex::new(None::<String>));
+        let sink = Arc::clone(&driver_error);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            sink.lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .get_or_insert_with(|| e.to_string());
+        }));
+
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &[
@@ -277,6 +289,7 @@ impl GpuContext {
             beauty: OnceLock::new(),
             busy: Mutex::new(()),
             timer,
+            driver_error,
             tile,
         })
     }
@@ -401,12 +414,28 @@ impl GpuContext {
         })
     }
 
-    /// Wait until the GPU has finished everything submitted so far.
+    /// Wait until the GPU has finished everything submitted so far (then `check`).
     pub(crate) fn wait(&self) -> Result<(), GpuError> {
         self.device
             .poll(wgpu::PollType::wait_indefinitely())
             .map(|_| ())
-            .map_err(|e| GpuError::Device(format!("waiting for the GPU: {e}")))
+            .map_err(|e| GpuError::Device(format!("waiting for the GPU: {e}")))?;
+        self.check()
+    }
+
+    /// The error wgpu reported outside any error scope since the last call, if any (then
+    /// cleared): a lost device or an allocation the driver refused becomes an error of the
+    /// render that met it, not a panic.
+    pub fn check(&self) -> Result<(), GpuError> {
+        match self
+            .driver_error
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take()
+        {
+            Some(e) => Err(GpuError::Device(format!("{}: {e}", self.adapter_info.name))),
+            None => Ok(()),
+        }
     }
 
     /// Copy `size` bytes of `src` to the read-back buffer, submit, wait, and hand the bytes to
@@ -438,9 +467,7 @@ impl GpuContext {
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Device(format!("waiting for the GPU: {e}")))?;
+        self.wait()?;
         rx.recv()
             .map_err(|e| GpuError::Device(format!("read-back: {e}")))?
             .map_err(|e| GpuError::Device(format!("read-back: {e}")))?;

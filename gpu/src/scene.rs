@@ -205,6 +205,8 @@ impl GpuScene {
         let method_bytes = (std::mem::size_of_val(&bvh.nodes[..])
             + std::mem::size_of_val(&bvh.prim_indices[..])
             + std::mem::size_of_val(&prisms[..])) as u64;
+        // A buffer the driver refused (out of memory) shows here, not as a panic.
+        ctx.check()?;
         Ok(GpuScene {
             group,
             params,

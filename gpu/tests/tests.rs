@@ -5,6 +5,7 @@
 mod util;
 
 mod beauty;
+mod errors;
 mod heightmap;
 mod layout;
 mod parity;
