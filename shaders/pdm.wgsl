@@ -39,6 +39,8 @@ const MODE_BOUNDARY: u32 = 4u;
 const MODE_DIP: u32 = 5u;
 // Pdm's SECANT_MIN_STEP: the shortest step the secant cut leaves (a fraction of dt).
 const SECANT_MIN_STEP: f32 = 0.125;
+// Pdm's NEAR_SLOPE: near the surface a step is at most |g| / NEAR_SLOPE.
+const NEAR_SLOPE: f32 = 0.3;
 // Pdm::dip_probe: samples at most in one gap between march samples.
 const DIP_PROBES: u32 = 4u;
 const F32_MIN_POSITIVE: f32 = 1.17549435e-38;
@@ -1352,6 +1354,11 @@ fn next_march_t(t: f32, n: u32, r: f32, dt: f32, tx: f32, a: Sample, b: Sample) 
         if (t_star < t_next) {
             t_next = max(t_star, t + SECANT_MIN_STEP * dt);
         }
+    }
+    // Near the surface a step is at most |g| / NEAR_SLOPE (the CPU's march_levels).
+    let near = abs(b.g) / NEAR_SLOPE;
+    if (b.ok && b.t == t && near < t_next - t && inside_detect(b.b)) {
+        t_next = t + max(near, SECANT_MIN_STEP * dt);
     }
     return min(t_next, tx);
 }

@@ -324,6 +324,13 @@ fn rock_crossings_between_two_floats_are_interpolated() {
 
 /// Each of the rock's leak rays `indices` of `seed` as the centre ray: both devices hit, at
 /// depths within 1e-4 of each other (relative).
+/// The CPU's `grazes_just_above_the_surface_take_shorter_steps` centre rays: the march's
+/// near-surface step bound (`next_march_t`, `NEAR_SLOPE`).
+#[test]
+fn rock_grazes_just_above_the_surface_take_shorter_steps() {
+    centre_rays_hit_where_the_cpu_does(0, &[2654, 25_286]);
+}
+
 fn centre_rays_hit_where_the_cpu_does(seed: u32, indices: &[usize]) {
     for &i in indices {
         let (cpu, gpu) = rock_leak_ray_as_centre_ray(seed, i);
