@@ -1,7 +1,7 @@
 //! `render_aovs` on the GPU: the mirror of `prismbake::render::render_aovs`, returning the same
 //! `AovImage`. Both kernels (AOVs, beauty) render one sample per dispatch into per-pixel sums
-//! (`render_samples`): tiles of at most the context's tile² pixels, each cleared, dispatched `spp`
-//! times and read back.
+//! (`render_samples`): tiles of at most the context's tile² pixels, each cleared, dispatched
+//! `spp` times and read back.
 
 use crate::context::GpuContext;
 use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
@@ -65,8 +65,8 @@ pub(crate) struct Kernel<'a> {
     pub label: &'static str,
 }
 
-/// Render a frame with a sample-accumulating kernel: per tile of at most the context's tile², clear
-/// the output, dispatch `div_ceil(tile, WORKGROUP)` workgroups once per sample (the frame
+/// Render a frame with a sample-accumulating kernel: per tile of at most the context's tile²,
+/// clear the output, dispatch `div_ceil(tile, WORKGROUP)` workgroups once per sample (the frame
 /// uniform's `sample_index`; written before each submission, so each dispatch sees its own),
 /// read the tile back into `pixels` (row-major, the whole frame). `progress` gets rows
 /// finished, scaled over the samples of every tile.
