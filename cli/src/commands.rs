@@ -9,7 +9,8 @@ use glam::Vec3;
 use prismbake::asset::{self, AssetSpec, Overrides};
 use prismbake::bench::BenchConfig;
 use prismbake::render::job::{
-    self as render_job, CameraOverride, Input, Method, MethodConfig, RenderJob,
+    self as render_job, check_reference_density, CameraOverride, Input, Method, MethodConfig,
+    RenderJob,
 };
 use prismbake::render::lookdev::{self, CacheUse, LookdevOptions, LookdevSummary, WatchEvent};
 use prismbake::render::{Aov, RenderSettings};
@@ -669,17 +670,14 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             cfg.width, cfg.height
         )));
     }
-    if !(cfg.ref_density > 0.0 && cfg.ref_density <= 64.0) {
-        return Err(Error::Param(format!(
-            "--ref-density {}: must be in (0, 64]",
-            cfg.ref_density
-        )));
-    }
-    if !(cfg.confirm_density == 0.0 || (cfg.confirm_density > 0.0 && cfg.confirm_density <= 64.0)) {
-        return Err(Error::Param(format!(
-            "--confirm-density {}: must be 0 (no check) or in (0, 64]",
-            cfg.confirm_density
-        )));
+    check_reference_density("--ref-density", cfg.ref_density)?;
+    if cfg.confirm_density != 0.0 {
+        check_reference_density("--confirm-density", cfg.confirm_density).map_err(|_| {
+            Error::Param(format!(
+                "--confirm-density {}: must be 0 (no check) or in (0, 64]",
+                cfg.confirm_density
+            ))
+        })?;
     }
     let seam_modes: Vec<SeamMode> = a
         .seams

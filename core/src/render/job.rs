@@ -177,13 +177,16 @@ impl RenderJob {
                 "--rmip-res 0: the pyramid needs at least one cell".into(),
             ));
         }
-        if !(self.method.ref_density > 0.0 && self.method.ref_density <= 64.0) {
-            return Err(Error::Param(format!(
-                "--ref-density {}: must be in (0, 64]",
-                self.method.ref_density
-            )));
-        }
+        check_reference_density("--ref-density", self.method.ref_density)
+    }
+}
+
+/// A reference tessellation density (micro-edges per texel) given as `flag`: in (0, 64].
+pub fn check_reference_density(flag: &str, k: f32) -> Result<()> {
+    if k > 0.0 && k <= 64.0 {
         Ok(())
+    } else {
+        Err(Error::Param(format!("{flag} {k}: must be in (0, 64]")))
     }
 }
 
