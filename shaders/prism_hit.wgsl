@@ -172,8 +172,8 @@ fn box_exit(o: vec3f, d: vec3f, lo: array<vec3f, 3>, hi: array<vec3f, 3>) -> f32
 
 // prism_hit::clip_to_surface_bounds: [t0, t1] cut to where the prism's surface can be, within
 // `reach` of the base triangle v — its box grown by `reach` and the slab of that half-width
-// around its plane (a (nearly) zero-area base has no plane: the box alone). An axis with d = 0 keeps
-// everything if the origin lies in its slab and nothing otherwise (the CPU's ±∞).
+// around its plane (a (nearly) zero-area base has no plane: the box alone). An axis with d = 0
+// keeps everything if the origin lies in its slab and nothing otherwise (the CPU's ±∞).
 fn clip_to_surface_bounds(o: vec3f, d: vec3f, t0: f32, t1: f32, v: array<vec3f, 3>, reach: f32) -> Interval {
     let lo = min(min(v[0], v[1]), v[2]) - vec3f(reach);
     let hi = max(max(v[0], v[1]), v[2]) + vec3f(reach);
@@ -195,12 +195,12 @@ fn clip_to_surface_bounds(o: vec3f, d: vec3f, t0: f32, t1: f32, v: array<vec3f, 
     let e1 = v[1] - v[0];
     let e2 = v[2] - v[0];
     let c = cross(e1, e2);
-    let len = length(c);
     // prism_hit::base_plane_normal: no plane where the corners are (nearly) collinear.
-    if (!(len > PLANE_MIN_SINE * length(e1) * length(e2))) {
+    let floor = PLANE_MIN_SINE * PLANE_MIN_SINE * dot(e1, e1) * dot(e2, e2);
+    if (!(dot(c, c) > floor)) {
         return Interval(a <= b, a, b);
     }
-    let ng = c / len;
+    let ng = c / length(c);
     let s0 = dot(o - v[0], ng);
     let sd = dot(d, ng);
     if (sd == 0.0) {

@@ -313,8 +313,8 @@ pub const PLANE_MIN_SINE: f32 = 1e-3;
 pub fn base_plane_normal(v: &[Vec3; 3]) -> Option<Vec3> {
     let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
     let c = e1.cross(e2);
-    let len = c.length();
-    (len > PLANE_MIN_SINE * e1.length() * e2.length()).then(|| c / len)
+    let floor = PLANE_MIN_SINE * PLANE_MIN_SINE * e1.length_squared() * e2.length_squared();
+    (c.length_squared() > floor).then(|| c / c.length())
 }
 
 /// Cheap early-out before the walls: `true` if the segment `[t_min, t_max]` lies wholly
