@@ -26,6 +26,9 @@ if ! command -v cargo >/dev/null && [ -f "$HOME/.cargo/env" ]; then . "$HOME/.ca
 
 # One profile (dev, dependencies optimised) for unit tests, integration tests and the binary.
 cargo test --workspace --locked
+# The GPU suite again on wgpu's GL backend: what a machine without Vulkan drivers renders with
+# (docs/gpu.md, "wgpu's GL backend").
+WGPU_BACKEND=gl cargo test -p prismbake-gpu --test gpu --locked
 
 # Python side: the Blender add-on against the real bpy wheel, USD output against Pixar's
 # usd-core, JUnit output against a JUnit consumer. They drive the binary built above.

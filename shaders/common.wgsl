@@ -224,8 +224,12 @@ fn finite(x: f32) -> bool {
 
 // i32::rem_euclid for n > 0 with one integer remainder (`((x % n) + n) % n` takes two). SIMD
 // units have no integer division: lavapipe divides lane by lane, so per height sample the
-// remainders cost more than the rest of the bilinear lookup (docs/gpu.md).
+// remainders cost more than the rest of the bilinear lookup (docs/gpu.md). The remainder is
+// taken of non-negative operands only: GLSL leaves `%` of a negative operand undefined, and
+// on wgpu's GL backend (Mesa's llvmpipe through OpenGL) `x % n` of a negative `x` read the
+// wrong texel (x < 0 maps to n − 1 − ((−1 − x) mod n)).
 fn wrap_repeat(x: i32, n: i32) -> i32 {
-    let r = x % n;
-    return select(r, r + n, r < 0);
+    let negative = x < 0;
+    let r = select(x, -1 - x, negative) % n;
+    return select(r, n - 1 - r, negative);
 }
