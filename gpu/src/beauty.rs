@@ -11,7 +11,7 @@
 //! One sample per dispatch keeps an invocation's loop iterations (BVH walk, march, Newton)
 //! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
 
-use crate::context::GpuContext;
+use crate::context::{GpuContext, Output};
 use crate::layout::{GpuBeautySums, GpuLighting};
 use crate::render::{frame_uniform, render_samples, Kernel};
 use crate::scene::GpuScene;
@@ -192,12 +192,11 @@ pub fn render_beauty(
 ) -> Result<BeautyImage, GpuError> {
     crate::render::check_render(s, opts)?;
     let kernel = ctx.beauty_kernel()?;
-    let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
     let mut sums = vec![GpuBeautySums::default(); (s.width * s.height) as usize];
     let dispatch = Kernel {
         pipeline: &kernel.pipeline,
-        groups: &[&kernel.group, &lighting.group],
-        output: &kernel.sums_buffer,
+        output: Output::BeautySums,
+        groups: &[&lighting.group],
         label: "render_beauty",
     };
     render_samples(

@@ -1,6 +1,7 @@
 //! The GPU context, built once: instance → adapter → device, the bind-group layouts, the
-//! compute pipelines and the persistent per-dispatch buffers (frame uniform, one tile of
-//! output, its read-back copy). Dispatches only write the uniform, dispatch and read back.
+//! compute pipelines and the per-dispatch buffers (frame uniform; one tile of output and its
+//! read-back copy, sized on first use to the tiles rendered). Dispatches only write the
+//! uniform, dispatch and read back.
 //!
 //! Bind groups: group 0 is the scene (`GpuScene`, shared by every kernel), group 1 the
 //! dispatch (frame uniform + the kernel's output), group 2 the beauty kernel's lighting
@@ -19,8 +20,9 @@ pub const MAX_TILE: u32 = 512;
 /// Tile of one dispatch on a hardware adapter: a 2048² frame in one dispatch. Each dispatch
 /// waits for its slowest lanes (the long marches of a few rays); on an NVIDIA H200 a 2048²
 /// AOV frame took 6.4–11.7 ms in one dispatch against 10.7–18.6 ms in sixteen 512² ones
-/// (docs/gpu.md, "A real GPU"). Costs 192 MiB of AOV tile, 256 MiB of read-back and, once
-/// beauty runs, 256 MiB of sums; `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
+/// (docs/gpu.md, "A real GPU"). A 2048² frame costs 192 MiB of AOV tile, 256 MiB of
+/// read-back and, once beauty runs, 256 MiB of sums (smaller frames only what they use,
+/// `TileBuffers`); `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
 pub const HARDWARE_TILE: u32 = 2048;
 
 /// Storage buffers the beauty kernel binds in its one stage: the scene's six (prisms,
@@ -29,12 +31,41 @@ pub const HARDWARE_TILE: u32 = 2048;
 /// the adapter (native Vulkan, Metal and DX12 adapters allow far more); the AOV kernel binds 7.
 pub const BEAUTY_STORAGE_BUFFERS: u32 = 9;
 
-/// The beauty kernel: its pipeline, the tile of running sums it accumulates into, and the
-/// group-1 bind group (frame uniform + sums).
+/// The beauty kernel's pipeline (built on first use).
 pub(crate) struct BeautyKernel {
     pub(crate) pipeline: wgpu::ComputePipeline,
-    pub(crate) sums_buffer: wgpu::Buffer,
+}
+
+/// Which kernel's output a dispatch writes (`TileBuffers::output`).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) enum Output {
+    /// `array<AovPixel>`, group 1 of the AOV kernel.
+    Aov,
+    /// `array<BeautySums>`, group 1 of the beauty kernel.
+    BeautySums,
+}
+
+/// A kernel's output buffer and its group-1 bind group (frame uniform + output).
+pub(crate) struct TileOutput {
+    pub(crate) buffer: wgpu::Buffer,
     pub(crate) group: wgpu::BindGroup,
+}
+
+/// The per-dispatch output and read-back buffers, sized to the largest tile rendered so far
+/// rather than to the context's tile side: a 512² frame on a hardware adapter (tile 2048²)
+/// holds 512² pixels of them, not 2048² (~700 MiB). They grow when a larger frame comes.
+#[derive(Default)]
+pub(crate) struct TileBuffers {
+    aov: Option<TileOutput>,
+    sums: Option<TileOutput>,
+    readback: Option<wgpu::Buffer>,
+}
+
+impl TileBuffers {
+    fn bytes(&self) -> u64 {
+        let out = |o: &Option<TileOutput>| o.as_ref().map_or(0, |o| o.buffer.size());
+        out(&self.aov) + out(&self.sums) + self.readback.as_ref().map_or(0, |b| b.size())
+    }
 }
 
 pub struct GpuContext {
@@ -44,16 +75,13 @@ pub struct GpuContext {
     pub(crate) scene_layout: wgpu::BindGroupLayout,
     pub(crate) aov_pipeline: wgpu::ComputePipeline,
     pub(crate) frame_buffer: wgpu::Buffer,
-    pub(crate) aov_buffer: wgpu::Buffer,
-    /// Read-back copy of one tile of either kernel's output.
-    pub(crate) readback: wgpu::Buffer,
-    pub(crate) aov_group: wgpu::BindGroup,
+    aov_layout: wgpu::BindGroupLayout,
     /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables).
     pub(crate) lighting_layout: wgpu::BindGroupLayout,
     beauty_layout: wgpu::BindGroupLayout,
     beauty: OnceLock<Result<BeautyKernel, String>>,
-    /// The persistent buffers serve one dispatch at a time.
-    pub(crate) busy: Mutex<()>,
+    /// The output and read-back buffers; they serve one frame at a time.
+    pub(crate) busy: Mutex<TileBuffers>,
     /// The kernels' own time, where the adapter has timestamp queries.
     pub(crate) timer: Option<Mutex<KernelTimer>>,
     /// The first wgpu error that no error scope caught (validation, out of memory, a lost
@@ -242,36 +270,6 @@ impl GpuContext {
                 .max_storage_buffer_binding_size
                 .min(device.limits().max_buffer_size),
         );
-        let tile_bytes = (tile * tile) as u64 * std::mem::size_of::<GpuAovPixel>() as u64;
-        let aov_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("aov tile"),
-            size: tile_bytes,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let beauty_tile_bytes = (tile * tile) as u64 * std::mem::size_of::<GpuBeautySums>() as u64;
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("tile readback"),
-            size: tile_bytes.max(beauty_tile_bytes),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let aov_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("aov dispatch"),
-            layout: &aov_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: frame_buffer.as_entire_binding(),
-                }, // frame
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: aov_buffer.as_entire_binding(),
-                }, // aov_out
-            ],
-        });
         debug_assert_eq!(tile % WORKGROUP, 0);
         let timer = KernelTimer::new(&device, &queue).map(Mutex::new);
         Ok(GpuContext {
@@ -281,13 +279,11 @@ impl GpuContext {
             scene_layout,
             aov_pipeline,
             frame_buffer,
-            aov_buffer,
-            readback,
-            aov_group,
+            aov_layout,
             lighting_layout,
             beauty_layout,
             beauty: OnceLock::new(),
-            busy: Mutex::new(()),
+            busy: Mutex::new(TileBuffers::default()),
             timer,
             driver_error,
             tile,
@@ -385,33 +381,7 @@ impl GpuContext {
             ],
         )
         .await?;
-        let sums_buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("beauty sums tile"),
-            size: (self.tile * self.tile) as u64 * std::mem::size_of::<GpuBeautySums>() as u64,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::COPY_SRC
-                | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("beauty dispatch"),
-            layout: &self.beauty_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: self.frame_buffer.as_entire_binding(),
-                }, // frame
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: sums_buffer.as_entire_binding(),
-                }, // beauty_sums
-            ],
-        });
-        Ok(BeautyKernel {
-            pipeline,
-            sums_buffer,
-            group,
-        })
+        Ok(BeautyKernel { pipeline })
     }
 
     /// Wait until the GPU has finished everything submitted so far (then `check`).
@@ -438,16 +408,85 @@ impl GpuContext {
         }
     }
 
-    /// Copy `size` bytes of `src` to the read-back buffer, submit, wait, and hand the bytes to
-    /// `f`. Shared by every kernel's read-back.
+    /// Copy the first `size` bytes of `which` output to the read-back buffer (grown to `size`
+    /// if smaller), submit, wait, and hand the bytes to `f`. Shared by every kernel's
+    /// read-back.
     pub(crate) fn read_back<R>(
         &self,
+        bufs: &mut TileBuffers,
         encoder: wgpu::CommandEncoder,
-        src: &wgpu::Buffer,
+        which: Output,
         size: u64,
         f: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
-        self.read_back_into(encoder, src, &self.readback, size, f)
+        if bufs.readback.as_ref().is_none_or(|b| b.size() < size) {
+            bufs.readback = None;
+            bufs.readback = Some(self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("tile readback"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+            self.check()?;
+        }
+        let src = match which {
+            Output::Aov => bufs.aov.as_ref(),
+            Output::BeautySums => bufs.sums.as_ref(),
+        }
+        .map(|o| &o.buffer)
+        .ok_or_else(|| GpuError::Device(format!("read-back of {which:?} before any dispatch")))?;
+        let dst = bufs.readback.as_ref().expect("allocated above");
+        self.read_back_into(encoder, src, dst, size, f)
+    }
+
+    /// The output buffer of `which` kernel and its group-1 bind group, holding at least
+    /// `bytes` (reallocated, the old one dropped first, when smaller). The bytes the buffers
+    /// hold now: `tile_buffer_bytes`.
+    pub(crate) fn output<'b>(
+        &self,
+        bufs: &'b mut TileBuffers,
+        which: Output,
+        bytes: u64,
+    ) -> Result<&'b TileOutput, GpuError> {
+        let (slot, layout, label) = match which {
+            Output::Aov => (&mut bufs.aov, &self.aov_layout, "aov tile"),
+            Output::BeautySums => (&mut bufs.sums, &self.beauty_layout, "beauty sums tile"),
+        };
+        if slot.as_ref().is_none_or(|o| o.buffer.size() < bytes) {
+            *slot = None;
+            let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: self.frame_buffer.as_entire_binding(),
+                    }, // frame
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: buffer.as_entire_binding(),
+                    }, // aov_out or beauty_sums
+                ],
+            });
+            // A refused allocation is this render's error (`check`), not a later one's.
+            self.check()?;
+            *slot = Some(TileOutput { buffer, group });
+        }
+        Ok(slot.as_ref().expect("allocated above"))
+    }
+
+    /// Bytes of GPU memory the output and read-back buffers hold now: those of the largest
+    /// tile rendered so far by each kernel (none before the first frame).
+    pub fn tile_buffer_bytes(&self) -> u64 {
+        self.busy.lock().unwrap_or_else(|e| e.into_inner()).bytes()
     }
 
     /// `read_back` through the mappable buffer `dst` (`MAP_READ | COPY_DST`).

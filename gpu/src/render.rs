@@ -3,7 +3,7 @@
 //! (`render_samples`): tiles of at most the context's tile² pixels, each cleared, dispatched
 //! `spp` times and read back.
 
-use crate::context::GpuContext;
+use crate::context::{GpuContext, Output};
 use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
 use crate::scene::GpuScene;
 use crate::GpuError;
@@ -56,12 +56,12 @@ pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> Gpu
     }
 }
 
-/// One kernel's dispatch over a frame: its pipeline, bind groups 1.. (group 0 is the scene)
-/// and the output buffer its group 1 writes (`T` per pixel of a tile).
+/// One kernel's dispatch over a frame: its pipeline, the output its group 1 writes (`T` per
+/// pixel of a tile; group 0 is the scene) and its bind groups 2...
 pub(crate) struct Kernel<'a> {
     pub pipeline: &'a wgpu::ComputePipeline,
+    pub output: Output,
     pub groups: &'a [&'a wgpu::BindGroup],
-    pub output: &'a wgpu::Buffer,
     pub label: &'static str,
 }
 
@@ -85,6 +85,8 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
         .collect();
     let passes = tiles.len() as u64 * spp as u64;
     let mut done = 0u64;
+    let mut bufs = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+    let largest = (w.min(ctx.tile) * h.min(ctx.tile)) as u64 * std::mem::size_of::<T>() as u64;
     let encoder = |label| {
         ctx.device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
@@ -96,8 +98,9 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
     for &(tx, ty) in &tiles {
         let (tw, th) = ((w - tx).min(ctx.tile), (h - ty).min(ctx.tile));
         let bytes = (tw * th) as u64 * std::mem::size_of::<T>() as u64;
+        let output = ctx.output(&mut bufs, kernel.output, largest)?;
         let mut clear = encoder("clear tile");
-        clear.clear_buffer(kernel.output, 0, Some(bytes));
+        clear.clear_buffer(&output.buffer, 0, Some(bytes));
         ctx.queue.submit([clear.finish()]);
         for sample in 0..spp {
             let frame = GpuFrame {
@@ -116,8 +119,9 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
                 });
                 pass.set_pipeline(kernel.pipeline);
                 pass.set_bind_group(0, &scene.group, &[]);
+                pass.set_bind_group(1, &output.group, &[]);
                 for (i, g) in kernel.groups.iter().enumerate() {
-                    pass.set_bind_group(i as u32 + 1, *g, &[]);
+                    pass.set_bind_group(i as u32 + 2, *g, &[]);
                 }
                 pass.dispatch_workgroups(tw.div_ceil(WORKGROUP), th.div_ceil(WORKGROUP), 1);
             }
@@ -129,14 +133,20 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
             done += 1;
             progress((done * h as u64 / passes) as usize);
         }
-        ctx.read_back(encoder("read-back"), kernel.output, bytes, |data| {
-            let tile: &[T] = bytemuck::cast_slice(data);
-            for row in 0..th {
-                let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
-                let dst = ((ty + row) * w + tx) as usize;
-                pixels[dst..dst + tw as usize].copy_from_slice(src);
-            }
-        })?;
+        ctx.read_back(
+            &mut bufs,
+            encoder("read-back"),
+            kernel.output,
+            bytes,
+            |data| {
+                let tile: &[T] = bytemuck::cast_slice(data);
+                for row in 0..th {
+                    let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
+                    let dst = ((ty + row) * w + tx) as usize;
+                    pixels[dst..dst + tw as usize].copy_from_slice(src);
+                }
+            },
+        )?;
     }
     Ok(())
 }
@@ -153,12 +163,11 @@ pub fn render_aovs(
     progress: &dyn Fn(usize),
 ) -> Result<AovImage, GpuError> {
     check_render(s, opts)?;
-    let _busy = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
     let mut pixels = vec![GpuAovPixel::default(); (s.width * s.height) as usize];
     let kernel = Kernel {
         pipeline: &ctx.aov_pipeline,
-        groups: &[&ctx.aov_group],
-        output: &ctx.aov_buffer,
+        output: Output::Aov,
+        groups: &[],
         label: "render_aovs",
     };
     render_samples(

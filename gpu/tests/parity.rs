@@ -203,6 +203,60 @@ fn frames_larger_than_a_tile_match_the_cpu() {
     assert_parity("torus, last tiles", &edge, 1);
 }
 
+/// The output and read-back buffers hold the largest tile rendered so far, not the context's
+/// tile side: a small frame on a hardware adapter (tile 2048²) would otherwise hold ~450 MiB
+/// for AOVs alone. They grow for a larger frame, stay for a smaller one, and the image of a
+/// frame rendered after a larger one is unchanged (breaks if the buffers are sized by the
+/// tile again, or if a reused larger buffer leaks the earlier frame's pixels).
+#[test]
+fn tile_buffers_are_sized_to_the_frame_not_the_tile() {
+    use prismbake_gpu::layout::GpuAovPixel;
+    let own = prismbake_gpu::GpuContext::new().expect("a second context");
+    assert_eq!(own.tile_buffer_bytes(), 0, "buffers before the first frame");
+    let ex = example_scene("torus/torus.obj");
+    let scene = GpuScene::upload(&own, &ex.scene).expect("upload");
+    let opts = PdmOptions::default();
+    let pixel = std::mem::size_of::<GpuAovPixel>() as u64;
+    let render = |w: u32, h: u32| {
+        let s = RenderSettings {
+            width: w,
+            height: h,
+            spp: 1,
+            seed: 7,
+        };
+        let img = render_aovs(&own, &scene, &ex.cam, &s, &opts, &|_| {}).expect("gpu render");
+        (img, s)
+    };
+    let (small, small_settings) = render(40, 24);
+    // The AOV output and its read-back copy, 40 × 24 pixels each.
+    assert_eq!(own.tile_buffer_bytes(), 2 * 40 * 24 * pixel);
+    render(64, 48);
+    assert_eq!(own.tile_buffer_bytes(), 2 * 64 * 48 * pixel);
+    let (again, _) = render(40, 24);
+    assert_eq!(
+        own.tile_buffer_bytes(),
+        2 * 64 * 48 * pixel,
+        "kept for the smaller frame"
+    );
+    assert_eq!(small.depth, again.depth, "a frame after a larger one");
+    assert_eq!(small.mask, again.mask);
+    let cpu = render::render_aovs(
+        &Pdm::new(&ex.scene, opts),
+        &ex.cam,
+        &small_settings,
+        &|_| {},
+    );
+    assert!(
+        small.mask.iter().any(|m| *m > 0.5),
+        "the torus is in the frame"
+    );
+    assert_parity(
+        "torus 40x24, own buffers",
+        &compare(&cpu, &again, |_| true),
+        1,
+    );
+}
+
 #[test]
 fn jittered_samples_match_the_cpu() {
     // spp > 1: the hashed pixel jitter and the per-sample march jitter must be the CPU's.
