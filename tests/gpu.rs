@@ -213,3 +213,40 @@ fn gpu_render_traces_the_seam_mode_it_is_given() {
         );
     }
 }
+
+/// A tile side the GPU path cannot use is refused before any frame, naming the variable and
+/// the fix; `--device gpu` exits non-zero and writes nothing, `auto` says why it took the CPU.
+#[test]
+fn an_unusable_gpu_tile_setting_is_an_error_naming_the_fix() {
+    let dir = temp_dir("gpu-tile-setting");
+    let out = dir.join("out");
+    let torus = example("torus/torus.obj");
+    let render = |device: &str, tile: &str| {
+        run_in_env(
+            &repo_root(),
+            &[
+                "render",
+                s(&torus),
+                "--device",
+                device,
+                "--res",
+                "16x16",
+                "-o",
+                s(&out),
+            ],
+            &[("PRISMBAKE_GPU_TILE", tile)],
+        )
+    };
+    render("gpu", "1020").assert_error(&["PRISMBAKE_GPU_TILE=1020", "multiple of 8", "unset it"]);
+    assert!(
+        !out.exists() || files_in(&out).is_empty(),
+        "files were written"
+    );
+    let auto = render("auto", "huge");
+    auto.assert_success();
+    assert!(
+        auto.stderr.contains("device: cpu (PRISMBAKE_GPU_TILE=huge"),
+        "auto should say why it took the CPU:\n{}",
+        auto.stderr
+    );
+}

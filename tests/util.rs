@@ -97,6 +97,11 @@ pub fn assert_frame_times(summary: &serde_json::Value, device_clock: bool) {
 
 /// Run `prismbake ARGS` with `cwd` as working directory.
 pub fn run_in(cwd: &Path, args: &[&str]) -> Output {
+    run_in_env(cwd, args, &[])
+}
+
+/// `run_in` with environment variables `envs` set for the process.
+pub fn run_in_env(cwd: &Path, args: &[&str], envs: &[(&str, &str)]) -> Output {
     let bin = env!("CARGO_BIN_EXE_prismbake");
     // Tables cached by `render` go to a folder of the test run, not the user's cache.
     let cache = std::env::temp_dir().join(format!("prismbake-it-cache-{}", std::process::id()));
@@ -104,6 +109,7 @@ pub fn run_in(cwd: &Path, args: &[&str]) -> Output {
         .args(args)
         .current_dir(cwd)
         .env("XDG_CACHE_HOME", cache)
+        .envs(envs.iter().copied())
         .output()
         .expect("binary runs");
     Output {

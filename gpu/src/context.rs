@@ -93,16 +93,32 @@ pub struct GpuContext {
     pub(crate) tile: u32,
 }
 
-/// The tile side: `PRISMBAKE_GPU_TILE` (a multiple of the workgroup, 64..=4096), else
-/// `MAX_TILE` on a software adapter and `HARDWARE_TILE` on others, cut to the largest whose
-/// output buffers the device binds (`limit` bytes).
-fn tile_side(software: bool, limit: u64) -> u32 {
+/// Tile sides `PRISMBAKE_GPU_TILE` accepts.
+const TILE_SETTING: std::ops::RangeInclusive<u32> = 64..=4096;
+
+/// The tile side `PRISMBAKE_GPU_TILE` asks for (`None` unset or empty), or why it cannot be
+/// used: a multiple of the workgroup side in `TILE_SETTING`.
+fn tile_setting(value: Option<&str>) -> Result<Option<u32>, GpuError> {
+    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
+        return Ok(None);
+    };
+    match v.parse::<u32>() {
+        Ok(t) if TILE_SETTING.contains(&t) && t % WORKGROUP == 0 => Ok(Some(t)),
+        _ => Err(GpuError::Setting(format!(
+            "PRISMBAKE_GPU_TILE={v}: the tile side is pixels per side of one dispatch, a multiple of {WORKGROUP} from {} to {} (e.g. 1024 for a GPU with little memory); unset it for the default ({MAX_TILE} on a software adapter, {HARDWARE_TILE} on a GPU)",
+            TILE_SETTING.start(),
+            TILE_SETTING.end()
+        ))),
+    }
+}
+
+/// The tile side: `setting` (`PRISMBAKE_GPU_TILE`), else `MAX_TILE` on a software adapter and
+/// `HARDWARE_TILE` on others, cut to the largest whose output buffers the device binds
+/// (`limit` bytes).
+fn tile_side(setting: Option<u32>, software: bool, limit: u64) -> u32 {
     let pixel = std::mem::size_of::<GpuAovPixel>().max(std::mem::size_of::<GpuBeautySums>());
     let fits = ((limit / pixel as u64) as f64).sqrt() as u32 / WORKGROUP * WORKGROUP;
-    std::env::var("PRISMBAKE_GPU_TILE")
-        .ok()
-        .and_then(|v| v.parse::<u32>().ok())
-        .filter(|t| (64..=4096).contains(t) && t % WORKGROUP == 0)
+    setting
         .unwrap_or(if software { MAX_TILE } else { HARDWARE_TILE })
         .min(fits.max(WORKGROUP))
 }
@@ -143,6 +159,8 @@ impl GpuContext {
     }
 
     async fn new_async() -> Result<GpuContext, GpuError> {
+        // A setting that cannot be used is refused before any device is opened.
+        let tile_wanted = tile_setting(std::env::var("PRISMBAKE_GPU_TILE").ok().as_deref())?;
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
@@ -264,6 +282,7 @@ impl GpuContext {
             mapped_at_creation: false,
         });
         let tile = tile_side(
+            tile_wanted,
             adapter_info.device_type == wgpu::DeviceType::Cpu,
             device
                 .limits()
@@ -552,4 +571,40 @@ async fn build_pipeline(
         return Err(GpuError::Shader(format!("{entry}: {e}")));
     }
     Ok(pipeline)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tile_setting_takes_multiples_of_the_workgroup_and_names_the_fix() {
+        assert_eq!(tile_setting(None).unwrap(), None);
+        assert_eq!(tile_setting(Some(" ")).unwrap(), None);
+        assert_eq!(tile_setting(Some("1024")).unwrap(), Some(1024));
+        assert_eq!(tile_setting(Some("64")).unwrap(), Some(64));
+        assert_eq!(tile_setting(Some("4096")).unwrap(), Some(4096));
+        for bad in ["1020", "32", "8192", "-512", "big", "512px"] {
+            let e = tile_setting(Some(bad)).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("PRISMBAKE_GPU_TILE={bad}")) && e.contains("multiple of 8"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn tile_side_is_the_setting_or_the_default_within_the_binding_limit() {
+        let big = u64::MAX / 2;
+        assert_eq!(tile_side(None, true, big), MAX_TILE);
+        assert_eq!(tile_side(None, false, big), HARDWARE_TILE);
+        assert_eq!(tile_side(Some(1024), false, big), 1024);
+        // WebGPU's default binding limit (128 MiB) holds 1448² beauty sums of 64 bytes: cut to
+        // a multiple of the workgroup.
+        let pixel = std::mem::size_of::<GpuBeautySums>() as u64;
+        let t = tile_side(None, false, 128 << 20);
+        assert_eq!(t % WORKGROUP, 0);
+        assert!((t as u64).pow(2) * pixel <= 128 << 20);
+        assert!(((t + WORKGROUP) as u64).pow(2) * pixel > 128 << 20);
+    }
 }

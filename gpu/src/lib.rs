@@ -62,4 +62,7 @@ pub enum GpuError {
     },
     #[error("not supported on the GPU: {0}")]
     Unsupported(String),
+    /// A setting of the GPU path (an environment variable) that cannot be used.
+    #[error("{0}")]
+    Setting(String),
 }
