@@ -36,13 +36,14 @@ pub(crate) struct BeautyKernel {
     pub(crate) pipeline: wgpu::ComputePipeline,
 }
 
-/// Which kernel's output a dispatch writes (`TileBuffers::output`).
+/// Which kernel's output a dispatch writes (`GpuContext::output`; it indexes
+/// `TileBuffers::outputs`).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub(crate) enum Output {
     /// `array<AovPixel>`, group 1 of the AOV kernel.
-    Aov,
+    Aov = 0,
     /// `array<BeautySums>`, group 1 of the beauty kernel.
-    BeautySums,
+    BeautySums = 1,
 }
 
 /// A kernel's output buffer and its group-1 bind group (frame uniform + output).
@@ -56,15 +57,18 @@ pub(crate) struct TileOutput {
 /// holds 512² pixels of them, not 2048² (~700 MiB). They grow when a larger frame comes.
 #[derive(Default)]
 pub(crate) struct TileBuffers {
-    aov: Option<TileOutput>,
-    sums: Option<TileOutput>,
-    readback: Option<wgpu::Buffer>,
+    /// Each kernel's output, indexed by `Output`.
+    pub(crate) outputs: [Option<TileOutput>; 2],
+    /// The read-back copy either kernel's output goes through.
+    pub(crate) readback: Option<wgpu::Buffer>,
 }
 
 impl TileBuffers {
     fn bytes(&self) -> u64 {
-        let out = |o: &Option<TileOutput>| o.as_ref().map_or(0, |o| o.buffer.size());
-        out(&self.aov) + out(&self.sums) + self.readback.as_ref().map_or(0, |b| b.size())
+        let outputs = self.outputs.iter().flatten().map(|o| o.buffer.size());
+        outputs
+            .chain(self.readback.as_ref().map(|b| b.size()))
+            .sum()
     }
 }
 
@@ -427,20 +431,20 @@ impl GpuContext {
         }
     }
 
-    /// Copy the first `size` bytes of `which` output to the read-back buffer (grown to `size`
-    /// if smaller), submit, wait, and hand the bytes to `f`. Shared by every kernel's
-    /// read-back.
+    /// Copy the first `size` bytes of `src` to the read-back buffer `readback` (of
+    /// `TileBuffers`, grown to `size` if smaller), submit, wait, and hand the bytes to `f`.
+    /// Shared by every kernel's read-back.
     pub(crate) fn read_back<R>(
         &self,
-        bufs: &mut TileBuffers,
+        readback: &mut Option<wgpu::Buffer>,
         encoder: wgpu::CommandEncoder,
-        which: Output,
+        src: &wgpu::Buffer,
         size: u64,
         f: impl FnOnce(&[u8]) -> R,
     ) -> Result<R, GpuError> {
-        if bufs.readback.as_ref().is_none_or(|b| b.size() < size) {
-            bufs.readback = None;
-            bufs.readback = Some(self.device.create_buffer(&wgpu::BufferDescriptor {
+        if readback.as_ref().is_none_or(|b| b.size() < size) {
+            *readback = None;
+            *readback = Some(self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("tile readback"),
                 size,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
@@ -448,29 +452,24 @@ impl GpuContext {
             }));
             self.check()?;
         }
-        let src = match which {
-            Output::Aov => bufs.aov.as_ref(),
-            Output::BeautySums => bufs.sums.as_ref(),
-        }
-        .map(|o| &o.buffer)
-        .ok_or_else(|| GpuError::Device(format!("read-back of {which:?} before any dispatch")))?;
-        let dst = bufs.readback.as_ref().expect("allocated above");
+        let dst = readback.as_ref().expect("allocated above");
         self.read_back_into(encoder, src, dst, size, f)
     }
 
-    /// The output buffer of `which` kernel and its group-1 bind group, holding at least
-    /// `bytes` (reallocated, the old one dropped first, when smaller). The bytes the buffers
-    /// hold now: `tile_buffer_bytes`.
+    /// The output buffer of `which` kernel (its slot of `TileBuffers::outputs`) and its
+    /// group-1 bind group, holding at least `bytes` (reallocated, the old one dropped first,
+    /// when smaller). The bytes the buffers hold now: `tile_buffer_bytes`.
     pub(crate) fn output<'b>(
         &self,
-        bufs: &'b mut TileBuffers,
+        outputs: &'b mut [Option<TileOutput>; 2],
         which: Output,
         bytes: u64,
     ) -> Result<&'b TileOutput, GpuError> {
-        let (slot, layout, label) = match which {
-            Output::Aov => (&mut bufs.aov, &self.aov_layout, "aov tile"),
-            Output::BeautySums => (&mut bufs.sums, &self.beauty_layout, "beauty sums tile"),
+        let (layout, label) = match which {
+            Output::Aov => (&self.aov_layout, "aov tile"),
+            Output::BeautySums => (&self.beauty_layout, "beauty sums tile"),
         };
+        let slot = &mut outputs[which as usize];
         if slot.as_ref().is_none_or(|o| o.buffer.size() < bytes) {
             *slot = None;
             let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {

@@ -3,7 +3,7 @@
 //! (`render_samples`): tiles of at most the context's tile² pixels, each cleared, dispatched
 //! `spp` times and read back.
 
-use crate::context::{GpuContext, Output};
+use crate::context::{GpuContext, Output, TileBuffers};
 use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
 use crate::scene::GpuScene;
 use crate::GpuError;
@@ -86,6 +86,7 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
     let passes = tiles.len() as u64 * spp as u64;
     let mut done = 0u64;
     let mut bufs = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
+    let TileBuffers { outputs, readback } = &mut *bufs;
     let largest = (w.min(ctx.tile) * h.min(ctx.tile)) as u64 * std::mem::size_of::<T>() as u64;
     let encoder = |label| {
         ctx.device
@@ -98,7 +99,7 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
     for &(tx, ty) in &tiles {
         let (tw, th) = ((w - tx).min(ctx.tile), (h - ty).min(ctx.tile));
         let bytes = (tw * th) as u64 * std::mem::size_of::<T>() as u64;
-        let output = ctx.output(&mut bufs, kernel.output, largest)?;
+        let output = ctx.output(outputs, kernel.output, largest)?;
         let mut clear = encoder("clear tile");
         clear.clear_buffer(&output.buffer, 0, Some(bytes));
         ctx.queue.submit([clear.finish()]);
@@ -134,9 +135,9 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
             progress((done * h as u64 / passes) as usize);
         }
         ctx.read_back(
-            &mut bufs,
+            readback,
             encoder("read-back"),
-            kernel.output,
+            &output.buffer,
             bytes,
             |data| {
                 let tile: &[T] = bytemuck::cast_slice(data);
