@@ -4,16 +4,18 @@
 //! * `GpuBeautyScene::upload` — the lighting uniform (`GpuLighting`, from the CPU's
 //!   `BeautyScene`) and the environment: texels and the CPU's own sampling tables, uploaded as
 //!   they are (`env_tables`), so importance sampling picks the texels the CPU picks.
-//! * `render_beauty` — per tile: clear the running sums, one dispatch per sample (each
-//!   invocation renders one sample of its pixel and adds it to the sums, the CPU's order of
-//!   accumulation), read the sums back and resolve them with `PixelSums::resolve`.
+//! * `render_beauty` — per tile: clear the running sums, one submission per sample (each
+//!   pixel's sample is added to its sums when its path ends, the CPU's order of
+//!   accumulation), read the sums back and resolve them with `PixelSums::resolve`. A sample
+//!   is one dispatch of the fused kernel, or in the wavefront schedule those of
+//!   `sample_stages` (`BeautySchedule`).
 //!
-//! One sample per dispatch keeps an invocation's loop iterations (BVH walk, march, Newton)
+//! One sample per submission keeps an invocation's loop iterations (BVH walk, march, Newton)
 //! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
 
-use crate::context::{GpuContext, Output};
+use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
 use crate::layout::{GpuBeautySums, GpuLighting};
-use crate::render::{frame_uniform, render_samples, Kernel};
+use crate::render::{frame_uniform, render_samples, Kernel, Stage};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
@@ -22,6 +24,7 @@ use prismbake::render::camera::Camera;
 use prismbake::render::env::EnvMap;
 use prismbake::render::RenderSettings;
 use prismbake::trace::pdm::PdmOptions;
+use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 /// The lighting uniform of a beauty scene (everything but the environment's tables).
@@ -87,6 +90,8 @@ pub struct GpuBeautyScene {
     /// Address and size of the `EnvMap` the tables came from (what `serves` compares).
     env_id: (usize, u32, u32),
     bytes: u64,
+    /// What the uniform holds now (the bounces and lights decide a sample's dispatches).
+    current: Mutex<GpuLighting>,
 }
 
 impl GpuBeautyScene {
@@ -150,6 +155,7 @@ impl GpuBeautyScene {
             uniform,
             env_id: env_id(s.env),
             bytes,
+            current: Mutex::new(lighting_uniform(s)),
         })
     }
 
@@ -163,8 +169,15 @@ impl GpuBeautyScene {
     /// environment must be the one uploaded (`serves`).
     pub fn update(&self, ctx: &GpuContext, s: &BeautyScene) {
         debug_assert!(self.serves(s.env));
+        let lighting = lighting_uniform(s);
         ctx.queue
-            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&lighting_uniform(s)));
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&lighting));
+        *self.current.lock().unwrap_or_else(|e| e.into_inner()) = lighting;
+    }
+
+    /// The lighting uniform as last written.
+    pub fn uniform(&self) -> GpuLighting {
+        *self.current.lock().unwrap_or_else(|e| e.into_inner())
     }
 
     /// Bytes uploaded (environment texels and tables).
@@ -180,7 +193,7 @@ fn env_id(env: &EnvMap) -> (usize, u32, u32) {
 /// Render one beauty frame on the GPU: the CPU's `render_beauty` for the same scene, camera,
 /// settings and seed, up to float rounding. `opts` are the PDM options of the intersector
 /// (as `render_aovs` takes them). `progress` is called with rows finished, scaled over the
-/// samples of every tile.
+/// samples of every tile. The context's schedule (`GpuContext::beauty_schedule`).
 pub fn render_beauty(
     ctx: &GpuContext,
     scene: &GpuScene,
@@ -190,13 +203,36 @@ pub fn render_beauty(
     opts: &PdmOptions,
     progress: &dyn Fn(usize),
 ) -> Result<BeautyImage, GpuError> {
+    let schedule = ctx.beauty_schedule();
+    render_beauty_scheduled(ctx, schedule, scene, lighting, cam, s, opts, progress)
+}
+
+/// `render_beauty` in the given schedule (both give the same image).
+#[allow(clippy::too_many_arguments)]
+pub fn render_beauty_scheduled(
+    ctx: &GpuContext,
+    schedule: BeautySchedule,
+    scene: &GpuScene,
+    lighting: &GpuBeautyScene,
+    cam: &Camera,
+    s: &RenderSettings,
+    opts: &PdmOptions,
+    progress: &dyn Fn(usize),
+) -> Result<BeautyImage, GpuError> {
     crate::render::check_render(s, opts)?;
-    let kernel = ctx.beauty_kernel()?;
     let mut sums = vec![GpuBeautySums::default(); (s.width * s.height) as usize];
+    let stages = match schedule {
+        BeautySchedule::Fused => vec![Stage {
+            pipeline: ctx.beauty_fused()?,
+            layers: 1,
+        }],
+        BeautySchedule::Wavefront => sample_stages(ctx.beauty_wavefront()?, &lighting.uniform()),
+    };
     let dispatch = Kernel {
-        pipeline: &kernel.pipeline,
+        stages: &stages,
         output: Output::BeautySums,
         groups: &[&lighting.group],
+        paths: schedule == BeautySchedule::Wavefront,
         label: "render_beauty",
     };
     render_samples(
@@ -208,6 +244,25 @@ pub fn render_beauty(
         progress,
     )?;
     Ok(to_image(&sums, s))
+}
+
+/// The dispatches of one sample under lighting `l`: `beauty_start` (camera rays), then a
+/// trace and a shading step for each step of the longest path: the camera's, then one per
+/// surface event (`bounces`), or the ground's. The camera step traces one ray slot; the
+/// others the slots their rays can take (`beauty_trace`: the continuation, the environment's
+/// shadow ray if the environment lights, the key light's if there is one).
+fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting) -> Vec<Stage<'k>> {
+    let stage = |pipeline, layers| Stage { pipeline, layers };
+    let slots = match (l.has_key != 0, l.env_lights != 0) {
+        (true, _) => 3,
+        (false, true) => 2,
+        (false, false) => 1,
+    };
+    let mut stages = vec![stage(&k.start, 1), stage(&k.trace, 1), stage(&k.shade, 1)];
+    for _ in 0..l.bounces.max(1) {
+        stages.extend([stage(&k.trace, slots), stage(&k.shade, 1)]);
+    }
+    stages
 }
 
 /// Resolve the kernel's sums exactly as the CPU resolves its own (`PixelSums::resolve`).

@@ -4,36 +4,63 @@
 //! uniform, dispatch and read back.
 //!
 //! Bind groups: group 0 is the scene (`GpuScene`, shared by every kernel), group 1 the
-//! dispatch (frame uniform + the kernel's output), group 2 the beauty kernel's lighting
-//! (`GpuLighting`: uniform + environment tables). The beauty pipeline and its buffers are
-//! built on first use, so an AOV-only run never compiles it.
+//! dispatch (frame uniform + the kernel's output), group 2 the beauty kernels' lighting
+//! (`GpuLighting`: uniform + environment tables), group 3 their path records (`TileBuffers::
+//! work`). The beauty pipelines and their buffers are built on first use, so an AOV-only run
+//! never compiles them.
 
-use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, WORKGROUP};
+use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, PATH_RECORD_BYTES, WORKGROUP};
 use crate::timer::KernelTimer;
 use crate::{shaders, GpuError};
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Tile of one dispatch on a software adapter, in pixels per side: lavapipe's time does not
-/// depend on it, so it keeps the output buffers small (512² × 64 B = 16 MiB of beauty sums).
+/// depend on it, so it keeps the buffers small (512² × 368 B = 92 MiB of beauty path records).
 pub const MAX_TILE: u32 = 512;
 
 /// Tile of one dispatch on a hardware adapter: a 2048² frame in one dispatch. Each dispatch
 /// waits for its slowest lanes (the long marches of a few rays); on an NVIDIA H200 a 2048²
 /// AOV frame took 6.4–11.7 ms in one dispatch against 10.7–18.6 ms in sixteen 512² ones
 /// (docs/gpu.md, "A real GPU"). A 2048² frame costs 192 MiB of AOV tile, 256 MiB of
-/// read-back and, once beauty runs, 256 MiB of sums (smaller frames only what they use,
-/// `TileBuffers`); `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
+/// read-back and, once beauty runs, 256 MiB of sums and 1472 MiB of path records (smaller
+/// frames only what they use, `TileBuffers`); `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
 pub const HARDWARE_TILE: u32 = 2048;
 
-/// Storage buffers the beauty kernel binds in its one stage: the scene's six (prisms,
-/// vertices, BVH nodes and indices, height map, seam stitch records), its sums and the
-/// environment's texels and tables. One over WebGPU's default of 8, so it is requested from
-/// the adapter (native Vulkan, Metal and DX12 adapters allow far more); the AOV kernel binds 7.
-pub const BEAUTY_STORAGE_BUFFERS: u32 = 9;
+/// Storage buffers the beauty kernels bind in the compute stage: the scene's six (prisms,
+/// vertices, BVH nodes and indices, height map, seam stitch records), the sums and the
+/// environment's texels and tables, and in the wavefront schedule the path records. Up to two
+/// over WebGPU's default of 8, so they are requested from the adapter (native Vulkan, Metal
+/// and DX12 adapters allow far more); the AOV kernel binds 7.
+pub const BEAUTY_STORAGE_BUFFERS: u32 = 10;
 
-/// The beauty kernel's pipeline (built on first use).
+/// How a beauty sample is dispatched (`shaders/beauty.wgsl`); both render the same image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BeautySchedule {
+    /// One invocation renders its pixel's whole sample (`render_beauty`). The default on
+    /// software adapters: lavapipe runs it 1.25× faster than the wavefront.
+    Fused,
+    /// Trace and shade as separate dispatches over per-pixel path records (`beauty_start`,
+    /// `beauty_trace`, `beauty_shade`), `PATH_RECORD_BYTES` of GPU memory per pixel of a tile.
+    /// The default on hardware adapters: 19–27% less time per sample on an NVIDIA H200.
+    Wavefront,
+}
+
+impl BeautySchedule {
+    /// Storage buffers its pipeline layout binds.
+    fn storage_buffers(self) -> u32 {
+        match self {
+            BeautySchedule::Fused => BEAUTY_STORAGE_BUFFERS - 1,
+            BeautySchedule::Wavefront => BEAUTY_STORAGE_BUFFERS,
+        }
+    }
+}
+
+/// The wavefront schedule's pipelines (built on first use), the entry points of
+/// `beauty.wgsl`: a sample is `start`, then (`trace`, `shade`) per step of the longest path.
 pub(crate) struct BeautyKernel {
-    pub(crate) pipeline: wgpu::ComputePipeline,
+    pub(crate) start: wgpu::ComputePipeline,
+    pub(crate) trace: wgpu::ComputePipeline,
+    pub(crate) shade: wgpu::ComputePipeline,
 }
 
 /// Which kernel's output a dispatch writes (`GpuContext::output`; it indexes
@@ -61,12 +88,15 @@ pub(crate) struct TileBuffers {
     pub(crate) outputs: [Option<TileOutput>; 2],
     /// The read-back copy either kernel's output goes through.
     pub(crate) readback: Option<wgpu::Buffer>,
+    /// The beauty kernels' path records (`PATH_RECORD_BYTES` per pixel) and their group 3.
+    pub(crate) work: Option<TileOutput>,
 }
 
 impl TileBuffers {
     fn bytes(&self) -> u64 {
-        let outputs = self.outputs.iter().flatten().map(|o| o.buffer.size());
+        let outputs = self.outputs.iter().flatten().chain(&self.work);
         outputs
+            .map(|o| o.buffer.size())
             .chain(self.readback.as_ref().map(|b| b.size()))
             .sum()
     }
@@ -83,7 +113,13 @@ pub struct GpuContext {
     /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables).
     pub(crate) lighting_layout: wgpu::BindGroupLayout,
     beauty_layout: wgpu::BindGroupLayout,
-    beauty: OnceLock<Result<BeautyKernel, String>>,
+    /// Group 3 of the beauty kernels (their path records).
+    work_layout: wgpu::BindGroupLayout,
+    beauty_fused: OnceLock<Result<wgpu::ComputePipeline, String>>,
+    beauty_wavefront: OnceLock<Result<BeautyKernel, String>>,
+    /// The beauty schedule a render takes (`Wavefront` on hardware adapters, `Fused` on
+    /// software ones, or `PRISMBAKE_GPU_BEAUTY`).
+    beauty_schedule: BeautySchedule,
     /// The output and read-back buffers; they serve one frame at a time.
     pub(crate) busy: Mutex<TileBuffers>,
     /// The kernels' own time, where the adapter has timestamp queries.
@@ -95,6 +131,19 @@ pub struct GpuContext {
     /// Pixels per side of one dispatch's tile (`MAX_TILE` or `HARDWARE_TILE`, or
     /// `PRISMBAKE_GPU_TILE`).
     pub(crate) tile: u32,
+}
+
+/// The schedule `PRISMBAKE_GPU_BEAUTY` asks for (`None` unset or empty), or why it cannot be
+/// used.
+fn schedule_setting(value: Option<&str>) -> Result<Option<BeautySchedule>, GpuError> {
+    match value.map(str::trim).filter(|v| !v.is_empty()) {
+        None => Ok(None),
+        Some("fused") => Ok(Some(BeautySchedule::Fused)),
+        Some("wavefront") => Ok(Some(BeautySchedule::Wavefront)),
+        Some(v) => Err(GpuError::Setting(format!(
+            "PRISMBAKE_GPU_BEAUTY={v}: the beauty schedule is `fused` (one kernel per sample) or `wavefront` (trace and shade dispatches); unset it for the default (fused on a software adapter, wavefront on a GPU)"
+        ))),
+    }
 }
 
 /// Tile sides `PRISMBAKE_GPU_TILE` accepts.
@@ -116,12 +165,19 @@ fn tile_setting(value: Option<&str>) -> Result<Option<u32>, GpuError> {
     }
 }
 
+/// Bytes per pixel of the largest per-pixel buffer a dispatch binds (the beauty kernels' path
+/// records).
+fn largest_pixel_bytes() -> u64 {
+    (std::mem::size_of::<GpuAovPixel>() as u64)
+        .max(std::mem::size_of::<GpuBeautySums>() as u64)
+        .max(PATH_RECORD_BYTES)
+}
+
 /// The tile side: `setting` (`PRISMBAKE_GPU_TILE`), else `MAX_TILE` on a software adapter and
-/// `HARDWARE_TILE` on others, cut to the largest whose output buffers the device binds
+/// `HARDWARE_TILE` on others, cut to the largest whose per-pixel buffers the device binds
 /// (`limit` bytes).
 fn tile_side(setting: Option<u32>, software: bool, limit: u64) -> u32 {
-    let pixel = std::mem::size_of::<GpuAovPixel>().max(std::mem::size_of::<GpuBeautySums>());
-    let fits = ((limit / pixel as u64) as f64).sqrt() as u32 / WORKGROUP * WORKGROUP;
+    let fits = ((limit / largest_pixel_bytes()) as f64).sqrt() as u32 / WORKGROUP * WORKGROUP;
     setting
         .unwrap_or(if software { MAX_TILE } else { HARDWARE_TILE })
         .min(fits.max(WORKGROUP))
@@ -165,6 +221,8 @@ impl GpuContext {
     async fn new_async() -> Result<GpuContext, GpuError> {
         // A setting that cannot be used is refused before any device is opened.
         let tile_wanted = tile_setting(std::env::var("PRISMBAKE_GPU_TILE").ok().as_deref())?;
+        let schedule_wanted =
+            schedule_setting(std::env::var("PRISMBAKE_GPU_BEAUTY").ok().as_deref())?;
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
@@ -263,6 +321,10 @@ impl GpuContext {
                 storage_entry(1, false), // beauty_sums: array<BeautySums>
             ],
         });
+        let work_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("beauty paths"),
+            entries: &[storage_entry(0, false)], // paths: array<PathRecord>
+        });
         let lighting_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("lighting"),
             entries: &[
@@ -271,10 +333,10 @@ impl GpuContext {
                 storage_entry(2, true), // env_tables: array<f32>
             ],
         });
-        let aov_pipeline = build_pipeline(
+        let [aov_pipeline] = build_pipelines(
             &device,
-            "render_aovs",
             &shaders::aov_module_source(),
+            ["render_aovs"],
             &[&scene_layout, &aov_layout],
         )
         .await?;
@@ -285,9 +347,14 @@ impl GpuContext {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let software = adapter_info.device_type == wgpu::DeviceType::Cpu;
+        let beauty_schedule = schedule_wanted.unwrap_or(match software {
+            true => BeautySchedule::Fused,
+            false => BeautySchedule::Wavefront,
+        });
         let tile = tile_side(
             tile_wanted,
-            adapter_info.device_type == wgpu::DeviceType::Cpu,
+            software,
             device
                 .limits()
                 .max_storage_buffer_binding_size
@@ -305,7 +372,10 @@ impl GpuContext {
             aov_layout,
             lighting_layout,
             beauty_layout,
-            beauty: OnceLock::new(),
+            work_layout,
+            beauty_fused: OnceLock::new(),
+            beauty_wavefront: OnceLock::new(),
+            beauty_schedule,
             busy: Mutex::new(TileBuffers::default()),
             timer,
             driver_error,
@@ -371,40 +441,82 @@ impl GpuContext {
         self.device.limits().max_storage_buffer_binding_size
     }
 
-    /// Compile the beauty kernel now rather than with the first beauty frame (so that a job's
-    /// frame times do not include it).
-    pub fn prepare_beauty(&self) -> Result<(), GpuError> {
-        self.beauty_kernel().map(|_| ())
+    /// The beauty schedule a render on this context takes by default.
+    pub fn beauty_schedule(&self) -> BeautySchedule {
+        self.beauty_schedule
     }
 
-    /// The beauty kernel, compiled on first use (an AOV-only run never builds it).
-    pub(crate) fn beauty_kernel(&self) -> Result<&BeautyKernel, GpuError> {
-        self.beauty
-            .get_or_init(|| pollster::block_on(self.build_beauty()).map_err(|e| e.to_string()))
+    /// Compile the beauty kernels of the context's schedule now rather than with the first
+    /// beauty frame (so that a job's frame times do not include it).
+    pub fn prepare_beauty(&self) -> Result<(), GpuError> {
+        match self.beauty_schedule {
+            BeautySchedule::Fused => self.beauty_fused().map(|_| ()),
+            BeautySchedule::Wavefront => self.beauty_wavefront().map(|_| ()),
+        }
+    }
+
+    /// The fused beauty kernel, compiled on first use (an AOV-only run never builds it).
+    pub(crate) fn beauty_fused(&self) -> Result<&wgpu::ComputePipeline, GpuError> {
+        let build = || {
+            self.check_beauty_bindings(BeautySchedule::Fused)?;
+            let [fused] = pollster::block_on(build_pipelines(
+                &self.device,
+                &shaders::beauty_module_source(),
+                ["render_beauty"],
+                &[
+                    &self.scene_layout,
+                    &self.beauty_layout,
+                    &self.lighting_layout,
+                ],
+            ))?;
+            Ok(fused)
+        };
+        self.beauty_fused
+            .get_or_init(|| build().map_err(|e: GpuError| e.to_string()))
             .as_ref()
             .map_err(|e| GpuError::Shader(e.clone()))
     }
 
-    async fn build_beauty(&self) -> Result<BeautyKernel, GpuError> {
+    /// The wavefront beauty kernels, compiled on first use.
+    pub(crate) fn beauty_wavefront(&self) -> Result<&BeautyKernel, GpuError> {
+        self.beauty_wavefront
+            .get_or_init(|| pollster::block_on(self.build_wavefront()).map_err(|e| e.to_string()))
+            .as_ref()
+            .map_err(|e| GpuError::Shader(e.clone()))
+    }
+
+    /// Whether the device binds the storage buffers `schedule` needs in one stage.
+    fn check_beauty_bindings(&self, schedule: BeautySchedule) -> Result<(), GpuError> {
         let have = self.device.limits().max_storage_buffers_per_shader_stage;
-        if have < BEAUTY_STORAGE_BUFFERS {
+        let need = schedule.storage_buffers();
+        if have < need {
             return Err(GpuError::Unsupported(format!(
-                "beauty binds {BEAUTY_STORAGE_BUFFERS} storage buffers in one shader stage and {} allows {have}; render AOVs on it or use --device cpu",
+                "beauty ({schedule:?}) binds {need} storage buffers in one shader stage and {} allows {have}; render AOVs on it or use --device cpu",
                 self.adapter_info.name
             )));
         }
-        let pipeline = build_pipeline(
+        Ok(())
+    }
+
+    async fn build_wavefront(&self) -> Result<BeautyKernel, GpuError> {
+        self.check_beauty_bindings(BeautySchedule::Wavefront)?;
+        let [start, trace, shade] = build_pipelines(
             &self.device,
-            "render_beauty",
             &shaders::beauty_module_source(),
+            ["beauty_start", "beauty_trace", "beauty_shade"],
             &[
                 &self.scene_layout,
                 &self.beauty_layout,
                 &self.lighting_layout,
+                &self.work_layout,
             ],
         )
         .await?;
-        Ok(BeautyKernel { pipeline })
+        Ok(BeautyKernel {
+            start,
+            trace,
+            shade,
+        })
     }
 
     /// Wait until the GPU has finished everything submitted so far (then `check`).
@@ -501,6 +613,35 @@ impl GpuContext {
         Ok(slot.as_ref().expect("allocated above"))
     }
 
+    /// The beauty kernels' path records (`TileBuffers::work`) and their group-3 bind group,
+    /// holding at least `bytes` (reallocated, the old one dropped first, when smaller).
+    pub(crate) fn work<'b>(
+        &self,
+        work: &'b mut Option<TileOutput>,
+        bytes: u64,
+    ) -> Result<&'b TileOutput, GpuError> {
+        if work.as_ref().is_none_or(|o| o.buffer.size() < bytes) {
+            *work = None;
+            let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("beauty paths"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            });
+            let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("beauty paths"),
+                layout: &self.work_layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: buffer.as_entire_binding(),
+                }],
+            });
+            self.check()?;
+            *work = Some(TileOutput { buffer, group });
+        }
+        Ok(work.as_ref().expect("allocated above"))
+    }
+
     /// Bytes of GPU memory the output and read-back buffers hold now: those of the largest
     /// tile rendered so far by each kernel (none before the first frame).
     pub fn tile_buffer_bytes(&self) -> u64 {
@@ -539,37 +680,40 @@ impl GpuContext {
     }
 }
 
-/// Compile `source` and build the compute pipeline of `entry` over `layouts` (groups 0, 1, …);
-/// a WGSL or validation error becomes `GpuError::Shader`.
-async fn build_pipeline(
+/// Compile `source` once and build the compute pipeline of each of its `entries` over one
+/// layout of `layouts` (groups 0, 1, …); a WGSL or validation error becomes `GpuError::Shader`.
+async fn build_pipelines<const N: usize>(
     device: &wgpu::Device,
-    entry: &str,
     source: &str,
+    entries: [&str; N],
     layouts: &[&wgpu::BindGroupLayout],
-) -> Result<wgpu::ComputePipeline, GpuError> {
+) -> Result<[wgpu::ComputePipeline; N], GpuError> {
+    let label = entries.join(", ");
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(entry),
+        label: Some(&label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
     let groups: Vec<Option<&wgpu::BindGroupLayout>> = layouts.iter().map(|l| Some(*l)).collect();
     let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(entry),
+        label: Some(&label),
         bind_group_layouts: &groups,
         immediate_size: 0,
     });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
+    let pipelines = entries.map(|entry| {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
     });
     if let Some(e) = scope.pop().await {
-        return Err(GpuError::Shader(format!("{entry}: {e}")));
+        return Err(GpuError::Shader(format!("{label}: {e}")));
     }
-    Ok(pipeline)
+    Ok(pipelines)
 }
 
 #[cfg(test)]
@@ -593,14 +737,35 @@ mod tests {
     }
 
     #[test]
+    fn schedule_setting_takes_the_two_schedules_and_names_the_fix() {
+        assert_eq!(schedule_setting(None).unwrap(), None);
+        assert_eq!(schedule_setting(Some("")).unwrap(), None);
+        assert_eq!(
+            schedule_setting(Some("fused")).unwrap(),
+            Some(BeautySchedule::Fused)
+        );
+        assert_eq!(
+            schedule_setting(Some(" wavefront ")).unwrap(),
+            Some(BeautySchedule::Wavefront)
+        );
+        for bad in ["Fused", "split", "1"] {
+            let e = schedule_setting(Some(bad)).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("PRISMBAKE_GPU_BEAUTY={bad}")) && e.contains("wavefront"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
     fn tile_side_is_the_setting_or_the_default_within_the_binding_limit() {
         let big = u64::MAX / 2;
         assert_eq!(tile_side(None, true, big), MAX_TILE);
         assert_eq!(tile_side(None, false, big), HARDWARE_TILE);
         assert_eq!(tile_side(Some(1024), false, big), 1024);
-        // WebGPU's default binding limit (128 MiB) holds 1448² beauty sums of 64 bytes: cut to
-        // a multiple of the workgroup.
-        let pixel = std::mem::size_of::<GpuBeautySums>() as u64;
+        // WebGPU's default binding limit (128 MiB) holds 590² beauty path records of 368
+        // bytes: cut to a multiple of the workgroup.
+        let pixel = PATH_RECORD_BYTES;
         let t = tile_side(None, false, 128 << 20);
         assert_eq!(t % WORKGROUP, 0);
         assert!((t as u64).pow(2) * pixel <= 128 << 20);

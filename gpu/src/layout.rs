@@ -19,6 +19,12 @@ pub const NO_STITCH: u32 = u32::MAX;
 /// `div_ceil(tile, WORKGROUP)` groups per axis.
 pub const WORKGROUP: u32 = 8;
 
+/// Bytes of one pixel's path record in the beauty kernels' work buffer (`PathRecord` in
+/// `shaders/beauty.wgsl`: the path's state between dispatches, its three ray slots and their
+/// answers). Only the GPU reads it; the host sizes the buffer (tile² records) and the layout
+/// test checks this against the WGSL.
+pub const PATH_RECORD_BYTES: u64 = 368;
+
 /// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
 /// index of its stitch record (`StitchField::record_index`).
 #[repr(C)]

@@ -36,8 +36,8 @@ pub mod scene;
 pub mod shaders;
 mod timer;
 
-pub use beauty::{render_beauty, GpuBeautyScene};
-pub use context::GpuContext;
+pub use beauty::{render_beauty, render_beauty_scheduled, GpuBeautyScene};
+pub use context::{BeautySchedule, GpuContext};
 pub use render::render_aovs;
 pub use scene::GpuScene;
 

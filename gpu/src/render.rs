@@ -1,10 +1,10 @@
 //! `render_aovs` on the GPU: the mirror of `prismbake::render::render_aovs`, returning the same
-//! `AovImage`. Both kernels (AOVs, beauty) render one sample per dispatch into per-pixel sums
-//! (`render_samples`): tiles of at most the context's tile² pixels, each cleared, dispatched
-//! `spp` times and read back.
+//! `AovImage`. Both kernels (AOVs, beauty) render one sample per submission into per-pixel
+//! sums (`render_samples`): tiles of at most the context's tile² pixels, each cleared, its
+//! stages dispatched `spp` times and read back.
 
 use crate::context::{GpuContext, Output, TileBuffers};
-use crate::layout::{GpuAovPixel, GpuFrame, WORKGROUP};
+use crate::layout::{GpuAovPixel, GpuFrame, PATH_RECORD_BYTES, WORKGROUP};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::{Vec2, Vec3};
@@ -56,12 +56,23 @@ pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> Gpu
     }
 }
 
-/// One kernel's dispatch over a frame: its pipeline, the output its group 1 writes (`T` per
-/// pixel of a tile; group 0 is the scene) and its bind groups 2...
-pub(crate) struct Kernel<'a> {
+/// One dispatch of a sample: a pipeline and its grid, `div_ceil(tile, WORKGROUP)` groups
+/// across and `layers` times that down (the beauty trace's ray slots, `beauty_trace`).
+#[derive(Clone, Copy)]
+pub(crate) struct Stage<'a> {
     pub pipeline: &'a wgpu::ComputePipeline,
+    pub layers: u32,
+}
+
+/// A kernel over a frame: the stages one sample dispatches, in order (wgpu puts a barrier
+/// between dispatches that write the same buffer), the output its group 1 writes (`T` per
+/// pixel of a tile; group 0 is the scene), its bind groups 2..., and whether it takes the
+/// beauty path records as its last group (`TileBuffers::work`).
+pub(crate) struct Kernel<'a> {
+    pub stages: &'a [Stage<'a>],
     pub output: Output,
     pub groups: &'a [&'a wgpu::BindGroup],
+    pub paths: bool,
     pub label: &'static str,
 }
 
@@ -86,8 +97,13 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
     let passes = tiles.len() as u64 * spp as u64;
     let mut done = 0u64;
     let mut bufs = ctx.busy.lock().unwrap_or_else(|e| e.into_inner());
-    let TileBuffers { outputs, readback } = &mut *bufs;
-    let largest = (w.min(ctx.tile) * h.min(ctx.tile)) as u64 * std::mem::size_of::<T>() as u64;
+    let TileBuffers {
+        outputs,
+        readback,
+        work,
+    } = &mut *bufs;
+    let largest_tile = (w.min(ctx.tile) * h.min(ctx.tile)) as u64;
+    let largest = largest_tile * std::mem::size_of::<T>() as u64;
     let encoder = |label| {
         ctx.device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) })
@@ -100,6 +116,10 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
         let (tw, th) = ((w - tx).min(ctx.tile), (h - ty).min(ctx.tile));
         let bytes = (tw * th) as u64 * std::mem::size_of::<T>() as u64;
         let output = ctx.output(outputs, kernel.output, largest)?;
+        let paths = match kernel.paths {
+            true => Some(ctx.work(work, largest_tile * PATH_RECORD_BYTES)?),
+            false => None,
+        };
         let mut clear = encoder("clear tile");
         clear.clear_buffer(&output.buffer, 0, Some(bytes));
         ctx.queue.submit([clear.finish()]);
@@ -118,13 +138,20 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
                     label: Some(kernel.label),
                     timestamp_writes: timer.as_mut().map(|t| t.pass_writes()),
                 });
-                pass.set_pipeline(kernel.pipeline);
                 pass.set_bind_group(0, &scene.group, &[]);
                 pass.set_bind_group(1, &output.group, &[]);
-                for (i, g) in kernel.groups.iter().enumerate() {
-                    pass.set_bind_group(i as u32 + 2, *g, &[]);
+                let groups = kernel.groups.iter().copied();
+                for (i, g) in groups.chain(paths.map(|p| &p.group)).enumerate() {
+                    pass.set_bind_group(i as u32 + 2, g, &[]);
                 }
-                pass.dispatch_workgroups(tw.div_ceil(WORKGROUP), th.div_ceil(WORKGROUP), 1);
+                for stage in kernel.stages {
+                    pass.set_pipeline(stage.pipeline);
+                    pass.dispatch_workgroups(
+                        tw.div_ceil(WORKGROUP),
+                        th.div_ceil(WORKGROUP) * stage.layers,
+                        1,
+                    );
+                }
             }
             ctx.queue.submit([enc.finish()]);
             ctx.wait()?;
@@ -166,9 +193,13 @@ pub fn render_aovs(
     check_render(s, opts)?;
     let mut pixels = vec![GpuAovPixel::default(); (s.width * s.height) as usize];
     let kernel = Kernel {
-        pipeline: &ctx.aov_pipeline,
+        stages: &[Stage {
+            pipeline: &ctx.aov_pipeline,
+            layers: 1,
+        }],
         output: Output::Aov,
         groups: &[],
+        paths: false,
         label: "render_aovs",
     };
     render_samples(

@@ -1,5 +1,6 @@
 //! GPU vs CPU beauty: the same asset, camera, lighting, material and seed rendered by
-//! `prismbake::render::beauty::render_beauty` (CPU, PDM) and `prismbake_gpu::render_beauty`
+//! `prismbake::render::beauty::render_beauty` (CPU, PDM) and `prismbake_gpu::render_beauty` in
+//! both schedules (`BeautySchedule`: fused, wavefront)
 //! must give the same picture. Both draw the same random numbers for every (pixel, sample,
 //! bounce, purpose) and take the same decisions, so most pixels agree to float rounding; a
 //! sample whose decision flips on a rounding difference (a texel boundary in environment
@@ -27,7 +28,7 @@ use prismbake::render::env::{EnvFrame, EnvMap};
 use prismbake::render::shading::{luminance, Material};
 use prismbake::render::RenderSettings;
 use prismbake::trace::pdm::{Pdm, PdmOptions};
-use prismbake_gpu::{GpuBeautyScene, GpuScene};
+use prismbake_gpu::{BeautySchedule, GpuBeautyScene, GpuScene};
 
 struct Agreement {
     mean_rel: f64,
@@ -133,17 +134,35 @@ fn check(
     );
     let gpu_scene = GpuScene::upload(ctx(), &ex.scene).expect("upload");
     let lighting = GpuBeautyScene::upload(ctx(), bscene).expect("lighting upload");
-    let gpu = prismbake_gpu::render_beauty(
-        ctx(),
-        &gpu_scene,
-        &lighting,
-        &ex.cam,
-        settings,
-        &opts,
-        &|_| {},
-    )
-    .expect("gpu beauty");
-    let a = compare(&cpu, &gpu);
+    // Both schedules, whichever this adapter takes by default.
+    let mut agreement = None;
+    for schedule in [BeautySchedule::Fused, BeautySchedule::Wavefront] {
+        let gpu = prismbake_gpu::render_beauty_scheduled(
+            ctx(),
+            schedule,
+            &gpu_scene,
+            &lighting,
+            &ex.cam,
+            settings,
+            &opts,
+            &|_| {},
+        )
+        .expect("gpu beauty");
+        let label = format!("{label} {schedule:?}");
+        agreement = Some(agree(rel, &label, settings, &cpu, &gpu));
+    }
+    agreement.expect("two schedules")
+}
+
+/// The GPU's beauty against the CPU's: the tolerances of the beauty parity tests.
+fn agree(
+    rel: &str,
+    label: &str,
+    settings: &RenderSettings,
+    cpu: &BeautyImage,
+    gpu: &BeautyImage,
+) -> Agreement {
+    let a = compare(cpu, gpu);
     eprintln!(
         "{rel} {label} {}² {} spp: mean |Δ| {:.2e} | p99 {:.2e} | max {:.2e} (× mean radiance {:.3}) | {:.2}% px > 1e-3 | alpha mean |Δ| {:.2e} | background {:.2e} | rays cpu {:?} gpu {:?}",
         settings.width,

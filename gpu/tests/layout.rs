@@ -46,6 +46,21 @@ fn shared_structs_have_the_same_offsets_and_sizes_in_wgsl() {
     }
 }
 
+#[test]
+fn the_beauty_path_record_is_the_size_the_host_allocates() {
+    // GPU-only (no host struct mirrors it), but the host sizes the buffer: tile² records.
+    let m = beauty_module();
+    let (_, ty) = m
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some("PathRecord"))
+        .expect("struct PathRecord in beauty.wgsl");
+    let naga::TypeInner::Struct { span, .. } = &ty.inner else {
+        panic!("PathRecord is not a struct");
+    };
+    assert_eq!(*span as u64, layout::PATH_RECORD_BYTES);
+}
+
 fn constant(m: &naga::Module, name: &str) -> naga::Literal {
     let (_, c) = m
         .constants
@@ -116,6 +131,9 @@ fn modules_validate_and_state_the_host_workgroup_size() {
     for (m, entry) in [
         (module(), "render_aovs"),
         (beauty_module(), "render_beauty"),
+        (beauty_module(), "beauty_start"),
+        (beauty_module(), "beauty_trace"),
+        (beauty_module(), "beauty_shade"),
     ] {
         naga::valid::Validator::new(
             naga::valid::ValidationFlags::all(),
