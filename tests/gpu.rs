@@ -217,11 +217,11 @@ fn gpu_render_traces_the_seam_mode_it_is_given() {
 /// A tile side the GPU path cannot use is refused before any frame, naming the variable and
 /// the fix; `--device gpu` exits non-zero and writes nothing, `auto` says why it took the CPU.
 #[test]
-fn an_unusable_gpu_tile_setting_is_an_error_naming_the_fix() {
+fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
     let dir = temp_dir("gpu-tile-setting");
     let out = dir.join("out");
     let torus = example("torus/torus.obj");
-    let render = |device: &str, tile: &str| {
+    let render = |device: &str, var: &str, value: &str| {
         run_in_env(
             &repo_root(),
             &[
@@ -231,18 +231,39 @@ fn an_unusable_gpu_tile_setting_is_an_error_naming_the_fix() {
                 device,
                 "--res",
                 "16x16",
+                "--aov",
+                "beauty",
                 "-o",
                 s(&out),
             ],
-            &[("PRISMBAKE_GPU_TILE", tile)],
+            &[(var, value)],
         )
     };
-    render("gpu", "1020").assert_error(&["PRISMBAKE_GPU_TILE=1020", "multiple of 8", "unset it"]);
+    render("gpu", "PRISMBAKE_GPU_TILE", "1020").assert_error(&[
+        "PRISMBAKE_GPU_TILE=1020",
+        "multiple of 8",
+        "unset it",
+    ]);
+    render("gpu", "PRISMBAKE_GPU_BEAUTY", "split").assert_error(&[
+        "PRISMBAKE_GPU_BEAUTY=split",
+        "`fused`",
+        "`wavefront`",
+        "unset it",
+    ]);
     assert!(
         !out.exists() || files_in(&out).is_empty(),
         "files were written"
     );
-    let auto = render("auto", "huge");
+    // Both schedules render when asked for by name.
+    for schedule in ["fused", "wavefront"] {
+        render("gpu", "PRISMBAKE_GPU_BEAUTY", schedule).assert_success();
+        assert!(
+            out.join("beauty.png").is_file(),
+            "{schedule}: no beauty.png"
+        );
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+    let auto = render("auto", "PRISMBAKE_GPU_TILE", "huge");
     auto.assert_success();
     assert!(
         auto.stderr.contains("device: cpu (PRISMBAKE_GPU_TILE=huge"),
