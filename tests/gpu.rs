@@ -254,9 +254,15 @@ fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
         !out.exists() || files_in(&out).is_empty(),
         "files were written"
     );
-    // Both schedules render when asked for by name.
+    // Both schedules render when asked for by name, and the log says which ran.
     for schedule in ["fused", "wavefront"] {
-        render("gpu", "PRISMBAKE_GPU_BEAUTY", schedule).assert_success();
+        let r = render("gpu", "PRISMBAKE_GPU_BEAUTY", schedule);
+        r.assert_success();
+        assert!(
+            r.stderr.contains(&format!("beauty schedule {schedule}")),
+            "{schedule}: the log does not name the schedule:\n{}",
+            r.stderr
+        );
         assert!(
             out.join("beauty.png").is_file(),
             "{schedule}: no beauty.png"

@@ -239,7 +239,11 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
             .ok(),
     };
     if let Some(ctx) = &gpu {
-        eprintln!("device: gpu ({})", ctx.adapter_description());
+        let schedule = match aovs.contains(&Aov::Beauty) {
+            true => format!(", beauty schedule {}", ctx.beauty_schedule().name()),
+            false => String::new(),
+        };
+        eprintln!("device: gpu ({}){schedule}", ctx.adapter_description());
     }
     let look = lookdev_options(&a)?;
     let pool = rayon::ThreadPoolBuilder::new()

@@ -46,6 +46,14 @@ pub enum BeautySchedule {
 }
 
 impl BeautySchedule {
+    /// Its name, as `PRISMBAKE_GPU_BEAUTY` takes it.
+    pub fn name(self) -> &'static str {
+        match self {
+            BeautySchedule::Fused => "fused",
+            BeautySchedule::Wavefront => "wavefront",
+        }
+    }
+
     /// Storage buffers its pipeline layout binds.
     fn storage_buffers(self) -> u32 {
         match self {
