@@ -301,3 +301,69 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
         check(rel, &ex, &bscene, &settings, label);
     }
 }
+
+#[test]
+fn wavefront_path_records_are_sized_to_the_frame_and_fused_takes_none() {
+    // The wavefront's path records (PATH_RECORD_BYTES per pixel) live beside the sums and the
+    // read-back, sized to the largest frame rendered; the fused kernel allocates none.
+    use prismbake_gpu::layout::{GpuBeautySums, PATH_RECORD_BYTES};
+    let rel = "torus/torus.obj";
+    let ex = example_scene(rel);
+    let env = sun_env(EnvFrame {
+        z_up: false,
+        rotation: 0.0,
+    });
+    let bscene = BeautyScene {
+        env: &env,
+        env_lights: true,
+        key: None,
+        material: Material::default(),
+        ground: None,
+        bounces: 2,
+        eps: ground_and_eps(&ex, Vec3::Y).1,
+    };
+    let sums = std::mem::size_of::<GpuBeautySums>() as u64;
+    for schedule in [BeautySchedule::Wavefront, BeautySchedule::Fused] {
+        let own = prismbake_gpu::GpuContext::new().expect("a context of its own");
+        let scene = GpuScene::upload(&own, &ex.scene).expect("upload");
+        let lighting = GpuBeautyScene::upload(&own, &bscene).expect("lighting upload");
+        let render = |w: u32, h: u32| {
+            let s = RenderSettings {
+                width: w,
+                height: h,
+                spp: 1,
+                seed: 3,
+            };
+            prismbake_gpu::render_beauty_scheduled(
+                &own,
+                schedule,
+                &scene,
+                &lighting,
+                &ex.cam,
+                &s,
+                &PdmOptions::default(),
+                &|_| {},
+            )
+            .expect("gpu beauty")
+        };
+        let per_pixel = match schedule {
+            BeautySchedule::Wavefront => 2 * sums + PATH_RECORD_BYTES,
+            BeautySchedule::Fused => 2 * sums,
+        };
+        let small = render(40, 24);
+        assert_eq!(own.tile_buffer_bytes(), 40 * 24 * per_pixel, "{schedule:?}");
+        render(64, 48);
+        assert_eq!(own.tile_buffer_bytes(), 64 * 48 * per_pixel, "{schedule:?}");
+        let again = render(40, 24);
+        assert_eq!(
+            own.tile_buffer_bytes(),
+            64 * 48 * per_pixel,
+            "{schedule:?}: kept for the smaller frame"
+        );
+        assert_eq!(
+            small.rgba, again.rgba,
+            "{schedule:?}: a frame after a larger one"
+        );
+        assert!(small.counters.rays > 40 * 24, "{schedule:?}: no surface");
+    }
+}
