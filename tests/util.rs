@@ -75,11 +75,19 @@ impl Output {
 }
 
 /// A `render --json` summary's frame times hold together: each frame's trace time and file
-/// time are > 0 and add up to its wall time, and the device's own clock (GPU timestamps) is
-/// reported, inside the trace time, exactly when `device_clock` (`null` on the CPU).
+/// time are > 0 and add up to its own time, the device's own clock (GPU timestamps) is
+/// reported, inside the trace time, exactly when `device_clock` (`null` on the CPU), and the
+/// job's wall time for its frames is at least all their traces, one after the other, and at
+/// least all their files (a frame's files are written while the next one traces).
 pub fn assert_frame_times(summary: &serde_json::Value, device_clock: bool) {
     let frames = summary["frames"].as_array().expect("frames");
     assert!(!frames.is_empty());
+    let wall = summary["frames_seconds"]
+        .as_f64()
+        .unwrap_or_else(|| panic!("no frames_seconds: {summary}"));
+    let total = |k: &str| frames.iter().map(|f| f[k].as_f64().unwrap()).sum::<f64>();
+    assert!(wall >= total("trace_seconds"), "{summary}");
+    assert!(wall >= total("write_seconds"), "{summary}");
     for f in frames {
         let get = |k: &str| {
             f[k].as_f64()

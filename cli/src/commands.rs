@@ -422,6 +422,15 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
             100.0 * f.coverage
         );
     }
+    if summary.render.frames.len() > 1 {
+        let own: f64 = summary.render.frames.iter().map(|f| f.seconds).sum();
+        eprintln!(
+            "{} frames in {:.3} s (their own {:.3} s: files are written while the next frame traces)",
+            summary.render.frames.len(),
+            summary.render.frames_seconds,
+            own
+        );
+    }
     let b = &summary.beauty_rays;
     if b.rays > 0 {
         eprintln!(

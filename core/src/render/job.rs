@@ -255,9 +255,11 @@ pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     cam
 }
 
-/// One frame's figures. `seconds` is the whole frame; `trace_seconds` the renderer's call
-/// alone (rays traced, and on a GPU the uniforms written, the dispatches waited for and the
-/// image read back), `write_seconds` its files and previews; `device_seconds` the GPU's own
+/// One frame's figures. `seconds` is the frame's own work, `trace_seconds` + `write_seconds`:
+/// `trace_seconds` the renderer's call alone (rays traced, and on a GPU the uniforms written,
+/// the dispatches waited for and the image read back), `write_seconds` its files and previews
+/// (written while the next frame traces, so a job takes less than the sum of its frames'
+/// `seconds`: `RenderSummary::frames_seconds`); `device_seconds` the GPU's own
 /// timestamps summed over the frame's dispatches (kernel time alone), where the adapter has
 /// timestamp queries (`null` on the CPU). `mrays_per_s` is over `trace_seconds`.
 #[derive(Debug, Serialize)]
@@ -281,6 +283,9 @@ pub struct RenderSummary {
     pub setup_seconds: f64,
     pub method_memory_bytes: usize,
     pub frames: Vec<FrameStats>,
+    /// Wall time of all the frames, files included (each frame's files are written while the
+    /// next one traces).
+    pub frames_seconds: f64,
     pub files: Vec<PathBuf>,
 }
 

@@ -142,8 +142,9 @@ pub struct LookdevSummary {
 }
 
 /// What renders the frames of a lookdev job: the CPU (`CpuFrames`, any intersector) or a GPU.
-/// Both get the same cameras, settings and `BeautyScene` from `render_all`.
-pub trait FrameRenderer {
+/// Both get the same cameras, settings and `BeautyScene` from `render_all`, which traces a
+/// frame while the last one's files are written (hence `Sync`).
+pub trait FrameRenderer: Sync {
     /// "cpu (2 threads)", "gpu (adapter name ...)": the summary's `device`.
     fn device(&self) -> String;
     /// Bytes the method holds beyond mesh and map (`Intersector::memory_bytes`).
@@ -353,6 +354,101 @@ pub fn frame_list(job: &RenderJob) -> Vec<Option<u32>> {
     }
 }
 
+/// A frame traced and not yet written: its images and its figures so far.
+struct TracedFrame {
+    frame: Option<u32>,
+    aovs: Option<AovImage>,
+    beauty: Option<BeautyImage>,
+    stats: FrameStats,
+}
+
+/// Trace one frame: the AOVs (if any are asked for), then beauty (if `beauty` is given).
+fn trace_frame(
+    renderer: &dyn FrameRenderer,
+    cam: &Camera,
+    frame: Option<u32>,
+    job: &RenderJob,
+    aov_list: &[Aov],
+    beauty: Option<&BeautyScene>,
+    progress: &(dyn Fn(usize) + Sync),
+) -> Result<TracedFrame> {
+    // Time in the renderer's calls; the frame's files are timed by `TracedFrame::write`.
+    let mut trace_seconds = 0.0;
+    let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
+    let mut aovs = None;
+    if !aov_list.is_empty() {
+        let report = |rows: usize| {
+            if beauty.is_none() {
+                progress(rows)
+            }
+        };
+        let traced = Instant::now();
+        let img = renderer.render_aovs(cam, &job.settings, &report)?;
+        trace_seconds += traced.elapsed().as_secs_f64();
+        rays += img.rays;
+        steps += img.total_steps;
+        coverage = img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64;
+        aovs = Some(img);
+    }
+    let mut beauty_img = None;
+    if let Some(scene) = beauty {
+        let traced = Instant::now();
+        let img = renderer.render_beauty(cam, &job.settings, scene, progress)?;
+        trace_seconds += traced.elapsed().as_secs_f64();
+        rays += img.counters.rays + img.counters.shadow_rays();
+        if aov_list.is_empty() {
+            coverage = img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
+        }
+        beauty_img = Some(img);
+    }
+    Ok(TracedFrame {
+        frame,
+        aovs,
+        beauty: beauty_img,
+        stats: FrameStats {
+            frame,
+            seconds: trace_seconds,
+            trace_seconds,
+            write_seconds: 0.0,
+            device_seconds: renderer.take_device_seconds(),
+            rays,
+            mrays_per_s: rays as f64 / trace_seconds / 1e6,
+            steps_per_ray: steps as f64 / rays.max(1) as f64,
+            coverage,
+        },
+    })
+}
+
+/// Files written for a frame, its figures complete, and the previews of a turntable's contact
+/// sheets.
+type WrittenFrame = (FrameStats, Vec<PathBuf>, Vec<(Aov, Vec<u8>)>);
+
+impl TracedFrame {
+    /// Write the frame's EXR and PNG files into `dir` (and keep each image's preview for the
+    /// contact sheets when `sheets`); the write time completes its figures.
+    fn write(self, dir: &Path, aov_list: &[Aov], sheets: bool) -> Result<WrittenFrame> {
+        let t = Instant::now();
+        let mut files = vec![];
+        let mut previews = vec![];
+        if let Some(img) = &self.aovs {
+            files.extend(output::write_frame(dir, img, aov_list, self.frame)?);
+            if sheets {
+                previews.extend(aov_list.iter().map(|&a| (a, output::preview(img, a))));
+            }
+        }
+        if let Some(img) = &self.beauty {
+            files.extend(output::write_beauty(dir, img, self.frame)?);
+            if sheets {
+                previews.push((Aov::Beauty, beauty::beauty_preview(img)));
+            }
+        }
+        let mut stats = self.stats;
+        stats.write_seconds = t.elapsed().as_secs_f64();
+        stats.seconds = stats.trace_seconds + stats.write_seconds;
+        Ok((stats, files, previews))
+    }
+}
+
 /// Render every frame of the job from a loaded session with `renderer` and write its files
 /// (frames, contact sheets).
 pub fn render_all(
@@ -414,6 +510,7 @@ pub fn render_all(
             setup_seconds: s.setup_seconds,
             method_memory_bytes: renderer.memory_bytes(),
             frames: vec![],
+            frames_seconds: 0.0,
             files: vec![],
         },
         table_cache: s.cache.clone(),
@@ -424,75 +521,55 @@ pub fn render_all(
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
         job.aovs.iter().map(|a| (*a, Vec::new())).collect();
     let (w, h) = (job.settings.width, job.settings.height);
-    for (i, frame) in frames.iter().enumerate() {
-        let cam = match (frame, job.turntable) {
-            (Some(f), Some(n)) => s.cam0.turntable(*f, n),
-            _ => s.cam0,
-        };
-        let t = Instant::now();
-        // Time in the renderer's calls; the rest of the frame is files and previews.
-        let mut trace_seconds = 0.0;
-        let (mut rays, mut steps, mut coverage) = (0u64, 0u64, 0.0f64);
-        if !aov_list.is_empty() {
-            let report = |rows: usize| {
-                if !want_beauty {
-                    progress(i, rows)
-                }
-            };
-            let traced = Instant::now();
-            let img = renderer.render_aovs(&cam, &job.settings, &report)?;
-            trace_seconds += traced.elapsed().as_secs_f64();
-            summary.render.files.extend(output::write_frame(
-                &job.out_dir,
-                &img,
-                &aov_list,
-                *frame,
-            )?);
-            rays += img.rays;
-            steps += img.total_steps;
-            coverage = img.mask.iter().map(|&m| m as f64).sum::<f64>() / img.mask.len() as f64;
-            if job.turntable.is_some() {
-                for (aov, list) in previews.iter_mut().filter(|(a, _)| *a != Aov::Beauty) {
-                    list.push(output::preview(&img, *aov));
-                }
-            }
-        }
-        if want_beauty {
-            let traced = Instant::now();
-            let img =
-                renderer.render_beauty(&cam, &job.settings, &bscene, &|rows| progress(i, rows))?;
-            trace_seconds += traced.elapsed().as_secs_f64();
-            summary
-                .render
-                .files
-                .extend(output::write_beauty(&job.out_dir, &img, *frame)?);
-            rays += img.counters.rays + img.counters.shadow_rays();
-            if aov_list.is_empty() {
-                coverage =
-                    img.rgba.iter().map(|c| c[3] as f64).sum::<f64>() / img.rgba.len() as f64;
-            }
-            summary.beauty_rays.rays += img.counters.rays;
-            summary.beauty_rays.key_shadow_rays += img.counters.key_shadow_rays;
-            summary.beauty_rays.env_shadow_rays += img.counters.env_shadow_rays;
-            if job.turntable.is_some() {
-                if let Some((_, list)) = previews.iter_mut().find(|(a, _)| *a == Aov::Beauty) {
-                    list.push(beauty::beauty_preview(&img));
+    let sheets = job.turntable.is_some();
+    // Frame i's files are written while frame i + 1 traces (`rayon::join`, in the job's own
+    // pool: with one thread they simply take turns), and taken in frame order. On a GPU a
+    // frame's files are most of its time (docs/gpu.md, "Frame times").
+    let loop_start = Instant::now();
+    let mut traced: Option<TracedFrame> = None;
+    for next in frames.iter().enumerate().map(Some).chain([None]) {
+        let previous = traced.take();
+        let (written, now) = rayon::join(
+            || previous.map(|f| f.write(&job.out_dir, &aov_list, sheets)),
+            || {
+                next.map(|(i, frame)| {
+                    let cam = match (frame, job.turntable) {
+                        (Some(f), Some(n)) => s.cam0.turntable(*f, n),
+                        _ => s.cam0,
+                    };
+                    trace_frame(
+                        renderer,
+                        &cam,
+                        *frame,
+                        job,
+                        &aov_list,
+                        want_beauty.then_some(&bscene),
+                        &|rows| progress(i, rows),
+                    )
+                })
+            },
+        );
+        if let Some(written) = written {
+            let (stats, files, frame_previews) = written?;
+            summary.render.files.extend(files);
+            summary.render.frames.push(stats);
+            for (aov, preview) in frame_previews {
+                if let Some((_, list)) = previews.iter_mut().find(|(a, _)| *a == aov) {
+                    list.push(preview);
                 }
             }
         }
-        let seconds = t.elapsed().as_secs_f64();
-        summary.render.frames.push(FrameStats {
-            frame: *frame,
-            seconds,
-            trace_seconds,
-            write_seconds: seconds - trace_seconds,
-            device_seconds: renderer.take_device_seconds(),
-            rays,
-            mrays_per_s: rays as f64 / trace_seconds / 1e6,
-            steps_per_ray: steps as f64 / rays.max(1) as f64,
-            coverage,
-        });
+        if let Some(now) = now {
+            let now = now?;
+            if let Some(b) = &now.beauty {
+                summary.beauty_rays.rays += b.counters.rays;
+                summary.beauty_rays.key_shadow_rays += b.counters.key_shadow_rays;
+                summary.beauty_rays.env_shadow_rays += b.counters.env_shadow_rays;
+            }
+            traced = Some(now);
+        }
     }
+    summary.render.frames_seconds = loop_start.elapsed().as_secs_f64();
     summary.shadow_rays = summary.beauty_rays.shadow_rays();
     if job.turntable.is_some() {
         for (aov, list) in &previews {
