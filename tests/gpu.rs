@@ -277,3 +277,52 @@ fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
         auto.stderr
     );
 }
+
+/// A beauty frame split over several GPU tiles (`PRISMBAKE_GPU_TILE=64` on a 96×80 frame:
+/// four tiles of three sizes) is the one-tile frame, in both schedules: the wavefront's path
+/// records are indexed within a tile, its pixels' random numbers over the frame.
+#[test]
+fn gpu_beauty_split_over_tiles_is_the_one_tile_frame_in_both_schedules() {
+    let dir = temp_dir("gpu-beauty-tiles");
+    let sphere = example("sphere/sphere.glb");
+    let render = |schedule: &str, tile: Option<&str>| {
+        let out = dir.join(format!("{schedule}-{}", tile.unwrap_or("whole")));
+        let mut envs = vec![("PRISMBAKE_GPU_BEAUTY", schedule)];
+        envs.extend(tile.map(|t| ("PRISMBAKE_GPU_TILE", t)));
+        run_in_env(
+            &repo_root(),
+            &[
+                "render",
+                s(&sphere),
+                "--device",
+                "gpu",
+                "--aov",
+                "beauty",
+                "--res",
+                "96x80",
+                "--spp",
+                "2",
+                "--key-light",
+                "30,40,2",
+                "--ground",
+                "-o",
+                s(&out),
+            ],
+            &envs,
+        )
+        .assert_success();
+        read_rgba(&out.join("beauty.exr"))
+    };
+    for schedule in ["fused", "wavefront"] {
+        let whole = render(schedule, None);
+        assert!(
+            whole.iter().any(|p| p[3] > 0.5),
+            "{schedule}: the sphere is not in the frame"
+        );
+        assert_eq!(
+            render(schedule, Some("64")),
+            whole,
+            "{schedule}: tiles change the picture"
+        );
+    }
+}
