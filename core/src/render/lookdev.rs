@@ -419,28 +419,28 @@ fn trace_frame(
     })
 }
 
-/// Files written for a frame, its figures complete, and the previews of a turntable's contact
-/// sheets.
-type WrittenFrame = (FrameStats, Vec<PathBuf>, Vec<(Aov, Vec<u8>)>);
+/// A frame's figures complete, its files, and the previews of a turntable's contact sheets.
+type FrameDone = (FrameStats, Vec<PathBuf>, Vec<(Aov, Vec<u8>)>);
 
 impl TracedFrame {
     /// Write the frame's EXR and PNG files into `dir` (and keep each image's preview for the
     /// contact sheets when `sheets`); the write time completes its figures.
-    fn write(self, dir: &Path, aov_list: &[Aov], sheets: bool) -> Result<WrittenFrame> {
+    fn write(self, dir: &Path, aov_list: &[Aov], sheets: bool) -> Result<FrameDone> {
         let t = Instant::now();
         let mut files = vec![];
         let mut previews = vec![];
-        if let Some(img) = &self.aovs {
-            files.extend(output::write_frame(dir, img, aov_list, self.frame)?);
+        // The PNGs' pixels are the contact sheets' cells: computed once.
+        let mut take = |w: output::WrittenFrame| {
+            files.extend(w.files);
             if sheets {
-                previews.extend(aov_list.iter().map(|&a| (a, output::preview(img, a))));
+                previews.extend(w.previews);
             }
+        };
+        if let Some(img) = &self.aovs {
+            take(output::write_frame(dir, img, aov_list, self.frame)?);
         }
         if let Some(img) = &self.beauty {
-            files.extend(output::write_beauty(dir, img, self.frame)?);
-            if sheets {
-                previews.push((Aov::Beauty, beauty::beauty_preview(img)));
-            }
+            take(output::write_beauty(dir, img, self.frame)?);
         }
         let mut stats = self.stats;
         stats.write_seconds = t.elapsed().as_secs_f64();

@@ -173,17 +173,24 @@ pub fn stem(aov: Aov, frame: Option<u32>) -> String {
     }
 }
 
-/// Write `DIR/<stem>.exr` and `DIR/<stem>.png` for every requested AOV; returns the paths.
-/// `Beauty` is skipped: `write_beauty` writes it.
+/// Files written for a frame (in the order of the AOVs asked for) and each AOV's preview (the
+/// PNG's RGB pixels, which a turntable's contact sheet reuses).
+pub struct WrittenFrame {
+    pub files: Vec<PathBuf>,
+    pub previews: Vec<(Aov, Vec<u8>)>,
+}
+
+/// Write `DIR/<stem>.exr` and `DIR/<stem>.png` for every requested AOV; returns the paths and
+/// the previews. `Beauty` is skipped: `write_beauty` writes it.
 pub fn write_frame(
     dir: &Path,
     img: &AovImage,
     aovs: &[Aov],
     frame: Option<u32>,
-) -> Result<Vec<PathBuf>> {
+) -> Result<WrittenFrame> {
     // Each AOV's two files are independent: encoded side by side (ZIP and deflate are most of
     // a frame's writing time), listed in the order of `aovs`.
-    let written: Vec<[PathBuf; 2]> = aovs
+    let written: Vec<_> = aovs
         .par_iter()
         .filter(|a| **a != Aov::Beauty)
         .map(|&aov| {
@@ -197,20 +204,25 @@ pub fn write_frame(
                 &img.channel_data(aov),
             )?;
             let png_path = dir.join(format!("{stem}.png"));
-            write_png_rgb(&png_path, img.width, img.height, &preview(img, aov))?;
-            Ok([exr_path, png_path])
+            let rgb = preview(img, aov);
+            write_png_rgb(&png_path, img.width, img.height, &rgb)?;
+            Ok(([exr_path, png_path], (aov, rgb)))
         })
-        .collect::<Result<_>>()?;
-    Ok(written.into_iter().flatten().collect())
+        .collect::<Result<Vec<([PathBuf; 2], (Aov, Vec<u8>))>>>()?;
+    let (files, previews): (Vec<_>, Vec<_>) = written.into_iter().unzip();
+    Ok(WrittenFrame {
+        files: files.into_iter().flatten().collect(),
+        previews,
+    })
 }
 
 /// Write `DIR/beauty[_NNNN].exr` (linear premultiplied RGBA) and `.png` (the tonemapped
-/// preview over the environment); returns the paths.
+/// preview over the environment); returns the paths and the preview.
 pub fn write_beauty(
     dir: &Path,
     img: &super::beauty::BeautyImage,
     frame: Option<u32>,
-) -> Result<Vec<PathBuf>> {
+) -> Result<WrittenFrame> {
     let stem = stem(Aov::Beauty, frame);
     let exr_path = dir.join(format!("{stem}.exr"));
     let data: Vec<f32> = img.rgba.iter().flatten().copied().collect();
@@ -222,13 +234,12 @@ pub fn write_beauty(
         &data,
     )?;
     let png_path = dir.join(format!("{stem}.png"));
-    write_png_rgb(
-        &png_path,
-        img.width,
-        img.height,
-        &super::beauty::beauty_preview(img),
-    )?;
-    Ok(vec![exr_path, png_path])
+    let rgb = super::beauty::beauty_preview(img);
+    write_png_rgb(&png_path, img.width, img.height, &rgb)?;
+    Ok(WrittenFrame {
+        files: vec![exr_path, png_path],
+        previews: vec![(Aov::Beauty, rgb)],
+    })
 }
 
 /// Read the first channels of an EXR back (tests, comparisons): (width, height, names, data
