@@ -589,36 +589,18 @@ impl GpuContext {
             Output::Aov => (&self.aov_layout, "aov tile"),
             Output::BeautySums => (&self.beauty_layout, "beauty sums tile"),
         };
-        let slot = &mut outputs[which as usize];
-        if slot.as_ref().is_none_or(|o| o.buffer.size() < bytes) {
-            *slot = None;
-            let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes,
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            });
-            let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some(label),
-                layout,
-                entries: &[
-                    wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: self.frame_buffer.as_entire_binding(),
-                    }, // frame
-                    wgpu::BindGroupEntry {
-                        binding: 1,
-                        resource: buffer.as_entire_binding(),
-                    }, // aov_out or beauty_sums
-                ],
-            });
-            // A refused allocation is this render's error (`check`), not a later one's.
-            self.check()?;
-            *slot = Some(TileOutput { buffer, group });
-        }
-        Ok(slot.as_ref().expect("allocated above"))
+        let usage = wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST;
+        // Group 1: the frame uniform, then aov_out or beauty_sums.
+        self.grown(
+            &mut outputs[which as usize],
+            bytes,
+            label,
+            layout,
+            usage,
+            true,
+        )
     }
 
     /// The beauty kernels' path records (`TileBuffers::work`) and their group-3 bind group,
@@ -628,26 +610,53 @@ impl GpuContext {
         work: &'b mut Option<TileOutput>,
         bytes: u64,
     ) -> Result<&'b TileOutput, GpuError> {
-        if work.as_ref().is_none_or(|o| o.buffer.size() < bytes) {
-            *work = None;
+        let usage = wgpu::BufferUsages::STORAGE;
+        self.grown(work, bytes, "beauty paths", &self.work_layout, usage, false)
+    }
+
+    /// The buffer in `slot` and its bind group over `layout`, holding at least `bytes`
+    /// (reallocated, the old one dropped first, when smaller): the buffer is the group's last
+    /// binding, after the frame uniform at binding 0 when `with_frame`.
+    fn grown<'b>(
+        &self,
+        slot: &'b mut Option<TileOutput>,
+        bytes: u64,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        usage: wgpu::BufferUsages,
+        with_frame: bool,
+    ) -> Result<&'b TileOutput, GpuError> {
+        if slot.as_ref().is_none_or(|o| o.buffer.size() < bytes) {
+            *slot = None;
             let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("beauty paths"),
+                label: Some(label),
                 size: bytes,
-                usage: wgpu::BufferUsages::STORAGE,
+                usage,
                 mapped_at_creation: false,
             });
+            let mut entries = vec![];
+            if with_frame {
+                entries.push(self.frame_buffer.as_entire_binding());
+            }
+            entries.push(buffer.as_entire_binding());
+            let entries: Vec<wgpu::BindGroupEntry> = entries
+                .into_iter()
+                .enumerate()
+                .map(|(binding, resource)| wgpu::BindGroupEntry {
+                    binding: binding as u32,
+                    resource,
+                })
+                .collect();
             let group = self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("beauty paths"),
-                layout: &self.work_layout,
-                entries: &[wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: buffer.as_entire_binding(),
-                }],
+                label: Some(label),
+                layout,
+                entries: &entries,
             });
+            // A refused allocation is this render's error (`check`), not a later one's.
             self.check()?;
-            *work = Some(TileOutput { buffer, group });
+            *slot = Some(TileOutput { buffer, group });
         }
-        Ok(work.as_ref().expect("allocated above"))
+        Ok(slot.as_ref().expect("allocated above"))
     }
 
     /// Bytes of GPU memory the output and read-back buffers hold now: those of the largest
