@@ -177,9 +177,10 @@ fn in_tile(gid: vec3<u32>) -> bool {
     return gid.x < frame.tile_size.x && gid.y < frame.tile_size.y;
 }
 
-// The sample's camera ray (render_beauty's jittered primary ray).
-fn sample_camera_ray(px: PixelRef) -> Ray {
-    return camera_ray(vec2f(f32(px.x), f32(px.y)) + pixel_jitter(px.ctx.pixel, px.ctx.sample));
+// The sample's camera ray (render_beauty's jittered primary ray), from the direction
+// `new_path` keeps in `dir` until the first surface event (camera_ray's origin and range).
+fn path_camera_ray(s: PathState) -> Ray {
+    return Ray(frame.cam_from, s.dir, 0.0, T_FAR);
 }
 
 // The three ray slots of a step (indexed by SLOT_*).
@@ -221,7 +222,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
     (*s).flags &= ~(PATH_BSDF_OK | PATH_BSDF_DELTA | PATH_LAST);
     if ((*s).step == STEP_CAMERA) {
         (*s).rays += 1u;
-        q2 = query(sample_camera_ray(px), 0u, false);
+        q2 = query(path_camera_ray(*s), 0u, false);
     } else if ((*s).step == STEP_GROUND) {
         // beauty::ground_light (the camera sample's context: bounce 0).
         let up = lighting.ground_up;
@@ -338,7 +339,7 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
     }
     let step = (*s).step;
     if (step == STEP_CAMERA) {
-        let camera = sample_camera_ray(px);
+        let camera = path_camera_ray(*s);
         var gt = GroundHit(false, 0.0);
         if (lighting.has_ground != 0u) {
             gt = ground_hit(camera);
@@ -420,7 +421,8 @@ fn no_answer() -> Answer {
 
 // A new path: the camera step of the pixel's sample.
 fn new_path(px: PixelRef) -> PathState {
-    return PathState(vec3f(1.0), STEP_CAMERA, sample_camera_ray(px).dir, 0u, vec3f(0.0), 0u,
+    let camera = camera_ray(vec2f(f32(px.x), f32(px.y)) + pixel_jitter(px.ctx.pixel, px.ctx.sample));
+    return PathState(vec3f(1.0), STEP_CAMERA, camera.dir, 0u, vec3f(0.0), 0u,
         vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0,
         vec3f(0.0), 0u, 0u, 0u);
 }
