@@ -354,9 +354,9 @@ pub fn frame_list(job: &RenderJob) -> Vec<Option<u32>> {
     }
 }
 
-/// A frame traced and not yet written: its images and its figures so far.
+/// A frame traced and not yet written: its images and its figures so far (`stats.frame`
+/// names it).
 struct TracedFrame {
-    frame: Option<u32>,
     aovs: Option<AovImage>,
     beauty: Option<BeautyImage>,
     stats: FrameStats,
@@ -402,7 +402,6 @@ fn trace_frame(
         beauty_img = Some(img);
     }
     Ok(TracedFrame {
-        frame,
         aovs,
         beauty: beauty_img,
         stats: FrameStats {
@@ -437,10 +436,10 @@ impl TracedFrame {
             }
         };
         if let Some(img) = &self.aovs {
-            take(output::write_frame(dir, img, aov_list, self.frame)?);
+            take(output::write_frame(dir, img, aov_list, self.stats.frame)?);
         }
         if let Some(img) = &self.beauty {
-            take(output::write_beauty(dir, img, self.frame)?);
+            take(output::write_beauty(dir, img, self.stats.frame)?);
         }
         let mut stats = self.stats;
         stats.write_seconds = t.elapsed().as_secs_f64();
