@@ -278,49 +278,52 @@ fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
     );
 }
 
-/// A beauty frame split over several GPU tiles (`PRISMBAKE_GPU_TILE=64` on a 96×80 frame:
-/// four tiles of three sizes) is the one-tile frame, in both schedules: the wavefront's path
-/// records are indexed within a tile, its pixels' random numbers over the frame.
+/// A frame split over several GPU tiles (`PRISMBAKE_GPU_TILE=64` on a 96×80 frame: four tiles
+/// of three sizes) is the one-tile frame: AOVs, and beauty in both schedules (the wavefront's
+/// path records are indexed within a tile, its pixels' random numbers over the frame). Each
+/// tile is resolved straight from the read-back into its rectangle of the frame, so a tile
+/// written at the wrong row or column, or a missed one, changes the files.
 #[test]
-fn gpu_beauty_split_over_tiles_is_the_one_tile_frame_in_both_schedules() {
-    let dir = temp_dir("gpu-beauty-tiles");
+fn gpu_frames_split_over_tiles_are_the_one_tile_frame() {
+    let dir = temp_dir("gpu-tiles");
     let sphere = example("sphere/sphere.glb");
-    let render = |schedule: &str, tile: Option<&str>| {
-        let out = dir.join(format!("{schedule}-{}", tile.unwrap_or("whole")));
+    let render = |label: &str, aov: &str, schedule: &str, tile: Option<&str>| {
+        let out = dir.join(format!("{label}-{}", tile.unwrap_or("whole")));
         let mut envs = vec![("PRISMBAKE_GPU_BEAUTY", schedule)];
         envs.extend(tile.map(|t| ("PRISMBAKE_GPU_TILE", t)));
-        run_in_env(
-            &repo_root(),
-            &[
-                "render",
-                s(&sphere),
-                "--device",
-                "gpu",
-                "--aov",
-                "beauty",
-                "--res",
-                "96x80",
-                "--spp",
-                "2",
-                "--key-light",
-                "30,40,2",
-                "--ground",
-                "-o",
-                s(&out),
-            ],
-            &envs,
-        )
-        .assert_success();
-        read_rgba(&out.join("beauty.exr"))
+        #[rustfmt::skip]
+        let args = [
+            "render", s(&sphere), "--device", "gpu", "--aov", aov, "--res", "96x80", "--spp", "2",
+            "--key-light", "30,40,2", "--ground", "-o", s(&out),
+        ];
+        run_in_env(&repo_root(), &args, &envs).assert_success();
+        out
     };
+    let aovs = "depth,normal,mask,uv,steps";
+    let whole = render("aovs", aovs, "wavefront", None);
+    let [mask] = read_channels(&whole.join("mask.exr"), ["Y"]);
+    assert!(
+        mask.iter().any(|&m| m > 0.5) && mask.contains(&0.0),
+        "the sphere does not cover part of the frame"
+    );
+    let tiled = render("aovs", aovs, "wavefront", Some("64"));
+    for aov in aovs.split(',') {
+        let file = format!("{aov}.exr");
+        assert!(
+            std::fs::read(whole.join(&file)).unwrap() == std::fs::read(tiled.join(&file)).unwrap(),
+            "{file}: tiles change the AOV"
+        );
+    }
     for schedule in ["fused", "wavefront"] {
-        let whole = render(schedule, None);
+        let beauty =
+            |tile| read_rgba(&render(schedule, "beauty", schedule, tile).join("beauty.exr"));
+        let whole = beauty(None);
         assert!(
             whole.iter().any(|p| p[3] > 0.5),
             "{schedule}: the sphere is not in the frame"
         );
         assert_eq!(
-            render(schedule, Some("64")),
+            beauty(Some("64")),
             whole,
             "{schedule}: tiles change the picture"
         );

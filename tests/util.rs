@@ -151,19 +151,21 @@ pub fn files_in(dir: &Path) -> Vec<String> {
 
 /// RGBA pixels of a beauty EXR.
 pub fn read_rgba(path: &Path) -> Vec<[f32; 4]> {
+    let [r, g, b, a] = read_channels(path, ["R", "G", "B", "A"]);
+    (0..r.len()).map(|i| [r[i], g[i], b[i], a[i]]).collect()
+}
+
+/// The named channels of an EXR's first layer, each as its pixels in row order.
+pub fn read_channels<const N: usize>(path: &Path, names: [&str; N]) -> [Vec<f32>; N] {
     let img = exr::prelude::read_all_flat_layers_from_file(path).unwrap();
     let layer = &img.layer_data[0];
-    let ch = |name: &str| {
-        layer
-            .channel_data
-            .list
-            .iter()
-            .find(|c| c.name.to_string() == name)
-            .unwrap()
-    };
     let n = layer.size.0 * layer.size.1;
-    let (r, g, b, a) = (ch("R"), ch("G"), ch("B"), ch("A"));
-    (0..n)
-        .map(|i| [r, g, b, a].map(|c| c.sample_data.value_by_flat_index(i).to_f32()))
-        .collect()
+    names.map(|name| {
+        let channel = (layer.channel_data.list.iter())
+            .find(|c| c.name.to_string() == name)
+            .unwrap_or_else(|| panic!("{}: no channel {name}", path.display()));
+        (0..n)
+            .map(|i| channel.sample_data.value_by_flat_index(i).to_f32())
+            .collect()
+    })
 }

@@ -15,7 +15,7 @@
 
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
 use crate::layout::{GpuBeautySums, GpuLighting};
-use crate::render::{frame_uniform, render_samples, Kernel, Stage};
+use crate::render::{frame_uniform, render_samples, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
@@ -220,7 +220,14 @@ pub fn render_beauty_scheduled(
     progress: &dyn Fn(usize),
 ) -> Result<BeautyImage, GpuError> {
     crate::render::check_render(s, opts)?;
-    let mut sums = vec![GpuBeautySums::default(); (s.width * s.height) as usize];
+    let n = s.width as usize * s.height as usize;
+    let mut image = BeautyImage {
+        width: s.width,
+        height: s.height,
+        rgba: vec![[0.0; 4]; n],
+        background: vec![Vec3::ZERO; n],
+        counters: BeautyCounters::default(),
+    };
     let stages = match schedule {
         BeautySchedule::Fused => vec![Stage {
             pipeline: ctx.beauty_fused()?,
@@ -240,10 +247,10 @@ pub fn render_beauty_scheduled(
         scene,
         &dispatch,
         frame_uniform(cam, s, opts),
-        &mut sums,
+        &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
         progress,
     )?;
-    Ok(to_image(&sums, s))
+    Ok(image)
 }
 
 /// The dispatches of one sample under lighting `l`: `beauty_start` (camera rays), then a
@@ -265,32 +272,43 @@ fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting) -> Vec<Stage<'k>> {
     stages
 }
 
-/// Resolve the kernel's sums exactly as the CPU resolves its own (`PixelSums::resolve`).
-fn to_image(sums: &[GpuBeautySums], s: &RenderSettings) -> BeautyImage {
-    let mut counters = BeautyCounters::default();
-    let (rgba, background) = sums
-        .iter()
-        .map(|g| {
-            counters.rays += g.rays as u64;
-            counters.key_shadow_rays += g.key_shadow_rays as u64;
-            counters.env_shadow_rays += g.env_shadow_rays as u64;
-            PixelSums {
-                radiance: Vec3::from_array(g.radiance),
-                surface: g.surface,
-                background: Vec3::from_array(g.background),
-                ground_background: Vec3::from_array(g.ground_background),
-                ground_samples: g.ground_samples,
-                ground_lit: g.ground_lit,
-                ground_unshadowed: g.ground_unshadowed,
+/// Resolve a tile of the kernel's sums into `image` exactly as the CPU resolves its own
+/// (`PixelSums::resolve`), on all cores and straight from the read-back.
+fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums], spp: u32) {
+    use rayon::prelude::*;
+    let resolve = |g: &GpuBeautySums| {
+        PixelSums {
+            radiance: Vec3::from_array(g.radiance),
+            surface: g.surface,
+            background: Vec3::from_array(g.background),
+            ground_background: Vec3::from_array(g.ground_background),
+            ground_samples: g.ground_samples,
+            ground_lit: g.ground_lit,
+            ground_unshadowed: g.ground_unshadowed,
+        }
+        .resolve(spp)
+    };
+    rect.frame_rows(&mut image.rgba)
+        .zip(rect.frame_rows(&mut image.background))
+        .zip(rect.tile_rows(tile))
+        .for_each(|((rgba, background), src)| {
+            let dst = rect.span(rgba).iter_mut().zip(rect.span(background));
+            for ((c, b), g) in dst.zip(src) {
+                (*c, *b) = resolve(g);
             }
-            .resolve(s.spp)
+        });
+    let c = &mut image.counters;
+    let (rays, key, env) = tile
+        .par_iter()
+        .map(|g| {
+            (
+                g.rays as u64,
+                g.key_shadow_rays as u64,
+                g.env_shadow_rays as u64,
+            )
         })
-        .unzip();
-    BeautyImage {
-        width: s.width,
-        height: s.height,
-        rgba,
-        background,
-        counters,
-    }
+        .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    c.rays += rays;
+    c.key_shadow_rays += key;
+    c.env_shadow_rays += env;
 }

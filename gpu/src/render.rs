@@ -12,6 +12,7 @@ use prismbake::render::camera::Camera;
 use prismbake::render::{AovImage, RenderSettings};
 use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
 use prismbake::trace::NormalMode;
+use rayon::prelude::*;
 
 /// Orthonormal (right, up, back) of the view, computed exactly as `Camera::ray` computes it.
 pub fn camera_basis(cam: &Camera) -> (Vec3, Vec3, Vec3) {
@@ -79,14 +80,15 @@ pub(crate) struct Kernel<'a> {
 /// Render a frame with a sample-accumulating kernel: per tile of at most the context's tile²,
 /// clear the output, dispatch `div_ceil(tile, WORKGROUP)` workgroups once per sample (the frame
 /// uniform's `sample_index`; written before each submission, so each dispatch sees its own),
-/// read the tile back into `pixels` (row-major, the whole frame). `progress` gets rows
-/// finished, scaled over the samples of every tile.
+/// and hand the tile's pixels (row-major, `tile.width` per row) to `sink` straight from the
+/// mapped read-back buffer, so that a frame's pixels are never copied whole before they are
+/// resolved. `progress` gets rows finished, scaled over the samples of every tile.
 pub(crate) fn render_samples<T: bytemuck::Pod>(
     ctx: &GpuContext,
     scene: &GpuScene,
     kernel: &Kernel,
     base: GpuFrame,
-    pixels: &mut [T],
+    sink: &mut dyn FnMut(TileRect, &[T]),
     progress: &dyn Fn(usize),
 ) -> Result<(), GpuError> {
     let (w, h, spp) = (base.width, base.height, base.spp);
@@ -167,12 +169,14 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
             &output.buffer,
             bytes,
             |data| {
-                let tile: &[T] = bytemuck::cast_slice(data);
-                for row in 0..th {
-                    let src = &tile[(row * tw) as usize..((row + 1) * tw) as usize];
-                    let dst = ((ty + row) * w + tx) as usize;
-                    pixels[dst..dst + tw as usize].copy_from_slice(src);
-                }
+                let rect = TileRect {
+                    x: tx,
+                    y: ty,
+                    width: tw,
+                    height: th,
+                    frame_width: w,
+                };
+                sink(rect, bytemuck::cast_slice(data))
             },
         )?;
     }
@@ -191,7 +195,7 @@ pub fn render_aovs(
     progress: &dyn Fn(usize),
 ) -> Result<AovImage, GpuError> {
     check_render(s, opts)?;
-    let mut pixels = vec![GpuAovPixel::default(); (s.width * s.height) as usize];
+    let mut image = AovImage::blank(s.width, s.height);
     let kernel = Kernel {
         stages: &[Stage {
             pipeline: &ctx.aov_pipeline,
@@ -207,10 +211,93 @@ pub fn render_aovs(
         scene,
         &kernel,
         frame_uniform(cam, s, opts),
-        &mut pixels,
+        &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
         progress,
     )?;
-    Ok(to_image(&pixels, s))
+    image.rays = s.width as u64 * s.height as u64 * s.spp as u64;
+    Ok(image)
+}
+
+/// Where a tile lies in its frame (pixels), for the sink of `render_samples`.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TileRect {
+    pub x: u32,
+    pub y: u32,
+    pub width: u32,
+    pub height: u32,
+    pub frame_width: u32,
+}
+
+impl TileRect {
+    /// The tile's part of a frame row (`frame_width` long).
+    pub fn span<'r, P>(&self, row: &'r mut [P]) -> &'r mut [P] {
+        &mut row[self.x as usize..][..self.width as usize]
+    }
+
+    /// The tile's rows of a frame channel (row-major, `frame_width` per row), in parallel,
+    /// whole: index them with `span`. Zip with `tile_rows` of the tile.
+    pub fn frame_rows<'f, P: Send>(
+        &self,
+        frame: &'f mut [P],
+    ) -> impl IndexedParallelIterator<Item = &'f mut [P]> {
+        frame
+            .par_chunks_mut(self.frame_width as usize)
+            .skip(self.y as usize)
+            .take(self.height as usize)
+    }
+
+    /// The tile's own rows, in parallel.
+    pub fn tile_rows<'t, T: Sync>(
+        &self,
+        tile: &'t [T],
+    ) -> impl IndexedParallelIterator<Item = &'t [T]> {
+        tile.par_chunks(self.width as usize)
+    }
+}
+
+/// Resolve a tile of the kernel's sums into `image` exactly as the CPU resolves its own (mean
+/// depth and uv over hits, normalised normal sum, hits / spp, steps / spp), on all cores, in
+/// one pass over the mapped read-back: at 2048² this is 4 M pixels, an order of magnitude more
+/// host time than a real GPU's kernel.
+fn resolve_tile(image: &mut AovImage, rect: TileRect, tile: &[GpuAovPixel], spp: u32) {
+    let spp = spp as f32;
+    let channels = (
+        rect.frame_rows(&mut image.depth),
+        rect.frame_rows(&mut image.normal),
+        rect.frame_rows(&mut image.mask),
+        rect.frame_rows(&mut image.uv),
+        rect.frame_rows(&mut image.steps),
+        rect.frame_rows(&mut image.prism),
+    );
+    let steps: u64 = channels
+        .into_par_iter()
+        .zip(rect.tile_rows(tile))
+        .map(|((depth, normal, mask, uv, steps, prism), src)| {
+            let rows = (rect.span(depth).iter_mut())
+                .zip(rect.span(normal))
+                .zip(rect.span(mask))
+                .zip(rect.span(uv))
+                .zip(rect.span(steps))
+                .zip(rect.span(prism));
+            let mut total = 0u64;
+            for ((((((d, n), m), u), st), pr), p) in rows.zip(src) {
+                let hits = p.hits.max(1.0);
+                *d = if p.hits > 0.0 {
+                    p.depth_sum / hits
+                } else {
+                    0.0
+                };
+                *n = Vec3::from_array(p.normal_sum).normalize_or_zero();
+                *m = p.hits / spp;
+                *u = Vec2::from_array(p.uv_sum) / hits;
+                *st = p.steps_sum / spp;
+                *pr = p.prism as f32;
+                total += p.steps_sum as u64;
+            }
+            total
+        })
+        .sum();
+    image.total_steps += steps;
 }
 
 /// What every GPU render refuses: the CPU-only PDM construction and an empty image.
@@ -227,45 +314,4 @@ pub(crate) fn check_render(s: &RenderSettings, opts: &PdmOptions) -> Result<(), 
         )));
     }
     Ok(())
-}
-
-/// Turn the kernel's sums into the CPU's `AovImage` exactly as the CPU does (mean depth and
-/// uv over hits, normalised normal sum, hits / spp, steps / spp). On all cores: at 2048² this
-/// is 4 M pixels, an order of magnitude more host time than a real GPU's kernel.
-fn to_image(pixels: &[GpuAovPixel], s: &RenderSettings) -> AovImage {
-    use rayon::prelude::*;
-    let spp = s.spp as f32;
-    let per_pixel = |f: fn(&GpuAovPixel, f32) -> f32| -> Vec<f32> {
-        pixels.par_iter().map(|p| f(p, spp)).collect()
-    };
-    let depth = per_pixel(|p, _| {
-        if p.hits > 0.0 {
-            p.depth_sum / p.hits.max(1.0)
-        } else {
-            0.0
-        }
-    });
-    let mask = per_pixel(|p, spp| p.hits / spp);
-    let steps = per_pixel(|p, spp| p.steps_sum / spp);
-    let prism = per_pixel(|p, _| p.prism as f32);
-    let normal = pixels
-        .par_iter()
-        .map(|p| Vec3::from_array(p.normal_sum).normalize_or_zero())
-        .collect();
-    let uv = pixels
-        .par_iter()
-        .map(|p| Vec2::from_array(p.uv_sum) / p.hits.max(1.0))
-        .collect();
-    AovImage {
-        width: s.width,
-        height: s.height,
-        depth,
-        normal,
-        mask,
-        uv,
-        steps,
-        prism,
-        rays: pixels.len() as u64 * s.spp as u64,
-        total_steps: pixels.par_iter().map(|p| p.steps_sum as u64).sum(),
-    }
 }

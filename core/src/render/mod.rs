@@ -105,6 +105,23 @@ pub struct AovImage {
 }
 
 impl AovImage {
+    /// A `width`×`height` image of zeros (no hits), to be filled in place, e.g. tile by tile.
+    pub fn blank(width: u32, height: u32) -> AovImage {
+        let n = width as usize * height as usize;
+        AovImage {
+            width,
+            height,
+            depth: vec![0.0; n],
+            normal: vec![Vec3::ZERO; n],
+            mask: vec![0.0; n],
+            uv: vec![Vec2::ZERO; n],
+            steps: vec![0.0; n],
+            prism: vec![0.0; n],
+            rays: 0,
+            total_steps: 0,
+        }
+    }
+
     /// The AOV as rows of `channels()` floats (empty for `Beauty`, which is not in this image).
     pub fn channel_data(&self, aov: Aov) -> Vec<f32> {
         match aov {
