@@ -432,8 +432,14 @@ fn new_path(px: PixelRef) -> PathState {
 fn trace_query(q: QueryRec, px: PixelRef) -> Answer {
     let any = q.any != 0u;
     let ctx = RayContext(px.ctx.pixel, px.ctx.sample, q.bounce, px.ctx.seed);
-    var hit = traverse(Ray(q.origin, q.dir, q.t_min, q.t_max), ctx, any);
-    if (!any && hit.prism != NO_PRISM) {
+    return query_answer(q, traverse(Ray(q.origin, q.dir, q.t_min, q.t_max), ctx, any));
+}
+
+// The answer to `q` from the hit its traversal `found`: with surface data if it asked for
+// them.
+fn query_answer(q: QueryRec, found: Hit) -> Answer {
+    var hit = found;
+    if (q.any == 0u && hit.prism != NO_PRISM) {
         fill_surface(&hit);
     }
     return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u);
@@ -511,6 +517,12 @@ fn beauty_start(@builtin(global_invocation_id) gid: vec3<u32>) {
 // per slot, so that a dispatch's live rays are spread over its whole grid: lavapipe hands
 // each of its threads a contiguous share of the workgroups, and with a layer per slot the
 // continuation rays of a camera step all fell to one thread (1.7× the time on 2 cores).
+//
+// An invocation traces its slot for the pixels x = gid.x, gid.x + width, gid.x + 2 width, …
+// of its row (width: the grid's invocations across; the host makes the grid
+// gpu::GpuContext::trace_pixels times narrower than the tile), one after another in one loop
+// with the traversal's steps (`walk_step`): an invocation whose ray ends takes its next ray
+// at once, instead of idling until the longest ray of its SIMD group ends.
 @compute @workgroup_size(8, 8, 1)
 fn beauty_trace(
     @builtin(global_invocation_id) gid: vec3<u32>,
@@ -520,11 +532,56 @@ fn beauty_trace(
     let layers = groups.y / rows;
     let wy = gid.y / 8u;
     let slot = SLOT_NEXT - wy % layers;
-    let g = vec3<u32>(gid.x, (wy / layers) * 8u + gid.y % 8u, 0u);
-    if (!in_tile(g)) {
+    let y = (wy / layers) * 8u + gid.y % 8u;
+    if (y >= frame.tile_size.y) {
         return;
     }
+    let stride = groups.x * 8u;
+    var x = gid.x;
+    var walk: Walk;
+    var job = trace_job(x, y, slot);
+    loop {
+        // The next live ray of this invocation's pixels, if the walk has none.
+        loop {
+            if (walk.visit != 0u || x >= frame.tile_size.x) {
+                break;
+            }
+            if (job.q.live != 0u) {
+                let ctx = RayContext(job.px.ctx.pixel, job.px.ctx.sample, job.q.bounce, job.px.ctx.seed);
+                walk_begin(&walk, Ray(job.q.origin, job.q.dir, job.q.t_min, job.q.t_max), ctx, job.q.any != 0u);
+                if (walk.visit != 0u) {
+                    break;
+                }
+                // Missed the scene's box: done already.
+                answer(job, slot, walk_result(walk));
+            }
+            x += stride;
+            job = trace_job(x, y, slot);
+        }
+        if (walk.visit == 0u) {
+            break;
+        }
+        if (!walk_step(&walk)) {
+            answer(job, slot, walk_result(walk));
+            x += stride;
+            job = trace_job(x, y, slot);
+        }
+    }
+}
+
+// A ray `beauty_trace` is to trace: pixel (x, y) of the tile (x may be past its edge: then
+// `q.live` is 0) and its query in `slot`.
+struct TraceJob {
+    px: PixelRef,
+    q: QueryRec,
+}
+
+fn trace_job(x: u32, y: u32, slot: u32) -> TraceJob {
+    let g = vec3<u32>(x, y, 0u);
     let px = pixel_ref(g);
+    if (!in_tile(g)) {
+        return TraceJob(px, no_query());
+    }
     // The one slot this invocation traces (not the record's three).
     var q = paths[px.i].queries.next;
     if (slot == SLOT_KEY) {
@@ -532,16 +589,19 @@ fn beauty_trace(
     } else if (slot == SLOT_ENV) {
         q = paths[px.i].queries.env;
     }
-    if (q.live == 0u) {
-        return;
-    }
-    let a = trace_query(q, px);
+    return TraceJob(px, q);
+}
+
+// Store the answer to `job`'s ray, whose traversal `found` a hit or none.
+fn answer(job: TraceJob, slot: u32, found: Hit) {
+    let a = query_answer(job.q, found);
+    let i = job.px.i;
     if (slot == SLOT_NEXT) {
-        paths[px.i].next = a;
+        paths[i].next = a;
     } else if (slot == SLOT_KEY) {
-        paths[px.i].occluded_key = select(0u, 1u, a.prism != NO_PRISM);
+        paths[i].occluded_key = select(0u, 1u, a.prism != NO_PRISM);
     } else {
-        paths[px.i].occluded_env = select(0u, 1u, a.prism != NO_PRISM);
+        paths[i].occluded_env = select(0u, 1u, a.prism != NO_PRISM);
     }
 }
 

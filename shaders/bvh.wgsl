@@ -27,28 +27,6 @@ fn safe_inverse(d: vec3f) -> vec3f {
     return 1.0 / dd;
 }
 
-// Pop the next node whose box entry is still before the closest hit into `current`; false
-// when the stack has none left.
-fn pop_next(
-    stack_node: ptr<function, array<u32, BVH_STACK>>,
-    stack_t: ptr<function, array<f32, BVH_STACK>>,
-    sp: ptr<function, u32>,
-    t_best: f32,
-    current: ptr<function, u32>,
-) -> bool {
-    loop {
-        if (*sp == 0u) {
-            return false;
-        }
-        *sp -= 1u;
-        if ((*stack_t)[*sp] <= t_best) {
-            *current = (*stack_node)[*sp];
-            return true;
-        }
-    }
-    return false;
-}
-
 // Scene::closest_hit with PDM's intersect_prism as the per-prism test.
 fn closest_hit(ray: Ray, ctx: RayContext) -> Hit {
     return traverse(ray, ctx, false);
@@ -64,78 +42,149 @@ fn any_hit(ray: Ray, ctx: RayContext) -> bool {
 // hit; before any hit the clipped ray here is the whole ray, so the answer is the same).
 // A kernel that traces both kinds calls this once (Mesa inlines every call site).
 fn traverse(ray: Ray, ctx: RayContext, stop_at_first: bool) -> Hit {
-    var best = no_hit();
-    var steps = 0u;
-    if (scene.node_count == 0u) {
-        return best;
-    }
-    let inv_d = safe_inverse(ray.dir);
-    var t_best = ray.t_max;
-    var stack_node: array<u32, BVH_STACK>;
-    var stack_t: array<f32, BVH_STACK>;
-    var sp = 0u;
-    var current = 0u;
-    var visit = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[0]) < T_FAR;
-    // "While-while" (Aila & Laine 2009): descend through inner nodes until this invocation
-    // holds a leaf, and only then test the leaf's prisms. The prism test is by far the
-    // larger body; an implementation that runs invocations in lock-step (lavapipe's SIMD
-    // lanes, GPU warps) then runs it with most lanes holding a leaf, instead of alternating
-    // box tests and prism tests lane by lane.
+    var w: Walk;
+    walk_begin(&w, ray, ctx, stop_at_first);
     loop {
-        loop {
-            if (!visit) {
-                break;
-            }
-            let node = nodes[current];
-            if (node.prim_count != 0u) {
-                break;
-            }
-            let l = node.first_index;
-            let tl = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[l]);
-            let tr = ray_box(ray.origin, inv_d, ray.t_min, t_best, nodes[l + 1u]);
-            if (tl < T_FAR && tr < T_FAR) {
-                // Near child next, far one on the stack (dropped if the stack is full).
-                let near_is_left = tl <= tr;
-                if (sp < BVH_STACK) {
-                    stack_node[sp] = select(l, l + 1u, near_is_left);
-                    stack_t[sp] = select(tl, tr, near_is_left);
-                    sp += 1u;
-                }
-                current = select(l + 1u, l, near_is_left);
-                continue;
-            } else if (tl < T_FAR) {
-                current = l;
-                continue;
-            } else if (tr < T_FAR) {
-                current = l + 1u;
-                continue;
-            }
-            // Neither child: the next node on the stack.
-            visit = pop_next(&stack_node, &stack_t, &sp, t_best, &current);
+        if (!walk_step(&w)) {
+            break;
         }
+    }
+    return walk_result(w);
+}
+
+// A traversal in progress, so that a kernel can run it step by step (`walk_step`) and start
+// another ray in the same loop when one ends (`beauty_trace`): an invocation whose ray ends
+// early then takes its next ray instead of idling until the longest ray of its SIMD group ends.
+struct Walk {
+    ray: Ray,
+    ctx: RayContext,
+    inv_d: vec3f,
+    t_best: f32,
+    best: Hit,
+    steps: u32,
+    sp: u32,
+    current: u32,
+    // 1: `current` is a node to visit; 0: the ray is done.
+    visit: u32,
+    stop_at_first: u32,
+    stack_node: array<u32, BVH_STACK>,
+    stack_t: array<f32, BVH_STACK>,
+}
+
+// Start `ray` on the walk (the stack's contents are left as they are: `sp` is 0).
+fn walk_begin(w: ptr<function, Walk>, ray: Ray, ctx: RayContext, stop_at_first: bool) {
+    (*w).ray = ray;
+    (*w).ctx = ctx;
+    (*w).best = no_hit();
+    (*w).steps = 0u;
+    (*w).sp = 0u;
+    (*w).current = 0u;
+    (*w).stop_at_first = select(0u, 1u, stop_at_first);
+    (*w).inv_d = safe_inverse(ray.dir);
+    (*w).t_best = ray.t_max;
+    var visit = false;
+    if (scene.node_count != 0u) {
+        visit = ray_box(ray.origin, (*w).inv_d, ray.t_min, ray.t_max, nodes[0]) < T_FAR;
+    }
+    (*w).visit = select(0u, 1u, visit);
+}
+
+// The walk's hit (no_hit if none), with the marching steps it took.
+fn walk_result(w: Walk) -> Hit {
+    var best = w.best;
+    best.steps = w.steps;
+    return best;
+}
+
+// One step of a walk: descend to the next leaf whose box the ray enters before the closest
+// hit so far and test its prisms. False when the ray is done (no node left, or the first hit
+// found with `stop_at_first`).
+//
+// "While-while" (Aila & Laine 2009): descend through inner nodes until this invocation holds
+// a leaf, and only then test the leaf's prisms. The prism test is by far the larger body; an
+// implementation that runs invocations in lock-step (lavapipe's SIMD lanes, GPU warps) then
+// runs it with most lanes holding a leaf, instead of alternating box tests and prism tests
+// lane by lane.
+fn walk_step(w: ptr<function, Walk>) -> bool {
+    if ((*w).visit == 0u) {
+        return false;
+    }
+    let o = (*w).ray.origin;
+    let inv_d = (*w).inv_d;
+    let t_min = (*w).ray.t_min;
+    var current = (*w).current;
+    var visit = true;
+    loop {
+        let node = nodes[current];
+        if (node.prim_count != 0u) {
+            break;
+        }
+        let l = node.first_index;
+        let tl = ray_box(o, inv_d, t_min, (*w).t_best, nodes[l]);
+        let tr = ray_box(o, inv_d, t_min, (*w).t_best, nodes[l + 1u]);
+        if (tl < T_FAR && tr < T_FAR) {
+            // Near child next, far one on the stack (dropped if the stack is full).
+            let near_is_left = tl <= tr;
+            let sp = (*w).sp;
+            if (sp < BVH_STACK) {
+                (*w).stack_node[sp] = select(l, l + 1u, near_is_left);
+                (*w).stack_t[sp] = select(tl, tr, near_is_left);
+                (*w).sp = sp + 1u;
+            }
+            current = select(l + 1u, l, near_is_left);
+            continue;
+        } else if (tl < T_FAR) {
+            current = l;
+            continue;
+        } else if (tr < T_FAR) {
+            current = l + 1u;
+            continue;
+        }
+        // Neither child: the next node on the stack.
+        visit = walk_pop(w, &current);
         if (!visit) {
             break;
         }
+    }
+    if (visit) {
         // `current` is a leaf.
         let leaf = nodes[current];
+        let stop_at_first = (*w).stop_at_first != 0u;
         for (var i = 0u; i < leaf.prim_count; i++) {
             let prism = prim_indices[leaf.first_index + i];
-            let clipped = Ray(ray.origin, ray.dir, ray.t_min, t_best);
-            let h = intersect_prism(clipped, ctx, prism, &steps);
-            if (h.prism != NO_PRISM && (stop_at_first || h.t < t_best)) {
-                best = h;
-                t_best = h.t;
+            let clipped = Ray(o, (*w).ray.dir, t_min, (*w).t_best);
+            var steps = (*w).steps;
+            let h = intersect_prism(clipped, (*w).ctx, prism, &steps);
+            (*w).steps = steps;
+            if (h.prism != NO_PRISM && (stop_at_first || h.t < (*w).t_best)) {
+                (*w).best = h;
+                (*w).t_best = h.t;
                 if (stop_at_first) {
-                    best.steps = steps;
-                    return best;
+                    (*w).visit = 0u;
+                    return false;
                 }
             }
         }
-        visit = pop_next(&stack_node, &stack_t, &sp, t_best, &current);
-        if (!visit) {
-            break;
+        visit = walk_pop(w, &current);
+    }
+    (*w).current = current;
+    (*w).visit = select(0u, 1u, visit);
+    return visit;
+}
+
+// Pop the next node whose box entry is still before the closest hit into `current`; false
+// when the stack has none left.
+fn walk_pop(w: ptr<function, Walk>, current: ptr<function, u32>) -> bool {
+    loop {
+        let sp = (*w).sp;
+        if (sp == 0u) {
+            return false;
+        }
+        (*w).sp = sp - 1u;
+        if ((*w).stack_t[sp - 1u] <= (*w).t_best) {
+            *current = (*w).stack_node[sp - 1u];
+            return true;
         }
     }
-    best.steps = steps;
-    return best;
+    return false;
 }

@@ -250,6 +250,11 @@ fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
         "`wavefront`",
         "unset it",
     ]);
+    render("gpu", "PRISMBAKE_GPU_TRACE_PIXELS", "0").assert_error(&[
+        "PRISMBAKE_GPU_TRACE_PIXELS=0",
+        "from 1 to 64",
+        "unset it",
+    ]);
     assert!(
         !out.exists() || files_in(&out).is_empty(),
         "files were written"
@@ -322,10 +327,52 @@ fn gpu_frames_split_over_tiles_are_the_one_tile_frame() {
             whole.iter().any(|p| p[3] > 0.5),
             "{schedule}: the sphere is not in the frame"
         );
-        assert_eq!(
-            beauty(Some("64")),
-            whole,
-            "{schedule}: tiles change the picture"
+        assert_same_pixels(&beauty(Some("64")), &whole, &format!("{schedule}, tiles"));
+        // Three pixels per trace invocation: tiles 64 and 32 wide take 3 and 2 invocations
+        // across, the last of each row short of pixels.
+        let across = dir.join(format!("{schedule}-across"));
+        #[rustfmt::skip]
+        let args = [
+            "render", s(&sphere), "--device", "gpu", "--aov", "beauty", "--res", "96x80", "--spp", "2",
+            "--key-light", "30,40,2", "--ground", "-o", s(&across),
+        ];
+        let envs = [
+            ("PRISMBAKE_GPU_BEAUTY", schedule),
+            ("PRISMBAKE_GPU_TILE", "64"),
+            ("PRISMBAKE_GPU_TRACE_PIXELS", "3"),
+        ];
+        let r = run_in_env(&repo_root(), &args, &envs);
+        r.assert_success();
+        if schedule == "wavefront" {
+            assert!(
+                r.stderr.contains("(3 pixel(s) per trace invocation)"),
+                "{}",
+                r.stderr
+            );
+        }
+        let across = read_rgba(&across.join("beauty.exr"));
+        assert_same_pixels(
+            &across,
+            &whole,
+            &format!("{schedule}, 3 pixels per trace invocation"),
         );
     }
+}
+
+/// `a` is `b` bit for bit; else how many pixels differ, and the first.
+fn assert_same_pixels(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: pixel counts");
+    let bits = |p: &[f32; 4]| p.map(f32::to_bits);
+    let differ: Vec<usize> = (0..a.len())
+        .filter(|&i| bits(&a[i]) != bits(&b[i]))
+        .collect();
+    assert!(
+        differ.is_empty(),
+        "{what}: {} of {} pixels differ, first {} ({:?} against {:?})",
+        differ.len(),
+        a.len(),
+        differ[0],
+        a[differ[0]],
+        b[differ[0]]
+    );
 }

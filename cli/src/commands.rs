@@ -239,9 +239,14 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
             .ok(),
     };
     if let Some(ctx) = &gpu {
-        let schedule = match aovs.contains(&Aov::Beauty) {
-            true => format!(", beauty schedule {}", ctx.beauty_schedule().name()),
-            false => String::new(),
+        let schedule = match (aovs.contains(&Aov::Beauty), ctx.beauty_schedule()) {
+            (false, _) => String::new(),
+            (true, s @ prismbake_gpu::BeautySchedule::Wavefront) => format!(
+                ", beauty schedule {} ({} pixel(s) per trace invocation)",
+                s.name(),
+                ctx.trace_pixels()
+            ),
+            (true, s) => format!(", beauty schedule {}", s.name()),
         };
         eprintln!("device: gpu ({}){schedule}", ctx.adapter_description());
     }

@@ -232,8 +232,13 @@ pub fn render_beauty_scheduled(
         BeautySchedule::Fused => vec![Stage {
             pipeline: ctx.beauty_fused()?,
             layers: 1,
+            across: 1,
         }],
-        BeautySchedule::Wavefront => sample_stages(ctx.beauty_wavefront()?, &lighting.uniform()),
+        BeautySchedule::Wavefront => sample_stages(
+            ctx.beauty_wavefront()?,
+            &lighting.uniform(),
+            ctx.trace_pixels(),
+        ),
     };
     let dispatch = Kernel {
         stages: &stages,
@@ -257,17 +262,27 @@ pub fn render_beauty_scheduled(
 /// trace and a shading step for each step of the longest path: the camera's, then one per
 /// surface event (`bounces`), or the ground's. The camera step traces one ray slot; the
 /// others the slots their rays can take (`beauty_trace`: the continuation, the environment's
-/// shadow ray if the environment lights, the key light's if there is one).
-fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting) -> Vec<Stage<'k>> {
-    let stage = |pipeline, layers| Stage { pipeline, layers };
+/// shadow ray if the environment lights, the key light's if there is one), each invocation
+/// for `trace_pixels` pixels of a row (`GpuContext::trace_pixels`).
+fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting, trace_pixels: u32) -> Vec<Stage<'k>> {
+    let stage = |pipeline, layers| Stage {
+        pipeline,
+        layers,
+        across: 1,
+    };
+    let trace = |layers| Stage {
+        pipeline: &k.trace,
+        layers,
+        across: trace_pixels,
+    };
     let slots = match (l.has_key != 0, l.env_lights != 0) {
         (true, _) => 3,
         (false, true) => 2,
         (false, false) => 1,
     };
-    let mut stages = vec![stage(&k.start, 1), stage(&k.trace, 1), stage(&k.shade, 1)];
+    let mut stages = vec![stage(&k.start, 1), trace(1), stage(&k.shade, 1)];
     for _ in 0..l.bounces.max(1) {
-        stages.extend([stage(&k.trace, slots), stage(&k.shade, 1)]);
+        stages.extend([trace(slots), stage(&k.shade, 1)]);
     }
     stages
 }

@@ -139,6 +139,34 @@ pub struct GpuContext {
     /// Pixels per side of one dispatch's tile (`MAX_TILE` or `HARDWARE_TILE`, or
     /// `PRISMBAKE_GPU_TILE`).
     pub(crate) tile: u32,
+    /// Pixels of a row each invocation of the wavefront's `beauty_trace` serves
+    /// (`TRACE_PIXELS`, or `PRISMBAKE_GPU_TRACE_PIXELS`).
+    pub(crate) trace_pixels: u32,
+}
+
+/// Pixels each `beauty_trace` invocation serves by default: one (a ray per invocation). With
+/// more, an invocation whose ray ends takes its next pixel's ray in the same loop instead of
+/// idling until the longest ray of its SIMD group ends (docs/gpu.md, "Rays per invocation");
+/// on lavapipe that neither gains nor loses, and it has not been timed on a GPU yet.
+pub const TRACE_PIXELS: u32 = 1;
+
+/// Pixels per `beauty_trace` invocation `PRISMBAKE_GPU_TRACE_PIXELS` accepts.
+const TRACE_PIXELS_SETTING: std::ops::RangeInclusive<u32> = 1..=64;
+
+/// The pixels per trace invocation `PRISMBAKE_GPU_TRACE_PIXELS` asks for (`None` unset or
+/// empty), or why it cannot be used.
+fn trace_pixels_setting(value: Option<&str>) -> Result<Option<u32>, GpuError> {
+    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
+        return Ok(None);
+    };
+    match v.parse::<u32>() {
+        Ok(n) if TRACE_PIXELS_SETTING.contains(&n) => Ok(Some(n)),
+        _ => Err(GpuError::Setting(format!(
+            "PRISMBAKE_GPU_TRACE_PIXELS={v}: the pixels each invocation of the wavefront beauty's trace kernel serves, a whole number from {} to {}; unset it for the default ({TRACE_PIXELS})",
+            TRACE_PIXELS_SETTING.start(),
+            TRACE_PIXELS_SETTING.end()
+        ))),
+    }
 }
 
 /// The schedule `PRISMBAKE_GPU_BEAUTY` asks for (`None` unset or empty), or why it cannot be
@@ -231,6 +259,9 @@ impl GpuContext {
         let tile_wanted = tile_setting(std::env::var("PRISMBAKE_GPU_TILE").ok().as_deref())?;
         let schedule_wanted =
             schedule_setting(std::env::var("PRISMBAKE_GPU_BEAUTY").ok().as_deref())?;
+        let trace_pixels =
+            trace_pixels_setting(std::env::var("PRISMBAKE_GPU_TRACE_PIXELS").ok().as_deref())?
+                .unwrap_or(TRACE_PIXELS);
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
@@ -388,6 +419,7 @@ impl GpuContext {
             timer,
             driver_error,
             tile,
+            trace_pixels,
         })
     }
 
@@ -452,6 +484,11 @@ impl GpuContext {
     /// The beauty schedule a render on this context takes by default.
     pub fn beauty_schedule(&self) -> BeautySchedule {
         self.beauty_schedule
+    }
+
+    /// Pixels each invocation of the wavefront's trace kernel serves.
+    pub fn trace_pixels(&self) -> u32 {
+        self.trace_pixels
     }
 
     /// Compile the beauty kernels of the context's schedule now rather than with the first
@@ -748,6 +785,21 @@ mod tests {
             let e = tile_setting(Some(bad)).unwrap_err().to_string();
             assert!(
                 e.contains(&format!("PRISMBAKE_GPU_TILE={bad}")) && e.contains("multiple of 8"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn trace_pixels_setting_takes_whole_numbers_in_range_and_names_the_fix() {
+        assert_eq!(trace_pixels_setting(None).unwrap(), None);
+        assert_eq!(trace_pixels_setting(Some(" ")).unwrap(), None);
+        assert_eq!(trace_pixels_setting(Some("1")).unwrap(), Some(1));
+        assert_eq!(trace_pixels_setting(Some(" 64 ")).unwrap(), Some(64));
+        for bad in ["0", "65", "-2", "four", "2.5"] {
+            let e = trace_pixels_setting(Some(bad)).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("PRISMBAKE_GPU_TRACE_PIXELS={bad}")) && e.contains("unset it"),
                 "{bad}: {e}"
             );
         }

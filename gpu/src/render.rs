@@ -63,6 +63,8 @@ pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> Gpu
 pub(crate) struct Stage<'a> {
     pub pipeline: &'a wgpu::ComputePipeline,
     pub layers: u32,
+    /// Pixels of a row each invocation serves (`beauty_trace`); 1 elsewhere.
+    pub across: u32,
 }
 
 /// A kernel over a frame: the stages one sample dispatches, in order (wgpu puts a barrier
@@ -149,7 +151,7 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
                 for stage in kernel.stages {
                     pass.set_pipeline(stage.pipeline);
                     pass.dispatch_workgroups(
-                        tw.div_ceil(WORKGROUP),
+                        tw.div_ceil(WORKGROUP * stage.across),
                         th.div_ceil(WORKGROUP) * stage.layers,
                         1,
                     );
@@ -200,6 +202,7 @@ pub fn render_aovs(
         stages: &[Stage {
             pipeline: &ctx.aov_pipeline,
             layers: 1,
+            across: 1,
         }],
         output: Output::Aov,
         groups: &[],
