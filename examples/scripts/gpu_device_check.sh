@@ -15,6 +15,13 @@
 # queries, where the adapter has them), and Mrays/s (pixels × spp over the kernel time, else
 # the trace time); writes them to summary.json.
 #
+# Beside the default beauty (2 bounces, environment only) each asset renders the issue's
+# "4 rays per pixel" sample as a 2-frame turntable: --bounces 1 --key-light 30,45,3 (per pixel
+# that hits: the camera ray, the key light's and the environment's shadow rays and the
+# continuation), once per value of TRACE_PIXELS (default "1 4 8": PRISMBAKE_GPU_TRACE_PIXELS,
+# pixels per invocation of the wavefront's trace kernel; docs/gpu.md, "Rays per invocation").
+# The summary's md5 of each beauty frame shows that they all give the same picture.
+#
 # Smaller runs (to check the script itself on lavapipe): RES=256 SPP=2 ASSETS=sphere.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -23,6 +30,7 @@ DEST=${2:-${OUT:-gpu_check}}
 RES=${RES:-2048}
 SPP=${SPP:-64}
 ASSETS=${ASSETS:-"sphere torus rock"}
+TRACE_PIXELS=${TRACE_PIXELS:-"1 4 8"}
 mkdir -p "$DEST"
 [ -x "$BIN" ] || { echo "gpu_device_check: no binary at $BIN (cargo build --release -p prismbake-cli)" >&2; exit 2; }
 
@@ -57,14 +65,21 @@ for a in $ASSETS; do
   job "${a}_aov_gpu" "$RES" 1 3 gpu "$path" --aov depth,normal,mask
   job "${a}_beauty_gpu" "$RES" "$SPP" 2 gpu "$path" --aov beauty
   job "${a}_aov_cpu_512" 512 1 3 cpu "$path" --aov depth,normal,mask
+  for k in $TRACE_PIXELS; do
+    PRISMBAKE_GPU_TRACE_PIXELS=$k job "${a}_4rays_trace$k" "$RES" "$SPP" 2 gpu "$path" --aov beauty \
+      --bounces 1 --key-light 30,45,3
+  done
 done
 
-python3 - "$DEST" "$RES" "$SPP" "$ASSETS" <<'PY'
-import json, pathlib, sys
+python3 - "$DEST" "$RES" "$SPP" "$ASSETS" "$TRACE_PIXELS" <<'PY'
+import hashlib, json, pathlib, sys
 dest, res, spp, assets = pathlib.Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
+trace_pixels = sys.argv[5].split()
 rows = []
 for a in assets:
-    for job, r, s in ((f"{a}_aov_gpu", res, 1), (f"{a}_beauty_gpu", res, spp), (f"{a}_aov_cpu_512", 512, 1)):
+    jobs = [(f"{a}_aov_gpu", res, 1), (f"{a}_beauty_gpu", res, spp), (f"{a}_aov_cpu_512", 512, 1)]
+    jobs += [(f"{a}_4rays_trace{k}", res, spp) for k in trace_pixels]
+    for job, r, s in jobs:
         d = json.loads((dest / f"{job}.json").read_text())
         frames = d["frames"]
         timed = frames[1:] if len(frames) > 1 else frames
@@ -74,7 +89,15 @@ for a in assets:
         best = min(timed, key=lambda f: f.get("device_seconds") or f["trace_seconds"])
         kernel = best.get("device_seconds")
         sec = kernel if kernel else best["trace_seconds"]
+        # Rays per pixel per sample (beauty: closest-hit, key-light and environment shadow
+        # rays) and the last frame's picture, to see that settings that should agree do.
+        rays = d.get("beauty_rays")
+        per_pixel = {k: round(v / (r * r * s * len(frames)), 3) for k, v in rays.items()} if rays and rays.get("rays") else None
+        last = sorted((dest / job).glob("beauty_*.exr"))
+        picture = hashlib.md5(last[-1].read_bytes()).hexdigest()[:12] if last else None
         rows.append({"job": job, "device": d.get("device"), "res": r, "spp": s,
+                     "ms_per_sample": round(sec * 1e3 / s, 2), "rays_per_pixel": per_pixel,
+                     "picture_md5": picture,
                      "ms_per_frame": round(best["seconds"] * 1e3, 2),
                      "trace_ms": round(best["trace_seconds"] * 1e3, 2),
                      "kernel_ms": round(kernel * 1e3, 3) if kernel else None,
@@ -85,6 +108,7 @@ for a in assets:
 for row in rows:
     kernel = f"{row['kernel_ms']:>9.3f}" if row["kernel_ms"] is not None else "        -"
     print(f"{row['job']:<22} {row['res']}² spp {row['spp']:<3} frame {row['ms_per_frame']:>9.2f} ms "
-          f"trace {row['trace_ms']:>9.2f} ms kernels {kernel} ms "
-          f"{row['mrays_per_s']:>9.2f} Mrays/s ({row['mrays_per_s_from']}; {row['device']})")
+          f"trace {row['trace_ms']:>9.2f} ms kernels {kernel} ms ({row['ms_per_sample']} ms/sample) "
+          f"{row['mrays_per_s']:>9.2f} Mrays/s ({row['mrays_per_s_from']}; {row['device']})"
+          + (f" rays/px/sample {row['rays_per_pixel']} md5 {row['picture_md5']}" if row["rays_per_pixel"] else ""))
 PY

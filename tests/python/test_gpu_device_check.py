@@ -10,15 +10,17 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 
 def test_device_check_times_every_job(prismbake, tmp_path):
-    env = dict(os.environ, RES="32", SPP="1", ASSETS="rock")
+    env = dict(os.environ, RES="32", SPP="1", ASSETS="rock", TRACE_PIXELS="1 3")
     proc = subprocess.run(
         [str(ROOT / "examples" / "scripts" / "gpu_device_check.sh"), prismbake, str(tmp_path)],
         capture_output=True, text=True, env=env, timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
     rows = json.loads((tmp_path / "summary.json").read_text())
-    assert [r["job"] for r in rows] == ["rock_aov_gpu", "rock_beauty_gpu", "rock_aov_cpu_512"]
-    assert [len(r["frames"]) for r in rows] == [3, 2, 3]
+    assert [r["job"] for r in rows] == [
+        "rock_aov_gpu", "rock_beauty_gpu", "rock_aov_cpu_512", "rock_4rays_trace1", "rock_4rays_trace3",
+    ]
+    assert [len(r["frames"]) for r in rows] == [3, 2, 3, 2, 2]
     assert rows[0]["device"].startswith("gpu") and rows[2]["device"].startswith("cpu")
     for r in rows:
         assert r["ms_per_frame"] > 0 and r["mrays_per_s"] > 0
@@ -26,7 +28,14 @@ def test_device_check_times_every_job(prismbake, tmp_path):
         assert 0 < r["trace_ms"] <= r["ms_per_frame"]
     # lavapipe (and every desktop Vulkan driver) has timestamp queries: the GPU jobs' Mrays/s
     # come from the kernels' own time; the CPU has no such clock.
-    for r in rows[:2]:
+    # The "4 rays per pixel" sample: one camera ray per pixel, shadow rays for the key light
+    # and the environment where it hits; the same picture whatever the pixels per trace
+    # invocation; beauty rows count their rays, AOV rows do not.
+    four = rows[3]["rays_per_pixel"]
+    assert four["rays"] == 1.0 and four["key_shadow_rays"] > 0 and four["env_shadow_rays"] > 0
+    assert rows[3]["picture_md5"] and rows[3]["picture_md5"] == rows[4]["picture_md5"]
+    assert rows[1]["rays_per_pixel"]["rays"] >= 1.0 and rows[0]["rays_per_pixel"] is None
+    for r in rows[:2] + rows[3:]:
         assert r["kernel_ms"] is not None and 0 < r["kernel_ms"] <= r["trace_ms"]
         assert r["mrays_per_s_from"] == "kernel"
     assert rows[2]["kernel_ms"] is None and rows[2]["mrays_per_s_from"] == "trace"
