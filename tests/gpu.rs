@@ -250,6 +250,11 @@ fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
         "`wavefront`",
         "unset it",
     ]);
+    render("gpu", "PRISMBAKE_GPU_MEMORY", "0").assert_error(&[
+        "PRISMBAKE_GPU_MEMORY=0",
+        "percentage from 1 to 100",
+        "unset it",
+    ]);
     render("gpu", "PRISMBAKE_GPU_TRACE_PIXELS", "0").assert_error(&[
         "PRISMBAKE_GPU_TRACE_PIXELS=0",
         "from 1 to 64",

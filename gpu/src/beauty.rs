@@ -220,14 +220,6 @@ pub fn render_beauty_scheduled(
     progress: &dyn Fn(usize),
 ) -> Result<BeautyImage, GpuError> {
     crate::render::check_render(s, opts)?;
-    let n = s.width as usize * s.height as usize;
-    let mut image = BeautyImage {
-        width: s.width,
-        height: s.height,
-        rgba: vec![[0.0; 4]; n],
-        background: vec![Vec3::ZERO; n],
-        counters: BeautyCounters::default(),
-    };
     let stages = match schedule {
         BeautySchedule::Fused => vec![Stage {
             pipeline: ctx.beauty_fused()?,
@@ -247,15 +239,25 @@ pub fn render_beauty_scheduled(
         paths: schedule == BeautySchedule::Wavefront,
         label: "render_beauty",
     };
-    render_samples(
-        ctx,
-        scene,
-        &dispatch,
-        frame_uniform(cam, s, opts),
-        &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
-        progress,
-    )?;
-    Ok(image)
+    let n = s.width as usize * s.height as usize;
+    ctx.with_tile_fallback(|| {
+        let mut image = BeautyImage {
+            width: s.width,
+            height: s.height,
+            rgba: vec![[0.0; 4]; n],
+            background: vec![Vec3::ZERO; n],
+            counters: BeautyCounters::default(),
+        };
+        render_samples(
+            ctx,
+            scene,
+            &dispatch,
+            frame_uniform(cam, s, opts),
+            &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
+            progress,
+        )?;
+        Ok(image)
+    })
 }
 
 /// The dispatches of one sample under lighting `l`: `beauty_start` (camera rays), then a

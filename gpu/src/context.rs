@@ -12,6 +12,7 @@
 use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, PATH_RECORD_BYTES, WORKGROUP};
 use crate::timer::KernelTimer;
 use crate::{shaders, GpuError};
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Tile of one dispatch on a software adapter, in pixels per side: lavapipe's time does not
@@ -135,13 +136,71 @@ pub struct GpuContext {
     /// The first wgpu error that no error scope caught (validation, out of memory, a lost
     /// device: a GPU watchdog's reset, say), held for the next `check`/`wait` to return
     /// instead of wgpu's default of panicking.
-    driver_error: Arc<Mutex<Option<String>>>,
+    driver_error: Arc<Mutex<Option<DriverError>>>,
     /// Pixels per side of one dispatch's tile (`MAX_TILE` or `HARDWARE_TILE`, or
-    /// `PRISMBAKE_GPU_TILE`).
-    pub(crate) tile: u32,
+    /// `PRISMBAKE_GPU_TILE`), halved by `shrink_tile` when the GPU runs out of memory.
+    tile: AtomicU32,
     /// Pixels of a row each invocation of the wavefront's `beauty_trace` serves
     /// (`TRACE_PIXELS`, or `PRISMBAKE_GPU_TRACE_PIXELS`).
     pub(crate) trace_pixels: u32,
+}
+
+/// An error wgpu reported outside any error scope: its text, and whether it is the driver
+/// (or the memory budget) refusing memory, which smaller tiles may cure.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct DriverError {
+    text: String,
+    out_of_memory: bool,
+}
+
+impl DriverError {
+    fn of(e: &wgpu::Error) -> DriverError {
+        // With its sources: wgpu's own text can be just "Validation Error" or "Out of Memory".
+        let mut text = e.to_string().trim().to_string();
+        let mut source = std::error::Error::source(e);
+        while let Some(s) = source {
+            let more = s.to_string();
+            if !text.contains(more.trim()) {
+                text = format!("{text}: {}", more.trim());
+            }
+            source = s.source();
+        }
+        // One line: wgpu's descriptions run over several ("…\n\nCaused by:\n  In …").
+        let text = text.split_whitespace().collect::<Vec<_>>().join(" ");
+        DriverError {
+            text,
+            out_of_memory: matches!(e, wgpu::Error::OutOfMemory { .. }),
+        }
+    }
+}
+
+/// Smallest tile side `shrink_tile` goes down to.
+const MIN_TILE: u32 = 64;
+
+/// Shares of the GPU's memory budget `PRISMBAKE_GPU_MEMORY` accepts, in percent.
+const MEMORY_SETTING: std::ops::RangeInclusive<u8> = 1..=100;
+
+/// The share of the GPU's memory budget `PRISMBAKE_GPU_MEMORY` allows (`None` unset or empty),
+/// or why it cannot be used.
+fn memory_setting(value: Option<&str>) -> Result<Option<u8>, GpuError> {
+    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
+        return Ok(None);
+    };
+    match v.trim_end_matches('%').trim().parse::<u8>() {
+        Ok(p) if MEMORY_SETTING.contains(&p) => Ok(Some(p)),
+        _ => Err(GpuError::Setting(format!(
+            "PRISMBAKE_GPU_MEMORY={v}: the share of the GPU's memory budget prismbake may allocate, a whole percentage from {} to {} (e.g. 50 beside another GPU application); unset it for no limit",
+            MEMORY_SETTING.start(),
+            MEMORY_SETTING.end()
+        ))),
+    }
+}
+
+/// The tile side after `tile` ran out of memory: half of it, a multiple of the workgroup side,
+/// or `None` below `MIN_TILE`.
+fn smaller_tile(tile: u32) -> Option<u32> {
+    let half = tile / 2 / WORKGROUP * WORKGROUP;
+    (half >= MIN_TILE).then_some(half)
 }
 
 /// Pixels each `beauty_trace` invocation serves by default: one (a ray per invocation). With
@@ -262,8 +321,12 @@ impl GpuContext {
         let trace_pixels =
             trace_pixels_setting(std::env::var("PRISMBAKE_GPU_TRACE_PIXELS").ok().as_deref())?
                 .unwrap_or(TRACE_PIXELS);
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let memory = memory_setting(std::env::var("PRISMBAKE_GPU_MEMORY").ok().as_deref())?;
+        let mut instance_desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        // Where the backend tracks a memory budget (Vulkan with VK_EXT_memory_budget, D3D12),
+        // a buffer that would take the GPU's use past this share is refused as out of memory.
+        instance_desc.memory_budget_thresholds.for_resource_creation = memory;
+        let instance = wgpu::Instance::new(instance_desc);
         let adapter = match std::env::var("WGPU_ADAPTER_NAME") {
             // A named adapter (case-insensitive substring of its name), as wgpu's own helpers
             // read it, but an error instead of a panic when none matches.
@@ -325,12 +388,12 @@ impl GpuContext {
                 ))
             })?;
 
-        let driver_error = Arc::new(Mutex::new(None::<String>));
+        let driver_error = Arc::new(Mutex::new(None::<DriverError>));
         let sink = Arc::clone(&driver_error);
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
             sink.lock()
                 .unwrap_or_else(|p| p.into_inner())
-                .get_or_insert_with(|| e.to_string());
+                .get_or_insert_with(|| DriverError::of(&e));
         }));
 
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -418,7 +481,7 @@ impl GpuContext {
             busy: Mutex::new(TileBuffers::default()),
             timer,
             driver_error,
-            tile,
+            tile: AtomicU32::new(tile),
             trace_pixels,
         })
     }
@@ -446,7 +509,39 @@ impl GpuContext {
 
     /// Pixels per side of one dispatch's tile (frames larger than it take several dispatches).
     pub fn tile(&self) -> u32 {
-        self.tile
+        self.tile.load(Ordering::Relaxed)
+    }
+
+    /// After a frame ran out of GPU memory: free the tile buffers and halve the tile side for
+    /// this and every later frame. `Some((old, new))`, or `None` when the tile is already the
+    /// smallest (`MIN_TILE`) and the error stands.
+    pub fn shrink_tile(&self) -> Option<(u32, u32)> {
+        *self.busy.lock().unwrap_or_else(|e| e.into_inner()) = TileBuffers::default();
+        let old = self.tile();
+        let new = smaller_tile(old)?;
+        self.tile.store(new, Ordering::Relaxed);
+        Some((old, new))
+    }
+
+    /// Run `attempt` (one frame) and, while it runs out of GPU memory and the tile can shrink,
+    /// shrink it (`shrink_tile`, saying so on stderr) and run it again. A frame's pixels do
+    /// not depend on its tiles, so the retried frame is the frame the first tile would have
+    /// given.
+    pub fn with_tile_fallback<R>(
+        &self,
+        mut attempt: impl FnMut() -> Result<R, GpuError>,
+    ) -> Result<R, GpuError> {
+        loop {
+            match attempt() {
+                Err(e @ GpuError::OutOfMemory { .. }) => match self.shrink_tile() {
+                    Some((old, new)) => eprintln!(
+                        "warning: {e}\nwarning: rendering in {new}² tiles instead of {old}² from now on"
+                    ),
+                    None => return Err(e),
+                },
+                other => return other,
+            }
+        }
     }
 
     /// Whether the kernels' own time is measured (the adapter has timestamp queries).
@@ -583,7 +678,14 @@ impl GpuContext {
             .unwrap_or_else(|p| p.into_inner())
             .take()
         {
-            Some(e) => Err(GpuError::Device(format!("{}: {e}", self.adapter_info.name))),
+            Some(e) if e.out_of_memory => Err(GpuError::OutOfMemory {
+                adapter: self.adapter_info.name.clone(),
+                detail: e.text,
+            }),
+            Some(e) => Err(GpuError::Device(format!(
+                "{}: {}",
+                self.adapter_info.name, e.text
+            ))),
             None => Ok(()),
         }
     }
@@ -788,6 +890,64 @@ mod tests {
                 "{bad}: {e}"
             );
         }
+    }
+
+    #[test]
+    fn memory_setting_takes_percentages_and_names_the_fix() {
+        assert_eq!(memory_setting(None).unwrap(), None);
+        assert_eq!(memory_setting(Some("")).unwrap(), None);
+        assert_eq!(memory_setting(Some("50")).unwrap(), Some(50));
+        assert_eq!(memory_setting(Some(" 80% ")).unwrap(), Some(80));
+        assert_eq!(memory_setting(Some("100")).unwrap(), Some(100));
+        for bad in ["0", "101", "-5", "half", "2GiB"] {
+            let e = memory_setting(Some(bad)).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("PRISMBAKE_GPU_MEMORY={bad}")) && e.contains("unset it"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    #[test]
+    fn tiles_halve_to_workgroup_multiples_down_to_the_smallest() {
+        let mut sides = vec![2048];
+        while let Some(next) = smaller_tile(*sides.last().unwrap()) {
+            sides.push(next);
+        }
+        assert_eq!(sides, [2048, 1024, 512, 256, 128, 64]);
+        assert_eq!(smaller_tile(600), Some(296));
+        assert_eq!(smaller_tile(136), Some(64));
+        assert_eq!(smaller_tile(120), None);
+    }
+
+    #[test]
+    fn driver_errors_say_whether_memory_ran_out_and_keep_their_causes() {
+        #[derive(Debug)]
+        struct Cause(&'static str);
+        impl std::fmt::Display for Cause {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.write_str(self.0)
+            }
+        }
+        impl std::error::Error for Cause {}
+        let oom = DriverError::of(&wgpu::Error::OutOfMemory {
+            source: Box::new(Cause("In Device::create_buffer: Not enough memory left.")),
+        });
+        assert!(oom.out_of_memory);
+        assert_eq!(
+            oom.text,
+            "Out of Memory: In Device::create_buffer: Not enough memory left."
+        );
+        let invalid = DriverError::of(&wgpu::Error::Validation {
+            source: Box::new(Cause("Buffer with 'tile' label is invalid")),
+            description: "Validation Error\n\nCaused by:\n  Buffer with 'tile' label is invalid\n"
+                .into(),
+        });
+        assert!(!invalid.out_of_memory);
+        assert_eq!(
+            invalid.text,
+            "Validation Error Caused by: Buffer with 'tile' label is invalid"
+        );
     }
 
     #[test]

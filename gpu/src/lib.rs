@@ -46,7 +46,9 @@ pub enum GpuError {
     /// No wgpu adapter at all (no GPU driver, no software Vulkan such as lavapipe).
     #[error("no GPU adapter found ({0}); install a Vulkan driver (Debian: mesa-vulkan-drivers for the lavapipe software rasteriser) or use --device cpu")]
     NoAdapter(String),
-    #[error("could not open the GPU device: {0}")]
+    /// The device could not be opened, or reported an error while rendering (a lost device,
+    /// a refused resource).
+    #[error("GPU device error: {0}")]
     Device(String),
     #[error("shader or pipeline rejected by wgpu: {0}")]
     Shader(String),
@@ -65,4 +67,8 @@ pub enum GpuError {
     /// A setting of the GPU path (an environment variable) that cannot be used.
     #[error("{0}")]
     Setting(String),
+    /// The driver refused memory (or `PRISMBAKE_GPU_MEMORY`'s share of it ran out). A frame
+    /// meets it only once its tiles cannot shrink further (`GpuContext::shrink_tile`).
+    #[error("{adapter}: out of GPU memory ({detail}); free GPU memory (other applications), render a smaller --res, or raise PRISMBAKE_GPU_MEMORY if it is set")]
+    OutOfMemory { adapter: String, detail: String },
 }

@@ -94,9 +94,10 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
     progress: &dyn Fn(usize),
 ) -> Result<(), GpuError> {
     let (w, h, spp) = (base.width, base.height, base.spp);
+    let side = ctx.tile();
     let tiles: Vec<(u32, u32)> = (0..h)
-        .step_by(ctx.tile as usize)
-        .flat_map(|ty| (0..w).step_by(ctx.tile as usize).map(move |tx| (tx, ty)))
+        .step_by(side as usize)
+        .flat_map(|ty| (0..w).step_by(side as usize).map(move |tx| (tx, ty)))
         .collect();
     let passes = tiles.len() as u64 * spp as u64;
     let mut done = 0u64;
@@ -106,7 +107,7 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
         readback,
         work,
     } = &mut *bufs;
-    let largest_tile = (w.min(ctx.tile) * h.min(ctx.tile)) as u64;
+    let largest_tile = (w.min(side) * h.min(side)) as u64;
     let largest = largest_tile * std::mem::size_of::<T>() as u64;
     let encoder = |label| {
         ctx.device
@@ -117,7 +118,7 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
         .as_ref()
         .map(|t| t.lock().unwrap_or_else(|e| e.into_inner()));
     for &(tx, ty) in &tiles {
-        let (tw, th) = ((w - tx).min(ctx.tile), (h - ty).min(ctx.tile));
+        let (tw, th) = ((w - tx).min(side), (h - ty).min(side));
         let bytes = (tw * th) as u64 * std::mem::size_of::<T>() as u64;
         let output = ctx.output(outputs, kernel.output, largest)?;
         let paths = match kernel.paths {
@@ -197,7 +198,6 @@ pub fn render_aovs(
     progress: &dyn Fn(usize),
 ) -> Result<AovImage, GpuError> {
     check_render(s, opts)?;
-    let mut image = AovImage::blank(s.width, s.height);
     let kernel = Kernel {
         stages: &[Stage {
             pipeline: &ctx.aov_pipeline,
@@ -209,16 +209,19 @@ pub fn render_aovs(
         paths: false,
         label: "render_aovs",
     };
-    render_samples(
-        ctx,
-        scene,
-        &kernel,
-        frame_uniform(cam, s, opts),
-        &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
-        progress,
-    )?;
-    image.rays = s.width as u64 * s.height as u64 * s.spp as u64;
-    Ok(image)
+    ctx.with_tile_fallback(|| {
+        let mut image = AovImage::blank(s.width, s.height);
+        render_samples(
+            ctx,
+            scene,
+            &kernel,
+            frame_uniform(cam, s, opts),
+            &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
+            progress,
+        )?;
+        image.rays = s.width as u64 * s.height as u64 * s.spp as u64;
+        Ok(image)
+    })
 }
 
 /// Where a tile lies in its frame (pixels), for the sink of `render_samples`.
