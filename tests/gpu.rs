@@ -239,27 +239,19 @@ fn an_unusable_gpu_setting_is_an_error_naming_the_fix() {
             &[(var, value)],
         )
     };
-    render("gpu", "PRISMBAKE_GPU_TILE", "1020").assert_error(&[
-        "PRISMBAKE_GPU_TILE=1020",
-        "multiple of 8",
-        "unset it",
-    ]);
-    render("gpu", "PRISMBAKE_GPU_BEAUTY", "split").assert_error(&[
-        "PRISMBAKE_GPU_BEAUTY=split",
-        "`fused`",
-        "`wavefront`",
-        "unset it",
-    ]);
-    render("gpu", "PRISMBAKE_GPU_MEMORY", "0").assert_error(&[
-        "PRISMBAKE_GPU_MEMORY=0",
-        "percentage from 1 to 100",
-        "unset it",
-    ]);
-    render("gpu", "PRISMBAKE_GPU_TRACE_PIXELS", "0").assert_error(&[
-        "PRISMBAKE_GPU_TRACE_PIXELS=0",
-        "from 1 to 64",
-        "unset it",
-    ]);
+    // Each setting's bad value, and what its message must say besides "VAR=value".
+    let bad: [(&str, &str, &[&str]); 4] = [
+        ("PRISMBAKE_GPU_TILE", "1020", &["multiple of 8"]),
+        ("PRISMBAKE_GPU_BEAUTY", "split", &["`fused`", "`wavefront`"]),
+        ("PRISMBAKE_GPU_MEMORY", "0", &["percentage from 1 to 100"]),
+        ("PRISMBAKE_GPU_TRACE_PIXELS", "0", &["from 1 to 64"]),
+    ];
+    for (var, value, says) in bad {
+        let setting = format!("{var}={value}");
+        let mut expected = vec![setting.as_str(), "unset it"];
+        expected.extend(says);
+        render("gpu", var, value).assert_error(&expected);
+    }
     assert!(
         !out.exists() || files_in(&out).is_empty(),
         "files were written"

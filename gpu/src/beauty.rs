@@ -15,7 +15,7 @@
 
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
 use crate::layout::{GpuBeautySums, GpuLighting};
-use crate::render::{frame_uniform, render_samples, Kernel, Stage, TileRect};
+use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
@@ -240,24 +240,20 @@ pub fn render_beauty_scheduled(
         label: "render_beauty",
     };
     let n = s.width as usize * s.height as usize;
-    ctx.with_tile_fallback(|| {
-        let mut image = BeautyImage {
-            width: s.width,
-            height: s.height,
-            rgba: vec![[0.0; 4]; n],
-            background: vec![Vec3::ZERO; n],
-            counters: BeautyCounters::default(),
-        };
-        render_samples(
-            ctx,
-            scene,
-            &dispatch,
-            frame_uniform(cam, s, opts),
-            &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
-            progress,
-        )?;
-        Ok(image)
-    })
+    let blank = || BeautyImage {
+        width: s.width,
+        height: s.height,
+        rgba: vec![[0.0; 4]; n],
+        background: vec![Vec3::ZERO; n],
+        counters: BeautyCounters::default(),
+    };
+    let frame = FrameJob {
+        ctx,
+        scene,
+        kernel: &dispatch,
+        base: frame_uniform(cam, s, opts),
+    };
+    frame.render(blank, resolve_tile, progress)
 }
 
 /// The dispatches of one sample under lighting `l`: `beauty_start` (camera rays), then a

@@ -209,19 +209,51 @@ pub fn render_aovs(
         paths: false,
         label: "render_aovs",
     };
-    ctx.with_tile_fallback(|| {
-        let mut image = AovImage::blank(s.width, s.height);
-        render_samples(
-            ctx,
-            scene,
-            &kernel,
-            frame_uniform(cam, s, opts),
-            &mut |rect, tile| resolve_tile(&mut image, rect, tile, s.spp),
-            progress,
-        )?;
-        image.rays = s.width as u64 * s.height as u64 * s.spp as u64;
-        Ok(image)
-    })
+    let blank = || AovImage {
+        rays: s.width as u64 * s.height as u64 * s.spp as u64,
+        ..AovImage::blank(s.width, s.height)
+    };
+    let frame = FrameJob {
+        ctx,
+        scene,
+        kernel: &kernel,
+        base: frame_uniform(cam, s, opts),
+    };
+    frame.render(blank, resolve_tile, progress)
+}
+
+/// One frame of a kernel, for `render`.
+pub(crate) struct FrameJob<'a> {
+    pub ctx: &'a GpuContext,
+    pub scene: &'a GpuScene,
+    pub kernel: &'a Kernel<'a>,
+    pub base: GpuFrame,
+}
+
+impl FrameJob<'_> {
+    /// Render the frame into the image `blank` makes, each tile resolved into it by `resolve`
+    /// (image, tile rectangle, the tile's sums, spp), again from a new blank in smaller tiles
+    /// while the GPU runs out of memory (`GpuContext::with_tile_fallback`).
+    pub fn render<T: bytemuck::Pod, I>(
+        &self,
+        blank: impl Fn() -> I,
+        resolve: fn(&mut I, TileRect, &[T], u32),
+        progress: &dyn Fn(usize),
+    ) -> Result<I, GpuError> {
+        let spp = self.base.spp;
+        self.ctx.with_tile_fallback(|| {
+            let mut image = blank();
+            render_samples(
+                self.ctx,
+                self.scene,
+                self.kernel,
+                self.base,
+                &mut |rect, tile| resolve(&mut image, rect, tile, spp),
+                progress,
+            )?;
+            Ok(image)
+        })
+    }
 }
 
 /// Where a tile lies in its frame (pixels), for the sink of `render_samples`.

@@ -3,7 +3,7 @@
 //! of its own, so that the shared one stays clean.
 
 use crate::util::example_scene;
-use prismbake::render::RenderSettings;
+use prismbake::render::{AovImage, RenderSettings};
 use prismbake::trace::pdm::PdmOptions;
 use prismbake_gpu::{render_aovs, GpuContext, GpuError, GpuScene};
 
@@ -24,24 +24,34 @@ fn driver_errors_are_errors_not_panics() {
     );
     ctx.check().expect("an error is reported once");
     // The context still renders.
+    let img = torus_aovs(&ctx, 16, 16)().expect("render after the error");
+    assert!(img.mask.iter().any(|&m| m > 0.5));
+}
+
+/// A function rendering the torus example's AOVs at `width`×`height` on `ctx` (1 spp, seed 7).
+fn torus_aovs(
+    ctx: &GpuContext,
+    width: u32,
+    height: u32,
+) -> impl Fn() -> Result<AovImage, GpuError> + '_ {
     let ex = example_scene("torus/torus.obj");
-    let scene = GpuScene::upload(&ctx, &ex.scene).expect("upload");
+    let scene = GpuScene::upload(ctx, &ex.scene).expect("upload");
     let settings = RenderSettings {
-        width: 16,
-        height: 16,
+        width,
+        height,
         spp: 1,
         seed: 7,
     };
-    let img = render_aovs(
-        &ctx,
-        &scene,
-        &ex.cam,
-        &settings,
-        &PdmOptions::default(),
-        &|_| {},
-    )
-    .expect("render after the error");
-    assert!(img.mask.iter().any(|&m| m > 0.5));
+    move || {
+        render_aovs(
+            ctx,
+            &scene,
+            &ex.cam,
+            &settings,
+            &PdmOptions::default(),
+            &|_| {},
+        )
+    }
 }
 
 /// A frame that runs out of GPU memory is rendered again in tiles half as wide, until one fits
@@ -53,24 +63,7 @@ fn driver_errors_are_errors_not_panics() {
 #[test]
 fn running_out_of_memory_shrinks_the_tile_and_keeps_the_picture() {
     let ctx = GpuContext::new().expect("an adapter");
-    let ex = example_scene("torus/torus.obj");
-    let scene = GpuScene::upload(&ctx, &ex.scene).expect("upload");
-    let settings = RenderSettings {
-        width: 150,
-        height: 130,
-        spp: 1,
-        seed: 7,
-    };
-    let render = || {
-        render_aovs(
-            &ctx,
-            &scene,
-            &ex.cam,
-            &settings,
-            &PdmOptions::default(),
-            &|_| {},
-        )
-    };
+    let render = torus_aovs(&ctx, 150, 130);
     let oom = || GpuError::OutOfMemory {
         adapter: ctx.adapter_name().to_string(),
         detail: "made by the test".into(),
