@@ -144,6 +144,14 @@ fn auto_renders_beauty_on_the_gpu_from_the_cpu_table_cache() {
         "auto takes the adapter for beauty: {stderr}"
     );
     assert!(auto["device"].as_str().unwrap().starts_with("gpu ("));
+    // A software adapter (lavapipe in CI: "…, Cpu, …" in its description) says that the CPU
+    // renderer is the faster device there; a GPU does not.
+    let software = auto["device"].as_str().unwrap().contains(", Cpu,");
+    assert_eq!(
+        stderr.contains("is a software adapter") && stderr.contains("--device cpu"),
+        software,
+        "{stderr}"
+    );
     assert_eq!(
         auto["table_cache"]["cache"], "reused",
         "the GPU path reuses the table the CPU path baked: {auto}"
