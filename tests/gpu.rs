@@ -138,12 +138,19 @@ fn auto_renders_beauty_on_the_gpu_from_the_cpu_table_cache() {
     };
     let (cpu, _) = render("cpu", "mask");
     assert_eq!(cpu["table_cache"]["cache"], "stored", "{cpu}");
+    assert!(cpu.get("gpu_tile").is_none(), "{cpu}");
     let (auto, stderr) = render("auto", "beauty");
     assert!(
         stderr.contains("device: gpu ("),
         "auto takes the adapter for beauty: {stderr}"
     );
     assert!(auto["device"].as_str().unwrap().starts_with("gpu ("));
+    // The tile side the frames were dispatched in: lavapipe's 512², a GPU's 2048² (either
+    // cut to the device's binding limit).
+    let tile = auto["gpu_tile"]
+        .as_u64()
+        .unwrap_or_else(|| panic!("{auto}"));
+    assert!(tile % 8 == 0 && (64..=2048).contains(&tile), "{auto}");
     // A software adapter (lavapipe in CI: "…, Cpu, …" in its description) says that the CPU
     // renderer is the faster device there; a GPU does not.
     let software = auto["device"].as_str().unwrap().contains(", Cpu,");

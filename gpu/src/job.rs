@@ -132,6 +132,7 @@ pub fn run(
     let frames = GpuFrames::new(ctx, &scene, opts, look.env.clone());
     let mut summary = lookdev::render_all(job, look, &session, &frames, progress)?;
     summary.render.setup_seconds += upload_seconds;
+    summary.render.gpu_tile = Some(ctx.tile());
     Ok(summary)
 }
 

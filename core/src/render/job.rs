@@ -287,6 +287,11 @@ pub struct RenderSummary {
     /// next one traces).
     pub frames_seconds: f64,
     pub files: Vec<PathBuf>,
+    /// GPU renders: the tile side (pixels) the last frame was dispatched in; smaller than the
+    /// first frame's when the GPU ran out of memory and frames were rendered again in smaller
+    /// tiles. Absent on the CPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_tile: Option<u32>,
 }
 
 /// The intersector a config names, built over `scene`.

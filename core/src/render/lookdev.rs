@@ -511,6 +511,7 @@ pub fn render_all(
             frames: vec![],
             frames_seconds: 0.0,
             files: vec![],
+            gpu_tile: None,
         },
         table_cache: s.cache.clone(),
         beauty_rays: BeautyCounters::default(),
