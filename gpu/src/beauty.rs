@@ -301,26 +301,24 @@ fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums],
         }
         .resolve(spp)
     };
-    rect.frame_rows(&mut image.rgba)
+    // One pass over the tile: its pixels resolved into the frame, its rays counted.
+    let (rays, key, env) = rect
+        .frame_rows(&mut image.rgba)
         .zip(rect.frame_rows(&mut image.background))
         .zip(rect.tile_rows(tile))
-        .for_each(|((rgba, background), src)| {
+        .map(|((rgba, background), src)| {
             let dst = rect.span(rgba).iter_mut().zip(rect.span(background));
+            let mut counts = (0u64, 0u64, 0u64);
             for ((c, b), g) in dst.zip(src) {
                 (*c, *b) = resolve(g);
+                counts.0 += g.rays as u64;
+                counts.1 += g.key_shadow_rays as u64;
+                counts.2 += g.env_shadow_rays as u64;
             }
-        });
-    let c = &mut image.counters;
-    let (rays, key, env) = tile
-        .par_iter()
-        .map(|g| {
-            (
-                g.rays as u64,
-                g.key_shadow_rays as u64,
-                g.env_shadow_rays as u64,
-            )
+            counts
         })
         .reduce(|| (0, 0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    let c = &mut image.counters;
     c.rays += rays;
     c.key_shadow_rays += key;
     c.env_shadow_rays += env;

@@ -183,17 +183,20 @@ const MEMORY_SETTING: std::ops::RangeInclusive<u8> = 1..=100;
 /// The share of the GPU's memory budget `PRISMBAKE_GPU_MEMORY` allows (`None` unset or empty),
 /// or why it cannot be used.
 fn memory_setting(value: Option<&str>) -> Result<Option<u8>, GpuError> {
-    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
-        return Ok(None);
-    };
-    match v.trim_end_matches('%').trim().parse::<u8>() {
-        Ok(p) if MEMORY_SETTING.contains(&p) => Ok(Some(p)),
-        _ => Err(GpuError::Setting(format!(
+    number_setting(
+        value,
+        |v| {
+            let p: u8 = v.trim_end_matches('%').trim().parse().ok()?;
+            MEMORY_SETTING.contains(&p).then_some(p)
+        },
+        |v| {
+            format!(
             "PRISMBAKE_GPU_MEMORY={v}: the share of the GPU's memory budget prismbake may allocate, a whole percentage from {} to {} (e.g. 50 beside another GPU application); unset it for no limit",
             MEMORY_SETTING.start(),
             MEMORY_SETTING.end()
-        ))),
-    }
+        )
+        },
+    )
 }
 
 /// The tile side after `tile` ran out of memory: half of it, a multiple of the workgroup side,
@@ -215,17 +218,20 @@ const TRACE_PIXELS_SETTING: std::ops::RangeInclusive<u32> = 1..=64;
 /// The pixels per trace invocation `PRISMBAKE_GPU_TRACE_PIXELS` asks for (`None` unset or
 /// empty), or why it cannot be used.
 fn trace_pixels_setting(value: Option<&str>) -> Result<Option<u32>, GpuError> {
-    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
-        return Ok(None);
-    };
-    match v.parse::<u32>() {
-        Ok(n) if TRACE_PIXELS_SETTING.contains(&n) => Ok(Some(n)),
-        _ => Err(GpuError::Setting(format!(
+    number_setting(
+        value,
+        |v| {
+            let n: u32 = v.parse().ok()?;
+            TRACE_PIXELS_SETTING.contains(&n).then_some(n)
+        },
+        |v| {
+            format!(
             "PRISMBAKE_GPU_TRACE_PIXELS={v}: the pixels each invocation of the wavefront beauty's trace kernel serves, a whole number from {} to {}; unset it for the default ({TRACE_PIXELS})",
             TRACE_PIXELS_SETTING.start(),
             TRACE_PIXELS_SETTING.end()
-        ))),
-    }
+        )
+        },
+    )
 }
 
 /// The schedule `PRISMBAKE_GPU_BEAUTY` asks for (`None` unset or empty), or why it cannot be
@@ -247,16 +253,35 @@ const TILE_SETTING: std::ops::RangeInclusive<u32> = 64..=4096;
 /// The tile side `PRISMBAKE_GPU_TILE` asks for (`None` unset or empty), or why it cannot be
 /// used: a multiple of the workgroup side in `TILE_SETTING`.
 fn tile_setting(value: Option<&str>) -> Result<Option<u32>, GpuError> {
-    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
-        return Ok(None);
-    };
-    match v.parse::<u32>() {
-        Ok(t) if TILE_SETTING.contains(&t) && t % WORKGROUP == 0 => Ok(Some(t)),
-        _ => Err(GpuError::Setting(format!(
+    number_setting(
+        value,
+        |v| {
+            let t: u32 = v.parse().ok()?;
+            (TILE_SETTING.contains(&t) && t.is_multiple_of(WORKGROUP)).then_some(t)
+        },
+        |v| {
+            format!(
             "PRISMBAKE_GPU_TILE={v}: the tile side is pixels per side of one dispatch, a multiple of {WORKGROUP} from {} to {} (e.g. 1024 for a GPU with little memory); unset it for the default ({MAX_TILE} on a software adapter, {HARDWARE_TILE} on a GPU)",
             TILE_SETTING.start(),
             TILE_SETTING.end()
-        ))),
+        )
+        },
+    )
+}
+
+/// A numeric setting's value: `None` when unset or empty, what `parse` makes of the trimmed
+/// text, or `GpuError::Setting` with `refuse`'s message when `parse` takes none.
+fn number_setting<N>(
+    value: Option<&str>,
+    parse: impl FnOnce(&str) -> Option<N>,
+    refuse: impl FnOnce(&str) -> String,
+) -> Result<Option<N>, GpuError> {
+    let Some(v) = value.map(str::trim).filter(|v| !v.is_empty()) else {
+        return Ok(None);
+    };
+    match parse(v) {
+        Some(n) => Ok(Some(n)),
+        None => Err(GpuError::Setting(refuse(v))),
     }
 }
 
