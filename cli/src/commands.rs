@@ -298,11 +298,21 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
     let pb = progress::bar(frames * rows, "rendering");
+    warn_between_redraws(gpu.as_ref(), &pb);
     let report = |frame: usize, done: usize| pb.set_position(frame as u64 * rows + done as u64);
     let summary = pool.install(|| run_lookdev(gpu.as_ref(), &job, &look, &report))?;
     pb.finish_and_clear();
     print_render_summary(&a, &summary);
     Ok(ExitCode::SUCCESS)
+}
+
+/// The GPU's warnings (an out-of-memory fallback to smaller tiles) printed between the
+/// progress bar's redraws, which would otherwise draw over them.
+fn warn_between_redraws(gpu: Option<&prismbake_gpu::GpuContext>, pb: &indicatif::ProgressBar) {
+    if let Some(ctx) = gpu {
+        let pb = pb.clone();
+        ctx.set_warning_sink(move |w| pb.suspend(|| eprintln!("{w}")));
+    }
 }
 
 /// One lookdev job on the GPU if there is a context, else on the CPU.
@@ -496,6 +506,7 @@ fn render_batch(
     probe.validate()?;
     let frames = frame_count(&probe);
     let pb = progress::bar(meshes.len() as u64 * frames, "rendering");
+    warn_between_redraws(gpu, &pb);
     let mut used = std::collections::HashSet::new();
     let mut failures: Vec<(PathBuf, String)> = Vec::new();
     let mut results = Vec::new();

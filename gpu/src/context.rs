@@ -143,7 +143,12 @@ pub struct GpuContext {
     /// Pixels of a row each invocation of the wavefront's `beauty_trace` serves
     /// (`TRACE_PIXELS`, or `PRISMBAKE_GPU_TRACE_PIXELS`).
     pub(crate) trace_pixels: u32,
+    /// Where warnings go (`set_warning_sink`; stderr until one is set).
+    warn: Mutex<WarningSink>,
 }
+
+/// Receives the context's warnings, one message per call.
+pub type WarningSink = Arc<dyn Fn(&str) + Send + Sync>;
 
 /// An error wgpu reported outside any error scope: its text, and whether it is the driver
 /// (or the memory budget) refusing memory, which smaller tiles may cure.
@@ -507,6 +512,7 @@ impl GpuContext {
             timer,
             driver_error,
             tile: AtomicU32::new(tile),
+            warn: Mutex::new(Arc::new(|w: &str| eprintln!("{w}"))),
             trace_pixels,
         })
     }
@@ -548,8 +554,20 @@ impl GpuContext {
         Some((old, new))
     }
 
+    /// Send the context's warnings to `sink` instead of stderr: a command line drawing a
+    /// progress bar prints them between its redraws, where a bare `eprintln!` would be
+    /// overdrawn.
+    pub fn set_warning_sink(&self, sink: impl Fn(&str) + Send + Sync + 'static) {
+        *self.warn.lock().unwrap_or_else(|e| e.into_inner()) = Arc::new(sink);
+    }
+
+    fn warn(&self, message: &str) {
+        let sink = self.warn.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        sink(message);
+    }
+
     /// Run `attempt` (one frame) and, while it runs out of GPU memory and the tile can shrink,
-    /// shrink it (`shrink_tile`, saying so on stderr) and run it again. A frame's pixels do
+    /// shrink it (`shrink_tile`, saying so through the warning sink) and run it again. A frame's pixels do
     /// not depend on its tiles, so the retried frame is the frame the first tile would have
     /// given.
     pub fn with_tile_fallback<R>(
@@ -559,9 +577,9 @@ impl GpuContext {
         loop {
             match attempt() {
                 Err(e @ GpuError::OutOfMemory { .. }) => match self.shrink_tile() {
-                    Some((old, new)) => eprintln!(
+                    Some((old, new)) => self.warn(&format!(
                         "warning: {e}\nwarning: rendering in {new}² tiles instead of {old}² from now on"
-                    ),
+                    )),
                     None => return Err(e),
                 },
                 other => return other,

@@ -71,6 +71,9 @@ fn running_out_of_memory_shrinks_the_tile_and_keeps_the_picture() {
     let whole = render().expect("the first tile renders");
     let first = ctx.tile();
     assert!(first >= 256, "tile {first}");
+    let warnings = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let sink = warnings.clone();
+    ctx.set_warning_sink(move |w| sink.lock().unwrap().push(w.to_string()));
     let mut attempts = 0;
     let shrunk = ctx
         .with_tile_fallback(|| {
@@ -82,6 +85,17 @@ fn running_out_of_memory_shrinks_the_tile_and_keeps_the_picture() {
         })
         .expect("the third attempt renders");
     assert_eq!(attempts, 3);
+    // Each shrink is one warning through the sink, naming the error and the new tile.
+    let said = warnings.lock().unwrap().clone();
+    assert_eq!(said.len(), 2, "{said:?}");
+    let half = first / 2 / 8 * 8;
+    for (w, (new, old)) in said.iter().zip([(half, first), (half / 2 / 8 * 8, half)]) {
+        assert!(w.contains("made by the test"), "{w}");
+        assert!(
+            w.contains(&format!("{new}² tiles instead of {old}²")),
+            "{w}"
+        );
+    }
     assert_eq!(ctx.tile(), first / 4 / 8 * 8);
     assert!(ctx.tile() < 150, "the frame is several tiles now");
     let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
