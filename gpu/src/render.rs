@@ -233,7 +233,9 @@ pub(crate) struct FrameJob<'a> {
 impl FrameJob<'_> {
     /// Render the frame into the image `blank` makes, each tile resolved into it by `resolve`
     /// (image, tile rectangle, the tile's sums, spp), again from a new blank in smaller tiles
-    /// while the GPU runs out of memory (`GpuContext::with_tile_fallback`).
+    /// while the GPU runs out of memory (`GpuContext::with_tile_fallback`). A retried frame's
+    /// rows are reported only once they pass what the failed attempt had reported, so a
+    /// progress bar holds still instead of running backwards.
     pub fn render<T: bytemuck::Pod, I>(
         &self,
         blank: impl Fn() -> I,
@@ -241,6 +243,8 @@ impl FrameJob<'_> {
         progress: &dyn Fn(usize),
     ) -> Result<I, GpuError> {
         let spp = self.base.spp;
+        let progress = forward_only(progress);
+        let progress = &progress;
         self.ctx.with_tile_fallback(|| {
             let mut image = blank();
             render_samples(
@@ -253,6 +257,17 @@ impl FrameJob<'_> {
             )?;
             Ok(image)
         })
+    }
+}
+
+/// `progress`, called only with counts above every count it was called with before.
+fn forward_only(progress: &dyn Fn(usize)) -> impl Fn(usize) + '_ {
+    let shown = std::cell::Cell::new(None);
+    move |done| {
+        if shown.get().is_none_or(|s| done > s) {
+            shown.set(Some(done));
+            progress(done);
+        }
     }
 }
 
@@ -352,4 +367,21 @@ pub(crate) fn check_render(s: &RenderSettings, opts: &PdmOptions) -> Result<(), 
         )));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::cell::RefCell;
+
+    #[test]
+    fn a_retried_frame_does_not_move_the_progress_back() {
+        let seen = RefCell::new(Vec::new());
+        let record = |done| seen.borrow_mut().push(done);
+        let progress = super::forward_only(&record);
+        // An attempt reaches row 6 and runs out of memory; the retry starts over at 0.
+        for done in [0, 3, 6, 0, 2, 6, 7, 9] {
+            progress(done);
+        }
+        assert_eq!(*seen.borrow(), [0, 3, 6, 7, 9]);
+    }
 }
