@@ -86,9 +86,10 @@ fn main() {
             Camera::frame_bounds(lo, hi, up, 40.0, 1.0)
         }
     };
+    let raster = cam.raster(res, res);
     let rays: Vec<Ray> = (0..res)
         .flat_map(|y| (0..res).map(move |x| (x, y)))
-        .map(|(x, y)| cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), res, res))
+        .map(|(x, y)| raster.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5)))
         .collect();
     let scene = Scene::new(prepared.table, prepared.map);
     let n = rays.len() as f64;

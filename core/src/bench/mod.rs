@@ -182,9 +182,10 @@ fn trace_from(isect: &dyn Intersector, rays: &[Ray], first: usize, seed: u32) ->
 /// Primary rays, then secondary rays from the reference's hits, then leak rays.
 pub fn make_rays(scene: &Scene, cam: &Camera, reference: &Reference, cfg: &BenchConfig) -> RaySet {
     let (w, h) = (cfg.width, cfg.height);
+    let raster = cam.raster(w, h);
     let mut rays: Vec<Ray> = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
-        .map(|(x, y)| cam.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5), w, h))
+        .map(|(x, y)| raster.ray(Vec2::new(x as f32 + 0.5, y as f32 + 0.5)))
         .collect();
     let primary = rays.len();
     if cfg.secondary_rays > 0 {
