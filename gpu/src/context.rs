@@ -148,7 +148,7 @@ pub struct GpuContext {
 }
 
 /// Receives the context's warnings, one message per call.
-pub type WarningSink = Arc<dyn Fn(&str) + Send + Sync>;
+type WarningSink = Arc<dyn Fn(&str) + Send + Sync>;
 
 /// An error wgpu reported outside any error scope: its text, and whether it is the driver
 /// (or the memory budget) refusing memory, which smaller tiles may cure.
@@ -567,9 +567,9 @@ impl GpuContext {
     }
 
     /// Run `attempt` (one frame) and, while it runs out of GPU memory and the tile can shrink,
-    /// shrink it (`shrink_tile`, saying so through the warning sink) and run it again. A frame's pixels do
-    /// not depend on its tiles, so the retried frame is the frame the first tile would have
-    /// given.
+    /// shrink it (`shrink_tile`, saying so through the warning sink) and run it again. A
+    /// frame's pixels do not depend on its tiles, so the retried frame is the frame the first
+    /// tile would have given.
     pub fn with_tile_fallback<R>(
         &self,
         mut attempt: impl FnMut() -> Result<R, GpuError>,
