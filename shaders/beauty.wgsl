@@ -98,6 +98,8 @@ struct PathState {
     rays: u32,
     key_shadow_rays: u32,
     env_shadow_rays: u32,
+    // The camera hit's shading normal (beauty::facing_normals), zero without one.
+    normal: vec3f,
 }
 
 // One pixel's path record in the wavefront schedule (gpu::layout::PATH_RECORD_BYTES).
@@ -151,6 +153,27 @@ fn no_query() -> QueryRec {
 
 fn query(ray: Ray, bounce: u32, any: bool) -> QueryRec {
     return QueryRec(ray.origin, ray.t_min, ray.dir, ray.t_max, bounce, select(0u, 1u, any), 1u, 0u);
+}
+
+// beauty::facing_normals: the normals turned to the side `dir` arrives from, the shading
+// normal replaced by the geometric one where it faces away.
+struct Facing {
+    ng: vec3f,
+    ns: vec3f,
+}
+
+fn facing_normals(geometric: vec3f, shading: vec3f, dir: vec3f) -> Facing {
+    let wo = -dir;
+    var ng = geometric;
+    var ns = shading;
+    if (dot(wo, ng) < 0.0) {
+        ng = -ng;
+        ns = -ns;
+    }
+    if (dot(wo, ns) <= 0.0) {
+        ns = ng;
+    }
+    return Facing(ng, ns);
 }
 
 fn has(s: PathState, flag: u32) -> bool {
@@ -251,15 +274,9 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let bounce = (*s).bounce;
         let throughput = (*s).throughput;
         let wo = -(*s).dir;
-        var ng = hit.geometric_normal;
-        var ns = hit.shading_normal;
-        if (dot(wo, ng) < 0.0) {
-            ng = -ng;
-            ns = -ns;
-        }
-        if (dot(wo, ns) <= 0.0) {
-            ns = ng;
-        }
+        let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
+        let ng = facing.ng;
+        let ns = facing.ns;
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
         let p = hit.position;
@@ -346,6 +363,7 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
         }
         if (next_prism != NO_PRISM && (!gt.ok || next_t <= gt.t)) {
             (*s).flags |= PATH_SURFACE;
+            (*s).normal = facing_normals(next.geometric_normal, next.shading_normal, camera.dir).ns;
             // trace_sample's `for bounce in 0..bounces`: none at 0 bounces.
             (*s).step = select(STEP_DONE, STEP_SURFACE, lighting.bounces > 0u);
         } else if (gt.ok) {
@@ -401,6 +419,7 @@ fn accumulate(i: u32, s: PathState) {
     var acc = beauty_sums[i];
     acc.radiance += s.radiance;
     acc.surface += select(0.0, 1.0, has(s, PATH_SURFACE));
+    acc.normal += s.normal;
     if (has(s, PATH_GROUND)) {
         acc.ground_samples += 1.0;
         acc.ground_lit += s.ground_lit;
@@ -424,7 +443,7 @@ fn new_path(px: PixelRef) -> PathState {
     let camera = camera_ray(vec2f(f32(px.x), f32(px.y)) + pixel_jitter(px.ctx.pixel, px.ctx.sample));
     return PathState(vec3f(1.0), STEP_CAMERA, camera.dir, 0u, vec3f(0.0), 0u,
         vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0,
-        vec3f(0.0), 0u, 0u, 0u);
+        vec3f(0.0), 0u, 0u, 0u, vec3f(0.0));
 }
 
 // One ray of a step: Pdm::intersect with surface data (the continuation), or Pdm::occluded

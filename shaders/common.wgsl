@@ -123,7 +123,7 @@ struct Lighting {
     _pad: u32,
 }
 
-// GpuBeautySums, 64 bytes: beauty::PixelSums of one pixel plus its ray counts.
+// GpuBeautySums, 80 bytes: beauty::PixelSums of one pixel plus its ray counts.
 struct BeautySums {
     radiance: vec3f,
     surface: f32,
@@ -135,6 +135,8 @@ struct BeautySums {
     rays: u32,
     key_shadow_rays: u32,
     env_shadow_rays: u32,
+    normal: vec3f,
+    _pad: u32,
 }
 
 // Group 0: the scene (GpuScene), shared by every kernel.

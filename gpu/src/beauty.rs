@@ -245,6 +245,7 @@ pub fn render_beauty_scheduled(
         height: s.height,
         rgba: vec![[0.0; 4]; n],
         background: vec![Vec3::ZERO; n],
+        features: vec![[0.0; 4]; n],
         counters: BeautyCounters::default(),
     };
     let frame = FrameJob {
@@ -289,28 +290,33 @@ fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting, trace_pixels: u32) ->
 /// (`PixelSums::resolve`), on all cores and straight from the read-back.
 fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums], spp: u32) {
     use rayon::prelude::*;
-    let resolve = |g: &GpuBeautySums| {
-        PixelSums {
-            radiance: Vec3::from_array(g.radiance),
-            surface: g.surface,
-            background: Vec3::from_array(g.background),
-            ground_background: Vec3::from_array(g.ground_background),
-            ground_samples: g.ground_samples,
-            ground_lit: g.ground_lit,
-            ground_unshadowed: g.ground_unshadowed,
-        }
-        .resolve(spp)
+    let resolve = |g: &GpuBeautySums| PixelSums {
+        radiance: Vec3::from_array(g.radiance),
+        surface: g.surface,
+        background: Vec3::from_array(g.background),
+        ground_background: Vec3::from_array(g.ground_background),
+        ground_samples: g.ground_samples,
+        ground_lit: g.ground_lit,
+        ground_unshadowed: g.ground_unshadowed,
+        normal: Vec3::from_array(g.normal),
     };
     // One pass over the tile: its pixels resolved into the frame, its rays counted.
     let (rays, key, env) = rect
         .frame_rows(&mut image.rgba)
         .zip(rect.frame_rows(&mut image.background))
+        .zip(rect.frame_rows(&mut image.features))
         .zip(rect.tile_rows(tile))
-        .map(|((rgba, background), src)| {
-            let dst = rect.span(rgba).iter_mut().zip(rect.span(background));
+        .map(|(((rgba, background), features), src)| {
+            let dst = rect
+                .span(rgba)
+                .iter_mut()
+                .zip(rect.span(background))
+                .zip(rect.span(features));
             let mut counts = (0u64, 0u64, 0u64);
-            for ((c, b), g) in dst.zip(src) {
-                (*c, *b) = resolve(g);
+            for (((c, b), f), g) in dst.zip(src) {
+                let sums = resolve(g);
+                (*c, *b) = sums.resolve(spp);
+                *f = sums.features(spp);
                 counts.0 += g.rays as u64;
                 counts.1 += g.key_shadow_rays as u64;
                 counts.2 += g.env_shadow_rays as u64;

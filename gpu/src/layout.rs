@@ -23,7 +23,7 @@ pub const WORKGROUP: u32 = 8;
 /// `shaders/beauty.wgsl`: the path's state between dispatches, its three ray slots and their
 /// answers). Only the GPU reads it; the host sizes the buffer (tile² records) and the layout
 /// test checks this against the WGSL.
-pub const PATH_RECORD_BYTES: u64 = 368;
+pub const PATH_RECORD_BYTES: u64 = 384;
 
 /// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
 /// index of its stitch record (`StitchField::record_index`).
@@ -188,7 +188,7 @@ pub struct GpuLighting {
     pub _pad: u32,
 }
 
-/// One pixel's running beauty sums as the kernel accumulates them over samples, 64 bytes:
+/// One pixel's running beauty sums as the kernel accumulates them over samples, 80 bytes:
 /// `prismbake::render::beauty::PixelSums` plus the pixel's ray counts (`BeautyCounters`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -203,6 +203,8 @@ pub struct GpuBeautySums {
     pub rays: u32,
     pub key_shadow_rays: u32,
     pub env_shadow_rays: u32,
+    pub normal: [f32; 3],
+    pub _pad: u32,
 }
 
 const _: () = {
@@ -214,7 +216,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
     assert!(std::mem::size_of::<GpuLighting>() == 112);
-    assert!(std::mem::size_of::<GpuBeautySums>() == 64);
+    assert!(std::mem::size_of::<GpuBeautySums>() == 80);
 };
 
 /// One shared struct as the layout test sees it: WGSL name, Rust size, `(member, offset)`s.
@@ -354,7 +356,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 ground_unshadowed,
                 rays,
                 key_shadow_rays,
-                env_shadow_rays
+                env_shadow_rays,
+                normal,
+                _pad
             }
         ),
     ]
@@ -387,5 +391,6 @@ mod tests {
         assert_eq!(offset_of!(GpuBeautySums, background), 16);
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);
+        assert_eq!(offset_of!(GpuBeautySums, normal), 64);
     }
 }

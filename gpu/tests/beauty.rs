@@ -11,7 +11,8 @@
 //! (`scale`): mean |Δ| over all pixels and channels ≤ 1e-3, the 99th percentile of the
 //! per-pixel max-channel |Δ| ≤ 1e-2, alpha mean |Δ| ≤ 1e-3, the background (what shows
 //! behind the asset: the bilinear environment, dimmed by the catcher's shadow) mean |Δ| ≤ 1e-3
-//! of its own mean, and ray counts per kind within 1%. Measured on lavapipe (docs/gpu.md):
+//! of its own mean, the denoising guides (normals, coverage) mean |Δ| ≤ 1e-3, and ray counts
+//! per kind within 1%. Measured on lavapipe (docs/gpu.md):
 //! mean 3e-6..1e-5, p99 2e-5..5e-5, under 0.3% of pixels off by more than 1e-3, background
 //! 4e-5..1.5e-4 (sharp texel edges of the sun, catcher shadows), identical ray counts — so
 //! the bounds leave ~100× for other drivers and real GPUs, while a bug in any mirrored stage
@@ -36,6 +37,9 @@ struct Agreement {
     max_rel: f64,
     alpha_mean: f64,
     background_rel: f64,
+    /// The denoising guides (`BeautyImage::features`): mean |Δ| of the summed normal's
+    /// components and of the coverage, over all pixels.
+    features_mean: f64,
     /// Pixels whose max-channel difference exceeds 1e-3 × scale.
     differing: f64,
     scale: f64,
@@ -57,7 +61,7 @@ fn compare(cpu: &BeautyImage, gpu: &BeautyImage) -> Agreement {
         .map(|b| luminance(*b) as f64)
         .sum::<f64>()
         / n as f64;
-    let (mut sum, mut alpha, mut bg) = (0.0, 0.0, 0.0);
+    let (mut sum, mut alpha, mut bg, mut feat) = (0.0, 0.0, 0.0, 0.0);
     let mut per_pixel = Vec::with_capacity(n);
     for i in 0..n {
         let (c, g) = (cpu.rgba[i], gpu.rgba[i]);
@@ -66,6 +70,8 @@ fn compare(cpu: &BeautyImage, gpu: &BeautyImage) -> Agreement {
         per_pixel.push(d.fold(0.0, f64::max) / scale);
         alpha += (c[3] - g[3]).abs() as f64;
         bg += (cpu.background[i] - gpu.background[i]).abs().max_element() as f64;
+        let (cf, gf) = (cpu.features[i], gpu.features[i]);
+        feat += (0..4).map(|k| (cf[k] - gf[k]).abs() as f64).sum::<f64>() / 4.0;
     }
     let differing = per_pixel.iter().filter(|&&d| d > 1e-3).count() as f64 / n as f64;
     per_pixel.sort_by(|a, b| a.total_cmp(b));
@@ -75,6 +81,7 @@ fn compare(cpu: &BeautyImage, gpu: &BeautyImage) -> Agreement {
         max_rel: per_pixel[n - 1],
         alpha_mean: alpha / n as f64,
         background_rel: bg / n as f64 / bg_scale.max(1e-6),
+        features_mean: feat / n as f64,
         differing,
         scale,
     }
@@ -164,7 +171,7 @@ fn agree(
 ) -> Agreement {
     let a = compare(cpu, gpu);
     eprintln!(
-        "{rel} {label} {}² {} spp: mean |Δ| {:.2e} | p99 {:.2e} | max {:.2e} (× mean radiance {:.3}) | {:.2}% px > 1e-3 | alpha mean |Δ| {:.2e} | background {:.2e} | rays cpu {:?} gpu {:?}",
+        "{rel} {label} {}² {} spp: mean |Δ| {:.2e} | p99 {:.2e} | max {:.2e} (× mean radiance {:.3}) | {:.2}% px > 1e-3 | alpha mean |Δ| {:.2e} | background {:.2e} | guides {:.2e} | rays cpu {:?} gpu {:?}",
         settings.width,
         settings.spp,
         a.mean_rel,
@@ -174,6 +181,7 @@ fn agree(
         100.0 * a.differing,
         a.alpha_mean,
         a.background_rel,
+        a.features_mean,
         cpu.counters,
         gpu.counters
     );
@@ -197,6 +205,22 @@ fn agree(
         a.background_rel <= 1e-3,
         "{rel} {label}: background {:.2e}",
         a.background_rel
+    );
+    // The guides are the camera hits' normals and coverage: the alpha's tolerance.
+    assert!(
+        a.features_mean <= 1e-3,
+        "{rel} {label}: denoising guides {:.2e}",
+        a.features_mean
+    );
+    let covered = cpu.features.iter().filter(|f| f[3] > 0.5).count();
+    assert!(
+        covered > 0
+            && cpu
+                .features
+                .iter()
+                .filter(|f| f[3] > 0.5)
+                .all(|f| Vec3::new(f[0], f[1], f[2]).length() > 0.1),
+        "{rel} {label}: covered pixels without a normal guide"
     );
     let close = |c: u64, g: u64, what: &str| {
         assert!(

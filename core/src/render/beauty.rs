@@ -108,6 +108,10 @@ pub struct BeautyImage {
     pub rgba: Vec<[f32; 4]>,
     /// What shows where alpha is below 1 (environment, darkened by catcher shadows).
     pub background: Vec<Vec3>,
+    /// The denoiser's guides: the first hit's shading normal (facing the camera) summed over
+    /// the pixel's samples that hit the asset, divided by all its samples (xyz), and the
+    /// asset's coverage (w; alpha without the catcher's shadow).
+    pub features: Vec<[f32; 4]>,
     pub counters: BeautyCounters,
 }
 
@@ -122,6 +126,8 @@ pub struct PixelSums {
     pub ground_samples: f32,
     pub ground_lit: f32,
     pub ground_unshadowed: f32,
+    /// Sum of the first hits' camera-facing shading normals (`facing_normals`).
+    pub normal: Vec3,
 }
 
 impl PixelSums {
@@ -139,6 +145,29 @@ impl PixelSums {
         let bg = (self.background + self.ground_background * (1.0 - shadow)) * k;
         ([c.x, c.y, c.z, alpha], bg)
     }
+
+    /// The pixel's denoising guides after `spp` samples (`BeautyImage::features`).
+    pub fn features(&self, spp: u32) -> [f32; 4] {
+        let k = 1.0 / spp as f32;
+        let n = self.normal * k;
+        [n.x, n.y, n.z, self.surface * k]
+    }
+}
+
+/// A hit's geometric and shading normals turned to the side `dir` arrives from (the shading
+/// normal replaced by the geometric one where it faces away): what the path tracer shades.
+#[inline]
+pub fn facing_normals(hit: &Hit, dir: Vec3) -> (Vec3, Vec3) {
+    let wo = -dir;
+    let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
+    if wo.dot(ng) < 0.0 {
+        ng = -ng;
+        ns = -ns;
+    }
+    if wo.dot(ns) <= 0.0 {
+        ns = ng;
+    }
+    (ng, ns)
 }
 
 /// What one camera sample saw.
@@ -146,6 +175,8 @@ impl PixelSums {
 struct SampleResult {
     radiance: Vec3,
     surface: bool,
+    /// The camera hit's shading normal (`facing_normals`), zero without one.
+    normal: Vec3,
     background: Vec3,
     ground: Option<(f32, f32)>,
 }
@@ -233,14 +264,7 @@ fn surface_radiance(
     let mut radiance = Vec3::ZERO;
     for bounce in 0..s.bounces {
         let wo = -dir;
-        let (mut ng, mut ns) = (hit.geometric_normal, hit.shading_normal);
-        if wo.dot(ng) < 0.0 {
-            ng = -ng;
-            ns = -ns;
-        }
-        if wo.dot(ns) <= 0.0 {
-            ns = ng;
-        }
+        let (ng, ns) = facing_normals(&hit, dir);
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
         let p = hit.position;
@@ -348,6 +372,7 @@ fn trace_sample(
         (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => SampleResult {
             radiance: surface_radiance(isect, s, h, ray.dir, ctx, n),
             surface: true,
+            normal: facing_normals(&h, ray.dir).1,
             ..Default::default()
         },
         (_, Some(gt)) => SampleResult {
@@ -406,6 +431,7 @@ pub fn render_beauty(
                     let r = trace_sample(isect, scene, &ray, &ctx, &mut n);
                     acc.radiance += r.radiance;
                     acc.surface += r.surface as u32 as f32;
+                    acc.normal += r.normal;
                     match r.ground {
                         Some((lit, all)) => {
                             acc.ground_samples += 1.0;
@@ -431,6 +457,7 @@ pub fn render_beauty(
         height: h as u32,
         rgba,
         background,
+        features: sums.iter().map(|a| a.features(spp)).collect(),
         counters,
     }
 }
