@@ -24,16 +24,19 @@ if command -v apt-get >/dev/null; then
 fi
 if ! command -v cargo >/dev/null && [ -f "$HOME/.cargo/env" ]; then . "$HOME/.cargo/env"; fi
 
+# Python side first: the Blender add-on's tests need the real bpy wheel, and the `--denoise`
+# tests use the Open Image Denoise that wheel ships (tests/denoise.rs).
+PY=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
+.venv/bin/python -m pip install -q -r tests/python/requirements.txt
+
 # One profile (dev, dependencies optimised) for unit tests, integration tests and the binary.
 cargo test --workspace --locked
 # The GPU suite again on wgpu's GL backend: what a machine without Vulkan drivers renders with
 # (docs/gpu.md, "wgpu's GL backend").
 WGPU_BACKEND=gl cargo test -p prismbake-gpu --test gpu --locked
 
-# Python side: the Blender add-on against the real bpy wheel, USD output against Pixar's
-# usd-core, JUnit output against a JUnit consumer. They drive the binary built above.
-PY=${PYTHON:-python3}
-if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
-.venv/bin/python -m pip install -q -r tests/python/requirements.txt
+# The Blender add-on against the real bpy wheel, USD output against Pixar's usd-core, JUnit
+# output against a JUnit consumer. They drive the binary built above.
 export PRISMBAKE_BIN="$PWD/target/debug/prismbake"
 HOME="$(mktemp -d)" .venv/bin/python -m pytest -q tests/python blender_addon/tests

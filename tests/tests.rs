@@ -6,6 +6,7 @@ mod bad_input;
 mod bake;
 mod beauty;
 mod bench;
+mod denoise;
 mod gpu;
 mod render;
 mod seams;

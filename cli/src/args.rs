@@ -172,6 +172,12 @@ pub struct LookArgs {
     /// Shadow-catcher ground plane at the asset's lowest point (its shadow in the alpha).
     #[arg(long)]
     pub ground: bool,
+    /// Denoise the beauty (EXR, PNG, contact sheet) with Intel Open Image Denoise, guided by
+    /// the first hits' albedo and normals. Loaded at run time from PRISMBAKE_OIDN (the
+    /// library or its folder), ~/.local/share/prismbake/oidn (./install.sh puts it there), or
+    /// the system's library path.
+    #[arg(long)]
+    pub denoise: bool,
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32), String> {

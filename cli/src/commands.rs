@@ -341,6 +341,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,
+        denoise: l.denoise,
         cache_dir: if a.no_cache {
             None
         } else {
@@ -430,12 +431,15 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
     }
     for f in &summary.render.frames {
         eprintln!(
-            "{}frame: {:.3} s (trace {:.3} s{}, files {:.3} s), {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
+            "{}frame: {:.3} s (trace {:.3} s{}, {}files {:.3} s), {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",
             f.frame.map(|i| format!("[{i:04}] ")).unwrap_or_default(),
             f.seconds,
             f.trace_seconds,
             f.device_seconds
                 .map(|d| format!(" of which kernels {d:.4} s"))
+                .unwrap_or_default(),
+            f.denoise_seconds
+                .map(|d| format!("denoise {d:.3} s, "))
                 .unwrap_or_default(),
             f.write_seconds,
             f.mrays_per_s,
@@ -458,6 +462,9 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
             "beauty: {} rays, {} shadow rays ({} key light, {} environment)",
             b.rays, summary.shadow_rays, b.key_shadow_rays, b.env_shadow_rays
         );
+    }
+    if let Some(d) = &summary.denoiser {
+        eprintln!("beauty denoised with {d}");
     }
     for p in &summary.contact_sheets {
         eprintln!("contact sheet: {}", p.display());

@@ -255,7 +255,8 @@ pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     cam
 }
 
-/// One frame's figures. `seconds` is the frame's own work, `trace_seconds` + `write_seconds`:
+/// One frame's figures. `seconds` is the frame's own work, `trace_seconds` (+
+/// `denoise_seconds`) + `write_seconds`:
 /// `trace_seconds` the renderer's call alone (rays traced, and on a GPU the uniforms written,
 /// the dispatches waited for and the image read back), `write_seconds` its files and previews
 /// (written while the next frame traces, so a job takes less than the sum of its frames'
@@ -268,6 +269,9 @@ pub struct FrameStats {
     pub seconds: f64,
     pub trace_seconds: f64,
     pub write_seconds: f64,
+    /// Time the denoiser took on the frame's beauty (`--denoise`), part of `seconds`;
+    /// `null` without it.
+    pub denoise_seconds: Option<f64>,
     pub device_seconds: Option<f64>,
     pub rays: u64,
     pub mrays_per_s: f64,

@@ -13,6 +13,7 @@
 
 use super::beauty::{self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight};
 use super::camera::Camera;
+use super::denoise::Denoiser;
 use super::env::{EnvFrame, EnvMap};
 use super::job::{
     base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob,
@@ -51,6 +52,8 @@ pub struct LookdevOptions {
     pub specular: f32,
     pub bounces: u32,
     pub ground: bool,
+    /// Denoise the beauty with Open Image Denoise (`denoise`), loaded when the job opens.
+    pub denoise: bool,
     /// Folder of cached prism tables; `None` = do not cache.
     pub cache_dir: Option<PathBuf>,
 }
@@ -68,6 +71,7 @@ impl Default for LookdevOptions {
             specular: 0.04,
             bounces: 2,
             ground: false,
+            denoise: false,
             cache_dir: table_cache::default_dir(),
         }
     }
@@ -139,6 +143,10 @@ pub struct LookdevSummary {
     pub beauty_rays: BeautyCounters,
     pub shadow_rays: u64,
     pub contact_sheets: Vec<PathBuf>,
+    /// The denoiser that filtered the beauty frames ("Open Image Denoise 2.3.3 (PATH)"); absent
+    /// without `--denoise`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub denoiser: Option<String>,
 }
 
 /// What renders the frames of a lookdev job: the CPU (`CpuFrames`, any intersector) or a GPU.
@@ -210,6 +218,7 @@ pub struct Session {
     up_axis: UpAxis,
     base_color: Option<Vec3>,
     env: Option<EnvMap>,
+    denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
 }
@@ -286,6 +295,17 @@ impl Session {
 pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     job.validate()?;
     opts.validate()?;
+    // The denoiser is loaded before anything is rendered: a job that cannot denoise fails
+    // at once, not after its frames.
+    let denoiser =
+        match (opts.denoise, job.aovs.contains(&Aov::Beauty)) {
+            (false, _) => None,
+            (true, false) => return Err(Error::Param(
+                "--denoise filters the beauty only: add beauty to --aov, or leave out --denoise"
+                    .into(),
+            )),
+            (true, true) => Some(Denoiser::load()?),
+        };
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
     let (loaded, base_color, cache) = load_cached(job, opts)?;
@@ -314,6 +334,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         up_axis,
         base_color,
         env,
+        denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
         cache,
     })
@@ -409,6 +430,7 @@ fn trace_frame(
             seconds: trace_seconds,
             trace_seconds,
             write_seconds: 0.0,
+            denoise_seconds: None,
             device_seconds: renderer.take_device_seconds(),
             rays,
             mrays_per_s: rays as f64 / trace_seconds / 1e6,
@@ -422,9 +444,28 @@ fn trace_frame(
 type FrameDone = (FrameStats, Vec<PathBuf>, Vec<(Aov, Vec<u8>)>);
 
 impl TracedFrame {
-    /// Write the frame's EXR and PNG files into `dir` (and keep each image's preview for the
-    /// contact sheets when `sheets`); the write time completes its figures.
-    fn write(self, dir: &Path, aov_list: &[Aov], sheets: bool) -> Result<FrameDone> {
+    /// Denoise the beauty (with `denoise`: the denoiser and the surface's material), then
+    /// write the frame's EXR and PNG files into `dir` (and keep each image's preview for the
+    /// contact sheets when `sheets`); the denoising and write times complete its figures.
+    fn write(
+        mut self,
+        dir: &Path,
+        aov_list: &[Aov],
+        sheets: bool,
+        denoise: Option<(&Denoiser, &Material)>,
+    ) -> Result<FrameDone> {
+        if let (Some(img), Some((d, m))) = (&mut self.beauty, denoise) {
+            let t = Instant::now();
+            d.denoise_beauty(img, m).map_err(|e| {
+                Error::Param(format!(
+                    "denoising {}: {e}",
+                    self.stats
+                        .frame
+                        .map_or("the frame".to_string(), |f| format!("frame {f}"))
+                ))
+            })?;
+            self.stats.denoise_seconds = Some(t.elapsed().as_secs_f64());
+        }
         let t = Instant::now();
         let mut files = vec![];
         let mut previews = vec![];
@@ -443,7 +484,8 @@ impl TracedFrame {
         }
         let mut stats = self.stats;
         stats.write_seconds = t.elapsed().as_secs_f64();
-        stats.seconds = stats.trace_seconds + stats.write_seconds;
+        stats.seconds =
+            stats.trace_seconds + stats.denoise_seconds.unwrap_or(0.0) + stats.write_seconds;
         Ok((stats, files, previews))
     }
 }
@@ -517,7 +559,9 @@ pub fn render_all(
         beauty_rays: BeautyCounters::default(),
         shadow_rays: 0,
         contact_sheets: vec![],
+        denoiser: s.denoiser.as_ref().map(Denoiser::describe),
     };
+    let denoise = s.denoiser.as_ref().map(|d| (d, &bscene.material));
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
         job.aovs.iter().map(|a| (*a, Vec::new())).collect();
     let (w, h) = (job.settings.width, job.settings.height);
@@ -530,7 +574,7 @@ pub fn render_all(
     for next in frames.iter().enumerate().map(Some).chain([None]) {
         let previous = traced.take();
         let (written, now) = rayon::join(
-            || previous.map(|f| f.write(&job.out_dir, &aov_list, sheets)),
+            || previous.map(|f| f.write(&job.out_dir, &aov_list, sheets, denoise)),
             || {
                 next.map(|(i, frame)| {
                     let cam = match (frame, job.turntable) {
