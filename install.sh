@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Install prismbake on a fresh Debian 12 machine: system packages, a Rust toolchain if there is
-# none, then `cargo install` of the `prismbake` binary into ~/.cargo/bin.
+# none, `cargo install` of the `prismbake` binary into ~/.cargo/bin, then Intel Open Image
+# Denoise for `render --denoise` (PRISMBAKE_NO_OIDN=1 skips it; scripts/install_oidn.sh).
 set -euo pipefail
 cd "$(dirname "$0")"
 
@@ -8,7 +9,8 @@ SUDO=""
 if [ "$(id -u)" != 0 ] && command -v sudo >/dev/null; then SUDO=sudo; fi
 if command -v apt-get >/dev/null; then
   need=()
-  for p in build-essential pkg-config ca-certificates curl mesa-vulkan-drivers libvulkan1; do
+  for p in build-essential pkg-config ca-certificates curl mesa-vulkan-drivers libvulkan1 \
+           python3 python3-pip; do
     dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
   done
   if [ ${#need[@]} -gt 0 ]; then
@@ -39,3 +41,8 @@ else
   RUSTFLAGS="${RUSTFLAGS:-} -C target-cpu=native" cargo install --locked --quiet --path cli
 fi
 echo "installed: $(command -v prismbake || echo "$HOME/.cargo/bin/prismbake")"
+
+if [ "${PRISMBAKE_NO_OIDN:-0}" != 1 ]; then
+  . scripts/install_oidn.sh
+  install_oidn
+fi

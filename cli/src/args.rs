@@ -174,7 +174,7 @@ pub struct LookArgs {
     pub ground: bool,
     /// Denoise the beauty (EXR, PNG, contact sheet) with Intel Open Image Denoise, guided by
     /// the first hits' albedo and normals. Loaded at run time from PRISMBAKE_OIDN (the
-    /// library or its folder), ~/.local/share/prismbake/oidn (./install.sh puts it there), or
+    /// library or its folder), ~/.local/share/prismbake/oidn/lib (./install.sh puts it there), or
     /// the system's library path.
     #[arg(long)]
     pub denoise: bool,

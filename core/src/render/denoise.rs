@@ -2,8 +2,8 @@
 //!
 //! The library is not linked: `prismbake` runs without it, and `--denoise` loads it from, in
 //! order, `PRISMBAKE_OIDN` (the library file or the folder that holds it; when it is set,
-//! nothing else is tried), the folder `install.sh` puts it in (`$XDG_DATA_HOME/prismbake/oidn`,
-//! else `~/.local/share/prismbake/oidn`), then the system loader's path. Blender ships the
+//! nothing else is tried), the folder `install.sh` puts it in (`$XDG_DATA_HOME/prismbake/oidn/lib`,
+//! else `~/.local/share/prismbake/oidn/lib`), then the system loader's path. Blender ships the
 //! same library in its `lib` folder; the add-on points `PRISMBAKE_OIDN` there.
 //!
 //! What is filtered is the asset's radiance (premultiplied by its coverage, as the EXR holds
@@ -133,7 +133,7 @@ fn candidates() -> Vec<PathBuf> {
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| Path::new(&h).join(".local/share")));
     if let Some(d) = data {
-        let p = d.join("prismbake/oidn").join(LIB_NAME);
+        let p = d.join("prismbake/oidn/lib").join(LIB_NAME);
         if p.exists() {
             out.push(p);
         }
@@ -156,7 +156,7 @@ impl Denoiser {
         }
         Err(Error::Param(format!(
             "--denoise: Open Image Denoise 2 could not be loaded ({}). Run ./install.sh, which \
-             puts it in ~/.local/share/prismbake/oidn; or install it system-wide; or set {ENV_VAR} \
+             puts it in ~/.local/share/prismbake/oidn/lib; or install it system-wide; or set {ENV_VAR} \
              to a {LIB_NAME} (Blender ships one in its lib folder). Leave out --denoise to render \
              without it",
             tried.join("; ")
