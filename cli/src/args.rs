@@ -173,11 +173,19 @@ pub struct LookArgs {
     #[arg(long)]
     pub ground: bool,
     /// Denoise the beauty (EXR, PNG, contact sheet) with Intel Open Image Denoise, guided by
-    /// the first hits' albedo and normals. Loaded at run time from PRISMBAKE_OIDN (the
-    /// library or its folder), ~/.local/share/prismbake/oidn/lib (./install.sh puts it there), or
-    /// the system's library path.
-    #[arg(long)]
-    pub denoise: bool,
+    /// the first hits' albedo and normals: `high` (the default; final frames), `balanced`
+    /// (~2.5x faster) or `fast` (~5x). Loaded at run time from PRISMBAKE_OIDN (the library or
+    /// its folder), ~/.local/share/prismbake/oidn/lib (./install.sh puts it there), or the
+    /// system's library path.
+    #[arg(long, value_name = "QUALITY", num_args = 0..=1, default_missing_value = "high")]
+    pub denoise: Option<DenoiseArg>,
+}
+
+#[derive(ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DenoiseArg {
+    High,
+    Balanced,
+    Fast,
 }
 
 fn parse_res(s: &str) -> Result<(u32, u32), String> {

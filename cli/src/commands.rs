@@ -1,13 +1,14 @@
 //! One function per command: build the core config from the flags, call core, print.
 
 use crate::args::{
-    BakeArgs, BenchArgs, Cli, Command, Device, DispArgs, ExportArgs, InspectArgs, NormalArg,
-    RenderArgs, RepairArgs, ReportFormat, ValidateArgs,
+    BakeArgs, BenchArgs, Cli, Command, DenoiseArg, Device, DispArgs, ExportArgs, InspectArgs,
+    NormalArg, RenderArgs, RepairArgs, ReportFormat, ValidateArgs,
 };
 use crate::progress;
 use glam::Vec3;
 use prismbake::asset::{self, AssetSpec, Overrides};
 use prismbake::bench::BenchConfig;
+use prismbake::render::denoise::Quality;
 use prismbake::render::job::{
     self as render_job, check_reference_density, CameraOverride, Input, Method, MethodConfig,
     RenderJob,
@@ -341,7 +342,11 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,
-        denoise: l.denoise,
+        denoise: l.denoise.map(|d| match d {
+            DenoiseArg::High => Quality::High,
+            DenoiseArg::Balanced => Quality::Balanced,
+            DenoiseArg::Fast => Quality::Fast,
+        }),
         cache_dir: if a.no_cache {
             None
         } else {

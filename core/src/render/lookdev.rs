@@ -13,7 +13,7 @@
 
 use super::beauty::{self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight};
 use super::camera::Camera;
-use super::denoise::Denoiser;
+use super::denoise::{Denoiser, Quality};
 use super::env::{EnvFrame, EnvMap};
 use super::job::{
     base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob,
@@ -52,8 +52,9 @@ pub struct LookdevOptions {
     pub specular: f32,
     pub bounces: u32,
     pub ground: bool,
-    /// Denoise the beauty with Open Image Denoise (`denoise`), loaded when the job opens.
-    pub denoise: bool,
+    /// Denoise the beauty with Open Image Denoise (`denoise`) at this quality; the library is
+    /// loaded when the job opens.
+    pub denoise: Option<Quality>,
     /// Folder of cached prism tables; `None` = do not cache.
     pub cache_dir: Option<PathBuf>,
 }
@@ -71,7 +72,7 @@ impl Default for LookdevOptions {
             specular: 0.04,
             bounces: 2,
             ground: false,
-            denoise: false,
+            denoise: None,
             cache_dir: table_cache::default_dir(),
         }
     }
@@ -299,12 +300,12 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     // at once, not after its frames.
     let denoiser =
         match (opts.denoise, job.aovs.contains(&Aov::Beauty)) {
-            (false, _) => None,
-            (true, false) => return Err(Error::Param(
+            (None, _) => None,
+            (Some(_), false) => return Err(Error::Param(
                 "--denoise filters the beauty only: add beauty to --aov, or leave out --denoise"
                     .into(),
             )),
-            (true, true) => Some(Denoiser::load()?),
+            (Some(q), true) => Some(Denoiser::load(q)?),
         };
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
