@@ -116,7 +116,10 @@ fn denoised_beauty_is_closer_to_the_converged_picture() {
     // The fastest filter still halves the noise (measured: 0.112 -> 0.055).
     let fast_dir = dir.join("fast");
     let fast = render(&fast_dir, "4", &["--denoise", "fast"]);
-    assert!(fast["denoiser"].as_str().unwrap().contains(", fast quality ("));
+    assert!(fast["denoiser"]
+        .as_str()
+        .unwrap()
+        .contains(", fast quality ("));
     let e_fast = rms(&read_rgba(&fast_dir.join("beauty.exr")), &reference);
     eprintln!("RMS against 256 spp: 4 spp denoised fast {e_fast:.4}");
     assert!(e_fast < 0.6 * e_noisy, "{e_noisy:.4} -> {e_fast:.4}");

@@ -80,6 +80,7 @@ struct Api {
     release_device: unsafe extern "C" fn(DevicePtr),
     get_device_error: unsafe extern "C" fn(DevicePtr, *mut *const c_char) -> i32,
     get_device_int: unsafe extern "C" fn(DevicePtr, *const c_char) -> i32,
+    set_device_int: unsafe extern "C" fn(DevicePtr, *const c_char, i32),
     new_filter: unsafe extern "C" fn(DevicePtr, *const c_char) -> FilterPtr,
     release_filter: unsafe extern "C" fn(FilterPtr),
     #[allow(clippy::type_complexity)]
@@ -117,6 +118,7 @@ impl Api {
             release_device: sym!("oidnReleaseDevice"),
             get_device_error: sym!("oidnGetDeviceError"),
             get_device_int: sym!("oidnGetDeviceInt"),
+            set_device_int: sym!("oidnSetDeviceInt"),
             new_filter: sym!("oidnNewFilter"),
             release_filter: sym!("oidnReleaseFilter"),
             set_shared_filter_image: sym!("oidnSetSharedFilterImage"),
@@ -214,6 +216,10 @@ impl Denoiser {
                         .unwrap_or_else(|| "no reason given".into())
                 ));
             }
+            // As many threads as the job renders with (`--threads`; rayon's pool when the
+            // job opens), not every core of the machine.
+            let threads = rayon::current_num_threads().min(i32::MAX as usize) as i32;
+            (api.set_device_int)(device, c"numThreads".as_ptr(), threads);
             (api.commit_device)(device);
             let version = (api.get_device_int)(device, c"version".as_ptr());
             let d = Denoiser {
