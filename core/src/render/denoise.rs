@@ -10,8 +10,8 @@
 //! it), guided by the first hit's albedo and shading normal averaged over each pixel's samples
 //! (`BeautyImage::features`): the normals carry the relief, so the filter keeps it. The
 //! background and the catcher's shadow (in alpha) are left as they are; pixels the asset does
-//! not cover stay empty. The filter runs on the CPU device: the frame is in host memory, and a
-//! 512² frame takes a fraction of a second (docs/gpu.md, "Denoising").
+//! not cover stay empty. The filter runs on the CPU device: the frame is in host memory
+//! (docs/denoising.md: what is filtered, the library's places, quality, time and error).
 
 use super::beauty::BeautyImage;
 use super::shading::{self, Material};
@@ -39,7 +39,7 @@ const MIN_VERSION: i32 = 20000;
 
 /// The filter's quality (OIDN's `quality`): its network's size. A 512² frame on 2 CPU cores
 /// (AMD EPYC Zen 1, OIDN 2.5.1) takes 2.5 s at `High`, 1.0 s at `Balanced` and 0.52 s at
-/// `Fast`, whatever the samples per pixel (docs/gpu.md, "Denoising").
+/// `Fast`, whatever the samples per pixel (docs/denoising.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Quality {
     /// Final frames (OIDN's default).
