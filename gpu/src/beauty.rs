@@ -19,7 +19,7 @@ use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
-use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, PixelSums};
+use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, Guides, PixelSums};
 use prismbake::render::camera::Camera;
 use prismbake::render::env::EnvMap;
 use prismbake::render::RenderSettings;
@@ -245,7 +245,7 @@ pub fn render_beauty_scheduled(
         height: s.height,
         rgba: vec![[0.0; 4]; n],
         background: vec![Vec3::ZERO; n],
-        features: vec![[0.0; 4]; n],
+        guides: vec![Guides::default(); n],
         counters: BeautyCounters::default(),
     };
     let frame = FrameJob {
@@ -304,19 +304,19 @@ fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums],
     let (rays, key, env) = rect
         .frame_rows(&mut image.rgba)
         .zip(rect.frame_rows(&mut image.background))
-        .zip(rect.frame_rows(&mut image.features))
+        .zip(rect.frame_rows(&mut image.guides))
         .zip(rect.tile_rows(tile))
-        .map(|(((rgba, background), features), src)| {
+        .map(|(((rgba, background), guides), src)| {
             let dst = rect
                 .span(rgba)
                 .iter_mut()
                 .zip(rect.span(background))
-                .zip(rect.span(features));
+                .zip(rect.span(guides));
             let mut counts = (0u64, 0u64, 0u64);
             for (((c, b), f), g) in dst.zip(src) {
                 let sums = resolve(g);
                 (*c, *b) = sums.resolve(spp);
-                *f = sums.features(spp);
+                *f = sums.guides(spp);
                 counts.0 += g.rays as u64;
                 counts.1 += g.key_shadow_rays as u64;
                 counts.2 += g.env_shadow_rays as u64;

@@ -37,8 +37,9 @@ struct Agreement {
     max_rel: f64,
     alpha_mean: f64,
     background_rel: f64,
-    /// The denoising guides (`BeautyImage::features`): mean |Δ| of the summed normal's
-    /// components and of the coverage, over all pixels.
+    /// The denoising guides (`BeautyImage::guides`): mean |Δ| of the normal (its largest
+    /// component difference), the coverage, the ground's share and the catcher's shadow
+    /// weighted by it, over all pixels.
     features_mean: f64,
     /// Pixels whose max-channel difference exceeds 1e-3 × scale.
     differing: f64,
@@ -70,8 +71,17 @@ fn compare(cpu: &BeautyImage, gpu: &BeautyImage) -> Agreement {
         per_pixel.push(d.fold(0.0, f64::max) / scale);
         alpha += (c[3] - g[3]).abs() as f64;
         bg += (cpu.background[i] - gpu.background[i]).abs().max_element() as f64;
-        let (cf, gf) = (cpu.features[i], gpu.features[i]);
-        feat += (0..4).map(|k| (cf[k] - gf[k]).abs() as f64).sum::<f64>() / 4.0;
+        let (cf, gf) = (cpu.guides[i], gpu.guides[i]);
+        feat += [
+            (cf.normal - gf.normal).abs().max_element(),
+            (cf.coverage - gf.coverage).abs(),
+            (cf.ground - gf.ground).abs(),
+            (cf.ground * cf.shadow - gf.ground * gf.shadow).abs(),
+        ]
+        .iter()
+        .map(|&d| d as f64)
+        .sum::<f64>()
+            / 4.0;
     }
     let differing = per_pixel.iter().filter(|&&d| d > 1e-3).count() as f64 / n as f64;
     per_pixel.sort_by(|a, b| a.total_cmp(b));
@@ -212,14 +222,14 @@ fn agree(
         "{rel} {label}: denoising guides {:.2e}",
         a.features_mean
     );
-    let covered = cpu.features.iter().filter(|f| f[3] > 0.5).count();
+    let covered = cpu.guides.iter().filter(|g| g.coverage > 0.5).count();
     assert!(
         covered > 0
             && cpu
-                .features
+                .guides
                 .iter()
-                .filter(|f| f[3] > 0.5)
-                .all(|f| Vec3::new(f[0], f[1], f[2]).length() > 0.1),
+                .filter(|g| g.coverage > 0.5)
+                .all(|g| g.normal.length() > 0.1),
         "{rel} {label}: covered pixels without a normal guide"
     );
     let close = |c: u64, g: u64, what: &str| {

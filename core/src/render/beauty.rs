@@ -108,11 +108,26 @@ pub struct BeautyImage {
     pub rgba: Vec<[f32; 4]>,
     /// What shows where alpha is below 1 (environment, darkened by catcher shadows).
     pub background: Vec<Vec3>,
-    /// The denoiser's guides: the first hit's shading normal (facing the camera) summed over
-    /// the pixel's samples that hit the asset, divided by all its samples (xyz), and the
-    /// asset's coverage (w; alpha without the catcher's shadow).
-    pub features: Vec<[f32; 4]>,
+    /// What the denoiser needs of each pixel beyond its colour (`Guides`).
+    pub guides: Vec<Guides>,
     pub counters: BeautyCounters,
+}
+
+/// One pixel's denoising guides and the parts its alpha and background are made of.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Guides {
+    /// The first hit's shading normal (facing the camera) summed over the pixel's samples
+    /// that hit the asset, divided by all its samples.
+    pub normal: Vec3,
+    /// The asset's coverage (alpha without the catcher's shadow).
+    pub coverage: f32,
+    /// The shadow catcher's share of the pixel (its samples that saw the ground).
+    pub ground: f32,
+    /// The catcher's shadow there, in [0, 1] (alpha = coverage + ground · shadow).
+    pub shadow: f32,
+    /// The environment behind the ground's samples, over all samples (the background is the
+    /// rest plus this times 1 − shadow).
+    pub ground_background: Vec3,
 }
 
 /// Per-pixel running sums over samples (the GPU renderer accumulates the same sums and
@@ -135,22 +150,32 @@ impl PixelSums {
     /// catcher's shadow) and the background seen behind it.
     pub fn resolve(&self, spp: u32) -> ([f32; 4], Vec3) {
         let k = 1.0 / spp as f32;
-        let shadow = if self.ground_unshadowed > 0.0 {
-            (1.0 - self.ground_lit / self.ground_unshadowed).clamp(0.0, 1.0)
-        } else {
-            0.0
-        };
+        let shadow = self.shadow();
         let alpha = (self.surface + self.ground_samples * shadow) * k;
         let c = self.radiance * k;
         let bg = (self.background + self.ground_background * (1.0 - shadow)) * k;
         ([c.x, c.y, c.z, alpha], bg)
     }
 
-    /// The pixel's denoising guides after `spp` samples (`BeautyImage::features`).
-    pub fn features(&self, spp: u32) -> [f32; 4] {
+    /// The catcher's shadow: the share of the light its samples lost to the asset.
+    fn shadow(&self) -> f32 {
+        if self.ground_unshadowed > 0.0 {
+            (1.0 - self.ground_lit / self.ground_unshadowed).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// The pixel's guides after `spp` samples (`BeautyImage::guides`).
+    pub fn guides(&self, spp: u32) -> Guides {
         let k = 1.0 / spp as f32;
-        let n = self.normal * k;
-        [n.x, n.y, n.z, self.surface * k]
+        Guides {
+            normal: self.normal * k,
+            coverage: self.surface * k,
+            ground: self.ground_samples * k,
+            shadow: self.shadow(),
+            ground_background: self.ground_background * k,
+        }
     }
 }
 
@@ -457,7 +482,7 @@ pub fn render_beauty(
         height: h as u32,
         rgba,
         background,
-        features: sums.iter().map(|a| a.features(spp)).collect(),
+        guides: sums.iter().map(|a| a.guides(spp)).collect(),
         counters,
     }
 }

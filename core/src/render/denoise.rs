@@ -253,9 +253,9 @@ impl Denoiser {
         )
     }
 
-    /// Filter `color` (linear RGB, row-major `width × height`, HDR) in place with the `RT`
-    /// filter at the denoiser's quality, guided by `albedo` and `normal` (both noise-free:
-    /// `cleanAux`).
+    /// Filter `color` (linear RGB, row-major `width × height`; HDR, or in [0, 1] without
+    /// `hdr`) in place with the `RT` filter at the denoiser's quality, guided by `albedo` and
+    /// `normal` (both noise-free: `cleanAux`).
     pub fn filter(
         &self,
         width: u32,
@@ -263,6 +263,7 @@ impl Denoiser {
         color: &mut [[f32; 3]],
         albedo: &[[f32; 3]],
         normal: &[[f32; 3]],
+        hdr: bool,
     ) -> std::result::Result<(), String> {
         let n = width as usize * height as usize;
         if color.len() != n || albedo.len() != n || normal.len() != n {
@@ -302,7 +303,7 @@ impl Denoiser {
             image(c"albedo", albedo.as_ptr() as *mut c_void);
             image(c"normal", normal.as_ptr() as *mut c_void);
             image(c"output", output.as_mut_ptr().cast());
-            (a.set_filter_bool)(filter, c"hdr".as_ptr(), true);
+            (a.set_filter_bool)(filter, c"hdr".as_ptr(), hdr);
             (a.set_filter_bool)(filter, c"cleanAux".as_ptr(), true);
             (a.set_filter_int)(filter, c"quality".as_ptr(), self.quality.oidn());
             (a.commit_filter)(filter);
@@ -320,9 +321,10 @@ impl Denoiser {
         Ok(())
     }
 
-    /// Denoise a beauty frame's radiance in place (alpha and background untouched), with the
-    /// frame's guides and `material`'s albedo. Pixels no sample of which hit the asset keep no
-    /// radiance.
+    /// Denoise a beauty frame in place with the frame's guides and `material`'s albedo: the
+    /// asset's radiance, then (where the frame has a shadow catcher) the catcher's shadow, with
+    /// alpha and the background made again from it. Pixels no sample of which hit the asset
+    /// keep no radiance.
     pub fn denoise_beauty(
         &self,
         img: &mut BeautyImage,
@@ -331,18 +333,54 @@ impl Denoiser {
         let albedo = guide_albedo(material);
         let mut color: Vec<[f32; 3]> = img.rgba.iter().map(|c| [c[0], c[1], c[2]]).collect();
         let albedo: Vec<[f32; 3]> = img
-            .features
+            .guides
             .iter()
-            .map(|f| (albedo * f[3]).to_array())
+            .map(|g| (albedo * g.coverage).to_array())
             .collect();
-        let normal: Vec<[f32; 3]> = img.features.iter().map(|f| [f[0], f[1], f[2]]).collect();
-        self.filter(img.width, img.height, &mut color, &albedo, &normal)?;
-        for ((c, d), f) in img.rgba.iter_mut().zip(&color).zip(&img.features) {
-            let keep = f[3] > 0.0;
+        let normal: Vec<[f32; 3]> = img.guides.iter().map(|g| g.normal.to_array()).collect();
+        self.filter(img.width, img.height, &mut color, &albedo, &normal, true)?;
+        for ((c, d), g) in img.rgba.iter_mut().zip(&color).zip(&img.guides) {
+            let keep = g.coverage > 0.0;
             for k in 0..3 {
                 // The filter may leave a little radiance, or a negative lobe, beside the edges.
                 c[k] = if keep { d[k].max(0.0) } else { 0.0 };
             }
+        }
+        self.denoise_catcher(img)
+    }
+
+    /// The shadow catcher's shadow, filtered as a grey image (its share of each pixel times
+    /// the shadow), guided by that share (a white, flat ground); alpha and the background
+    /// follow the filtered shadow. Nothing to do without a catcher in view. The filter runs in
+    /// its HDR mode: in its LDR mode the sparse, all-or-nothing shadow of a few samples came
+    /// out darker than the converged one (rock, 64², 4 spp: mean alpha 0.169 against 0.112,
+    /// RMS 0.111; HDR: RMS 0.054, `tests/denoise.rs`).
+    fn denoise_catcher(&self, img: &mut BeautyImage) -> std::result::Result<(), String> {
+        if !img.guides.iter().any(|g| g.ground > 0.0 && g.shadow > 0.0) {
+            return Ok(());
+        }
+        let mut color: Vec<[f32; 3]> = img
+            .guides
+            .iter()
+            .map(|g| [g.ground * g.shadow; 3])
+            .collect();
+        let albedo: Vec<[f32; 3]> = img.guides.iter().map(|g| [g.ground; 3]).collect();
+        let normal: Vec<[f32; 3]> = img.guides.iter().map(|g| [0.0, 0.0, g.ground]).collect();
+        self.filter(img.width, img.height, &mut color, &albedo, &normal, true)?;
+        for (((c, bg), g), d) in img
+            .rgba
+            .iter_mut()
+            .zip(&mut img.background)
+            .zip(&mut img.guides)
+            .zip(&color)
+        {
+            if g.ground <= 0.0 {
+                continue;
+            }
+            let shadow = ((d[0] + d[1] + d[2]) / (3.0 * g.ground)).clamp(0.0, 1.0);
+            c[3] = g.coverage + g.ground * shadow;
+            *bg += g.ground_background * (g.shadow - shadow);
+            g.shadow = shadow;
         }
         Ok(())
     }
