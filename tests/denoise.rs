@@ -6,7 +6,7 @@
 //! without an adapter.
 
 use crate::util::*;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The folder holding `libOpenImageDenoise.so.2`: `PRISMBAKE_OIDN`, else the `bpy` wheel in
 /// the repository's `.venv`.
@@ -29,33 +29,33 @@ fn oidn() -> String {
     }
 }
 
-/// Render the sphere's beauty at 64², close up (a 20° field of view: the relief's cells span
-/// several pixels, so noise and detail are told apart), on the CPU unless `extra` says
-/// otherwise; the JSON summary.
-fn render(out: &std::path::Path, spp: &str, extra: &[&str]) -> serde_json::Value {
-    let sphere = example("sphere/sphere.glb");
+/// `render ASSET --aov beauty --res 64x64 --spp SPP -o OUT FLAGS` with the tests' library.
+fn render_beauty(asset: &str, out: &Path, spp: &str, flags: &[&str]) -> Output {
+    let asset = example(asset);
     let mut args = vec![
         "render",
-        s(&sphere),
+        s(&asset),
         "--aov",
         "beauty",
         "--res",
         "64x64",
         "--spp",
         spp,
-        "--key-light",
-        "40,50,2",
-        "--fov",
-        "20",
-        "--json",
         "-o",
         s(out),
     ];
-    args.extend_from_slice(extra);
-    let dir = oidn();
-    run_in_env(&repo_root(), &args, &[("PRISMBAKE_OIDN", &dir)])
-        .assert_success()
-        .json()
+    args.extend_from_slice(flags);
+    let o = run_in_env(&repo_root(), &args, &[("PRISMBAKE_OIDN", &oidn())]);
+    o.assert_success();
+    o
+}
+
+/// The sphere's beauty close up (a 20° field of view: the relief's cells span several
+/// pixels, so noise and detail are told apart), on the CPU unless `extra` says otherwise;
+/// the JSON summary.
+fn render(out: &Path, spp: &str, extra: &[&str]) -> serde_json::Value {
+    let flags = [&["--key-light", "40,50,2", "--fov", "20", "--json"], extra].concat();
+    render_beauty("sphere/sphere.glb", out, spp, &flags).json()
 }
 
 /// RMS difference of the RGB of two beauty images over the pixels `reference` covers.
@@ -124,7 +124,7 @@ fn denoised_beauty_is_closer_to_the_converged_picture() {
     eprintln!("RMS against 256 spp: 4 spp denoised fast {e_fast:.4}");
     assert!(e_fast < 0.6 * e_noisy, "{e_noisy:.4} -> {e_fast:.4}");
     // The preview shows the denoised radiance (it differs from the noisy preview).
-    let png = |d: &std::path::Path| image::open(d.join("beauty.png")).unwrap().to_rgb8();
+    let png = |d: &Path| image::open(d.join("beauty.png")).unwrap().to_rgb8();
     assert_ne!(png(&noisy), png(&denoised));
 
     // The GPU's beauty and guides match the CPU's, so its denoised picture does too.
@@ -142,23 +142,9 @@ fn denoised_beauty_is_closer_to_the_converged_picture() {
 #[test]
 fn denoised_catcher_shadow_is_closer_to_the_converged_one() {
     let dir = temp_dir("denoise-catcher");
-    let rock = example("rock/rock.glb");
     let render = |name: &str, spp: &str, flags: &[&str]| {
         let out = dir.join(name);
-        let mut args = vec![
-            "render",
-            s(&rock),
-            "--aov",
-            "beauty",
-            "--res",
-            "64x64",
-            "--spp",
-            spp,
-            "-o",
-        ];
-        args.push(s(&out));
-        args.extend_from_slice(flags);
-        run_in_env(&repo_root(), &args, &[("PRISMBAKE_OIDN", &oidn())]).assert_success();
+        render_beauty("rock/rock.glb", &out, spp, flags);
         read_rgba(&out.join("beauty.exr"))
     };
     let reference = render("converged", "256", &["--ground"]);
@@ -225,7 +211,7 @@ fn denoise_without_the_library_or_the_beauty_is_an_error() {
         "/usr/lib/x86_64-linux-gnu/libm.so.6",
     ]
     .into_iter()
-    .find(|p| std::path::Path::new(p).exists())
+    .find(|p| Path::new(p).exists())
     .unwrap_or("libm.so.6");
     let missing = dir.join("no-such-folder");
     let cases: [(&str, &str, &'static str, &[&str]); 3] = [
