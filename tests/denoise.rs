@@ -187,6 +187,34 @@ fn denoised_catcher_shadow_is_closer_to_the_converged_one() {
     }
 }
 
+/// A farm's slice of a denoised turntable (`--frames`) writes the same files as the whole
+/// turntable: the filter is deterministic for the same frame.
+#[test]
+fn denoised_frame_ranges_match_the_whole_turntable() {
+    let dir = temp_dir("denoise-frames");
+    let (whole, part) = (dir.join("whole"), dir.join("part"));
+    let flags = ["--ground", "--turntable", "3", "--denoise", "fast"];
+    render_beauty("rock/rock.glb", &whole, "4", &flags);
+    render_beauty(
+        "rock/rock.glb",
+        &part,
+        "4",
+        &[&flags[..], &["--frames", "2-2"]].concat(),
+    );
+    for f in ["beauty_0002.exr", "beauty_0002.png"] {
+        let read = |d: &Path| std::fs::read(d.join(f)).unwrap();
+        assert!(read(&whole) == read(&part), "{f} differs");
+    }
+    assert_eq!(
+        files_in(&part),
+        [
+            "beauty_0002.exr",
+            "beauty_0002.png",
+            "beauty_contact_sheet.png"
+        ]
+    );
+}
+
 /// No library, a library that is not Open Image Denoise, or `--denoise` without beauty: a
 /// clear error before anything is rendered, exit 2, and no files.
 #[test]
