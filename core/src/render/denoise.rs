@@ -19,6 +19,7 @@ use crate::error::{Error, Result};
 use glam::Vec3;
 use libloading::Library;
 use std::ffi::{c_char, c_void, CStr};
+use std::mem::ManuallyDrop;
 use std::path::{Path, PathBuf};
 
 /// The environment variable naming the library (a file, or a folder holding it).
@@ -137,8 +138,10 @@ pub struct Denoiser {
     path: PathBuf,
     version: i32,
     quality: Quality,
-    // Dropped last: `api`'s pointers point into it.
-    _lib: Library,
+    // Never unloaded: `api`'s pointers point into it, and the TBB it brings may keep worker
+    // threads and thread-exit handlers alive after the device is released (loading it again,
+    // as `render DIR` does per asset, only takes another reference).
+    _lib: ManuallyDrop<Library>,
 }
 
 // SAFETY: OIDN's API is thread-safe (calls on one device are serialised by the library), the
@@ -228,7 +231,7 @@ impl Denoiser {
                 path: path.to_path_buf(),
                 version,
                 quality,
-                _lib: lib,
+                _lib: ManuallyDrop::new(lib),
             };
             if let Some(e) = error_message(&d.api, device) {
                 return Err(format!("its CPU device failed: {e}"));
