@@ -144,8 +144,8 @@ pub struct LookdevSummary {
     pub beauty_rays: BeautyCounters,
     pub shadow_rays: u64,
     pub contact_sheets: Vec<PathBuf>,
-    /// The denoiser that filtered the beauty frames ("Open Image Denoise 2.3.3 (PATH)"); absent
-    /// without `--denoise`.
+    /// The denoiser that filtered the beauty frames ("Open Image Denoise 2.5.1, high quality
+    /// (PATH)"); absent without `--denoise`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub denoiser: Option<String>,
 }
