@@ -22,6 +22,10 @@
 # pixels per invocation of the wavefront's trace kernel; docs/gpu.md, "Rays per invocation").
 # The summary's md5 of each beauty frame shows that they all give the same picture.
 #
+# With PRISMBAKE_OIDN set (Open Image Denoise carried to the machine: install.sh's
+# ~/.local/share/prismbake/oidn/lib, 54 MB), the sphere's 16-spp beauty is also denoised at
+# each quality, on the host's cores (docs/denoising.md): the summary's denoise_seconds.
+#
 # Smaller runs (to check the script itself on lavapipe): RES=256 SPP=2 ASSETS=sphere.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -71,11 +75,25 @@ for a in $ASSETS; do
   done
 done
 
-python3 - "$DEST" "$RES" "$SPP" "$ASSETS" "$TRACE_PIXELS" <<'PY'
+DENOISE=""
+if [ -n "${PRISMBAKE_OIDN:-}" ]; then
+  DENOISE="high balanced fast"
+  for q in $DENOISE; do
+    job "sphere_denoise_$q" "$RES" 16 2 gpu "$(asset_path sphere)" --aov beauty --denoise "$q"
+  done
+fi
+
+python3 - "$DEST" "$RES" "$SPP" "$ASSETS" "$TRACE_PIXELS" "$DENOISE" <<'PY'
 import hashlib, json, pathlib, sys
 dest, res, spp, assets = pathlib.Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
 trace_pixels = sys.argv[5].split()
 rows = []
+denoised = []
+for q in sys.argv[6].split():
+    d = json.loads((dest / f"sphere_denoise_{q}.json").read_text())
+    secs = [f["denoise_seconds"] for f in d["frames"]]
+    print(f"denoise {q:<8} {res}²: {', '.join(f'{s:.3f}' for s in secs)} s per frame ({d['denoiser']})")
+    denoised.append({"job": f"sphere_denoise_{q}", "res": res, "denoise_seconds": secs, "frames": d["frames"]})
 for a in assets:
     jobs = [(f"{a}_aov_gpu", res, 1), (f"{a}_beauty_gpu", res, spp), (f"{a}_aov_cpu_512", 512, 1)]
     jobs += [(f"{a}_4rays_trace{k}", res, spp) for k in trace_pixels]
@@ -104,7 +122,7 @@ for a in assets:
                      "mrays_per_s": round(r * r * s / sec / 1e6, 2),
                      "mrays_per_s_from": "kernel" if kernel else "trace",
                      "frames": frames})
-(dest / "summary.json").write_text(json.dumps(rows, indent=1))
+(dest / "summary.json").write_text(json.dumps(rows + denoised, indent=1))
 for row in rows:
     kernel = f"{row['kernel_ms']:>9.3f}" if row["kernel_ms"] is not None else "        -"
     print(f"{row['job']:<22} {row['res']}² spp {row['spp']:<3} frame {row['ms_per_frame']:>9.2f} ms "
