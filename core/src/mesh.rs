@@ -44,6 +44,11 @@ pub struct BaseMesh {
     pub missing_uvs: bool,
     /// Base colour of the first material, linear RGBA, when the file has one.
     pub base_color: Option<[f32; 4]>,
+    /// The first material's base-colour texture (its image's name, URI or index), which the
+    /// beauty does not read: it shades with `base_color` (`material_warning`).
+    pub base_color_texture: Option<String>,
+    /// Materials in the file (the beauty shades the whole asset with the first one's colour).
+    pub materials: usize,
     /// UV seams found by repair (empty straight from a loader): pairs of triangle edges with
     /// the same positions and normals but different UVs.
     pub seams: Vec<SeamEdge>,

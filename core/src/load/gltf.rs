@@ -41,10 +41,23 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     let mut mesh = loader.mesh;
     mesh.missing_uvs = loader.any_uv_missing;
     mesh.face_flags = vec![0; mesh.triangles.len()];
-    mesh.base_color = doc
-        .materials()
-        .next()
+    let first = doc.materials().next();
+    mesh.base_color = first
+        .as_ref()
         .map(|m| m.pbr_metallic_roughness().base_color_factor());
+    mesh.base_color_texture = first
+        .and_then(|m| m.pbr_metallic_roughness().base_color_texture())
+        .map(|t| {
+            let image = t.texture().source();
+            match (image.name(), image.source()) {
+                (Some(name), _) => name.to_string(),
+                (None, ::gltf::image::Source::Uri { uri, .. }) if !uri.starts_with("data:") => {
+                    uri.to_string()
+                }
+                _ => format!("image {}", image.index()),
+            }
+        });
+    mesh.materials = doc.materials().count();
     if let Some((world, yfov)) = loader.camera {
         mesh.camera = Some(scene_camera(&mesh, world, yfov));
     }

@@ -336,6 +336,53 @@ fn gltf_parent_translation_and_child_scale_are_applied() {
 }
 
 #[test]
+fn gltf_base_colour_texture_and_material_count_are_recorded() {
+    let dir = temp_dir("gltf-texture");
+    let mut doc = GltfDoc::default();
+    let normals = [0.0, 0.0, 1.0].repeat(3);
+    let (a_pos, a_n, a_idx) = (
+        doc.floats(&TRI, 3),
+        doc.floats(&normals, 3),
+        doc.indices(&[0, 1, 2]),
+    );
+    let rest = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [
+            {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
+        "materials": [
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0],
+                                      "baseColorTexture": {"index": 0}}},
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0]}},
+        ],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "albedo.png"}],
+    });
+    let m = load_gltf_doc(&dir, "textured.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    assert_eq!(m.base_color, Some([0.9, 0.8, 0.7, 1.0]));
+    assert_eq!(m.base_color_texture.as_deref(), Some("albedo.png"));
+    assert_eq!(m.materials, 2);
+    let w = crate::render::lookdev::material_warning(&m).unwrap();
+    for part in [
+        "(albedo.png) is not read",
+        "(0.9, 0.8, 0.7)",
+        "2 materials",
+        "--base-color",
+    ] {
+        assert!(w.contains(part), "no '{part}' in: {w}");
+    }
+    // One plain material: nothing to say.
+    let plain = BaseMesh {
+        base_color: Some([0.5; 4]),
+        base_color_texture: None,
+        materials: 1,
+        ..m
+    };
+    assert_eq!(crate::render::lookdev::material_warning(&plain), None);
+}
+
+#[test]
 fn gltf_mirroring_scale_flips_winding_to_keep_normals_outward() {
     let dir = temp_dir("gltf-mirror");
     let mut doc = GltfDoc::default();

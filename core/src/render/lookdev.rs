@@ -224,6 +224,28 @@ pub struct Session {
     cache: CacheUse,
 }
 
+/// What the beauty does not take from the asset's materials, if anything: it shades the whole
+/// asset with the first material's colour factor (`--base-color` overrides it) and reads no
+/// texture.
+pub fn material_warning(mesh: &crate::mesh::BaseMesh) -> Option<String> {
+    let mut notes = vec![];
+    if let Some(t) = &mesh.base_color_texture {
+        let c = mesh.base_color.unwrap_or([1.0; 4]);
+        notes.push(format!(
+            "the material's base-colour texture ({t}) is not read: the beauty shades with its \
+             colour factor ({}, {}, {})",
+            c[0], c[1], c[2]
+        ));
+    }
+    if mesh.materials > 1 {
+        notes.push(format!(
+            "{} materials: the beauty shades the whole asset with the first one's colour",
+            mesh.materials
+        ));
+    }
+    (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets another)")
+}
+
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
 fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option<Vec3>, CacheUse)> {
     let Input::Asset(spec) = &job.input else {
@@ -235,6 +257,11 @@ fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option
     };
     let (mesh, map) = asset::load(spec)?;
     let base_color = mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2]));
+    if job.aovs.contains(&Aov::Beauty) && opts.base_color.is_none() {
+        if let Some(w) = material_warning(&mesh) {
+            eprintln!("warning: {}: {w}", mesh.source.display());
+        }
+    }
     let (scene_camera, up_axis) = (mesh.camera, mesh.up_axis.unwrap_or_default());
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
