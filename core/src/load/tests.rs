@@ -288,16 +288,21 @@ fn uv_origin_is_the_same_image_pixel_for_gltf_and_obj() {
 // ---------------------------------------------------------------------------------------------
 // 2. glTF scene graph, winding, attributes
 
+/// `TRI` facing +Z in `doc`: its POSITION, NORMAL and index accessors.
+fn flat_triangle(doc: &mut GltfDoc) -> (usize, usize, usize) {
+    let normals = [0.0, 0.0, 1.0].repeat(3);
+    (
+        doc.floats(&TRI, 3),
+        doc.floats(&normals, 3),
+        doc.indices(&[0, 1, 2]),
+    )
+}
+
 #[test]
 fn gltf_parent_translation_and_child_scale_are_applied() {
     let dir = temp_dir("gltf-hierarchy");
     let mut doc = GltfDoc::default();
-    let normals = [0.0, 0.0, 1.0].repeat(3);
-    let (a_pos, a_n, a_idx) = (
-        doc.floats(&TRI, 3),
-        doc.floats(&normals, 3),
-        doc.indices(&[0, 1, 2]),
-    );
+    let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);
     let rest = json!({
         "scene": 0,
         "scenes": [{"nodes": [0]}],
@@ -339,12 +344,7 @@ fn gltf_parent_translation_and_child_scale_are_applied() {
 fn gltf_base_colour_texture_and_material_count_are_recorded() {
     let dir = temp_dir("gltf-texture");
     let mut doc = GltfDoc::default();
-    let normals = [0.0, 0.0, 1.0].repeat(3);
-    let (a_pos, a_n, a_idx) = (
-        doc.floats(&TRI, 3),
-        doc.floats(&normals, 3),
-        doc.indices(&[0, 1, 2]),
-    );
+    let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);
     let rest = json!({
         "scene": 0,
         "scenes": [{"nodes": [0]}],
