@@ -325,15 +325,13 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     opts.validate()?;
     // The denoiser is loaded before anything is rendered: a job that cannot denoise fails
     // at once, not after its frames.
-    let denoiser =
-        match (opts.denoise, job.aovs.contains(&Aov::Beauty)) {
-            (None, _) => None,
-            (Some(_), false) => return Err(Error::Param(
-                "--denoise filters the beauty only: add beauty to --aov, or leave out --denoise"
-                    .into(),
-            )),
-            (Some(q), true) => Some(Denoiser::load(q)?),
-        };
+    const NO_BEAUTY: &str =
+        "--denoise filters the beauty only: add beauty to --aov, or leave out --denoise";
+    let denoiser = match (opts.denoise, job.aovs.contains(&Aov::Beauty)) {
+        (None, _) => None,
+        (Some(_), false) => return Err(Error::Param(NO_BEAUTY.into())),
+        (Some(q), true) => Some(Denoiser::load(q)?),
+    };
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
     let (loaded, base_color, cache) = load_cached(job, opts)?;
