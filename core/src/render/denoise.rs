@@ -256,9 +256,9 @@ impl Denoiser {
         )
     }
 
-    /// Filter `color` (linear RGB, row-major `width × height`; HDR, or in [0, 1] without
-    /// `hdr`) in place with the `RT` filter at the denoiser's quality, guided by `albedo` and
-    /// `normal` (both noise-free: `cleanAux`).
+    /// Filter `color` (linear RGB, row-major `width × height`, in OIDN's HDR mode) in place
+    /// with the `RT` filter at the denoiser's quality, guided by `albedo` and `normal` (both
+    /// noise-free: `cleanAux`).
     pub fn filter(
         &self,
         width: u32,
@@ -266,7 +266,6 @@ impl Denoiser {
         color: &mut [[f32; 3]],
         albedo: &[[f32; 3]],
         normal: &[[f32; 3]],
-        hdr: bool,
     ) -> std::result::Result<(), String> {
         let n = width as usize * height as usize;
         if color.len() != n || albedo.len() != n || normal.len() != n {
@@ -306,7 +305,7 @@ impl Denoiser {
             image(c"albedo", albedo.as_ptr() as *mut c_void);
             image(c"normal", normal.as_ptr() as *mut c_void);
             image(c"output", output.as_mut_ptr().cast());
-            (a.set_filter_bool)(filter, c"hdr".as_ptr(), hdr);
+            (a.set_filter_bool)(filter, c"hdr".as_ptr(), true);
             (a.set_filter_bool)(filter, c"cleanAux".as_ptr(), true);
             (a.set_filter_int)(filter, c"quality".as_ptr(), self.quality.oidn());
             (a.commit_filter)(filter);
@@ -341,7 +340,7 @@ impl Denoiser {
             .map(|g| (albedo * g.coverage).to_array())
             .collect();
         let normal: Vec<[f32; 3]> = img.guides.iter().map(|g| g.normal.to_array()).collect();
-        self.filter(img.width, img.height, &mut color, &albedo, &normal, true)?;
+        self.filter(img.width, img.height, &mut color, &albedo, &normal)?;
         for ((c, d), g) in img.rgba.iter_mut().zip(&color).zip(&img.guides) {
             let keep = g.coverage > 0.0;
             for k in 0..3 {
@@ -369,7 +368,7 @@ impl Denoiser {
             .collect();
         let albedo: Vec<[f32; 3]> = img.guides.iter().map(|g| [g.ground; 3]).collect();
         let normal: Vec<[f32; 3]> = img.guides.iter().map(|g| [0.0, 0.0, g.ground]).collect();
-        self.filter(img.width, img.height, &mut color, &albedo, &normal, true)?;
+        self.filter(img.width, img.height, &mut color, &albedo, &normal)?;
         for (((c, bg), g), d) in img
             .rgba
             .iter_mut()
