@@ -12,13 +12,15 @@ Outputs (see examples/README.md):
     torus/torus.obj     torus/torus.prismbake.toml
     rock/rock.glb       rock/rock.prismbake.toml
     maps/rock_1024.png  maps/bumps_512.exr  maps/scales_256.png
+    maps/rock_albedo_256.png  (the rock's base colour, also embedded in rock.glb)
 
 Conventions (docs: /DESIGN.md "Conventions"):
   * glTF is Y-up, metres, TEXCOORD_0 v points DOWN the image (v_gltf = 1 - v_up);
     OBJ is Y-up, vt v points UP the image.
   * Triangles are counter-clockwise seen from outside; vertex normals are unit length.
 The script also re-reads and checks what it wrote (GLB structure, PNG/EXR round trip,
-normals, winding, watertightness) and fails loudly if anything is off.
+normals, winding, watertightness, the rock's embedded texture) and fails loudly if anything
+is off.
 """
 
 from __future__ import annotations
@@ -98,7 +100,12 @@ def pad4(b: bytes, fill: bytes = b"\0") -> bytes:
 
 
 def write_glb(path: str, *, name: str, pos, nrm, uv_gltf, tris, index_type: int,
-              camera: dict | None = None, extras: dict | None = None) -> None:
+              camera: dict | None = None, extras: dict | None = None,
+              texture: dict | None = None) -> None:
+    """texture = {"name": ..., "png": bytes}: embed the PNG in the BIN chunk (a bufferView
+    with no target) and use it as the material's base-colour texture (TEXCOORD_0, linear
+    filtering with mipmaps, repeat); the colour factor is then 1. Without it, the material
+    is a plain 0.8 grey and the file is as before."""
     pos = np.asarray(pos, np.float32)
     nrm = np.asarray(nrm, np.float32)
     uv_gltf = np.asarray(uv_gltf, np.float32)
@@ -126,6 +133,16 @@ def write_glb(path: str, *, name: str, pos, nrm, uv_gltf, tris, index_type: int,
     a_nrm = add(nrm, ARRAY_BUFFER, FLOAT, "VEC3")
     a_uv = add(uv_gltf, ARRAY_BUFFER, FLOAT, "VEC2")
     a_idx = add(idx, ELEMENT_ARRAY_BUFFER, index_type, "SCALAR")
+    if texture is not None:
+        png = bytes(texture["png"])
+        off = len(bin_data)
+        bin_data = pad4(bin_data + png)
+        views.append({"buffer": 0, "byteOffset": off, "byteLength": len(png)})  # image: no target
+        v_img = len(views) - 1
+        pbr = {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "baseColorTexture": {"index": 0, "texCoord": 0},
+               "metallicFactor": 0.0, "roughnessFactor": 0.7}
+    else:
+        pbr = {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.7}
 
     doc = {
         "asset": {"version": "2.0", "generator": GENERATOR,
@@ -136,12 +153,15 @@ def write_glb(path: str, *, name: str, pos, nrm, uv_gltf, tris, index_type: int,
         "meshes": [{"name": name, "primitives": [{
             "attributes": {"POSITION": a_pos, "NORMAL": a_nrm, "TEXCOORD_0": a_uv},
             "indices": a_idx, "mode": 4, "material": 0}]}],
-        "materials": [{"name": name + "_mat", "pbrMetallicRoughness": {
-            "baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.7}}],
+        "materials": [{"name": name + "_mat", "pbrMetallicRoughness": pbr}],
         "accessors": accessors,
         "bufferViews": views,
         "buffers": [{"byteLength": len(bin_data)}],
     }
+    if texture is not None:
+        doc["images"] = [{"name": texture["name"], "bufferView": v_img, "mimeType": "image/png"}]
+        doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]
+        doc["textures"] = [{"sampler": 0, "source": 0}]
     if extras:
         doc["meshes"][0]["extras"] = extras
     if camera:
@@ -159,8 +179,8 @@ def write_glb(path: str, *, name: str, pos, nrm, uv_gltf, tris, index_type: int,
         f.write(bin_data)
 
 
-def read_glb(path: str):
-    """Parse and structurally check a GLB; return (json, positions, normals, uvs, tris)."""
+def glb_chunks(path: str):
+    """Parse and structurally check a GLB's header, chunks and bufferViews; return (json, BIN)."""
     data = open(path, "rb").read()
     magic, version, total = struct.unpack_from("<4sII", data, 0)
     assert magic == b"glTF" and version == 2, "bad header"
@@ -182,6 +202,27 @@ def read_glb(path: str):
     for v in doc["bufferViews"]:
         assert v["byteOffset"] % 4 == 0, "bufferView not aligned"
         assert v["byteOffset"] + v["byteLength"] <= doc["buffers"][v["buffer"]]["byteLength"]
+    for im in doc.get("images", []):
+        assert "uri" not in im and im["mimeType"] in ("image/png", "image/jpeg"), im
+        assert "target" not in doc["bufferViews"][im["bufferView"]], "image bufferView has a target"
+        assert all(doc["accessors"][a]["bufferView"] != im["bufferView"] for a in range(len(doc["accessors"])))
+    for tex in doc.get("textures", []):
+        assert tex["source"] < len(doc["images"]), tex
+        assert "sampler" not in tex or tex["sampler"] < len(doc["samplers"]), tex
+    for m in doc.get("materials", []):
+        t = m.get("pbrMetallicRoughness", {}).get("baseColorTexture")
+        assert t is None or t["index"] < len(doc["textures"]), m
+    return doc, binc
+
+
+def glb_view_bytes(doc: dict, binc: bytes, view: int) -> bytes:
+    v = doc["bufferViews"][view]
+    return binc[v.get("byteOffset", 0): v.get("byteOffset", 0) + v["byteLength"]]
+
+
+def read_glb(path: str):
+    """Parse and structurally check a GLB; return (json, positions, normals, uvs, tris)."""
+    doc, binc = glb_chunks(path)
 
     def accessor(i):
         a = doc["accessors"][i]
@@ -390,7 +431,8 @@ def make_torus():
 # 3. rock.glb: irregular closed mesh, box-projected UV islands, a knife-edge fin (creases
 #    with smooth shared normals) and a hard edge loop around a flat bottom
 # --------------------------------------------------------------------------------------
-def make_rock():
+def make_rock(albedo):
+    """albedo = (image, PNG bytes) from make_rock_albedo: embedded as the base-colour texture."""
     rng = np.random.default_rng(20250301)
     nlon = 32
     delta = math.radians(0.6)                     # half-thickness (angle) of the fin's base
@@ -503,8 +545,24 @@ def make_rock():
     V, N, UVg, T = np.array(V), np.array(N), np.array(UVg), np.array(T)
 
     path = out_path("rock", "rock.glb")
-    write_glb(path, name="rock", pos=V, nrm=N, uv_gltf=UVg, tris=T, index_type=UNSIGNED_INT)
+    albedo_img, albedo_png = albedo
+    write_glb(path, name="rock", pos=V, nrm=N, uv_gltf=UVg, tris=T, index_type=UNSIGNED_INT,
+              texture={"name": "rock_albedo", "png": albedo_png})
     doc, P, NN, UV, TT = read_glb(path)
+    # the embedded base-colour texture: indices, sampler, and the PNG decodes to the albedo
+    mat = doc["materials"][doc["meshes"][0]["primitives"][0]["material"]]["pbrMetallicRoughness"]
+    assert mat == {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "baseColorTexture": {"index": 0, "texCoord": 0},
+                   "metallicFactor": 0.0, "roughnessFactor": 0.7}, mat
+    assert doc["textures"] == [{"sampler": 0, "source": 0}], doc["textures"]
+    assert doc["samplers"] == [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]
+    (image,) = doc["images"]
+    assert image["name"] == "rock_albedo" and image["mimeType"] == "image/png", image
+    view = doc["bufferViews"][image["bufferView"]]
+    assert "target" not in view and view["byteOffset"] % 4 == 0, view
+    _, binc = glb_chunks(path)
+    embedded = glb_view_bytes(doc, binc, image["bufferView"])
+    assert embedded == albedo_png == open(out_path("maps", "rock_albedo_256.png"), "rb").read()
+    assert np.array_equal(decode_png(embedded), albedo_img)
     check_common(path, P, NN, TT, expect_positive=False)
     assert corner_dots(P, NN, TT).min() > 0, "rock: folded or inverted corner"
     welded = weld_by_position(P)
@@ -595,15 +653,18 @@ def stretch(h, lo=0.02, hi=0.98):
     return np.clip(lo + (hi - lo) * (h - a) / (b - a), 0.0, 1.0)
 
 
-def write_png_gray(path: str, img: np.ndarray, bits: int) -> None:
-    """Grayscale PNG (8 or 16 bit) with zlib + struct; per-row filter = best of None/Sub/Up."""
-    h, w = img.shape
+def encode_png(img: np.ndarray, bits: int) -> bytes:
+    """PNG bytes (zlib + struct): grayscale (h, w) at 8 or 16 bit, or RGB (h, w, 3) at 8 bit.
+    Per-row filter = best of None/Sub/Up; no interlace; Software and Copyright tEXt chunks."""
+    h, w = img.shape[:2]
+    channels = 1 if img.ndim == 2 else img.shape[2]
+    assert channels in (1, 3) and (channels == 1 or bits == 8), (img.shape, bits)
     if bits == 16:
         raw = img.astype(">u2").view(np.uint8).reshape(h, w * 2)
         bpp = 2
     else:
-        raw = img.astype(np.uint8).reshape(h, w)
-        bpp = 1
+        raw = img.astype(np.uint8).reshape(h, w * channels)
+        bpp = channels
     raw = raw.astype(np.int16)
     rows = []
     prev = np.zeros(raw.shape[1], np.int16)
@@ -618,18 +679,26 @@ def write_png_gray(path: str, img: np.ndarray, bits: int) -> None:
         prev = cur
     def chunk(tag, data):
         return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+    colour_type = 0 if channels == 1 else 2
     png = b"\x89PNG\r\n\x1a\n"
-    png += chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, bits, 0, 0, 0, 0))
+    png += chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, bits, colour_type, 0, 0, 0))
     png += chunk(b"tEXt", b"Software\0" + GENERATOR.encode())
     png += chunk(b"tEXt", b"Copyright\0CC0 1.0 / public domain (procedurally generated)")
     png += chunk(b"IDAT", zlib.compress(b"".join(rows), 9))
     png += chunk(b"IEND", b"")
+    return png
+
+
+def write_png(path: str, img: np.ndarray, bits: int) -> bytes:
+    """Write `encode_png(img, bits)` to path; return the bytes written."""
+    png = encode_png(img, bits)
     with open(path, "wb") as f:
         f.write(png)
+    return png
 
 
-def read_png_gray(path: str) -> np.ndarray:
-    data = open(path, "rb").read()
+def decode_png(data: bytes) -> np.ndarray:
+    """Inverse of encode_png (filters None/Sub/Up only): (h, w) for grey, (h, w, 3) for RGB."""
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     off, idat, hdr = 8, b"", None
     while off < len(data):
@@ -641,11 +710,14 @@ def read_png_gray(path: str) -> np.ndarray:
         elif tag == b"IDAT":
             idat += body
         off += 12 + ln
+    assert off == len(data), "trailing bytes after IEND"
     w, h, bits, ctype, _, _, interlace = hdr
-    assert ctype == 0 and interlace == 0
-    bpp = bits // 8
+    assert ctype in (0, 2) and interlace == 0 and (ctype == 0 or bits == 8), hdr
+    channels = 1 if ctype == 0 else 3
+    bpp = bits // 8 * channels
     raw = zlib.decompress(idat)
     stride = w * bpp
+    assert len(raw) == h * (stride + 1)
     out = np.zeros((h, stride), np.int32)
     prev = np.zeros(stride, np.int32)
     for y in range(h):
@@ -660,9 +732,16 @@ def read_png_gray(path: str) -> np.ndarray:
             assert ft == 0, ft
         out[y] = cur
         prev = cur
-    if bpp == 2:
+    if bits == 16:
         return (out[:, 0::2] * 256 + out[:, 1::2]).astype(np.uint16)
+    if channels == 3:
+        return out.reshape(h, w, 3).astype(np.uint8)
     return out.astype(np.uint8)
+
+
+def read_png(path: str) -> np.ndarray:
+    with open(path, "rb") as f:
+        return decode_png(f.read())
 
 
 def tile_check(name, img):
@@ -696,8 +775,8 @@ def make_maps():
     h = 0.5 + (h - 0.5) * fade
     img16 = np.round(h * 65535).astype(np.uint16)
     p = out_path("maps", "rock_1024.png")
-    write_png_gray(p, img16, 16)
-    back = read_png_gray(p)
+    write_png(p, img16, 16)
+    back = read_png(p)
     assert np.array_equal(back, img16)
     tile_check(p, img16)
     print(f"rock_1024.png: 16-bit {n}x{n}, h in [{h.min():.3f}, {h.max():.3f}], mean {h.mean():.3f}")
@@ -734,6 +813,8 @@ def make_maps():
     R = 0.62 * sx                                                 # scale radius in pixels
     Y, X = np.meshgrid(np.arange(n) + 0.5, np.arange(n) + 0.5, indexing="ij")
     best = np.full((n, n), -1.0)
+    cell = np.full((n, n), -1)                                    # which scale is on top (for the albedo)
+    rows, cols = n // sy, n // sx                                 # scales per period (rows even: tiles)
     for r in range(-3, n // sy + 3):                              # rows drawn top to bottom:
         off = 0.5 * sx * (r % 2)                                  # a lower row overlaps the one above
         for c in range(-2, n // sx + 2):
@@ -741,16 +822,94 @@ def make_maps():
             d = np.hypot(X - cx, Y - cy) / R
             dome = np.sqrt(np.clip(1 - d * d, 0, 1)) * (0.6 + 0.4 * np.clip((Y - cy) / R + 0.5, 0, 1))
             best = np.where(d < 1, dome, best)
+            cell = np.where(d < 1, (r % rows) * cols + c % cols, cell)   # periodic scale id
+    assert (cell >= 0).all() and (best >= 0).all(), "scales leave a gap"
     best = np.where(best < 0, 0, best)
     h = 0.85 * best + 0.15 * fbm(n, 16, 3, rng)
     h = stretch(h, 0.03, 0.97)
     img8 = np.round(h * 255).astype(np.uint8)
     p = out_path("maps", "scales_256.png")
-    write_png_gray(p, img8, 8)
-    back = read_png_gray(p)
+    write_png(p, img8, 8)
+    back = read_png(p)
     assert np.array_equal(back, img8)
     tile_check(p, img8)
     print(f"scales_256.png: 8-bit {n}x{n}, h in [{h.min():.3f}, {h.max():.3f}], mean {h.mean():.3f}")
+
+    return make_rock_albedo(img8, cell, rows * cols)
+
+
+def srgb_to_linear(c):
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(x):
+    x = np.asarray(x, np.float64)
+    return np.where(x <= 0.0031308, x * 12.92, 1.055 * np.maximum(x, 0.0) ** (1 / 2.4) - 0.055)
+
+
+# Earthy sRGB base colours for the rock's scales (one per scale, jittered per scale).
+ROCK_PALETTE = [
+    (150, 88, 58),     # rust
+    (168, 128, 74),    # ochre
+    (112, 84, 62),     # umber
+    (118, 120, 76),    # olive
+    (96, 106, 100),    # slate
+    (176, 156, 120),   # sand
+    (132, 100, 86),    # red-brown
+]
+
+
+def make_rock_albedo(h8: np.ndarray, cell: np.ndarray, ncells: int):
+    """rock_albedo_256.png: 8-bit sRGB base colour for the rock, from the same data as
+    scales_256.png (its 8-bit heights h8 and the id of the scale on top at each pixel), so
+    colour lines up with the displaced scales at the same UVs. Each scale gets its own earthy
+    colour (a palette entry, tinted and brightened per scale); low height (the grooves at a
+    scale's rim) is darker, the crests lighter; a tileable fBm mottles it. Computed in
+    linear light, kept in sRGB [40, 200]. Returns (image, PNG bytes)."""
+    n = h8.shape[0]
+    rng = np.random.default_rng(2560)
+    pal = srgb_to_linear(np.array(ROCK_PALETTE) / 255.0)
+    pick = rng.integers(0, len(pal), ncells)
+    tint = rng.uniform(0.92, 1.08, (ncells, 3))                  # hue jitter per scale
+    value = rng.uniform(0.85, 1.10, (ncells, 1))                 # brightness per scale
+    base = pal[pick] * tint * value
+    h = h8 / 255.0
+    t = np.clip((h - 0.10) / 0.75, 0.0, 1.0)
+    shade = 0.30 + 0.80 * t * t * (3 - 2 * t)                    # grooves dark, crests light
+    mottle = 0.88 + 0.24 * fbm(n, 32, 3, rng)                    # tileable (periodic lattice)
+    lin = base[cell] * (shade * mottle)[..., None]
+    lo, hi = srgb_to_linear(40 / 255), srgb_to_linear(200 / 255)
+    clipped = float(((lin < lo) | (lin > hi)).mean())          # of channel values: the bluest
+    assert clipped < 0.03, clipped                               # channel in the darkest grooves
+    lin = np.clip(lin, lo, hi)
+    img = np.round(linear_to_srgb(lin) * 255).astype(np.uint8)
+    p = out_path("maps", "rock_albedo_256.png")
+    png = write_png(p, img, 8)
+    back = read_png(p)
+    assert back.shape == (n, n, 3) and np.array_equal(back, img)
+    for k in range(3):
+        tile_check(p, img[..., k])
+    # colour follows the scales: chromaticity varies far more between scales than inside one,
+    # and the grooves are darker than the crests
+    rgb = img.reshape(-1, 3).astype(np.float64)
+    chrom = rgb / rgb.sum(1, keepdims=True)
+    ids = cell.reshape(-1)
+    count = np.bincount(ids, minlength=ncells)[:, None]
+    mean = np.stack([np.bincount(ids, chrom[:, k], ncells) for k in range(3)], 1) / count
+    within = ((chrom - mean[ids]) ** 2).sum(1).mean()
+    between = ((mean[ids] - chrom.mean(0)) ** 2).sum(1).mean()
+    assert between > 4 * within, (between, within)
+    luma = img.astype(np.float64) @ [0.2126, 0.7152, 0.0722]
+    groove, crest = h8 < np.percentile(h8, 15), h8 > np.percentile(h8, 85)
+    assert luma[groove].mean() < 0.75 * luma[crest].mean(), (luma[groove].mean(), luma[crest].mean())
+    chroma = img.max(2).astype(np.int64) - img.min(2)
+    assert chroma.mean() > 20 and chroma.std() > 10, (chroma.mean(), chroma.std())
+    print(f"rock_albedo_256.png: 8-bit sRGB {n}x{n}, {ncells} scales, {len(pal)} base colours, "
+          f"sRGB in [{img.min()}, {img.max()}], linear in [{lin.min():.3f}, {lin.max():.3f}] "
+          f"({100 * clipped:.2f}% of values clamped), mean chroma {chroma.mean():.1f}/255, "
+          f"chromaticity variance between/within scales {between / within:.1f}")
+    return img, png
 
 
 def write_exr_y(path: str, h: np.ndarray) -> None:
@@ -797,10 +956,10 @@ def make_sidecars():
 
 
 def main():
-    make_maps()
+    albedo = make_maps()
     make_sphere()
     make_torus()
-    make_rock()
+    make_rock(albedo)
     make_sidecars()
     total = 0
     for root, _, files in os.walk(HERE):
