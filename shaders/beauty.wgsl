@@ -17,7 +17,7 @@
 //
 // Lighting: the environment (env.wgsl, next-event estimation combined with BSDF sampling by
 // the power heuristic) and an optional directional key light (shadow rays only); material:
-// shading.wgsl; an optional shadow-catcher ground seen by camera rays only. Random numbers are
+// shading.wgsl, its base colour times the base-colour texture at the hit (texture.wgsl); an optional shadow-catcher ground seen by camera rays only. Random numbers are
 // `random(pixel, sample, bounce * DIMS + k, purpose, seed)`, as on the CPU.
 //
 // Departure from a literal transcription, and why: the CPU's `trace_sample`,
@@ -73,6 +73,7 @@ struct Answer {
     prism: u32,    // NO_PRISM: missed
     shading_normal: vec3f,
     _pad: u32,
+    uv: vec2f,     // the hit's texture coordinates (BeautyScene::material_at)
 }
 
 // A path between dispatches: beauty::trace_sample's locals, the SampleResult so far, the
@@ -100,6 +101,8 @@ struct PathState {
     env_shadow_rays: u32,
     // The camera hit's shading normal (beauty::facing_normals), zero without one.
     normal: vec3f,
+    // The camera hit's reflectance (shading::guide_albedo), zero without one.
+    albedo: vec3f,
 }
 
 // One pixel's path record in the wavefront schedule (gpu::layout::PATH_RECORD_BYTES).
@@ -111,10 +114,6 @@ struct PathRecord {
     next: Answer,
     occluded_key: u32,
     occluded_env: u32,
-}
-
-fn material() -> Material {
-    return Material(lighting.base_color, lighting.roughness, lighting.metallic, lighting.specular);
 }
 
 // beauty::rand2.
@@ -232,7 +231,6 @@ fn slot_query(qs: Queries, slot: u32) -> QueryRec {
 // for `use_answers`).
 fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
     let ctx = px.ctx;
-    let m = material();
     let eps = lighting.eps;
     let env_lights = lighting.env_lights != 0u;
     var q0 = no_query();
@@ -272,6 +270,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
     } else {
         // beauty::surface_radiance, event `bounce`, at the hit the last trace found.
         let bounce = (*s).bounce;
+        let m = material_at(hit.uv);
         let throughput = (*s).throughput;
         let wo = -(*s).dir;
         let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
@@ -364,6 +363,7 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
         if (next_prism != NO_PRISM && (!gt.ok || next_t <= gt.t)) {
             (*s).flags |= PATH_SURFACE;
             (*s).normal = facing_normals(next.geometric_normal, next.shading_normal, camera.dir).ns;
+            (*s).albedo = guide_albedo(material_at(next.uv));
             // trace_sample's `for bounce in 0..bounces`: none at 0 bounces.
             (*s).step = select(STEP_DONE, STEP_SURFACE, lighting.bounces > 0u);
         } else if (gt.ok) {
@@ -420,6 +420,7 @@ fn accumulate(i: u32, s: PathState) {
     acc.radiance += s.radiance;
     acc.surface += select(0.0, 1.0, has(s, PATH_SURFACE));
     acc.normal += s.normal;
+    acc.albedo += s.albedo;
     if (has(s, PATH_GROUND)) {
         acc.ground_samples += 1.0;
         acc.ground_lit += s.ground_lit;
@@ -435,7 +436,7 @@ fn accumulate(i: u32, s: PathState) {
 }
 
 fn no_answer() -> Answer {
-    return Answer(vec3f(0.0), T_FAR, vec3f(0.0), NO_PRISM, vec3f(0.0), 0u);
+    return Answer(vec3f(0.0), T_FAR, vec3f(0.0), NO_PRISM, vec3f(0.0), 0u, vec2f(0.0));
 }
 
 // A new path: the camera step of the pixel's sample.
@@ -443,7 +444,7 @@ fn new_path(px: PixelRef) -> PathState {
     let camera = camera_ray(vec2f(f32(px.x), f32(px.y)) + pixel_jitter(px.ctx.pixel, px.ctx.sample));
     return PathState(vec3f(1.0), STEP_CAMERA, camera.dir, 0u, vec3f(0.0), 0u,
         vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0,
-        vec3f(0.0), 0u, 0u, 0u, vec3f(0.0));
+        vec3f(0.0), 0u, 0u, 0u, vec3f(0.0), vec3f(0.0));
 }
 
 // One ray of a step: Pdm::intersect with surface data (the continuation), or Pdm::occluded
@@ -461,7 +462,7 @@ fn query_answer(q: QueryRec, found: Hit) -> Answer {
     if (q.any == 0u && hit.prism != NO_PRISM) {
         fill_surface(&hit);
     }
-    return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u);
+    return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u, hit.uv);
 }
 
 // Workgroup edge = gpu::layout::WORKGROUP (the host dispatches div_ceil(tile, 8) groups).

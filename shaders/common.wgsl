@@ -120,10 +120,14 @@ struct Lighting {
     env_to_cos: f32,
     env_from_sin: f32,   // sin, cos of +rotation (env_to_world)
     env_from_cos: f32,
+    tex_width: u32,      // base-colour texture (texture.wgsl), 0 x 0: none
+    tex_height: u32,
+    tex_offset: u32,     // its first float in env_texels
+    tex_sampler: u32,    // gpu::layout::texture_sampler_code
     _pad: u32,
 }
 
-// GpuBeautySums, 80 bytes: beauty::PixelSums of one pixel plus its ray counts.
+// GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.
 struct BeautySums {
     radiance: vec3f,
     surface: f32,
@@ -137,6 +141,8 @@ struct BeautySums {
     env_shadow_rays: u32,
     normal: vec3f,
     _pad: u32,
+    albedo: vec3f,
+    _pad2: u32,
 }
 
 // Group 0: the scene (GpuScene), shared by every kernel.

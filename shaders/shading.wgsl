@@ -157,6 +157,11 @@ fn specular_f0(m: Material) -> vec3f {
     return lerp3(vec3f(m.specular), m.base_color, m.metallic);
 }
 
+// shading::guide_albedo: the denoiser's albedo guide.
+fn guide_albedo(m: Material) -> vec3f {
+    return min(diffuse_albedo(m) + specular_f0(m), vec3f(1.0));
+}
+
 fn specular_probability(m: Material) -> f32 {
     let s = luminance(specular_f0(m));
     let d = luminance(diffuse_albedo(m));

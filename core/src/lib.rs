@@ -21,6 +21,7 @@ pub mod rng;
 pub mod seam;
 pub mod table_cache;
 pub mod tessellate;
+pub mod texture;
 pub mod trace;
 pub mod usd_export;
 pub mod validate;

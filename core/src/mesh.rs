@@ -44,10 +44,10 @@ pub struct BaseMesh {
     pub missing_uvs: bool,
     /// Base colour of the first material, linear RGBA, when the file has one.
     pub base_color: Option<[f32; 4]>,
-    /// The first material's base-colour texture (its image's name, URI or index), which the
-    /// beauty does not read: it shades with `base_color` (`material_warning`).
-    pub base_color_texture: Option<String>,
-    /// Materials in the file (the beauty shades the whole asset with the first one's colour).
+    /// The first material's base-colour texture, if it has one: the beauty multiplies it into
+    /// `base_color` (decoded when a beauty render needs it, `texture::ColorMap::load`).
+    pub base_color_texture: Option<crate::texture::TextureRef>,
+    /// Materials in the file (the beauty shades the whole asset with the first one).
     pub materials: usize,
     /// UV seams found by repair (empty straight from a loader): pairs of triangle edges with
     /// the same positions and normals but different UVs.

@@ -3,7 +3,8 @@
 //!
 //! * `GpuBeautyScene::upload` — the lighting uniform (`GpuLighting`, from the CPU's
 //!   `BeautyScene`) and the environment: texels and the CPU's own sampling tables, uploaded as
-//!   they are (`env_tables`), so importance sampling picks the texels the CPU picks.
+//!   they are (`env_tables`), so importance sampling picks the texels the CPU picks; the
+//!   base-colour texture's linear texels follow the environment's in the same buffer.
 //! * `render_beauty` — per tile: clear the running sums, one submission per sample (each
 //!   pixel's sample is added to its sums when its path ends, the CPU's order of
 //!   accumulation), read the sums back and resolve them with `PixelSums::resolve`. A sample
@@ -14,7 +15,7 @@
 //! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
 
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
-use crate::layout::{GpuBeautySums, GpuLighting};
+use crate::layout::{texture_sampler_code, GpuBeautySums, GpuLighting};
 use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
@@ -23,12 +24,15 @@ use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, Guides
 use prismbake::render::camera::Camera;
 use prismbake::render::env::EnvMap;
 use prismbake::render::RenderSettings;
+use prismbake::texture::ColorMap;
 use prismbake::trace::pdm::PdmOptions;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
-/// The lighting uniform of a beauty scene (everything but the environment's tables).
+/// The lighting uniform of a beauty scene (everything but the environment's tables and the
+/// texels).
 pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
+    let tex = s.texture;
     let env = s.env;
     let (to_sin, to_cos) = (-env.frame.rotation).sin_cos();
     let (from_sin, from_cos) = env.frame.rotation.sin_cos();
@@ -56,20 +60,32 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
         env_to_cos: to_cos,
         env_from_sin: from_sin,
         env_from_cos: from_cos,
+        tex_width: tex.map_or(0, |t| t.width),
+        tex_height: tex.map_or(0, |t| t.height),
+        // The texture's texels follow the environment's, 3 floats each (`env_tables`).
+        tex_offset: 3 * env.texels.len() as u32,
+        tex_sampler: tex.map_or(0, |t| texture_sampler_code(&t.sampler)),
         _pad: 0,
     }
 }
 
 /// The environment as the kernel reads it (`shaders/env.wgsl`): `texels` 3 floats per texel,
-/// rows top to bottom; `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h),
-/// `conditional_cdf` (h (w + 1)) and `texel_weight` (w h), one after the other.
+/// rows top to bottom, then the base-colour texture's (`texture`, `shaders/texture.wgsl`) the
+/// same way; `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h), `conditional_cdf`
+/// (h (w + 1)) and `texel_weight` (w h), one after the other.
 pub struct EnvTables {
     pub texels: Vec<f32>,
     pub tables: Vec<f32>,
 }
 
-pub fn env_tables(env: &EnvMap) -> EnvTables {
-    let texels = env.texels.iter().flat_map(|c| c.to_array()).collect();
+pub fn env_tables(env: &EnvMap, texture: Option<&ColorMap>) -> EnvTables {
+    let texture = texture.map_or(&[][..], |t| &t.texels[..]);
+    let texels = env
+        .texels
+        .iter()
+        .chain(texture)
+        .flat_map(|c| c.to_array())
+        .collect();
     let mut tables = Vec::with_capacity(
         env.marginal_cdf.len()
             + env.row_weight.len()
@@ -87,19 +103,22 @@ pub fn env_tables(env: &EnvMap) -> EnvTables {
 pub struct GpuBeautyScene {
     pub(crate) group: wgpu::BindGroup,
     uniform: wgpu::Buffer,
-    /// Address and size of the `EnvMap` the tables came from (what `serves` compares).
+    /// Address and size of the `EnvMap` the tables came from and of the texture the texels
+    /// end with (what `serves` compares).
     env_id: (usize, u32, u32),
+    texture_id: (usize, u32, u32),
     bytes: u64,
     /// What the uniform holds now (the bounces and lights decide a sample's dispatches).
     current: Mutex<GpuLighting>,
 }
 
 impl GpuBeautyScene {
-    /// Upload the lighting and the environment. Fails with `GpuError::TooLarge` if the
-    /// environment's texels or tables exceed one storage binding (128 MiB on WebGPU
-    /// defaults: about 11 M texels, e.g. 4096 × 2048).
+    /// Upload the lighting, the environment and the base-colour texture. Fails with
+    /// `GpuError::TooLarge` if the environment's and the texture's texels together, or the
+    /// environment's tables, exceed one storage binding (128 MiB on WebGPU defaults: about
+    /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
-        let env = env_tables(s.env);
+        let env = env_tables(s.env, s.texture);
         let limit = ctx.max_binding_bytes();
         let mut bytes = 0u64;
         let mut storage = |what: &'static str, data: &[f32]| -> Result<wgpu::Buffer, GpuError> {
@@ -109,7 +128,7 @@ impl GpuBeautyScene {
                     what,
                     bytes: data.len() as u64,
                     limit,
-                    fix: "use a smaller --env map or --device cpu",
+                    fix: "use a smaller --env map or base-colour texture, or --device cpu",
                 });
             }
             bytes += data.len() as u64;
@@ -121,7 +140,7 @@ impl GpuBeautyScene {
                     usage: wgpu::BufferUsages::STORAGE,
                 }))
         };
-        let texels = storage("environment texels", &env.texels)?;
+        let texels = storage("environment and texture texels", &env.texels)?;
         let tables = storage("environment sampling tables", &env.tables)?;
         let uniform = ctx
             .device
@@ -154,21 +173,22 @@ impl GpuBeautyScene {
             group,
             uniform,
             env_id: env_id(s.env),
+            texture_id: texture_id(s.texture),
             bytes,
             current: Mutex::new(lighting_uniform(s)),
         })
     }
 
-    /// Whether these tables were uploaded from `env` (a renderer re-uploads only the uniform
-    /// for the frames of one job).
-    pub fn serves(&self, env: &EnvMap) -> bool {
-        self.env_id == env_id(env)
+    /// Whether these tables and texels were uploaded from `s`'s environment and texture (a
+    /// renderer re-uploads only the uniform for the frames of one job).
+    pub fn serves(&self, s: &BeautyScene) -> bool {
+        self.env_id == env_id(s.env) && self.texture_id == texture_id(s.texture)
     }
 
     /// Rewrite the lighting uniform (key light, material, ground, bounces) for `s`, whose
-    /// environment must be the one uploaded (`serves`).
+    /// environment and texture must be the ones uploaded (`serves`).
     pub fn update(&self, ctx: &GpuContext, s: &BeautyScene) {
-        debug_assert!(self.serves(s.env));
+        debug_assert!(self.serves(s));
         let lighting = lighting_uniform(s);
         ctx.queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&lighting));
@@ -188,6 +208,12 @@ impl GpuBeautyScene {
 
 fn env_id(env: &EnvMap) -> (usize, u32, u32) {
     (env as *const EnvMap as usize, env.width, env.height)
+}
+
+fn texture_id(t: Option<&ColorMap>) -> (usize, u32, u32) {
+    t.map_or((0, 0, 0), |t| {
+        (t as *const ColorMap as usize, t.width, t.height)
+    })
 }
 
 /// Render one beauty frame on the GPU: the CPU's `render_beauty` for the same scene, camera,
@@ -299,6 +325,7 @@ fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums],
         ground_lit: g.ground_lit,
         ground_unshadowed: g.ground_unshadowed,
         normal: Vec3::from_array(g.normal),
+        albedo: Vec3::from_array(g.albedo),
     };
     // One pass over the tile: its pixels resolved into the frame, its rays counted.
     let (rays, key, env) = rect

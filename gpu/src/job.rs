@@ -76,7 +76,7 @@ impl FrameRenderer for GpuFrames<'_> {
     ) -> Result<BeautyImage> {
         let mut lighting = self.lighting.lock().unwrap_or_else(|e| e.into_inner());
         match lighting.as_ref() {
-            Some(l) if l.serves(scene.env) => l.update(self.ctx, scene),
+            Some(l) if l.serves(scene) => l.update(self.ctx, scene),
             _ => {
                 let l =
                     GpuBeautyScene::upload(self.ctx, scene).map_err(|e| match &self.env_path {

@@ -23,7 +23,7 @@ pub const WORKGROUP: u32 = 8;
 /// `shaders/beauty.wgsl`: the path's state between dispatches, its three ray slots and their
 /// answers). Only the GPU reads it; the host sizes the buffer (tile² records) and the layout
 /// test checks this against the WGSL.
-pub const PATH_RECORD_BYTES: u64 = 384;
+pub const PATH_RECORD_BYTES: u64 = 416;
 
 /// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
 /// index of its stitch record (`StitchField::record_index`).
@@ -185,10 +185,24 @@ pub struct GpuLighting {
     /// `rotation.sin_cos()`, for `env_to_world`.
     pub env_from_sin: f32,
     pub env_from_cos: f32,
+    /// The base-colour texture (`BeautyScene::texture`) in the environment's texel buffer:
+    /// its size (0 × 0: none), its first float there, and its sampler
+    /// (`texture_sampler_code`).
+    pub tex_width: u32,
+    pub tex_height: u32,
+    pub tex_offset: u32,
+    pub tex_sampler: u32,
     pub _pad: u32,
 }
 
-/// One pixel's running beauty sums as the kernel accumulates them over samples, 80 bytes:
+/// A texture sampler as the lighting uniform's `tex_sampler` holds it: `wrapS`'s code in bits
+/// 0–1, `wrapT`'s in bits 2–3 (`TexWrap::code`), nearest filtering in bit 4
+/// (`shaders/texture.wgsl`).
+pub fn texture_sampler_code(s: &prismbake::texture::Sampler) -> u32 {
+    s.wrap[0].code() | (s.wrap[1].code() << 2) | ((s.nearest as u32) << 4)
+}
+
+/// One pixel's running beauty sums as the kernel accumulates them over samples, 96 bytes:
 /// `prismbake::render::beauty::PixelSums` plus the pixel's ray counts (`BeautyCounters`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -205,6 +219,8 @@ pub struct GpuBeautySums {
     pub env_shadow_rays: u32,
     pub normal: [f32; 3],
     pub _pad: u32,
+    pub albedo: [f32; 3],
+    pub _pad2: u32,
 }
 
 const _: () = {
@@ -215,8 +231,8 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
-    assert!(std::mem::size_of::<GpuLighting>() == 112);
-    assert!(std::mem::size_of::<GpuBeautySums>() == 80);
+    assert!(std::mem::size_of::<GpuLighting>() == 128);
+    assert!(std::mem::size_of::<GpuBeautySums>() == 96);
 };
 
 /// One shared struct as the layout test sees it: WGSL name, Rust size, `(member, offset)`s.
@@ -341,6 +357,10 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_to_cos,
                 env_from_sin,
                 env_from_cos,
+                tex_width,
+                tex_height,
+                tex_offset,
+                tex_sampler,
                 _pad
             }
         ),
@@ -358,7 +378,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 key_shadow_rays,
                 env_shadow_rays,
                 normal,
-                _pad
+                _pad,
+                albedo,
+                _pad2
             }
         ),
     ]
@@ -392,5 +414,7 @@ mod tests {
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);
         assert_eq!(offset_of!(GpuBeautySums, normal), 64);
+        assert_eq!(offset_of!(GpuBeautySums, albedo), 80);
+        assert_eq!(offset_of!(GpuLighting, tex_width), 108);
     }
 }

@@ -26,6 +26,8 @@ pub const AOV: &str = include_str!("../../shaders/aov.wgsl");
 pub const ENV: &str = include_str!("../../shaders/env.wgsl");
 /// Material, BSDF sampling, MIS weights (mirror of `prismbake::render::shading`).
 pub const SHADING: &str = include_str!("../../shaders/shading.wgsl");
+/// The base-colour texture (mirror of `prismbake::texture`).
+pub const TEXTURE: &str = include_str!("../../shaders/texture.wgsl");
 /// The beauty kernel (mirror of `prismbake::render::beauty`).
 pub const BEAUTY: &str = include_str!("../../shaders/beauty.wgsl");
 
@@ -42,11 +44,12 @@ pub fn aov_module_source() -> String {
     s
 }
 
-/// The beauty module: the library, the environment, the material and `beauty.wgsl` (entry
-/// point `render_beauty`).
+/// The beauty module: the library, the environment, the material, the texture and
+/// `beauty.wgsl` (entry points `render_beauty`, `beauty_start`, `beauty_trace`,
+/// `beauty_shade`).
 pub fn beauty_module_source() -> String {
     let mut s = LIBRARY.join("\n");
-    for part in [ENV, SHADING, BEAUTY] {
+    for part in [ENV, SHADING, TEXTURE, BEAUTY] {
         s.push('\n');
         s.push_str(part);
     }

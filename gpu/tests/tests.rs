@@ -12,3 +12,4 @@ mod parity;
 mod prism_hit;
 mod rng;
 mod seams;
+mod texture;

@@ -9,6 +9,7 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, SceneCamera, UpAxis};
+use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use glam::{Mat3, Mat4, Vec2, Vec3};
@@ -39,6 +40,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         loader.visit(root, Mat4::IDENTITY)?;
     }
     let mut mesh = loader.mesh;
+    let loader_buffers = loader.buffers;
     mesh.missing_uvs = loader.any_uv_missing;
     mesh.face_flags = vec![0; mesh.triangles.len()];
     let first = doc.materials().next();
@@ -47,21 +49,80 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         .map(|m| m.pbr_metallic_roughness().base_color_factor());
     mesh.base_color_texture = first
         .and_then(|m| m.pbr_metallic_roughness().base_color_texture())
-        .map(|t| {
-            let image = t.texture().source();
-            match (image.name(), image.source()) {
-                (Some(name), _) => name.to_string(),
-                (None, ::gltf::image::Source::Uri { uri, .. }) if !uri.starts_with("data:") => {
-                    uri.to_string()
-                }
-                _ => format!("image {}", image.index()),
-            }
-        });
+        .map(|t| texture_ref(path, &doc, &loader_buffers, &t))
+        .transpose()?;
     mesh.materials = doc.materials().count();
     if let Some((world, yfov)) = loader.camera {
         mesh.camera = Some(scene_camera(&mesh, world, yfov));
     }
     Ok(mesh)
+}
+
+/// Where a material's texture is and how it is sampled. An image in a buffer view is copied
+/// out (decoded only if a beauty render needs it, `texture::ColorMap::load`); a `data:` URI is
+/// decoded from base64; any other URI is a file next to the asset.
+fn texture_ref(
+    path: &Path,
+    doc: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    info: &::gltf::texture::Info,
+) -> Result<TextureRef> {
+    use ::gltf::texture::{MagFilter, WrappingMode};
+    let texture = info.texture();
+    let image = texture.source();
+    let name = match (image.name(), image.source()) {
+        (Some(name), _) => name.to_string(),
+        (None, ::gltf::image::Source::Uri { uri, .. }) if !uri.starts_with("data:") => {
+            uri.to_string()
+        }
+        _ => format!("image {}", image.index()),
+    };
+    let what = format!("image #{} ('{name}')", image.index());
+    let data = match image.source() {
+        ::gltf::image::Source::View { view, .. } => {
+            let buffer = &buffers[view.buffer().index()];
+            let range = view
+                .offset()
+                .checked_add(view.length())
+                .and_then(|end| buffer.get(view.offset()..end));
+            let bytes = range.ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    format!(
+                        "{what}: buffer view #{} runs past its buffer's {} bytes (re-export)",
+                        view.index(),
+                        buffer.len()
+                    ),
+                )
+            })?;
+            TextureData::Embedded(bytes.to_vec())
+        }
+        ::gltf::image::Source::Uri { uri, .. } => match uri.strip_prefix("data:") {
+            Some(_) => TextureData::Embedded(read_uri(path, &what, uri)?),
+            None => {
+                let rel = percent_decode(uri).ok_or_else(|| {
+                    Error::invalid(path, format!("{what} has a malformed URI '{uri}'"))
+                })?;
+                TextureData::File(path.parent().unwrap_or(Path::new(".")).join(rel))
+            }
+        },
+    };
+    let sampler = texture.sampler();
+    let wrap = |w: WrappingMode| match w {
+        WrappingMode::Repeat => TexWrap::Repeat,
+        WrappingMode::ClampToEdge => TexWrap::Clamp,
+        WrappingMode::MirroredRepeat => TexWrap::Mirror,
+    };
+    Ok(TextureRef {
+        name,
+        data,
+        sampler: Sampler {
+            wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
+            nearest: sampler.mag_filter() == Some(MagFilter::Nearest),
+        },
+        tex_coord: info.tex_coord(),
+        transformed: doc.extensions_used().any(|e| e == "KHR_texture_transform"),
+    })
 }
 
 /// `Gltf::from_slice`, but gltf-json 1.4's validation indexes a primitive's POSITION
@@ -159,7 +220,7 @@ fn load_buffers(path: &Path, doc: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {
                     ),
                 )
             })?,
-            ::gltf::buffer::Source::Uri(uri) => read_uri(path, i, uri)?,
+            ::gltf::buffer::Source::Uri(uri) => read_uri(path, &format!("buffer #{i}"), uri)?,
         };
         if data.len() < buffer.length() {
             return Err(Error::invalid(
@@ -177,35 +238,38 @@ fn load_buffers(path: &Path, doc: &::gltf::Gltf) -> Result<Vec<Vec<u8>>> {
     Ok(out)
 }
 
-fn read_uri(path: &Path, i: usize, uri: &str) -> Result<Vec<u8>> {
+/// The bytes behind a URI of `what` (e.g. `buffer #0`): a base64 `data:` URI or a relative file.
+fn read_uri(path: &Path, what: &str, uri: &str) -> Result<Vec<u8>> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let payload = rest.split_once(";base64,").map(|(_, p)| p).ok_or_else(|| {
             Error::invalid(
                 path,
-                format!("buffer #{i}: only base64 data: URIs are supported"),
+                format!("{what}: only base64 data: URIs are supported"),
             )
         })?;
         return decode_base64(payload).ok_or_else(|| {
             Error::invalid(
                 path,
-                format!("buffer #{i}: its data: URI is not valid base64 (re-export)"),
+                format!("{what}: its data: URI is not valid base64 (re-export)"),
             )
         });
     }
     if uri.contains(':') {
         return Err(Error::invalid(
             path,
-            format!("buffer #{i} has URI '{uri}': only relative file paths and data: URIs are supported"),
+            format!(
+                "{what} has URI '{uri}': only relative file paths and data: URIs are supported"
+            ),
         ));
     }
     let rel = percent_decode(uri)
-        .ok_or_else(|| Error::invalid(path, format!("buffer #{i} has a malformed URI '{uri}'")))?;
+        .ok_or_else(|| Error::invalid(path, format!("{what} has a malformed URI '{uri}'")))?;
     let file = path.parent().unwrap_or(Path::new(".")).join(rel);
     std::fs::read(&file).map_err(|e| {
         Error::invalid(
             path,
             format!(
-                "buffer #{i}: cannot read '{}': {e} (keep the .bin next to the .gltf)",
+                "{what}: cannot read '{}': {e} (keep the .bin next to the .gltf)",
                 file.display()
             ),
         )

@@ -4,6 +4,7 @@
 
 use super::{load_height_map, load_mesh, MapOptions, MeshOptions};
 use crate::mesh::BaseMesh;
+use crate::texture::{Sampler, TexWrap, TextureData};
 use glam::{Vec2, Vec3};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -356,19 +357,39 @@ fn gltf_base_colour_texture_and_material_count_are_recorded() {
                                       "baseColorTexture": {"index": 0}}},
             {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0]}},
         ],
-        "textures": [{"source": 0}],
-        "images": [{"uri": "albedo.png"}],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
+        "images": [{"uri": "my%20albedo.png"}],
     });
     let m = load_gltf_doc(&dir, "textured.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
     assert_eq!(m.base_color, Some([0.9, 0.8, 0.7, 1.0]));
-    assert_eq!(m.base_color_texture.as_deref(), Some("albedo.png"));
+    let t = m.base_color_texture.clone().unwrap();
+    assert_eq!(t.name, "my%20albedo.png");
+    // A file next to the asset, its URI percent-decoded; the sampler as the file gives it.
+    assert_eq!(t.data, TextureData::File(dir.join("my albedo.png")));
+    assert_eq!(
+        t.sampler,
+        Sampler {
+            wrap: [TexWrap::Mirror, TexWrap::Clamp],
+            nearest: true
+        }
+    );
+    assert_eq!((t.tex_coord, t.transformed), (0, false));
     assert_eq!(m.materials, 2);
-    let w = crate::render::lookdev::material_warning(&m).unwrap();
+    use crate::render::lookdev::material_warning;
+    // Read through UV set 0: only the second material is worth a warning.
+    let w = material_warning(&m, 0).unwrap();
+    assert!(!w.contains("albedo"), "{w}");
+    for part in ["2 materials", "--base-color"] {
+        assert!(w.contains(part), "no '{part}' in: {w}");
+    }
+    // Loaded with another UV set than the texture's: not read, and said so.
+    let w = material_warning(&m, 1).unwrap();
     for part in [
-        "(albedo.png) is not read",
+        "(my%20albedo.png) reads TEXCOORD_0",
+        "UV set 1",
         "(0.9, 0.8, 0.7)",
-        "2 materials",
-        "--base-color",
+        "uv_set = 0",
     ] {
         assert!(w.contains(part), "no '{part}' in: {w}");
     }
@@ -379,7 +400,46 @@ fn gltf_base_colour_texture_and_material_count_are_recorded() {
         materials: 1,
         ..m
     };
-    assert_eq!(crate::render::lookdev::material_warning(&plain), None);
+    assert_eq!(material_warning(&plain, 0), None);
+}
+
+#[test]
+fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_flagged() {
+    let dir = temp_dir("gltf-texture-data");
+    let mut png = Vec::new();
+    ::image::RgbImage::from_pixel(2, 1, ::image::Rgb([255, 255, 0]))
+        .write_to(
+            &mut std::io::Cursor::new(&mut png),
+            ::image::ImageFormat::Png,
+        )
+        .unwrap();
+    let mut doc = GltfDoc::default();
+    let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);
+    let rest = json!({
+        "extensionsUsed": ["KHR_texture_transform"],
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [
+            {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {
+            "index": 0, "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}],
+        "textures": [{"source": 0}],
+        "images": [{"uri": format!("data:image/png;base64,{}", base64(&png))}],
+    });
+    let m = load_gltf_doc(&dir, "data.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    let t = m.base_color_texture.clone().unwrap();
+    assert_eq!(t.name, "image 0");
+    assert_eq!(t.data, TextureData::Embedded(png));
+    assert_eq!(t.sampler, Sampler::default());
+    assert!(t.transformed);
+    let c = crate::texture::ColorMap::load(&m.source, &t).unwrap();
+    assert_eq!(c.texels, vec![glam::Vec3::new(1.0, 1.0, 0.0); 2]);
+    let w = crate::render::lookdev::material_warning(&m, 0).unwrap();
+    assert!(
+        w.contains("KHR_texture_transform") && w.contains("(image 0)"),
+        "{w}"
+    );
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! The beauty pass: a progressive path tracer over any intersector. Lighting: the environment
 //! (`env`) and an optional directional key light; material: `shading::Material` (Lambert +
-//! GGX, mirror below `MIRROR_ROUGHNESS`); `bounces` surface events; next-event estimation of
+//! GGX, mirror below `MIRROR_ROUGHNESS`), its base colour times an optional colour texture at
+//! the hit's UV (`BeautyScene::material_at`); `bounces` surface events; next-event estimation of
 //! the environment combined with BSDF sampling by MIS (power heuristic); the key light is a
 //! delta light, sampled only by shadow rays. An optional shadow-catcher ground plane at the
 //! asset's lowest point records how much light the asset takes away (alpha), nothing else.
@@ -22,6 +23,7 @@ use super::shading::{
 };
 use super::RenderSettings;
 use crate::rng::{self, Purpose};
+use crate::texture::ColorMap;
 use crate::trace::{Hit, Intersector, Ray, RayContext};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -70,12 +72,27 @@ pub struct BeautyScene<'a> {
     /// Whether the environment lights the scene (false when it is black: no env rays).
     pub env_lights: bool,
     pub key: Option<KeyLight>,
+    /// The surface's material; its base colour multiplies `texture`'s colour, if any.
     pub material: Material,
+    /// The base-colour texture (the glTF material's), sampled at each hit's UV.
+    pub texture: Option<&'a ColorMap>,
     pub ground: Option<Ground>,
     /// Surface events per path, 1..=4 (1 = direct light only).
     pub bounces: u32,
     /// Ray origin offset (world units), from the scene's size.
     pub eps: f32,
+}
+
+impl BeautyScene<'_> {
+    /// The material at a hit with texture coordinates `uv`.
+    #[inline]
+    pub fn material_at(&self, uv: Vec2) -> Material {
+        let mut m = self.material;
+        if let Some(t) = self.texture {
+            m.base_color *= t.sample(uv);
+        }
+        m
+    }
 }
 
 /// Ray counts of a beauty frame (shadow rays by the light they test).
@@ -119,6 +136,8 @@ pub struct Guides {
     /// The first hit's shading normal (facing the camera) summed over the pixel's samples
     /// that hit the asset, divided by all its samples.
     pub normal: Vec3,
+    /// The first hit's reflectance (`shading::guide_albedo`), averaged the same way.
+    pub albedo: Vec3,
     /// The asset's coverage (alpha without the catcher's shadow).
     pub coverage: f32,
     /// The shadow catcher's share of the pixel (its samples that saw the ground).
@@ -143,6 +162,8 @@ pub struct PixelSums {
     pub ground_unshadowed: f32,
     /// Sum of the first hits' camera-facing shading normals (`facing_normals`).
     pub normal: Vec3,
+    /// Sum of the first hits' reflectances (`shading::guide_albedo`).
+    pub albedo: Vec3,
 }
 
 impl PixelSums {
@@ -171,6 +192,7 @@ impl PixelSums {
         let k = 1.0 / spp as f32;
         Guides {
             normal: self.normal * k,
+            albedo: self.albedo * k,
             coverage: self.surface * k,
             ground: self.ground_samples * k,
             shadow: self.shadow(),
@@ -202,6 +224,8 @@ struct SampleResult {
     surface: bool,
     /// The camera hit's shading normal (`facing_normals`), zero without one.
     normal: Vec3,
+    /// The camera hit's reflectance (`shading::guide_albedo`), zero without one.
+    albedo: Vec3,
     background: Vec3,
     ground: Option<(f32, f32)>,
 }
@@ -282,12 +306,12 @@ fn surface_radiance(
     ctx: &RayContext,
     n: &mut BeautyCounters,
 ) -> Vec3 {
-    let m = &s.material;
     let mut hit = first;
     let mut dir = first_dir;
     let mut throughput = Vec3::ONE;
     let mut radiance = Vec3::ZERO;
     for bounce in 0..s.bounces {
+        let m = &s.material_at(hit.uv);
         let wo = -dir;
         let (ng, ns) = facing_normals(&hit, dir);
         let (t, b) = onb(ns);
@@ -398,6 +422,7 @@ fn trace_sample(
             radiance: surface_radiance(isect, s, h, ray.dir, ctx, n),
             surface: true,
             normal: facing_normals(&h, ray.dir).1,
+            albedo: shading::guide_albedo(&s.material_at(h.uv)),
             ..Default::default()
         },
         (_, Some(gt)) => SampleResult {
@@ -457,6 +482,7 @@ pub fn render_beauty(
                     acc.radiance += r.radiance;
                     acc.surface += r.surface as u32 as f32;
                     acc.normal += r.normal;
+                    acc.albedo += r.albedo;
                     match r.ground {
                         Some((lit, all)) => {
                             acc.ground_samples += 1.0;

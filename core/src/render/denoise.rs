@@ -14,9 +14,7 @@
 //! (docs/denoising.md: what is filtered, the library's places, quality, time and error).
 
 use super::beauty::BeautyImage;
-use super::shading::{self, Material};
 use crate::error::{Error, Result};
-use glam::Vec3;
 use libloading::Library;
 use std::ffi::{c_char, c_void, CStr};
 use std::mem::ManuallyDrop;
@@ -323,22 +321,13 @@ impl Denoiser {
         Ok(())
     }
 
-    /// Denoise a beauty frame in place with the frame's guides and `material`'s albedo: the
-    /// asset's radiance, then (where the frame has a shadow catcher) the catcher's shadow, with
+    /// Denoise a beauty frame in place with the frame's guides (`Guides`: albedo and normal):
+    /// the asset's radiance, then (where the frame has a shadow catcher) the catcher's shadow, with
     /// alpha and the background made again from it. Pixels no sample of which hit the asset
     /// keep no radiance.
-    pub fn denoise_beauty(
-        &self,
-        img: &mut BeautyImage,
-        material: &Material,
-    ) -> std::result::Result<(), String> {
-        let albedo = guide_albedo(material);
+    pub fn denoise_beauty(&self, img: &mut BeautyImage) -> std::result::Result<(), String> {
         let mut color: Vec<[f32; 3]> = img.rgba.iter().map(|c| [c[0], c[1], c[2]]).collect();
-        let albedo: Vec<[f32; 3]> = img
-            .guides
-            .iter()
-            .map(|g| (albedo * g.coverage).to_array())
-            .collect();
+        let albedo: Vec<[f32; 3]> = img.guides.iter().map(|g| g.albedo.to_array()).collect();
         let normal: Vec<[f32; 3]> = img.guides.iter().map(|g| g.normal.to_array()).collect();
         self.filter(img.width, img.height, &mut color, &albedo, &normal)?;
         for ((c, d), g) in img.rgba.iter_mut().zip(&color).zip(&img.guides) {
@@ -388,12 +377,6 @@ impl Denoiser {
     }
 }
 
-/// The albedo guide of a surface of `m`: what its two lobes reflect at normal incidence, at
-/// most 1 per channel (OIDN's albedo is a reflectance).
-pub fn guide_albedo(m: &Material) -> Vec3 {
-    (shading::diffuse_albedo(m) + shading::specular_f0(m)).min(Vec3::ONE)
-}
-
 fn version_string(v: i32) -> String {
     format!("{}.{}.{}", v / 10000, (v / 100) % 100, v % 100)
 }
@@ -424,24 +407,5 @@ mod tests {
     fn versions_read_as_major_minor_patch() {
         assert_eq!(version_string(20303), "2.3.3");
         assert_eq!(version_string(20501), "2.5.1");
-    }
-
-    #[test]
-    fn the_albedo_guide_is_a_reflectance() {
-        let grey = Material::default();
-        let a = guide_albedo(&grey);
-        assert!(a.min_element() > 0.5 && a.max_element() <= 1.0, "{a}");
-        let gold = Material {
-            base_color: Vec3::new(1.0, 0.8, 0.3),
-            metallic: 1.0,
-            ..Material::default()
-        };
-        // A metal reflects its colour through the specular lobe alone.
-        assert!(
-            (guide_albedo(&gold) - Vec3::new(1.0, 0.8, 0.3))
-                .abs()
-                .max_element()
-                < 1e-6
-        );
     }
 }

@@ -22,7 +22,7 @@ use super::job::{
 use super::shading::Material;
 use super::{contact_sheet, output, render_aovs, Aov, AovImage, RenderSettings};
 use crate::accel::Scene;
-use crate::asset;
+use crate::asset::{self, AssetSpec};
 use crate::bake::{self, BakeOptions, RebakeStats};
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
@@ -30,6 +30,7 @@ use crate::load::{self, MapOptions};
 use crate::mesh::UpAxis;
 use crate::repair;
 use crate::table_cache;
+use crate::texture::{ColorMap, TextureRef};
 use crate::trace::Intersector;
 use glam::Vec3;
 use serde::Serialize;
@@ -218,50 +219,96 @@ pub struct Session {
     cam0: Camera,
     up_axis: UpAxis,
     base_color: Option<Vec3>,
+    texture: Option<ColorMap>,
     env: Option<EnvMap>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
 }
 
+/// Whether the beauty reads the first material's base-colour texture: only through the UV set
+/// the asset is loaded with (`uv_set`), the one every hit carries.
+fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
+    texture.tex_coord == uv_set
+}
+
 /// What the beauty does not take from the asset's materials, if anything: it shades the whole
-/// asset with the first material's colour factor (`--base-color` overrides it) and reads no
-/// texture.
-pub fn material_warning(mesh: &crate::mesh::BaseMesh) -> Option<String> {
+/// asset with the first material (its colour factor times its base-colour texture, read through
+/// the asset's UV set `uv_set`; `--base-color` replaces both) and applies no texture transform.
+pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<String> {
     let mut notes = vec![];
     if let Some(t) = &mesh.base_color_texture {
         let c = mesh.base_color.unwrap_or([1.0; 4]);
-        notes.push(format!(
-            "the material's base-colour texture ({t}) is not read: the beauty shades with its \
-             colour factor ({}, {}, {})",
-            c[0], c[1], c[2]
-        ));
+        if !texture_readable(t, uv_set) {
+            notes.push(format!(
+                "the material's base-colour texture ({}) reads TEXCOORD_{} but the asset is \
+                 loaded with UV set {uv_set}: it is not read, the beauty shades with its colour \
+                 factor ({}, {}, {}) (the sidecar's uv_set = {} reads it)",
+                t.name, t.tex_coord, c[0], c[1], c[2], t.tex_coord
+            ));
+        } else if t.transformed {
+            notes.push(format!(
+                "the file uses KHR_texture_transform, which is not applied to the base-colour \
+                 texture ({})",
+                t.name
+            ));
+        }
     }
     if mesh.materials > 1 {
         notes.push(format!(
-            "{} materials: the beauty shades the whole asset with the first one's colour",
+            "{} materials: the beauty shades the whole asset with the first one",
             mesh.materials
         ));
     }
-    (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets another)")
+    (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets one colour)")
+}
+
+/// The asset's own material as the beauty reads it: the first material's colour factor and its
+/// base-colour texture, decoded.
+#[derive(Default)]
+struct AssetMaterial {
+    base_color: Option<Vec3>,
+    texture: Option<ColorMap>,
+}
+
+/// The asset's material for `job`: nothing unless it renders the beauty with the asset's own
+/// colour (no `--base-color`); a texture that cannot be decoded is an error.
+fn asset_material(
+    mesh: &crate::mesh::BaseMesh,
+    spec: &AssetSpec,
+    job: &RenderJob,
+    opts: &LookdevOptions,
+) -> Result<AssetMaterial> {
+    if !job.aovs.contains(&Aov::Beauty) || opts.base_color.is_some() {
+        return Ok(AssetMaterial::default());
+    }
+    if let Some(w) = material_warning(mesh, spec.uv_set) {
+        eprintln!("warning: {}: {w}", mesh.source.display());
+    }
+    let texture = match &mesh.base_color_texture {
+        Some(t) if texture_readable(t, spec.uv_set) => Some(ColorMap::load(&mesh.source, t)?),
+        _ => None,
+    };
+    Ok(AssetMaterial {
+        base_color: mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2])),
+        texture,
+    })
 }
 
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
-fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option<Vec3>, CacheUse)> {
+fn load_cached(
+    job: &RenderJob,
+    opts: &LookdevOptions,
+) -> Result<(Loaded, AssetMaterial, CacheUse)> {
     let Input::Asset(spec) = &job.input else {
         return Ok((
             super::job::load_input(&job.input, &job.repair)?,
-            None,
+            AssetMaterial::default(),
             CacheUse::Off,
         ));
     };
     let (mesh, map) = asset::load(spec)?;
-    let base_color = mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2]));
-    if job.aovs.contains(&Aov::Beauty) && opts.base_color.is_none() {
-        if let Some(w) = material_warning(&mesh) {
-            eprintln!("warning: {}: {w}", mesh.source.display());
-        }
-    }
+    let material = asset_material(&mesh, spec, job, opts)?;
     let (scene_camera, up_axis) = (mesh.camera, mesh.up_axis.unwrap_or_default());
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
@@ -276,7 +323,7 @@ fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option
                     scene_camera,
                     up_axis,
                 },
-                base_color,
+                material,
                 CacheUse::Reused(path),
             ));
         }
@@ -306,7 +353,7 @@ fn load_cached(job: &RenderJob, opts: &LookdevOptions) -> Result<(Loaded, Option
             scene_camera,
             up_axis,
         },
-        base_color,
+        material,
         cache,
     ))
 }
@@ -334,7 +381,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     };
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
-    let (loaded, base_color, cache) = load_cached(job, opts)?;
+    let (loaded, material, cache) = load_cached(job, opts)?;
     let cam0 = base_camera(
         &loaded,
         &job.camera,
@@ -358,7 +405,8 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         scene,
         cam0,
         up_axis,
-        base_color,
+        base_color: material.base_color,
+        texture: material.texture,
         env,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
@@ -470,7 +518,7 @@ fn trace_frame(
 type FrameDone = (FrameStats, Vec<PathBuf>, Vec<(Aov, Vec<u8>)>);
 
 impl TracedFrame {
-    /// Denoise the beauty (with `denoise`: the denoiser and the surface's material), then
+    /// Denoise the beauty (with `denoise`), then
     /// write the frame's EXR and PNG files into `dir` (and keep each image's preview for the
     /// contact sheets when `sheets`); the denoising and write times complete its figures.
     fn write(
@@ -478,11 +526,11 @@ impl TracedFrame {
         dir: &Path,
         aov_list: &[Aov],
         sheets: bool,
-        denoise: Option<(&Denoiser, &Material)>,
+        denoise: Option<&Denoiser>,
     ) -> Result<FrameDone> {
-        if let (Some(img), Some((d, m))) = (&mut self.beauty, denoise) {
+        if let (Some(img), Some(d)) = (&mut self.beauty, denoise) {
             let t = Instant::now();
-            d.denoise_beauty(img, m).map_err(|e| {
+            d.denoise_beauty(img).map_err(|e| {
                 Error::Param(format!(
                     "denoising {}: {e}",
                     self.stats
@@ -562,6 +610,7 @@ pub fn render_all(
             .key_light
             .map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
         material,
+        texture: s.texture.as_ref(),
         ground: opts.ground.then(|| Ground {
             up,
             height: lo.dot(up).min(hi.dot(up)),
@@ -587,7 +636,7 @@ pub fn render_all(
         contact_sheets: vec![],
         denoiser: s.denoiser.as_ref().map(Denoiser::describe),
     };
-    let denoise = s.denoiser.as_ref().map(|d| (d, &bscene.material));
+    let denoise = s.denoiser.as_ref();
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
         job.aovs.iter().map(|a| (*a, Vec::new())).collect();
     let (w, h) = (job.settings.width, job.settings.height);

@@ -189,6 +189,13 @@ pub fn specular_f0(m: &Material) -> Vec3 {
     Vec3::splat(m.specular).lerp(m.base_color, m.metallic)
 }
 
+/// The denoiser's albedo guide of a surface of `m`: what its two lobes reflect at normal
+/// incidence, at most 1 per channel (Open Image Denoise's albedo is a reflectance).
+#[inline]
+pub fn guide_albedo(m: &Material) -> Vec3 {
+    (diffuse_albedo(m) + specular_f0(m)).min(Vec3::ONE)
+}
+
 /// Probability of sampling the specular lobe: proportional to the lobes' luminance, kept in
 /// [0.1, 0.9] when both lobes exist so that neither is starved.
 #[inline]
@@ -324,6 +331,26 @@ pub fn linear_to_srgb(x: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_albedo_guide_is_a_reflectance() {
+        let grey = Material::default();
+        let a = guide_albedo(&grey);
+        assert!(a.min_element() > 0.5 && a.max_element() <= 1.0, "{a}");
+        let gold = Material {
+            base_color: Vec3::new(1.0, 0.8, 0.3),
+            metallic: 1.0,
+            ..Material::default()
+        };
+        // A metal reflects its colour through the specular lobe alone.
+        assert!(
+            (guide_albedo(&gold) - Vec3::new(1.0, 0.8, 0.3))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+    }
+
     use crate::rng::{random, Purpose};
 
     fn rand2(i: u32, k: u32) -> Vec2 {

@@ -1,0 +1,328 @@
+//! Colour textures: the glTF material's base-colour texture, which the beauty multiplies into
+//! its base colour at each hit's UV.
+//!
+//! A loader records where the texture is (`TextureRef`, cheap); `ColorMap::load` decodes it
+//! (PNG or JPEG) only when a beauty render needs it. Texels are stored linear (glTF base-colour
+//! textures are sRGB-encoded), row 0 at the top of the image, and sampled with the height
+//! map's conventions (`HeightMap::texel_coords`: texel centres at `(i + 0.5) / N`, `v` up), with
+//! the glTF sampler's wrap modes per axis and its magnification filter (bilinear unless it
+//! asks for nearest). There is no mip chain: a minified texture aliases per sample, and the
+//! pixel's samples average it. The GPU mirror is `shaders/texture.wgsl`, function by function.
+
+use crate::error::{Error, Result};
+use glam::{Vec2, Vec3};
+use std::path::{Path, PathBuf};
+
+/// Largest texture side accepted (the height map's bound, `load::image::MAX_MAP_DIMENSION`).
+pub const MAX_TEXTURE_DIMENSION: u32 = crate::load::image::MAX_MAP_DIMENSION;
+
+/// How texel coordinates outside the image wrap, per axis (glTF sampler `wrapS`/`wrapT`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum TexWrap {
+    #[default]
+    Repeat,
+    Clamp,
+    Mirror,
+}
+
+impl TexWrap {
+    /// The code the GPU mirror reads (`shaders/texture.wgsl`).
+    pub fn code(self) -> u32 {
+        match self {
+            TexWrap::Repeat => 0,
+            TexWrap::Clamp => 1,
+            TexWrap::Mirror => 2,
+        }
+    }
+
+    /// Texel index `i` of an axis of `n` texels, wrapped into `0..n`.
+    #[inline]
+    pub fn index(self, i: i32, n: i32) -> i32 {
+        match self {
+            TexWrap::Repeat => i.rem_euclid(n),
+            TexWrap::Clamp => i.clamp(0, n - 1),
+            TexWrap::Mirror => {
+                let m = i.rem_euclid(2 * n);
+                if m >= n {
+                    2 * n - 1 - m
+                } else {
+                    m
+                }
+            }
+        }
+    }
+}
+
+/// How a texture is filtered: the glTF sampler's wrap modes and magnification filter.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sampler {
+    /// `wrapS` (u) and `wrapT` (v).
+    pub wrap: [TexWrap; 2],
+    /// Nearest texel instead of bilinear (`magFilter` NEAREST).
+    pub nearest: bool,
+}
+
+/// Where a texture's encoded image is.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TextureData {
+    /// In the asset file itself (a `.glb` buffer view or a `data:` URI).
+    Embedded(Vec<u8>),
+    /// A file next to the asset.
+    File(PathBuf),
+}
+
+/// A material's texture as the asset file refers to it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureRef {
+    /// For messages: the image's name, else its URI, else `image N`.
+    pub name: String,
+    pub data: TextureData,
+    pub sampler: Sampler,
+    /// The UV set it is read with (glTF `texCoord`).
+    pub tex_coord: u32,
+    /// The file transforms its UVs (`KHR_texture_transform`), which is not applied.
+    pub transformed: bool,
+}
+
+/// A decoded colour texture: linear RGB texels, row-major, row 0 at the top of the image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColorMap {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<Vec3>,
+    pub sampler: Sampler,
+    pub name: String,
+}
+
+/// sRGB transfer function, decoded: an encoded value in [0, 1] to linear.
+#[inline]
+pub fn srgb_to_linear(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl ColorMap {
+    /// Decode `texture` of the asset `asset` (PNG or JPEG, any bit depth; alpha is dropped)
+    /// from sRGB into linear texels.
+    pub fn load(asset: &Path, texture: &TextureRef) -> Result<ColorMap> {
+        use ::image::{ImageReader, Limits};
+        let name = &texture.name;
+        let bad = |what: String| {
+            Error::invalid(
+                asset,
+                format!(
+                    "base-colour texture '{name}': {what} (fix or re-export the texture, or pass \
+                     --base-color R,G,B to shade without it)"
+                ),
+            )
+        };
+        let bytes = match &texture.data {
+            TextureData::Embedded(b) => std::borrow::Cow::Borrowed(b.as_slice()),
+            TextureData::File(p) => std::borrow::Cow::Owned(
+                std::fs::read(p).map_err(|e| bad(format!("cannot read '{}': {e}", p.display())))?,
+            ),
+        };
+        let mut reader = ImageReader::new(std::io::Cursor::new(&bytes[..]))
+            .with_guessed_format()
+            .map_err(|e| bad(e.to_string()))?;
+        match reader.format() {
+            Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) => {}
+            Some(f) => {
+                return Err(bad(format!(
+                    "is {f:?}; glTF base-colour textures are PNG or JPEG"
+                )))
+            }
+            None => return Err(bad("is neither PNG nor JPEG".into())),
+        }
+        let mut limits = Limits::default();
+        limits.max_image_width = Some(MAX_TEXTURE_DIMENSION);
+        limits.max_image_height = Some(MAX_TEXTURE_DIMENSION);
+        // The decoded image and its f32 copy: 4 GiB covers 16k² RGBA8.
+        limits.max_alloc = Some(4 << 30);
+        reader.limits(limits);
+        let image = reader
+            .decode()
+            .map_err(|e| bad(format!("cannot decode: {e}")))?;
+        let (width, height) = (image.width(), image.height());
+        if width == 0 || height == 0 {
+            return Err(bad(format!("is {width}x{height} texels")));
+        }
+        let texels = image
+            .to_rgb32f()
+            .pixels()
+            .map(|p| Vec3::from_array(p.0.map(srgb_to_linear)))
+            .collect();
+        Ok(ColorMap {
+            width,
+            height,
+            texels,
+            sampler: texture.sampler,
+            name: name.clone(),
+        })
+    }
+
+    /// One texel (x, y), wrapped.
+    #[inline]
+    pub fn texel(&self, x: i32, y: i32) -> Vec3 {
+        let (w, h) = (self.width as i32, self.height as i32);
+        let [wu, wv] = self.sampler.wrap;
+        self.texels[(wv.index(y, h) * w + wu.index(x, w)) as usize]
+    }
+
+    /// The texture's colour at `uv`: bilinear over the four nearest texel centres, or the
+    /// nearest texel (`Sampler::nearest`).
+    pub fn sample(&self, uv: Vec2) -> Vec3 {
+        // HeightMap::texel_coords, bounded so that the integer texel index cannot overflow
+        // (NaN becomes 0).
+        let p = Vec2::new(uv.x * self.width as f32, (1.0 - uv.y) * self.height as f32)
+            .clamp(Vec2::splat(-1.0e7), Vec2::splat(1.0e7));
+        if self.sampler.nearest {
+            let f = p.floor();
+            return self.texel(f.x as i32, f.y as i32);
+        }
+        let q = p - Vec2::splat(0.5);
+        let f = q.floor();
+        let t = q - f;
+        let (x, y) = (f.x as i32, f.y as i32);
+        let top = self.texel(x, y).lerp(self.texel(x + 1, y), t.x);
+        let bottom = self.texel(x, y + 1).lerp(self.texel(x + 1, y + 1), t.x);
+        top.lerp(bottom, t.y)
+    }
+
+    /// Bytes the texels take.
+    pub fn bytes(&self) -> usize {
+        self.texels.len() * std::mem::size_of::<Vec3>()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(w: u32, h: u32, texels: Vec<Vec3>, sampler: Sampler) -> ColorMap {
+        ColorMap {
+            width: w,
+            height: h,
+            texels,
+            sampler,
+            name: "t".into(),
+        }
+    }
+
+    #[test]
+    fn wrap_modes_fold_indices_into_the_image() {
+        let n = 4;
+        let got = |w: TexWrap| (-5..9).map(|i| w.index(i, n)).collect::<Vec<_>>();
+        assert_eq!(
+            got(TexWrap::Repeat),
+            [3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0]
+        );
+        assert_eq!(
+            got(TexWrap::Clamp),
+            [0, 0, 0, 0, 0, 0, 1, 2, 3, 3, 3, 3, 3, 3]
+        );
+        assert_eq!(
+            got(TexWrap::Mirror),
+            [3, 3, 2, 1, 0, 0, 1, 2, 3, 3, 2, 1, 0, 0]
+        );
+    }
+
+    #[test]
+    fn sampling_follows_the_height_maps_texel_conventions() {
+        // 2x2, row 0 at the top: v = 0.75 is the top row's centre, v = 0.25 the bottom's.
+        let (a, b, c, d) = (
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 1.0, 1.0),
+        );
+        let clamp = Sampler {
+            wrap: [TexWrap::Clamp; 2],
+            nearest: false,
+        };
+        let m = map(2, 2, vec![a, b, c, d], clamp);
+        assert_eq!(m.sample(Vec2::new(0.25, 0.75)), a);
+        assert_eq!(m.sample(Vec2::new(0.75, 0.75)), b);
+        assert_eq!(m.sample(Vec2::new(0.25, 0.25)), c);
+        assert_eq!(m.sample(Vec2::new(0.75, 0.25)), d);
+        assert_eq!(m.sample(Vec2::new(0.5, 0.75)), (a + b) * 0.5);
+        assert_eq!(m.sample(Vec2::new(0.5, 0.5)), (a + b + c + d) * 0.25);
+        // Clamped past the edge; repeat blends the far column in.
+        assert_eq!(m.sample(Vec2::new(-3.0, 0.75)), a);
+        let r = map(2, 2, vec![a, b, c, d], Sampler::default());
+        assert_eq!(r.sample(Vec2::new(0.0, 0.75)), (a + b) * 0.5);
+        assert_eq!(r.sample(Vec2::new(1.25, 0.75)), a);
+        // Nearest: the texel the point lies in.
+        let n = map(
+            2,
+            2,
+            vec![a, b, c, d],
+            Sampler {
+                nearest: true,
+                ..clamp
+            },
+        );
+        assert_eq!(n.sample(Vec2::new(0.49, 0.51)), a);
+        assert_eq!(n.sample(Vec2::new(0.51, 0.49)), d);
+        // Far off or NaN UVs stay in the image.
+        assert!(r.sample(Vec2::new(f32::NAN, 1e30)).is_finite());
+    }
+
+    #[test]
+    fn decoding_turns_srgb_into_linear_and_keeps_the_top_row_first() {
+        let dir = std::env::temp_dir().join(format!("prismbake-texture-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.png");
+        let img = ::image::RgbImage::from_fn(2, 2, |x, y| match (x, y) {
+            (0, 0) => ::image::Rgb([255, 0, 0]),
+            (1, 0) => ::image::Rgb([0, 128, 0]),
+            _ => ::image::Rgb([0, 0, 0]),
+        });
+        img.save(&path).unwrap();
+        let t = TextureRef {
+            name: "t.png".into(),
+            data: TextureData::File(path.clone()),
+            sampler: Sampler::default(),
+            tex_coord: 0,
+            transformed: false,
+        };
+        let m = ColorMap::load(Path::new("a.gltf"), &t).unwrap();
+        assert_eq!((m.width, m.height), (2, 2));
+        assert_eq!(m.texels[0], Vec3::new(1.0, 0.0, 0.0));
+        assert!((m.texels[1].y - 0.2158605).abs() < 1e-6, "{}", m.texels[1]);
+        // The same bytes embedded decode alike.
+        let e = TextureRef {
+            data: TextureData::Embedded(std::fs::read(&path).unwrap()),
+            ..t.clone()
+        };
+        assert_eq!(ColorMap::load(Path::new("a.glb"), &e).unwrap(), m);
+    }
+
+    #[test]
+    fn bad_textures_are_named_with_the_fix() {
+        let t = |data| TextureRef {
+            name: "albedo".into(),
+            data,
+            sampler: Sampler::default(),
+            tex_coord: 0,
+            transformed: false,
+        };
+        let cases = [
+            t(TextureData::Embedded(b"not an image".to_vec())),
+            t(TextureData::Embedded(b"\x89PNG\r\n\x1a\n\0\0".to_vec())),
+            t(TextureData::File("/nonexistent/albedo.png".into())),
+        ];
+        for case in &cases {
+            let e = ColorMap::load(Path::new("asset.glb"), case)
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains("asset.glb") && e.contains("'albedo'") && e.contains("--base-color"),
+                "{e}"
+            );
+        }
+    }
+}

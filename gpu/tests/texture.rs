@@ -1,0 +1,130 @@
+//! The WGSL base-colour texture is the CPU's: `texture_sample` evaluated on the adapter at UVs
+//! on and off the texture (texel centres and edges, the borders, far outside) equals
+//! `ColorMap::sample` for every wrap mode per axis and both filters, with the texels placed
+//! after an environment's in the one buffer, as `GpuBeautyScene::upload` lays them out. Breaks
+//! if the GPU reads another texel than the CPU anywhere (a wrap at a border, a mirrored
+//! period, the nearest texel's rounding), which a parity render sees only in a few pixels.
+
+use crate::util;
+use glam::{Vec2, Vec3};
+use prismbake::rng;
+use prismbake::texture::{ColorMap, Sampler, TexWrap};
+use prismbake_gpu::layout::{texture_sampler_code, GpuLighting};
+use prismbake_gpu::shaders;
+
+const PROBE: &str = r#"
+// Per case: in = (u, v, _, _), out = (texture_sample(uv), _).
+@group(3) @binding(1) var<storage, read_write> io: array<vec4f>;
+
+@compute @workgroup_size(64)
+fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= arrayLength(&io)) {
+        return;
+    }
+    io[gid.x] = vec4f(texture_sample(io[gid.x].xy), 0.0);
+}
+"#;
+
+/// UVs where a wrong texel shows: half-texel steps over the texture and two periods around it
+/// (centres, edges, a little off both), then pseudo-random UVs far outside.
+fn probe_uvs(w: u32, h: u32) -> Vec<Vec2> {
+    let mut uvs = Vec::new();
+    for j in -(2 * h as i32 + 3)..(4 * h as i32 + 3) {
+        for i in -(2 * w as i32 + 3)..(4 * w as i32 + 3) {
+            let (u, v) = (i as f32 * 0.5 / w as f32, j as f32 * 0.5 / h as f32);
+            for off in [0.0, 0.013, -0.007] {
+                uvs.push(Vec2::new(u + off / w as f32, v - off / h as f32));
+            }
+        }
+    }
+    let mut s = 3u32;
+    let mut next = || {
+        s = rng::pcg_hash(s);
+        s as f32 / u32::MAX as f32
+    };
+    for _ in 0..2048 {
+        uvs.push(Vec2::new(next() * 60.0 - 30.0, next() * 60.0 - 30.0));
+    }
+    uvs
+}
+
+#[test]
+fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
+    // A non-square texture of distinct colours after a 3-texel "environment", so that any
+    // other texel, or an offset that misses the environment's, gives another colour.
+    let (w, h) = (5u32, 3u32);
+    let colour = |i: u32| {
+        Vec3::new(
+            rng::pcg_hash(3 * i + 1) as f32 / u32::MAX as f32,
+            rng::pcg_hash(3 * i + 2) as f32 / u32::MAX as f32,
+            rng::pcg_hash(3 * i + 3) as f32 / u32::MAX as f32,
+        )
+    };
+    let env_texels = 3u32;
+    let mut texels: Vec<f32> = (0..env_texels).flat_map(|_| [-9.0f32; 3]).collect();
+    let tex: Vec<Vec3> = (0..w * h).map(colour).collect();
+    texels.extend(tex.iter().flat_map(|c| c.to_array()));
+    let wraps = [TexWrap::Repeat, TexWrap::Clamp, TexWrap::Mirror];
+    let uvs = probe_uvs(w, h);
+    let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
+    // The beauty module (its `lighting` and `env_texels`), the probe beside its kernels.
+    let src = format!("{}\n{}", shaders::beauty_module_source(), PROBE);
+    let mut cases = 0;
+    for nearest in [false, true] {
+        for wu in wraps {
+            for wv in wraps {
+                let sampler = Sampler {
+                    wrap: [wu, wv],
+                    nearest,
+                };
+                let map = ColorMap {
+                    width: w,
+                    height: h,
+                    texels: tex.clone(),
+                    sampler,
+                    name: "probe".into(),
+                };
+                let lighting = GpuLighting {
+                    tex_width: w,
+                    tex_height: h,
+                    tex_offset: 3 * env_texels,
+                    tex_sampler: texture_sampler_code(&sampler),
+                    ..Default::default()
+                };
+                let gpu = util::run_probe(
+                    "texture probe",
+                    &src,
+                    (3, 1),
+                    &io,
+                    &[
+                        // lighting, env_texels (env.wgsl's bindings)
+                        (
+                            2,
+                            0,
+                            bytemuck::bytes_of(&lighting),
+                            wgpu::BufferUsages::UNIFORM,
+                        ),
+                        (
+                            2,
+                            1,
+                            bytemuck::cast_slice(&texels),
+                            wgpu::BufferUsages::STORAGE,
+                        ),
+                    ],
+                );
+                for (uv, g) in uvs.iter().zip(&gpu) {
+                    let want = map.sample(*uv);
+                    let err = (Vec3::new(g[0], g[1], g[2]) - want).abs().max_element();
+                    // The same arithmetic up to FMA contraction (~1e-7); a wrong texel moves
+                    // a channel by ~0.1–1.
+                    assert!(
+                        err <= 1e-5,
+                        "{sampler:?} uv {uv}: GPU {g:?}, CPU {want} (|Δ| {err:.2e})"
+                    );
+                }
+                cases += uvs.len();
+            }
+        }
+    }
+    eprintln!("texture probe: {cases} lookups agree (18 samplers)");
+}

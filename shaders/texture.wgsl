@@ -1,0 +1,64 @@
+// texture.wgsl — the base-colour texture, the mirror of core/src/texture.rs (`ColorMap`):
+// linear RGB, 3 floats per texel, rows top to bottom, stored in `env_texels` after the
+// environment's texels (from `lighting.tex_offset`), sampled with the height map's texel
+// conventions and the glTF sampler's wrap modes and magnification filter
+// (`lighting.tex_sampler`, gpu::layout::texture_sampler_code).
+
+// TexWrap codes.
+const WRAP_REPEAT: u32 = 0u;
+const WRAP_CLAMP: u32 = 1u;
+
+// TexWrap::index: texel index `i` of an axis of `n` texels, wrapped into 0..n.
+fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
+    if (mode == WRAP_REPEAT) {
+        let r = i % n;
+        return select(r, r + n, r < 0);
+    }
+    if (mode == WRAP_CLAMP) {
+        return clamp(i, 0, n - 1);
+    }
+    // Mirrored repeat.
+    let r2 = i % (2 * n);
+    let m = select(r2, r2 + 2 * n, r2 < 0);
+    return select(m, 2 * n - 1 - m, m >= n);
+}
+
+// ColorMap::texel.
+fn tex_texel(x: i32, y: i32) -> vec3f {
+    let w = i32(lighting.tex_width);
+    let h = i32(lighting.tex_height);
+    let code = lighting.tex_sampler;
+    let i = u32(wrap_index(y, h, (code >> 2u) & 3u) * w + wrap_index(x, w, code & 3u));
+    let k = lighting.tex_offset + 3u * i;
+    return vec3f(env_texels[k], env_texels[k + 1u], env_texels[k + 2u]);
+}
+
+// ColorMap::sample: bilinear over the four nearest texel centres, or the nearest texel.
+fn texture_sample(uv: vec2f) -> vec3f {
+    let p = clamp(
+        vec2f(uv.x * f32(lighting.tex_width), (1.0 - uv.y) * f32(lighting.tex_height)),
+        vec2f(-1.0e7),
+        vec2f(1.0e7),
+    );
+    if ((lighting.tex_sampler & 16u) != 0u) {
+        let f = floor(p);
+        return tex_texel(i32(f.x), i32(f.y));
+    }
+    let q = p - vec2f(0.5);
+    let f = floor(q);
+    let t = q - f;
+    let x = i32(f.x);
+    let y = i32(f.y);
+    let top = lerp3(tex_texel(x, y), tex_texel(x + 1, y), t.x);
+    let bottom = lerp3(tex_texel(x, y + 1), tex_texel(x + 1, y + 1), t.x);
+    return lerp3(top, bottom, t.y);
+}
+
+// BeautyScene::material_at: the material at a hit with texture coordinates `uv`.
+fn material_at(uv: vec2f) -> Material {
+    var m = Material(lighting.base_color, lighting.roughness, lighting.metallic, lighting.specular);
+    if (lighting.tex_width != 0u) {
+        m.base_color *= texture_sample(uv);
+    }
+    return m;
+}
