@@ -302,6 +302,35 @@ mod tests {
     }
 
     #[test]
+    fn jpeg_textures_decode() {
+        // A flat 16x8 JPEG (baseline, as glTF exporters write them): lossy, but a flat colour
+        // survives within a step or two of 8 bits.
+        let mut jpeg = Vec::new();
+        ::image::RgbImage::from_pixel(16, 8, ::image::Rgb([200, 100, 50]))
+            .write_to(
+                &mut std::io::Cursor::new(&mut jpeg),
+                ::image::ImageFormat::Jpeg,
+            )
+            .unwrap();
+        let t = TextureRef {
+            name: "albedo.jpg".into(),
+            data: TextureData::Embedded(jpeg),
+            sampler: Sampler::default(),
+            tex_coord: 0,
+            transformed: false,
+        };
+        let m = ColorMap::load(Path::new("a.glb"), &t).unwrap();
+        assert_eq!((m.width, m.height), (16, 8));
+        let want = Vec3::new(200.0, 100.0, 50.0).map(|c| srgb_to_linear(c / 255.0));
+        let worst = m
+            .texels
+            .iter()
+            .map(|c| (*c - want).abs().max_element())
+            .fold(0.0, f32::max);
+        assert!(worst < 0.02, "{worst}");
+    }
+
+    #[test]
     fn bad_textures_are_named_with_the_fix() {
         let t = |data| TextureRef {
             name: "albedo".into(),
