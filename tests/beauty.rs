@@ -380,3 +380,122 @@ fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
     );
     assert!(out.join("mask.exr").is_file() && read(&out.join("mask.exr")).len() == first.len());
 }
+
+/// How much the colour (not the brightness) varies over the pixels the asset covers: the
+/// standard deviation of each channel's share r / (r + g + b), summed over the channels.
+fn colour_spread(path: &Path) -> f64 {
+    let px: Vec<[f64; 3]> = read_rgba(path)
+        .into_iter()
+        .filter(|p| p[3] >= 0.999 && p[0] + p[1] + p[2] > 1e-3)
+        .map(|p| {
+            let sum = (p[0] + p[1] + p[2]) as f64;
+            [p[0] as f64 / sum, p[1] as f64 / sum, p[2] as f64 / sum]
+        })
+        .collect();
+    assert!(
+        px.len() > 50,
+        "{}: the asset covers too little",
+        path.display()
+    );
+    (0..3)
+        .map(|k| {
+            let mean = px.iter().map(|p| p[k]).sum::<f64>() / px.len() as f64;
+            (px.iter().map(|p| (p[k] - mean).powi(2)).sum::<f64>() / px.len() as f64).sqrt()
+        })
+        .sum()
+}
+
+fn render_rock_beauty(rock: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "render",
+        s(rock),
+        "--res",
+        "40x40",
+        "--spp",
+        "2",
+        "--aov",
+        "beauty",
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
+/// The rock's material has a base-colour texture (embedded in rock.glb, a colour per fish
+/// scale): the beauty reads it without a word, its colours vary over the rock where a grey
+/// material's do not, and `--base-color` replaces it.
+#[test]
+fn the_rocks_base_colour_texture_colours_its_beauty() {
+    let dir = temp_dir("textured-rock");
+    let rock = example("rock/rock.glb");
+    let (textured, grey) = (dir.join("textured"), dir.join("grey"));
+    let out = render_rock_beauty(&rock, &textured, &[]);
+    out.assert_success();
+    assert!(!out.stderr.contains("warning"), "{}", out.stderr);
+    render_rock_beauty(&rock, &grey, &["--base-color", "0.8,0.8,0.8"]).assert_success();
+    let (t, g) = (
+        colour_spread(&textured.join("beauty.exr")),
+        colour_spread(&grey.join("beauty.exr")),
+    );
+    eprintln!("colour spread: textured {t:.4}, grey {g:.4}");
+    assert!(t > 0.05 && t > 4.0 * g, "textured {t:.4}, grey {g:.4}");
+}
+
+/// A base-colour texture that cannot be decoded fails a beauty render (naming the asset,
+/// the image and the fix) before any file is written; renders that do not shade (AOVs) and
+/// `--base-color` never read it.
+#[test]
+fn a_broken_base_colour_texture_fails_the_beauty_only() {
+    let dir = temp_dir("broken-texture");
+    let mut glb = read(&example("rock/rock.glb"));
+    // Overwrite the embedded PNG's image data (after its signature and header chunk) so that
+    // the GLB stays valid and the PNG does not.
+    let at = glb
+        .windows(8)
+        .position(|w| w == b"\x89PNG\r\n\x1a\n")
+        .expect("rock.glb embeds a PNG");
+    glb[at + 40..at + 400].fill(0x5a);
+    let rock = dir.join("rock.glb");
+    std::fs::write(&rock, glb).unwrap();
+    std::fs::copy(
+        example("rock/rock.prismbake.toml"),
+        dir.join("rock.prismbake.toml"),
+    )
+    .unwrap();
+    std::fs::create_dir_all(dir.join("maps")).unwrap();
+    std::fs::copy(
+        example("maps/scales_256.png"),
+        dir.join("maps/scales_256.png"),
+    )
+    .unwrap();
+    let toml = std::fs::read_to_string(dir.join("rock.prismbake.toml")).unwrap();
+    std::fs::write(
+        dir.join("rock.prismbake.toml"),
+        toml.replace("../maps/", "maps/"),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    render_rock_beauty(&rock, &out, &[]).assert_error(&[
+        "rock.glb",
+        "base-colour texture 'rock_albedo'",
+        "--base-color",
+    ]);
+    assert!(
+        !out.exists() || files_in(&out).is_empty(),
+        "{:?}",
+        files_in(&out)
+    );
+    render_rock_beauty(&rock, &out, &["--base-color", "0.5,0.5,0.5"]).assert_success();
+    run(&[
+        "render",
+        s(&rock),
+        "--res",
+        "16x16",
+        "--aov",
+        "depth",
+        "-o",
+        s(&dir.join("aov")),
+    ])
+    .assert_success();
+}
