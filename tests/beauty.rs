@@ -433,6 +433,12 @@ fn the_rocks_base_colour_texture_colours_its_beauty() {
     let out = render_rock_beauty(&rock, &textured, &[]);
     out.assert_success();
     assert!(!out.stderr.contains("warning"), "{}", out.stderr);
+    assert!(
+        out.stderr
+            .contains("base-colour texture: rock_albedo, 256x256, repeat/repeat, bilinear"),
+        "{}",
+        out.stderr
+    );
     render_rock_beauty(&rock, &grey, &["--base-color", "0.8,0.8,0.8"]).assert_success();
     let (t, g) = (
         colour_spread(&textured.join("beauty.exr")),

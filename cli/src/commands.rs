@@ -468,6 +468,9 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
             b.rays, summary.shadow_rays, b.key_shadow_rays, b.env_shadow_rays
         );
     }
+    if let Some(t) = &summary.texture {
+        eprintln!("beauty base-colour texture: {t}");
+    }
     if let Some(d) = &summary.denoiser {
         eprintln!("beauty denoised with {d}");
     }

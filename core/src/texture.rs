@@ -192,9 +192,26 @@ impl ColorMap {
         top.lerp(bottom, t.y)
     }
 
-    /// Bytes the texels take.
-    pub fn bytes(&self) -> usize {
-        self.texels.len() * std::mem::size_of::<Vec3>()
+    /// For logs: "name, W x H, wrapS/wrapT, filter".
+    pub fn describe(&self) -> String {
+        let wrap = |w: TexWrap| match w {
+            TexWrap::Repeat => "repeat",
+            TexWrap::Clamp => "clamp",
+            TexWrap::Mirror => "mirror",
+        };
+        format!(
+            "{}, {}x{}, {}/{}, {}",
+            self.name,
+            self.width,
+            self.height,
+            wrap(self.sampler.wrap[0]),
+            wrap(self.sampler.wrap[1]),
+            if self.sampler.nearest {
+                "nearest"
+            } else {
+                "bilinear"
+            }
+        )
     }
 }
 

@@ -149,6 +149,10 @@ pub struct LookdevSummary {
     /// (PATH)"); absent without `--denoise`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub denoiser: Option<String>,
+    /// The base-colour texture the beauty read ("rock_albedo, 256x256, repeat/repeat,
+    /// bilinear"); absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture: Option<String>,
 }
 
 /// What renders the frames of a lookdev job: the CPU (`CpuFrames`, any intersector) or a GPU.
@@ -635,6 +639,7 @@ pub fn render_all(
         shadow_rays: 0,
         contact_sheets: vec![],
         denoiser: s.denoiser.as_ref().map(Denoiser::describe),
+        texture: bscene.texture.map(ColorMap::describe),
     };
     let denoise = s.denoiser.as_ref();
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
