@@ -435,11 +435,31 @@ fn the_rocks_base_colour_texture_colours_its_beauty() {
     assert!(!out.stderr.contains("warning"), "{}", out.stderr);
     assert!(
         out.stderr
-            .contains("base-colour texture: rock_albedo, 256x256, repeat/repeat, bilinear"),
+            .contains("base colour (1, 1, 1) x texture rock_albedo, 256x256, repeat/repeat, bilinear, roughness 0.7, metallic 0,"),
         "{}",
         out.stderr
     );
-    render_rock_beauty(&rock, &grey, &["--base-color", "0.8,0.8,0.8"]).assert_success();
+    // --base-color replaces colour and texture; --roughness and --metallic the factors.
+    let out = render_rock_beauty(
+        &rock,
+        &grey,
+        &[
+            "--base-color",
+            "0.8,0.8,0.8",
+            "--roughness",
+            "0.25",
+            "--metallic",
+            "0.5",
+        ],
+    );
+    out.assert_success();
+    assert!(
+        out.stderr.contains(
+            "beauty material: base colour (0.8, 0.8, 0.8), roughness 0.25, metallic 0.5, specular 0.04"
+        ),
+        "{}",
+        out.stderr
+    );
     let (t, g) = (
         colour_spread(&textured.join("beauty.exr")),
         colour_spread(&grey.join("beauty.exr")),

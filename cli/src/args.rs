@@ -155,14 +155,17 @@ pub struct LookArgs {
     /// camera's side, 90 = +X), and its irradiance.
     #[arg(long, value_name = "AZ,EL,INTENSITY", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub key_light: Option<[f32; 3]>,
-    /// Base colour (linear R,G,B in [0, 1]); default: the mesh's material colour, else 0.8 grey.
+    /// Base colour (linear R,G,B in [0, 1]), in place of the glTF material's colour and
+    /// base-colour texture; default: the material's, else 0.8 grey.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
     pub base_color: Option<[f32; 3]>,
-    /// GGX roughness in [0, 1] (below 0.02: a perfect mirror).
-    #[arg(long, default_value_t = 0.5)]
-    pub roughness: f32,
-    #[arg(long, default_value_t = 0.0)]
-    pub metallic: f32,
+    /// GGX roughness in [0, 1] (below 0.02: a perfect mirror); default: the glTF material's
+    /// roughnessFactor, else 0.5.
+    #[arg(long)]
+    pub roughness: Option<f32>,
+    /// Metallic in [0, 1]; default: the glTF material's metallicFactor, else 0.
+    #[arg(long)]
+    pub metallic: Option<f32>,
     /// Dielectric reflectance at normal incidence (0.04 ≈ IOR 1.5; 0 = pure diffuse).
     #[arg(long, default_value_t = 0.04)]
     pub specular: f32,

@@ -44,6 +44,10 @@ pub struct BaseMesh {
     pub missing_uvs: bool,
     /// Base colour of the first material, linear RGBA, when the file has one.
     pub base_color: Option<[f32; 4]>,
+    /// The first material's roughness and metallic factors (glTF's `roughnessFactor`,
+    /// `metallicFactor`; 1 where the file leaves them out, as glTF says), when it has one.
+    pub roughness: Option<f32>,
+    pub metallic: Option<f32>,
     /// The first material's base-colour texture, if it has one: the beauty multiplies it into
     /// `base_color` (decoded when a beauty render needs it, `texture::ColorMap::load`).
     pub base_color_texture: Option<crate::texture::TextureRef>,

@@ -47,6 +47,12 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     mesh.base_color = first
         .as_ref()
         .map(|m| m.pbr_metallic_roughness().base_color_factor());
+    mesh.roughness = first
+        .as_ref()
+        .map(|m| m.pbr_metallic_roughness().roughness_factor());
+    mesh.metallic = first
+        .as_ref()
+        .map(|m| m.pbr_metallic_roughness().metallic_factor());
     mesh.base_color_texture = first
         .and_then(|m| m.pbr_metallic_roughness().base_color_texture())
         .map(|t| texture_ref(path, &doc, &loader_buffers, &t))

@@ -363,6 +363,8 @@ fn gltf_base_colour_texture_and_material_count_are_recorded() {
     });
     let m = load_gltf_doc(&dir, "textured.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
     assert_eq!(m.base_color, Some([0.9, 0.8, 0.7, 1.0]));
+    // Factors the file leaves out are 1, as glTF says.
+    assert_eq!((m.roughness, m.metallic), (Some(1.0), Some(1.0)));
     let t = m.base_color_texture.clone().unwrap();
     assert_eq!(t.name, "my%20albedo.png");
     // A file next to the asset, its URI percent-decoded; the sampler as the file gives it.

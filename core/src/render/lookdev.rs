@@ -46,10 +46,12 @@ pub struct LookdevOptions {
     pub env_intensity: f32,
     /// (azimuth°, elevation°, irradiance).
     pub key_light: Option<[f32; 3]>,
-    /// Overrides the mesh's material colour (linear RGB).
+    /// Overrides the mesh's material colour and texture (linear RGB).
     pub base_color: Option<Vec3>,
-    pub roughness: f32,
-    pub metallic: f32,
+    /// Override the mesh's material's factors (default: its own, else `DEFAULT_ROUGHNESS`,
+    /// `DEFAULT_METALLIC`).
+    pub roughness: Option<f32>,
+    pub metallic: Option<f32>,
     pub specular: f32,
     pub bounces: u32,
     pub ground: bool,
@@ -68,8 +70,8 @@ impl Default for LookdevOptions {
             env_intensity: 1.0,
             key_light: None,
             base_color: None,
-            roughness: 0.5,
-            metallic: 0.0,
+            roughness: None,
+            metallic: None,
             specular: 0.04,
             bounces: 2,
             ground: false,
@@ -88,8 +90,14 @@ impl LookdevOptions {
                 Err(Error::Param(format!("{name} {v}: must be in [0, 1]")))
             }
         };
-        unit("--roughness", self.roughness)?;
-        unit("--metallic", self.metallic)?;
+        for (name, v) in [
+            ("--roughness", self.roughness),
+            ("--metallic", self.metallic),
+        ] {
+            if let Some(v) = v {
+                unit(name, v)?;
+            }
+        }
         unit("--specular", self.specular)?;
         if !(1..=4).contains(&self.bounces) {
             return Err(Error::Param(format!(
@@ -149,8 +157,21 @@ pub struct LookdevSummary {
     /// (PATH)"); absent without `--denoise`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub denoiser: Option<String>,
-    /// The base-colour texture the beauty read ("rock_albedo, 256x256, repeat/repeat,
-    /// bilinear"); absent without one.
+    /// The material the beauty shaded with; absent without beauty.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub material: Option<MaterialSummary>,
+}
+
+/// The beauty's material as a summary states it: its factors, from the command line or the
+/// asset, and the base-colour texture it read.
+#[derive(Clone, Debug, Serialize)]
+pub struct MaterialSummary {
+    pub base_color: [f32; 3],
+    pub roughness: f32,
+    pub metallic: f32,
+    pub specular: f32,
+    /// "rock_albedo, 256x256, repeat/repeat, bilinear" (`ColorMap::describe`), multiplied into
+    /// `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
 }
@@ -222,8 +243,7 @@ pub struct Session {
     scene: Scene,
     cam0: Camera,
     up_axis: UpAxis,
-    base_color: Option<Vec3>,
-    texture: Option<ColorMap>,
+    material: AssetMaterial,
     env: Option<EnvMap>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
@@ -267,36 +287,48 @@ pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<Str
     (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets one colour)")
 }
 
-/// The asset's own material as the beauty reads it: the first material's colour factor and its
+/// Roughness of a surface whose asset has no material and no `--roughness`.
+pub const DEFAULT_ROUGHNESS: f32 = 0.5;
+/// Metallic of a surface whose asset has no material and no `--metallic`.
+pub const DEFAULT_METALLIC: f32 = 0.0;
+
+/// The asset's own material as the beauty reads it: the first material's factors and its
 /// base-colour texture, decoded.
 #[derive(Default)]
 struct AssetMaterial {
     base_color: Option<Vec3>,
+    roughness: Option<f32>,
+    metallic: Option<f32>,
     texture: Option<ColorMap>,
 }
 
-/// The asset's material for `job`: nothing unless it renders the beauty with the asset's own
-/// colour (no `--base-color`); a texture that cannot be decoded is an error.
+/// The asset's material for `job`: nothing unless it renders the beauty; no colour or texture
+/// with `--base-color`. A texture that cannot be decoded is an error.
 fn asset_material(
     mesh: &crate::mesh::BaseMesh,
     spec: &AssetSpec,
     job: &RenderJob,
     opts: &LookdevOptions,
 ) -> Result<AssetMaterial> {
-    if !job.aovs.contains(&Aov::Beauty) || opts.base_color.is_some() {
+    if !job.aovs.contains(&Aov::Beauty) {
         return Ok(AssetMaterial::default());
     }
-    if let Some(w) = material_warning(mesh, spec.uv_set) {
-        eprintln!("warning: {}: {w}", mesh.source.display());
-    }
-    let texture = match &mesh.base_color_texture {
-        Some(t) if texture_readable(t, spec.uv_set) => Some(ColorMap::load(&mesh.source, t)?),
-        _ => None,
+    let mut m = AssetMaterial {
+        roughness: mesh.roughness,
+        metallic: mesh.metallic,
+        ..Default::default()
     };
-    Ok(AssetMaterial {
-        base_color: mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2])),
-        texture,
-    })
+    if opts.base_color.is_none() {
+        if let Some(w) = material_warning(mesh, spec.uv_set) {
+            eprintln!("warning: {}: {w}", mesh.source.display());
+        }
+        m.base_color = mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2]));
+        m.texture = match &mesh.base_color_texture {
+            Some(t) if texture_readable(t, spec.uv_set) => Some(ColorMap::load(&mesh.source, t)?),
+            _ => None,
+        };
+    }
+    Ok(m)
 }
 
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
@@ -409,8 +441,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         scene,
         cam0,
         up_axis,
-        base_color: material.base_color,
-        texture: material.texture,
+        material,
         env,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
@@ -588,9 +619,18 @@ pub fn render_all(
     let (lo, hi) = surface_bounds(&s.scene.table);
     let up = up_vector(s.up_axis);
     let material = Material {
-        base_color: opts.base_color.or(s.base_color).unwrap_or(Vec3::splat(0.8)),
-        roughness: opts.roughness,
-        metallic: opts.metallic,
+        base_color: opts
+            .base_color
+            .or(s.material.base_color)
+            .unwrap_or(Vec3::splat(0.8)),
+        roughness: opts
+            .roughness
+            .or(s.material.roughness)
+            .unwrap_or(DEFAULT_ROUGHNESS),
+        metallic: opts
+            .metallic
+            .or(s.material.metallic)
+            .unwrap_or(DEFAULT_METALLIC),
         specular: opts.specular,
     };
     let env_fallback;
@@ -614,7 +654,7 @@ pub fn render_all(
             .key_light
             .map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
         material,
-        texture: s.texture.as_ref(),
+        texture: s.material.texture.as_ref(),
         ground: opts.ground.then(|| Ground {
             up,
             height: lo.dot(up).min(hi.dot(up)),
@@ -639,7 +679,13 @@ pub fn render_all(
         shadow_rays: 0,
         contact_sheets: vec![],
         denoiser: s.denoiser.as_ref().map(Denoiser::describe),
-        texture: bscene.texture.map(ColorMap::describe),
+        material: want_beauty.then(|| MaterialSummary {
+            base_color: material.base_color.to_array(),
+            roughness: material.roughness,
+            metallic: material.metallic,
+            specular: material.specular,
+            texture: bscene.texture.map(ColorMap::describe),
+        }),
     };
     let denoise = s.denoiser.as_ref();
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
