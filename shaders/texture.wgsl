@@ -8,18 +8,17 @@
 const WRAP_REPEAT: u32 = 0u;
 const WRAP_CLAMP: u32 = 1u;
 
-// TexWrap::index: texel index `i` of an axis of `n` texels, wrapped into 0..n.
+// TexWrap::index: texel index `i` of an axis of `n` texels, wrapped into 0..n (remainders of
+// non-negative operands only: `wrap_repeat`, common.wgsl).
 fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
     if (mode == WRAP_REPEAT) {
-        let r = i % n;
-        return select(r, r + n, r < 0);
+        return wrap_repeat(i, n);
     }
     if (mode == WRAP_CLAMP) {
         return clamp(i, 0, n - 1);
     }
     // Mirrored repeat.
-    let r2 = i % (2 * n);
-    let m = select(r2, r2 + 2 * n, r2 < 0);
+    let m = wrap_repeat(i, 2 * n);
     return select(m, 2 * n - 1 - m, m >= n);
 }
 
@@ -35,10 +34,11 @@ fn tex_texel(x: i32, y: i32) -> vec3f {
 
 // ColorMap::sample: bilinear over the four nearest texel centres, or the nearest texel.
 fn texture_sample(uv: vec2f) -> vec3f {
-    let p = clamp(
-        vec2f(uv.x * f32(lighting.tex_width), (1.0 - uv.y) * f32(lighting.tex_height)),
-        vec2f(-1.0e7),
-        vec2f(1.0e7),
+    // Non-finite coordinates become 0 and huge ones are bounded before they become integers
+    // (`texel_safe`, heightmap.wgsl).
+    let p = vec2f(
+        texel_safe(uv.x * f32(lighting.tex_width)),
+        texel_safe((1.0 - uv.y) * f32(lighting.tex_height)),
     );
     if ((lighting.tex_sampler & 16u) != 0u) {
         let f = floor(p);

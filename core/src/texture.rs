@@ -16,6 +16,10 @@ use std::path::{Path, PathBuf};
 /// Largest texture side accepted (the height map's bound, `load::image::MAX_MAP_DIMENSION`).
 pub const MAX_TEXTURE_DIMENSION: u32 = crate::load::image::MAX_MAP_DIMENSION;
 
+/// Bound on continuous texel coordinates before they become integers (the GPU's
+/// `TEXEL_COORD_BOUND`).
+const TEXEL_COORD_BOUND: f32 = 1.0e7;
+
 /// How texel coordinates outside the image wrap, per axis (glTF sampler `wrapS`/`wrapT`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum TexWrap {
@@ -175,10 +179,19 @@ impl ColorMap {
     /// The texture's colour at `uv`: bilinear over the four nearest texel centres, or the
     /// nearest texel (`Sampler::nearest`).
     pub fn sample(&self, uv: Vec2) -> Vec3 {
-        // HeightMap::texel_coords, bounded so that the integer texel index cannot overflow
-        // (NaN becomes 0).
-        let p = Vec2::new(uv.x * self.width as f32, (1.0 - uv.y) * self.height as f32)
-            .clamp(Vec2::splat(-1.0e7), Vec2::splat(1.0e7));
+        // HeightMap::texel_coords, bounded so that the integer texel index cannot overflow;
+        // non-finite coordinates become 0 (as the GPU's `texel_safe`).
+        let safe = |x: f32| {
+            if x.is_finite() {
+                x.clamp(-TEXEL_COORD_BOUND, TEXEL_COORD_BOUND)
+            } else {
+                0.0
+            }
+        };
+        let p = Vec2::new(
+            safe(uv.x * self.width as f32),
+            safe((1.0 - uv.y) * self.height as f32),
+        );
         if self.sampler.nearest {
             let f = p.floor();
             return self.texel(f.x as i32, f.y as i32);
