@@ -270,7 +270,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
     } else {
         // beauty::surface_radiance, event `bounce`, at the hit the last trace found.
         let bounce = (*s).bounce;
-        let m = material_at(hit.uv);
+        let m = material_at(hit.prism, hit.uv);
         let throughput = (*s).throughput;
         let wo = -(*s).dir;
         let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
@@ -363,7 +363,7 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
         if (next_prism != NO_PRISM && (!gt.ok || next_t <= gt.t)) {
             (*s).flags |= PATH_SURFACE;
             (*s).normal = facing_normals(next.geometric_normal, next.shading_normal, camera.dir).ns;
-            (*s).albedo = guide_albedo(material_at(next.uv));
+            (*s).albedo = guide_albedo(material_at(next.prism, next.uv));
             // trace_sample's `for bounce in 0..bounces`: none at 0 bounces.
             (*s).step = select(STEP_DONE, STEP_SURFACE, lighting.bounces > 0u);
         } else if (gt.ok) {

@@ -96,17 +96,13 @@ struct AovPixel {
     _pad: array<u32, 3>,
 }
 
-// GpuLighting, 112 bytes: everything beauty needs besides the scene and the environment
-// tables (render::beauty::BeautyScene; the material is shading::Material).
+// GpuLighting, 96 bytes: everything beauty needs besides the scene, the materials and the
+// environment tables (render::beauty::BeautyScene).
 struct Lighting {
     key_dir: vec3f,
     key_irradiance: f32,
-    base_color: vec3f,
-    roughness: f32,
     ground_up: vec3f,
     ground_height: f32,
-    metallic: f32,
-    specular: f32,
     eps: f32,            // ray origin offset (beauty::scene_epsilon)
     bounces: u32,
     has_key: u32,
@@ -120,11 +116,23 @@ struct Lighting {
     env_to_cos: f32,
     env_from_sin: f32,   // sin, cos of +rotation (env_to_world)
     env_from_cos: f32,
-    tex_width: u32,      // base-colour texture (texture.wgsl), 0 x 0: none
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// GpuMaterial, 48 bytes: beauty::SurfaceMaterial, its base-colour texture in env_texels
+// (texture.wgsl; 0 x 0: none).
+struct SurfaceMaterial {
+    base_color: vec3f,
+    roughness: f32,
+    metallic: f32,
+    specular: f32,
+    tex_width: u32,
     tex_height: u32,
     tex_offset: u32,     // its first float in env_texels
     tex_sampler: u32,    // gpu::layout::texture_sampler_code
-    _pad: u32,
+    _pad: array<u32, 2>,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -1,8 +1,15 @@
-// texture.wgsl — the base-colour texture, the mirror of core/src/texture.rs (`ColorMap`):
-// linear RGB, 3 floats per texel, rows top to bottom, stored in `env_texels` after the
-// environment's texels (from `lighting.tex_offset`), sampled with the height map's texel
-// conventions and the glTF sampler's wrap modes and magnification filter
-// (`lighting.tex_sampler`, gpu::layout::texture_sampler_code).
+// texture.wgsl — the materials and their base-colour textures, the mirror of
+// core/src/texture.rs (`ColorMap`) and of `BeautyScene::material_at`. A texture is linear RGB,
+// 3 floats per texel, rows top to bottom, stored in `env_texels` after the environment's
+// texels (from its material's `tex_offset`), sampled with the height map's texel conventions
+// and the glTF sampler's wrap modes and magnification filter (`tex_sampler`,
+// gpu::layout::texture_sampler_code).
+
+// The scene's materials (BeautyScene::materials): a prism's is its flags' upper bits
+// (bake::PRISM_MATERIAL_SHIFT), the last one for an index past the end.
+@group(2) @binding(3) var<storage, read> materials: array<SurfaceMaterial>;
+
+const PRISM_MATERIAL_SHIFT: u32 = 8u;
 
 // TexWrap codes.
 const WRAP_REPEAT: u32 = 0u;
@@ -22,43 +29,55 @@ fn wrap_index(i: i32, n: i32, mode: u32) -> i32 {
     return select(m, 2 * n - 1 - m, m >= n);
 }
 
-// ColorMap::texel.
-fn tex_texel(x: i32, y: i32) -> vec3f {
-    let w = i32(lighting.tex_width);
-    let h = i32(lighting.tex_height);
-    let code = lighting.tex_sampler;
+// ColorMap::texel of material `m`'s texture.
+fn tex_texel(m: SurfaceMaterial, x: i32, y: i32) -> vec3f {
+    let w = i32(m.tex_width);
+    let h = i32(m.tex_height);
+    let code = m.tex_sampler;
     let i = u32(wrap_index(y, h, (code >> 2u) & 3u) * w + wrap_index(x, w, code & 3u));
-    let k = lighting.tex_offset + 3u * i;
+    let k = m.tex_offset + 3u * i;
     return vec3f(env_texels[k], env_texels[k + 1u], env_texels[k + 2u]);
 }
 
-// ColorMap::sample: bilinear over the four nearest texel centres, or the nearest texel.
-fn texture_sample(uv: vec2f) -> vec3f {
+// ColorMap::sample of material `m`'s texture: bilinear over the four nearest texel centres,
+// or the nearest texel.
+fn texture_sample(m: SurfaceMaterial, uv: vec2f) -> vec3f {
     // Non-finite coordinates become 0 and huge ones are bounded before they become integers
     // (`texel_safe`, heightmap.wgsl).
     let p = vec2f(
-        texel_safe(uv.x * f32(lighting.tex_width)),
-        texel_safe((1.0 - uv.y) * f32(lighting.tex_height)),
+        texel_safe(uv.x * f32(m.tex_width)),
+        texel_safe((1.0 - uv.y) * f32(m.tex_height)),
     );
-    if ((lighting.tex_sampler & 16u) != 0u) {
+    if ((m.tex_sampler & 16u) != 0u) {
         let f = floor(p);
-        return tex_texel(i32(f.x), i32(f.y));
+        return tex_texel(m, i32(f.x), i32(f.y));
     }
     let q = p - vec2f(0.5);
     let f = floor(q);
     let t = q - f;
     let x = i32(f.x);
     let y = i32(f.y);
-    let top = lerp3(tex_texel(x, y), tex_texel(x + 1, y), t.x);
-    let bottom = lerp3(tex_texel(x, y + 1), tex_texel(x + 1, y + 1), t.x);
+    let top = lerp3(tex_texel(m, x, y), tex_texel(m, x + 1, y), t.x);
+    let bottom = lerp3(tex_texel(m, x, y + 1), tex_texel(m, x + 1, y + 1), t.x);
     return lerp3(top, bottom, t.y);
 }
 
-// BeautyScene::material_at: the material at a hit with texture coordinates `uv`.
-fn material_at(uv: vec2f) -> Material {
-    var m = Material(lighting.base_color, lighting.roughness, lighting.metallic, lighting.specular);
-    if (lighting.tex_width != 0u) {
-        m.base_color *= texture_sample(uv);
+// BeautyScene::material_index: the index into `materials` of prism `prism`'s material.
+fn material_index(prism: u32) -> u32 {
+    let last = arrayLength(&materials) - 1u;
+    if (prism >= arrayLength(&prisms)) {
+        return last;
+    }
+    return min(prisms[prism].flags >> PRISM_MATERIAL_SHIFT, last);
+}
+
+// BeautyScene::material_at: the material at a hit on prism `prism` with texture coordinates
+// `uv`: its prism's, the base colour times the texture at `uv`.
+fn material_at(prism: u32, uv: vec2f) -> Material {
+    let s = materials[material_index(prism)];
+    var m = Material(s.base_color, s.roughness, s.metallic, s.specular);
+    if (s.tex_width != 0u) {
+        m.base_color *= texture_sample(s, uv);
     }
     return m;
 }

@@ -435,7 +435,7 @@ fn the_rocks_base_colour_texture_colours_its_beauty() {
     assert!(!out.stderr.contains("warning"), "{}", out.stderr);
     assert!(
         out.stderr
-            .contains("base colour (1, 1, 1) x texture rock_albedo, 256x256, repeat/repeat, bilinear, roughness 0.7, metallic 0,"),
+            .contains("beauty material 'rock_mat' (800 prisms): base colour (1, 1, 1) x texture rock_albedo, 256x256, repeat/repeat, bilinear, roughness 0.7, metallic 0,"),
         "{}",
         out.stderr
     );
@@ -455,7 +455,7 @@ fn the_rocks_base_colour_texture_colours_its_beauty() {
     out.assert_success();
     assert!(
         out.stderr.contains(
-            "beauty material: base colour (0.8, 0.8, 0.8), roughness 0.25, metallic 0.5, specular 0.04"
+            "beauty material 'rock_mat' (800 prisms): base colour (0.8, 0.8, 0.8), roughness 0.25, metallic 0.5, specular 0.04"
         ),
         "{}",
         out.stderr
@@ -524,4 +524,109 @@ fn a_broken_base_colour_texture_fails_the_beauty_only() {
         s(&dir.join("aov")),
     ])
     .assert_success();
+}
+
+/// A square facing +Z split into two glTF primitives, one triangle each, sharing vertices:
+/// the first with a red material, the second with a blue one; UVs over the square.
+fn two_material_square(dir: &Path) -> PathBuf {
+    let positions: [f32; 12] = [-1., -1., 0., 1., -1., 0., 1., 1., 0., -1., 1., 0.];
+    let normals: [f32; 12] = [0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.];
+    let uvs: [f32; 8] = [0., 1., 1., 1., 1., 0., 0., 0.];
+    let indices: [u16; 6] = [0, 1, 2, 0, 2, 3];
+    let mut bin: Vec<u8> = positions
+        .iter()
+        .chain(&normals)
+        .chain(&uvs)
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    std::fs::write(dir.join("square.bin"), &bin).unwrap();
+    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
+      "meshes":[{"primitives":[
+        {"attributes":{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2},"indices":3,"material":0},
+        {"attributes":{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2},"indices":4,"material":1}]}],
+      "materials":[
+        {"name":"red","pbrMetallicRoughness":{"baseColorFactor":[0.8,0.05,0.05,1],"metallicFactor":0,"roughnessFactor":0.6}},
+        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6}}],
+      "accessors":[
+        {"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]},
+        {"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"},
+        {"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"},
+        {"bufferView":3,"byteOffset":0,"componentType":5123,"count":3,"type":"SCALAR"},
+        {"bufferView":3,"byteOffset":6,"componentType":5123,"count":3,"type":"SCALAR"}],
+      "bufferViews":[
+        {"buffer":0,"byteOffset":0,"byteLength":48},
+        {"buffer":0,"byteOffset":48,"byteLength":48},
+        {"buffer":0,"byteOffset":96,"byteLength":32},
+        {"buffer":0,"byteOffset":128,"byteLength":12}],
+      "buffers":[{"byteLength":140,"uri":"square.bin"}]}"#;
+    let path = dir.join("square.gltf");
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+/// Each primitive's material shades its own triangle: red below the square's diagonal, blue
+/// above it, on the CPU and the GPU; the summary lists both with their prism counts.
+#[test]
+fn each_gltf_material_shades_its_own_triangles() {
+    let dir = temp_dir("two-materials");
+    let square = two_material_square(&dir);
+    for device in ["cpu", "gpu"] {
+        let out = dir.join(device);
+        let o = run(&[
+            "render",
+            s(&square),
+            "--disp",
+            s(&example("maps/scales_256.png")),
+            "--scale",
+            "0.02",
+            "--res",
+            "32x32",
+            "--spp",
+            "2",
+            "--aov",
+            "beauty",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "30",
+            "--device",
+            device,
+            "--json",
+            "-o",
+            s(&out),
+        ]);
+        o.assert_success();
+        let names: Vec<(String, u64)> = o.json()["materials"]
+            .as_array()
+            .expect("materials in the summary")
+            .iter()
+            .map(|m| {
+                (
+                    m["name"].as_str().unwrap().to_string(),
+                    m["prisms"].as_u64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(names, [("red".into(), 1), ("blue".into(), 1)], "{device}");
+        // Row 0 of the image is the top (+Y): the blue triangle (0, 2, 3) holds the top-left
+        // corner, the red one (0, 1, 2) the bottom-right.
+        let px = read_rgba(&out.join("beauty.exr"));
+        let at = |x: usize, y: usize| px[y * 32 + x];
+        for (x, y, red) in [(7, 7, false), (24, 24, true), (12, 8, false), (26, 14, true)] {
+            let p = at(x, y);
+            assert!(
+                p[3] > 0.99,
+                "{device}: pixel ({x}, {y}) is not on the square: {p:?}"
+            );
+            let (r, b) = (p[0], p[2]);
+            assert!(
+                if red { r > 4.0 * b } else { b > 4.0 * r },
+                "{device}: pixel ({x}, {y}) should be {}: {p:?}",
+                if red { "red" } else { "blue" }
+            );
+        }
+    }
 }

@@ -468,15 +468,15 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
             b.rays, summary.shadow_rays, b.key_shadow_rays, b.env_shadow_rays
         );
     }
-    if let Some(m) = &summary.material {
+    for m in &summary.materials {
         let [r, g, b] = m.base_color;
         let texture = m
             .texture
             .as_ref()
             .map_or(String::new(), |t| format!(" x texture {t}"));
         eprintln!(
-            "beauty material: base colour ({r}, {g}, {b}){texture}, roughness {}, metallic {}, specular {}",
-            m.roughness, m.metallic, m.specular
+            "beauty material '{}' ({} prisms): base colour ({r}, {g}, {b}){texture}, roughness {}, metallic {}, specular {}",
+            m.name, m.prisms, m.roughness, m.metallic, m.specular
         );
     }
     if let Some(d) = &summary.denoiser {

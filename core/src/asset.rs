@@ -193,7 +193,8 @@ pub fn expand_paths(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
 /// tables cached by an older build (`table_cache`) are not served as this build's.
 /// 2: crease strips on UV seams keep each side's UV.
 /// 3: a crease strip's texel size is at most half its widest rung arc.
-pub const PIPELINE_REVISION: u32 = 3;
+/// 4: a prism's flags carry its material (`bake::PRISM_MATERIAL_SHIFT`).
+pub const PIPELINE_REVISION: u32 = 4;
 
 /// blake3 of everything the table depends on.
 pub fn input_hash(spec: &AssetSpec, repair: &RepairOptions) -> Result<[u8; 32]> {

@@ -33,6 +33,10 @@ pub const PRISM_INSERTED: u32 = 2;
 /// `m_lo` fell to the floor value: a normal points (nearly) away from the face.
 pub const PRISM_DEGENERATE_NORMALS: u32 = 4;
 
+/// `Prism::flags` from this bit up hold the prism's material: an index into the asset's
+/// materials (`BaseMesh::materials`, its length meaning none), 0 without any.
+pub const PRISM_MATERIAL_SHIFT: u32 = 8;
+
 /// Smallest `m_lo` accepted; below it the λ range is clamped (and the prism flagged).
 pub const M_LO_FLOOR: f32 = 1e-3;
 
@@ -54,6 +58,10 @@ pub struct Prism {
 impl Prism {
     pub fn is_flat(&self) -> bool {
         self.flags & PRISM_FLAT != 0
+    }
+    /// The prism's material (`PRISM_MATERIAL_SHIFT`).
+    pub fn material(&self) -> u32 {
+        self.flags >> PRISM_MATERIAL_SHIFT
     }
 }
 
@@ -370,7 +378,7 @@ pub fn bake_prism(mesh: &BaseMesh, map: &HeightMap, params: &DisplaceParams, t: 
     let n = mesh.corner_normals(t);
     let uv = mesh.corner_uvs(t);
     let (hmin, hmax) = footprint_range(map, &uv);
-    let mut flags = 0;
+    let mut flags = mesh.face_material(t) << PRISM_MATERIAL_SHIFT;
     if mesh
         .face_flags
         .get(t)

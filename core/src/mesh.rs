@@ -42,21 +42,34 @@ pub struct BaseMesh {
     pub camera: Option<SceneCamera>,
     /// True when the file carried no UVs at all (every UV is then zero).
     pub missing_uvs: bool,
-    /// Base colour of the first material, linear RGBA, when the file has one.
-    pub base_color: Option<[f32; 4]>,
-    /// The first material's roughness and metallic factors (glTF's `roughnessFactor`,
-    /// `metallicFactor`; 1 where the file leaves them out, as glTF says), when it has one.
-    pub roughness: Option<f32>,
-    pub metallic: Option<f32>,
-    /// The first material's base-colour texture, if it has one: the beauty multiplies it into
-    /// `base_color` (decoded when a beauty render needs it, `texture::ColorMap::load`).
-    pub base_color_texture: Option<crate::texture::TextureRef>,
-    /// Materials in the file (the beauty shades the whole asset with the first one).
-    pub materials: usize,
+    /// The file's materials (glTF's metallic-roughness), in its order.
+    pub materials: Vec<MeshMaterial>,
+    /// Per group (`groups`: a glTF primitive has one material): index into `materials`, or
+    /// `materials.len()` for none (the beauty's default grey). Empty: no group has one.
+    pub group_material: Vec<u32>,
     /// UV seams found by repair (empty straight from a loader): pairs of triangle edges with
     /// the same positions and normals but different UVs.
     pub seams: Vec<SeamEdge>,
 }
+
+/// A material of the asset file as the beauty reads it (glTF's metallic-roughness model).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshMaterial {
+    /// For messages: its name, else `material N`.
+    pub name: String,
+    /// Base colour factor, linear RGBA.
+    pub base_color: [f32; 4],
+    /// `roughnessFactor`, `metallicFactor` (1 where the file leaves them out, as glTF says).
+    pub roughness: f32,
+    pub metallic: f32,
+    /// The base-colour texture, multiplied into `base_color` (decoded when a beauty render
+    /// needs it, `texture::ColorMap::load`).
+    pub base_color_texture: Option<crate::texture::TextureRef>,
+}
+
+/// Most materials a mesh may have: a prism keeps its material's index in the upper 24 bits of
+/// its flags (`bake::Prism::material`).
+pub const MAX_MATERIALS: usize = (1 << 24) - 1;
 
 /// A UV seam: edge `edges[0]` of triangle `faces[0]` and edge `edges[1]` of `faces[1]` lie on
 /// the same positions with the same normals, but their vertex records carry different UVs.
@@ -84,6 +97,17 @@ pub const FACE_INSERTED: u8 = 1;
 pub const FACE_UV_DEGENERATE: u8 = 2;
 
 impl BaseMesh {
+    /// Triangle `t`'s material: an index into `materials`, or `materials.len()` for none.
+    pub fn face_material(&self, t: usize) -> u32 {
+        let none = self.materials.len() as u32;
+        let group = self.face_group.get(t).copied().unwrap_or(0) as usize;
+        self.group_material
+            .get(group)
+            .copied()
+            .unwrap_or(none)
+            .min(none)
+    }
+
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
     }

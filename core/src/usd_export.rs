@@ -114,7 +114,11 @@ pub fn to_usda(prepared: &Prepared, out: &Path) -> String {
         o,
         "        uniform token subdivisionScheme = \"none\"\n    }}\n"
     );
-    let color = prepared.mesh.base_color.unwrap_or([0.8, 0.8, 0.8, 1.0]);
+    let color = prepared
+        .mesh
+        .materials
+        .first()
+        .map_or([0.8, 0.8, 0.8, 1.0], |m| m.base_color);
     let _ = write!(
         o,
         r#"    def Scope "Materials"

@@ -4,7 +4,8 @@
 //! * `GpuBeautyScene::upload` — the lighting uniform (`GpuLighting`, from the CPU's
 //!   `BeautyScene`) and the environment: texels and the CPU's own sampling tables, uploaded as
 //!   they are (`env_tables`), so importance sampling picks the texels the CPU picks; the
-//!   base-colour texture's linear texels follow the environment's in the same buffer.
+//!   base-colour textures' linear texels follow the environment's in the same buffer, and
+//!   the materials (`GpuMaterial`) locate them there.
 //! * `render_beauty` — per tile: clear the running sums, one submission per sample (each
 //!   pixel's sample is added to its sums when its path ends, the CPU's order of
 //!   accumulation), read the sums back and resolve them with `PixelSums::resolve`. A sample
@@ -15,7 +16,7 @@
 //! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
 
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
-use crate::layout::{texture_sampler_code, GpuBeautySums, GpuLighting};
+use crate::layout::{texture_sampler_code, GpuBeautySums, GpuLighting, GpuMaterial};
 use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
@@ -30,9 +31,8 @@ use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 /// The lighting uniform of a beauty scene (everything but the environment's tables and the
-/// texels).
+/// materials).
 pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
-    let tex = s.texture;
     let env = s.env;
     let (to_sin, to_cos) = (-env.frame.rotation).sin_cos();
     let (from_sin, from_cos) = env.frame.rotation.sin_cos();
@@ -41,12 +41,8 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
     GpuLighting {
         key_dir: key.map_or([0.0; 3], |k| k.dir.to_array()),
         key_irradiance: key.map_or(0.0, |k| k.irradiance),
-        base_color: s.material.base_color.to_array(),
-        roughness: s.material.roughness,
         ground_up: ground.map_or([0.0, 1.0, 0.0], |g| g.up.to_array()),
         ground_height: ground.map_or(0.0, |g| g.height),
-        metallic: s.material.metallic,
-        specular: s.material.specular,
         eps: s.eps,
         bounces: s.bounces,
         has_key: key.is_some() as u32,
@@ -60,30 +56,54 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
         env_to_cos: to_cos,
         env_from_sin: from_sin,
         env_from_cos: from_cos,
-        tex_width: tex.map_or(0, |t| t.width),
-        tex_height: tex.map_or(0, |t| t.height),
-        // The texture's texels follow the environment's, 3 floats each (`env_tables`).
-        tex_offset: 3 * env.texels.len() as u32,
-        tex_sampler: tex.map_or(0, |t| texture_sampler_code(&t.sampler)),
-        _pad: 0,
+        ..Default::default()
     }
 }
 
+/// The materials of a beauty scene as the kernel reads them (`shaders/texture.wgsl`), their
+/// textures where `env_tables` puts them: after the environment's texels, in order.
+pub fn material_records(s: &BeautyScene) -> Vec<GpuMaterial> {
+    let mut offsets = Vec::with_capacity(s.textures.len());
+    let mut next = 3 * s.env.texels.len();
+    for t in s.textures {
+        offsets.push(next as u32);
+        next += 3 * t.texels.len();
+    }
+    s.materials
+        .iter()
+        .map(|m| {
+            let mut g = GpuMaterial {
+                base_color: m.material.base_color.to_array(),
+                roughness: m.material.roughness,
+                metallic: m.material.metallic,
+                specular: m.material.specular,
+                ..Default::default()
+            };
+            if let Some(i) = m.texture {
+                let t = &s.textures[i as usize];
+                (g.tex_width, g.tex_height) = (t.width, t.height);
+                g.tex_offset = offsets[i as usize];
+                g.tex_sampler = texture_sampler_code(&t.sampler);
+            }
+            g
+        })
+        .collect()
+}
+
 /// The environment as the kernel reads it (`shaders/env.wgsl`): `texels` 3 floats per texel,
-/// rows top to bottom, then the base-colour texture's (`texture`, `shaders/texture.wgsl`) the
-/// same way; `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h), `conditional_cdf`
+/// rows top to bottom, then the base-colour textures' (`textures`, `shaders/texture.wgsl`) the
+/// same way, one after the other; `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h), `conditional_cdf`
 /// (h (w + 1)) and `texel_weight` (w h), one after the other.
 pub struct EnvTables {
     pub texels: Vec<f32>,
     pub tables: Vec<f32>,
 }
 
-pub fn env_tables(env: &EnvMap, texture: Option<&ColorMap>) -> EnvTables {
-    let texture = texture.map_or(&[][..], |t| &t.texels[..]);
+pub fn env_tables(env: &EnvMap, textures: &[ColorMap]) -> EnvTables {
     let texels = env
         .texels
         .iter()
-        .chain(texture)
+        .chain(textures.iter().flat_map(|t| &t.texels))
         .flat_map(|c| c.to_array())
         .collect();
     let mut tables = Vec::with_capacity(
@@ -103,22 +123,25 @@ pub fn env_tables(env: &EnvMap, texture: Option<&ColorMap>) -> EnvTables {
 pub struct GpuBeautyScene {
     pub(crate) group: wgpu::BindGroup,
     uniform: wgpu::Buffer,
-    /// Address and size of the `EnvMap` the tables came from and of the texture the texels
+    materials: wgpu::Buffer,
+    /// Address and size of the `EnvMap` the tables came from, and of the textures the texels
     /// end with (what `serves` compares).
     env_id: (usize, u32, u32),
-    texture_id: (usize, u32, u32),
+    texture_id: (usize, usize),
+    material_count: usize,
     bytes: u64,
     /// What the uniform holds now (the bounces and lights decide a sample's dispatches).
     current: Mutex<GpuLighting>,
 }
 
 impl GpuBeautyScene {
-    /// Upload the lighting, the environment and the base-colour texture. Fails with
-    /// `GpuError::TooLarge` if the environment's and the texture's texels together, or the
+    /// Upload the lighting, the environment, the materials and their base-colour textures.
+    /// Fails with `GpuError::TooLarge` if the environment's and the textures' texels together,
+    /// or the
     /// environment's tables, exceed one storage binding (128 MiB on WebGPU defaults: about
     /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
-        let env = env_tables(s.env, s.texture);
+        let env = env_tables(s.env, s.textures);
         let limit = ctx.max_binding_bytes();
         let mut bytes = 0u64;
         let mut storage = |what: &'static str, data: &[f32]| -> Result<wgpu::Buffer, GpuError> {
@@ -128,7 +151,7 @@ impl GpuBeautyScene {
                     what,
                     bytes: data.len() as u64,
                     limit,
-                    fix: "use a smaller --env map or base-colour texture, or --device cpu",
+                    fix: "use a smaller --env map or base-colour textures, or --device cpu",
                 });
             }
             bytes += data.len() as u64;
@@ -142,6 +165,14 @@ impl GpuBeautyScene {
         };
         let texels = storage("environment and texture texels", &env.texels)?;
         let tables = storage("environment sampling tables", &env.tables)?;
+        let records = material_records(s);
+        let materials = ctx
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("materials"),
+                contents: bytemuck::cast_slice(&records),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            });
         let uniform = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -165,6 +196,10 @@ impl GpuBeautyScene {
                     binding: 2,
                     resource: tables.as_entire_binding(),
                 }, // env_tables
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: materials.as_entire_binding(),
+                }, // materials
             ],
         });
         // A buffer the driver refused (out of memory) shows here, not as a panic.
@@ -173,25 +208,35 @@ impl GpuBeautyScene {
             group,
             uniform,
             env_id: env_id(s.env),
-            texture_id: texture_id(s.texture),
+            texture_id: texture_id(s.textures),
+            material_count: records.len(),
+            materials,
             bytes,
             current: Mutex::new(lighting_uniform(s)),
         })
     }
 
-    /// Whether these tables and texels were uploaded from `s`'s environment and texture (a
-    /// renderer re-uploads only the uniform for the frames of one job).
+    /// Whether these tables and texels were uploaded from `s`'s environment and textures, for
+    /// as many materials (a renderer rewrites only the uniform and the materials for the
+    /// frames of one job).
     pub fn serves(&self, s: &BeautyScene) -> bool {
-        self.env_id == env_id(s.env) && self.texture_id == texture_id(s.texture)
+        self.env_id == env_id(s.env)
+            && self.texture_id == texture_id(s.textures)
+            && self.material_count == s.materials.len()
     }
 
-    /// Rewrite the lighting uniform (key light, material, ground, bounces) for `s`, whose
-    /// environment and texture must be the ones uploaded (`serves`).
+    /// Rewrite the lighting uniform (key light, ground, bounces) and the materials for `s`,
+    /// whose environment and textures must be the ones uploaded (`serves`).
     pub fn update(&self, ctx: &GpuContext, s: &BeautyScene) {
         debug_assert!(self.serves(s));
         let lighting = lighting_uniform(s);
         ctx.queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&lighting));
+        ctx.queue.write_buffer(
+            &self.materials,
+            0,
+            bytemuck::cast_slice(&material_records(s)),
+        );
         *self.current.lock().unwrap_or_else(|e| e.into_inner()) = lighting;
     }
 
@@ -210,10 +255,8 @@ fn env_id(env: &EnvMap) -> (usize, u32, u32) {
     (env as *const EnvMap as usize, env.width, env.height)
 }
 
-fn texture_id(t: Option<&ColorMap>) -> (usize, u32, u32) {
-    t.map_or((0, 0, 0), |t| {
-        (t as *const ColorMap as usize, t.width, t.height)
-    })
+fn texture_id(t: &[ColorMap]) -> (usize, usize) {
+    (t.as_ptr() as usize, t.len())
 }
 
 /// Render one beauty frame on the GPU: the CPU's `render_beauty` for the same scene, camera,

@@ -28,11 +28,11 @@ pub const MAX_TILE: u32 = 512;
 pub const HARDWARE_TILE: u32 = 2048;
 
 /// Storage buffers the beauty kernels bind in the compute stage: the scene's six (prisms,
-/// vertices, BVH nodes and indices, height map, seam stitch records), the sums and the
-/// environment's texels and tables, and in the wavefront schedule the path records. Up to two
-/// over WebGPU's default of 8, so they are requested from the adapter (native Vulkan, Metal
+/// vertices, BVH nodes and indices, height map, seam stitch records), the sums, the
+/// environment's texels and tables, the materials, and in the wavefront schedule the path
+/// records. Up to three over WebGPU's default of 8, so they are requested from the adapter (native Vulkan, Metal
 /// and DX12 adapters allow far more); the AOV kernel binds 7.
-pub const BEAUTY_STORAGE_BUFFERS: u32 = 10;
+pub const BEAUTY_STORAGE_BUFFERS: u32 = 11;
 
 /// How a beauty sample is dispatched (`shaders/beauty.wgsl`); both render the same image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -119,7 +119,7 @@ pub struct GpuContext {
     pub(crate) aov_pipeline: wgpu::ComputePipeline,
     pub(crate) frame_buffer: wgpu::Buffer,
     aov_layout: wgpu::BindGroupLayout,
-    /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables).
+    /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables, materials).
     pub(crate) lighting_layout: wgpu::BindGroupLayout,
     beauty_layout: wgpu::BindGroupLayout,
     /// Group 3 of the beauty kernels (their path records).
@@ -393,7 +393,7 @@ impl GpuContext {
             // Use what the adapter has for the one limit a large scene meets first.
             max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
             max_buffer_size: supported.max_buffer_size,
-            // Beauty's 9 where the adapter has them; an 8-buffer adapter still renders AOVs.
+            // Beauty's 10 or 11 where the adapter has them; an 8-buffer adapter still renders AOVs.
             max_storage_buffers_per_shader_stage: supported
                 .max_storage_buffers_per_shader_stage
                 .clamp(
@@ -463,6 +463,7 @@ impl GpuContext {
                 uniform_entry(0),       // lighting: Lighting
                 storage_entry(1, true), // env_texels: array<f32>
                 storage_entry(2, true), // env_tables: array<f32>
+                storage_entry(3, true), // materials: array<SurfaceMaterial>
             ],
         });
         let [aov_pipeline] = build_pipelines(

@@ -153,7 +153,8 @@ pub struct GpuAovPixel {
     pub _pad: [u32; 3],
 }
 
-/// Everything the beauty kernel needs besides the scene and the environment tables, 112 bytes
+/// Everything the beauty kernel needs besides the scene, the materials and the environment
+/// tables, 96 bytes
 /// (uniform): `prismbake::render::beauty::BeautyScene` with its `Material`, and the
 /// environment's size, total weight and frame (the rotation's sine and cosine computed on the
 /// host, as `env::world_to_env` / `env_to_world` compute them).
@@ -162,12 +163,8 @@ pub struct GpuAovPixel {
 pub struct GpuLighting {
     pub key_dir: [f32; 3],
     pub key_irradiance: f32,
-    pub base_color: [f32; 3],
-    pub roughness: f32,
     pub ground_up: [f32; 3],
     pub ground_height: f32,
-    pub metallic: f32,
-    pub specular: f32,
     /// Ray origin offset (`beauty::scene_epsilon`).
     pub eps: f32,
     pub bounces: u32,
@@ -185,14 +182,26 @@ pub struct GpuLighting {
     /// `rotation.sin_cos()`, for `env_to_world`.
     pub env_from_sin: f32,
     pub env_from_cos: f32,
-    /// The base-colour texture (`BeautyScene::texture`) in the environment's texel buffer:
-    /// its size (0 × 0: none), its first float there, and its sampler
-    /// (`texture_sampler_code`).
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
+/// One material of a beauty scene, 48 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// its texture (if any) located in the environment's texel buffer: its size (0 × 0: none),
+/// its first float there and its sampler (`texture_sampler_code`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    pub base_color: [f32; 3],
+    pub roughness: f32,
+    pub metallic: f32,
+    pub specular: f32,
     pub tex_width: u32,
     pub tex_height: u32,
     pub tex_offset: u32,
     pub tex_sampler: u32,
-    pub _pad: u32,
+    pub _pad: [u32; 2],
 }
 
 /// A texture sampler as the lighting uniform's `tex_sampler` holds it: `wrapS`'s code in bits
@@ -231,7 +240,8 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
-    assert!(std::mem::size_of::<GpuLighting>() == 128);
+    assert!(std::mem::size_of::<GpuLighting>() == 96);
+    assert!(std::mem::size_of::<GpuMaterial>() == 48);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
 };
 
@@ -338,12 +348,8 @@ pub fn shared_layouts() -> Vec<StructLayout> {
             GpuLighting {
                 key_dir,
                 key_irradiance,
-                base_color,
-                roughness,
                 ground_up,
                 ground_height,
-                metallic,
-                specular,
                 eps,
                 bounces,
                 has_key,
@@ -357,6 +363,18 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_to_cos,
                 env_from_sin,
                 env_from_cos,
+                _pad0,
+                _pad1,
+                _pad2
+            }
+        ),
+        layout!(
+            "SurfaceMaterial",
+            GpuMaterial {
+                base_color,
+                roughness,
+                metallic,
+                specular,
                 tex_width,
                 tex_height,
                 tex_offset,
@@ -407,14 +425,13 @@ mod tests {
         // vec2<f32> aligns to 8: the nested UV arrays pack at stride 8 and 24, and the struct
         // rounds up to 88.
         assert_eq!(offset_of!(GpuPrismStitch, band), 72);
-        assert_eq!(offset_of!(GpuLighting, base_color), 16);
-        assert_eq!(offset_of!(GpuLighting, ground_up), 32);
-        assert_eq!(offset_of!(GpuLighting, metallic), 48);
+        assert_eq!(offset_of!(GpuLighting, ground_up), 16);
+        assert_eq!(offset_of!(GpuLighting, eps), 32);
+        assert_eq!(offset_of!(GpuMaterial, tex_width), 24);
         assert_eq!(offset_of!(GpuBeautySums, background), 16);
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);
         assert_eq!(offset_of!(GpuBeautySums, normal), 64);
         assert_eq!(offset_of!(GpuBeautySums, albedo), 80);
-        assert_eq!(offset_of!(GpuLighting, tex_width), 108);
     }
 }

@@ -23,7 +23,7 @@ use crate::util::{ctx, example_scene, ExampleScene};
 use glam::Vec3;
 use prismbake::mesh::UpAxis;
 use prismbake::render::beauty::{
-    render_beauty, scene_epsilon, BeautyImage, BeautyScene, Ground, KeyLight,
+    render_beauty, scene_epsilon, BeautyImage, BeautyScene, Ground, KeyLight, SurfaceMaterial,
 };
 use prismbake::render::env::{EnvFrame, EnvMap};
 use prismbake::render::shading::{luminance, Material};
@@ -272,8 +272,9 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
         env: &env,
         env_lights: true,
         key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false)),
-        material: Material::default(),
-        texture: None,
+        materials: &[SurfaceMaterial::from(Material::default())],
+        textures: &[],
+        prisms: &ex.scene.table.prisms,
         ground: Some(ground),
         bounces: 2,
         eps,
@@ -288,17 +289,24 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
 }
 
 #[test]
-fn textured_rock_matches_the_cpu_with_each_sampler() {
-    // The rock's own base-colour texture (embedded in rock.glb: fish scales, a colour each),
-    // times a tinted factor, read at every hit's UV on the first and the second bounce; with
-    // the glTF sampler the file has (repeat, bilinear), then mirrored/clamped nearest.
+fn materials_and_textures_per_prism_match_the_cpu() {
+    // The rock's own base-colour texture (embedded in rock.glb: fish scales, a colour each)
+    // with the file's sampler (repeat, bilinear) times a tinted factor, a red rough metal, and
+    // the texture again mirrored/clamped nearest, assigned to the prisms in turn (the fourth
+    // index is past the end: the last material), read at every hit on the first and the
+    // second bounce.
+    use prismbake::bake::PRISM_MATERIAL_SHIFT;
     use prismbake::texture::{ColorMap, Sampler, TexWrap};
     let rel = "rock/rock.glb";
-    let ex = example_scene(rel);
+    let mut ex = example_scene(rel);
+    for (i, p) in ex.scene.table.prisms.iter_mut().enumerate() {
+        p.flags |= (i as u32 % 4) << PRISM_MATERIAL_SHIFT;
+    }
     let path = crate::util::example(rel);
     let mesh = prismbake::load::load_mesh(&path, &Default::default()).expect("load");
-    let tref = mesh
+    let tref = mesh.materials[0]
         .base_color_texture
+        .clone()
         .expect("rock.glb has a base-colour texture");
     assert_eq!(
         tref.sampler,
@@ -306,17 +314,6 @@ fn textured_rock_matches_the_cpu_with_each_sampler() {
         "rock.glb: repeat, bilinear"
     );
     let texture = ColorMap::load(&path, &tref).expect("decode");
-    let env = sun_env(EnvFrame {
-        z_up: false,
-        rotation: 0.3,
-    });
-    let eps = ground_and_eps(&ex, Vec3::Y).1;
-    let settings = RenderSettings {
-        width: 64,
-        height: 64,
-        spp: 3,
-        seed: 5,
-    };
     let other = ColorMap {
         sampler: Sampler {
             wrap: [TexWrap::Mirror, TexWrap::Clamp],
@@ -324,25 +321,48 @@ fn textured_rock_matches_the_cpu_with_each_sampler() {
         },
         ..texture.clone()
     };
-    for (label, t) in [
-        ("repeat bilinear", &texture),
-        ("mirror/clamp nearest", &other),
-    ] {
-        let bscene = BeautyScene {
-            env: &env,
-            env_lights: true,
-            key: Some(KeyLight::from_angles(-30.0, 40.0, 2.0, false)),
+    let textures = [texture, other];
+    let materials = [
+        SurfaceMaterial {
             material: Material {
                 base_color: Vec3::new(1.0, 0.9, 0.8),
                 ..Material::default()
             },
-            texture: Some(t),
-            ground: None,
-            bounces: 2,
-            eps,
-        };
-        check(rel, &ex, &bscene, &settings, label);
-    }
+            texture: Some(0),
+        },
+        SurfaceMaterial::from(Material {
+            base_color: Vec3::new(0.9, 0.2, 0.1),
+            roughness: 0.35,
+            metallic: 1.0,
+            specular: 0.04,
+        }),
+        SurfaceMaterial {
+            material: Material::default(),
+            texture: Some(1),
+        },
+    ];
+    let env = sun_env(EnvFrame {
+        z_up: false,
+        rotation: 0.3,
+    });
+    let bscene = BeautyScene {
+        env: &env,
+        env_lights: true,
+        key: Some(KeyLight::from_angles(-30.0, 40.0, 2.0, false)),
+        materials: &materials,
+        textures: &textures,
+        prisms: &ex.scene.table.prisms,
+        ground: None,
+        bounces: 2,
+        eps: ground_and_eps(&ex, Vec3::Y).1,
+    };
+    let settings = RenderSettings {
+        width: 64,
+        height: 64,
+        spp: 3,
+        seed: 5,
+    };
+    check(rel, &ex, &bscene, &settings, "3 materials, 2 textures");
 }
 
 #[test]
@@ -387,8 +407,9 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             env: &env,
             env_lights: true,
             key: None,
-            material,
-            texture: None,
+            materials: &[SurfaceMaterial::from(material)],
+            textures: &[],
+            prisms: &ex.scene.table.prisms,
             ground: None,
             bounces: 3,
             eps,
@@ -412,8 +433,9 @@ fn wavefront_path_records_are_sized_to_the_frame_and_fused_takes_none() {
         env: &env,
         env_lights: true,
         key: None,
-        material: Material::default(),
-        texture: None,
+        materials: &[SurfaceMaterial::from(Material::default())],
+        textures: &[],
+        prisms: &ex.scene.table.prisms,
         ground: None,
         bounces: 2,
         eps: ground_and_eps(&ex, Vec3::Y).1,

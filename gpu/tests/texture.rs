@@ -9,7 +9,7 @@ use crate::util;
 use glam::{Vec2, Vec3};
 use prismbake::rng;
 use prismbake::texture::{ColorMap, Sampler, TexWrap};
-use prismbake_gpu::layout::{texture_sampler_code, GpuLighting};
+use prismbake_gpu::layout::{texture_sampler_code, GpuMaterial};
 use prismbake_gpu::shaders;
 
 const PROBE: &str = r#"
@@ -21,7 +21,7 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= arrayLength(&io)) {
         return;
     }
-    io[gid.x] = vec4f(texture_sample(io[gid.x].xy), 0.0);
+    io[gid.x] = vec4f(texture_sample(materials[0], io[gid.x].xy), 0.0);
 }
 "#;
 
@@ -67,7 +67,7 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
     let wraps = [TexWrap::Repeat, TexWrap::Clamp, TexWrap::Mirror];
     let uvs = probe_uvs(w, h);
     let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
-    // The beauty module (its `lighting` and `env_texels`), the probe beside its kernels.
+    // The beauty module (its `env_texels` and `materials`), the probe beside its kernels.
     let src = format!("{}\n{}", shaders::beauty_module_source(), PROBE);
     let mut cases = 0;
     for nearest in [false, true] {
@@ -84,7 +84,7 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
                     sampler,
                     name: "probe".into(),
                 };
-                let lighting = GpuLighting {
+                let material = GpuMaterial {
                     tex_width: w,
                     tex_height: h,
                     tex_offset: 3 * env_texels,
@@ -97,12 +97,12 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
                     (3, 1),
                     &io,
                     &[
-                        // lighting, env_texels (env.wgsl's bindings)
+                        // env_texels (env.wgsl), materials (texture.wgsl)
                         (
                             2,
-                            0,
-                            bytemuck::bytes_of(&lighting),
-                            wgpu::BufferUsages::UNIFORM,
+                            3,
+                            bytemuck::bytes_of(&material),
+                            wgpu::BufferUsages::STORAGE,
                         ),
                         (
                             2,

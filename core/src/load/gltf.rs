@@ -8,7 +8,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, SceneCamera, UpAxis};
+use crate::mesh::{BaseMesh, MeshMaterial, SceneCamera, UpAxis, MAX_MATERIALS};
 use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
@@ -23,6 +23,15 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     }
     let doc = parse_gltf(path, &bytes)?;
     let buffers = load_buffers(path, &doc)?;
+    if doc.materials().len() > MAX_MATERIALS {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "has {} materials, more than the {MAX_MATERIALS} supported (merge materials)",
+                doc.materials().len()
+            ),
+        ));
+    }
     let mut loader = Loader {
         path,
         opts,
@@ -35,6 +44,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         visited: vec![false; doc.nodes().len()],
         camera: None,
         any_uv_missing: false,
+        materials: doc.materials().len(),
     };
     for root in scene_roots(&doc) {
         loader.visit(root, Mat4::IDENTITY)?;
@@ -43,21 +53,28 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     let loader_buffers = loader.buffers;
     mesh.missing_uvs = loader.any_uv_missing;
     mesh.face_flags = vec![0; mesh.triangles.len()];
-    let first = doc.materials().next();
-    mesh.base_color = first
-        .as_ref()
-        .map(|m| m.pbr_metallic_roughness().base_color_factor());
-    mesh.roughness = first
-        .as_ref()
-        .map(|m| m.pbr_metallic_roughness().roughness_factor());
-    mesh.metallic = first
-        .as_ref()
-        .map(|m| m.pbr_metallic_roughness().metallic_factor());
-    mesh.base_color_texture = first
-        .and_then(|m| m.pbr_metallic_roughness().base_color_texture())
-        .map(|t| texture_ref(path, &doc, &loader_buffers, &t))
-        .transpose()?;
-    mesh.materials = doc.materials().count();
+    mesh.materials = doc
+        .materials()
+        .map(|m| {
+            let pbr = m.pbr_metallic_roughness();
+            Ok(MeshMaterial {
+                name: m.name().map_or_else(
+                    || format!("material {}", m.index().unwrap_or(0)),
+                    str::to_string,
+                ),
+                base_color: pbr.base_color_factor(),
+                roughness: pbr.roughness_factor(),
+                metallic: pbr.metallic_factor(),
+                base_color_texture: pbr
+                    .base_color_texture()
+                    .map(|t| texture_ref(path, &doc, &loader_buffers, &t))
+                    .transpose()?,
+            })
+        })
+        .collect::<Result<_>>()?;
+    if mesh.materials.is_empty() {
+        mesh.group_material.clear();
+    }
     if let Some((world, yfov)) = loader.camera {
         mesh.camera = Some(scene_camera(&mesh, world, yfov));
     }
@@ -333,6 +350,8 @@ struct Loader<'p> {
     /// World transform and vertical FOV (radians) of the first perspective camera.
     camera: Option<(Mat4, f32)>,
     any_uv_missing: bool,
+    /// The file's material count: the index of "no material".
+    materials: usize,
 }
 
 impl Loader<'_> {
@@ -459,6 +478,12 @@ impl Loader<'_> {
         self.mesh.positions.extend(positions);
         self.mesh.normals.extend(normals);
         self.mesh.uvs.extend(uvs);
+        // No material: the slot after the file's (`BaseMesh::group_material`).
+        self.mesh.group_material.push(
+            prim.material()
+                .index()
+                .map_or(self.materials as u32, |i| i as u32),
+        );
         for t in tris {
             self.mesh.triangles.push(t.map(|i| i + base));
             self.mesh.face_group.push(g);

@@ -335,14 +335,16 @@ fn gltf_parent_translation_and_child_scale_are_applied() {
         (m.face_group.clone(), m.face_flags.clone()),
         (vec![0], vec![0])
     );
-    assert_eq!(m.base_color, Some([0.5, 0.25, 1.0, 1.0]));
+    assert_eq!(m.materials[0].base_color, [0.5, 0.25, 1.0, 1.0]);
+    // The primitive names no material: the slot after the file's.
+    assert_eq!((m.group_material.clone(), m.face_material(0)), (vec![1], 1));
     assert_eq!(m.up_axis, Some(crate::mesh::UpAxis::Y));
     assert!(m.missing_uvs, "no TEXCOORD at all: flagged, not an error");
     assert!(m.uvs.iter().all(|&uv| uv == Vec2::ZERO));
 }
 
 #[test]
-fn gltf_base_colour_texture_and_material_count_are_recorded() {
+fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     let dir = temp_dir("gltf-texture");
     let mut doc = GltfDoc::default();
     let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);
@@ -351,21 +353,36 @@ fn gltf_base_colour_texture_and_material_count_are_recorded() {
         "scenes": [{"nodes": [0]}],
         "nodes": [{"mesh": 0}],
         "meshes": [{"primitives": [
+            {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 1},
+            {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx},
             {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
         "materials": [
-            {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0],
+            {"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0],
                                       "baseColorTexture": {"index": 0}}},
-            {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0]}},
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0],
+                                      "roughnessFactor": 0.25, "metallicFactor": 0.5}},
         ],
         "textures": [{"source": 0, "sampler": 0}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
         "images": [{"uri": "my%20albedo.png"}],
     });
     let m = load_gltf_doc(&dir, "textured.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
-    assert_eq!(m.base_color, Some([0.9, 0.8, 0.7, 1.0]));
+    // One group per primitive, each with its material (2: none, the slot after the file's).
+    assert_eq!(m.group_material, vec![1, 2, 0]);
+    let per_face: Vec<u32> = (0..3).map(|t| m.face_material(t)).collect();
+    assert_eq!(per_face, vec![1, 2, 0]);
+    assert_eq!(m.materials.len(), 2);
+    let (paint, other) = (&m.materials[0], &m.materials[1]);
+    assert_eq!(
+        (paint.name.as_str(), other.name.as_str()),
+        ("paint", "material 1")
+    );
+    assert_eq!(paint.base_color, [0.9, 0.8, 0.7, 1.0]);
     // Factors the file leaves out are 1, as glTF says.
-    assert_eq!((m.roughness, m.metallic), (Some(1.0), Some(1.0)));
-    let t = m.base_color_texture.clone().unwrap();
+    assert_eq!((paint.roughness, paint.metallic), (1.0, 1.0));
+    assert_eq!((other.roughness, other.metallic), (0.25, 0.5));
+    assert_eq!(other.base_color_texture, None);
+    let t = paint.base_color_texture.clone().unwrap();
     assert_eq!(t.name, "my%20albedo.png");
     // A file next to the asset, its URI percent-decoded; the sampler as the file gives it.
     assert_eq!(t.data, TextureData::File(dir.join("my albedo.png")));
@@ -377,32 +394,21 @@ fn gltf_base_colour_texture_and_material_count_are_recorded() {
         }
     );
     assert_eq!((t.tex_coord, t.transformed), (0, false));
-    assert_eq!(m.materials, 2);
     use crate::render::lookdev::material_warning;
-    // Read through UV set 0: only the second material is worth a warning.
-    let w = material_warning(&m, 0).unwrap();
-    assert!(!w.contains("albedo"), "{w}");
-    for part in ["2 materials", "--base-color"] {
-        assert!(w.contains(part), "no '{part}' in: {w}");
-    }
+    // Read through UV set 0: nothing to say.
+    assert_eq!(material_warning(&m, 0), None);
     // Loaded with another UV set than the texture's: not read, and said so.
     let w = material_warning(&m, 1).unwrap();
     for part in [
+        "material 'paint'",
         "(my%20albedo.png) reads TEXCOORD_0",
         "UV set 1",
         "(0.9, 0.8, 0.7)",
         "uv_set = 0",
+        "--base-color",
     ] {
         assert!(w.contains(part), "no '{part}' in: {w}");
     }
-    // One plain material: nothing to say.
-    let plain = BaseMesh {
-        base_color: Some([0.5; 4]),
-        base_color_texture: None,
-        materials: 1,
-        ..m
-    };
-    assert_eq!(material_warning(&plain, 0), None);
 }
 
 #[test]
@@ -430,7 +436,7 @@ fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_flagged() {
         "images": [{"uri": format!("data:image/png;base64,{}", base64(&png))}],
     });
     let m = load_gltf_doc(&dir, "data.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
-    let t = m.base_color_texture.clone().unwrap();
+    let t = m.materials[0].base_color_texture.clone().unwrap();
     assert_eq!(t.name, "image 0");
     assert_eq!(t.data, TextureData::Embedded(png));
     assert_eq!(t.sampler, Sampler::default());

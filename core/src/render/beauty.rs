@@ -1,7 +1,8 @@
 //! The beauty pass: a progressive path tracer over any intersector. Lighting: the environment
 //! (`env`) and an optional directional key light; material: `shading::Material` (Lambert +
-//! GGX, mirror below `MIRROR_ROUGHNESS`), its base colour times an optional colour texture at
-//! the hit's UV (`BeautyScene::material_at`); `bounces` surface events; next-event estimation of
+//! GGX, mirror below `MIRROR_ROUGHNESS`), one per material of the asset, its base colour times
+//! an optional colour texture at the hit's UV (`BeautyScene::material_at`); `bounces` surface
+//! events; next-event estimation of
 //! the environment combined with BSDF sampling by MIS (power heuristic); the key light is a
 //! delta light, sampled only by shadow rays. An optional shadow-catcher ground plane at the
 //! asset's lowest point records how much light the asset takes away (alpha), nothing else.
@@ -22,6 +23,7 @@ use super::shading::{
     self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material,
 };
 use super::RenderSettings;
+use crate::bake::Prism;
 use crate::rng::{self, Purpose};
 use crate::texture::ColorMap;
 use crate::trace::{Hit, Intersector, Ray, RayContext};
@@ -72,10 +74,14 @@ pub struct BeautyScene<'a> {
     /// Whether the environment lights the scene (false when it is black: no env rays).
     pub env_lights: bool,
     pub key: Option<KeyLight>,
-    /// The surface's material; its base colour multiplies `texture`'s colour, if any.
-    pub material: Material,
-    /// The base-colour texture (the glTF material's), sampled at each hit's UV.
-    pub texture: Option<&'a ColorMap>,
+    /// The surface's materials: a prism's is `materials[prism.material()]`, the last one for
+    /// an index past the end (an asset's triangles without a material, tables without any).
+    /// At least one.
+    pub materials: &'a [SurfaceMaterial],
+    /// The base-colour textures `SurfaceMaterial::texture` indexes.
+    pub textures: &'a [ColorMap],
+    /// The traced table's prisms (their material indices).
+    pub prisms: &'a [Prism],
     pub ground: Option<Ground>,
     /// Surface events per path, 1..=4 (1 = direct light only).
     pub bounces: u32,
@@ -83,13 +89,40 @@ pub struct BeautyScene<'a> {
     pub eps: f32,
 }
 
+/// One material of a beauty scene: the BSDF's parameters and the base-colour texture that
+/// multiplies its base colour, if any (an index into `BeautyScene::textures`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceMaterial {
+    pub material: Material,
+    pub texture: Option<u32>,
+}
+
+impl From<Material> for SurfaceMaterial {
+    fn from(material: Material) -> Self {
+        SurfaceMaterial {
+            material,
+            texture: None,
+        }
+    }
+}
+
 impl BeautyScene<'_> {
-    /// The material at a hit with texture coordinates `uv`.
+    /// The index into `materials` of prism `prism`'s material.
     #[inline]
-    pub fn material_at(&self, uv: Vec2) -> Material {
-        let mut m = self.material;
-        if let Some(t) = self.texture {
-            m.base_color *= t.sample(uv);
+    pub fn material_index(&self, prism: u32) -> usize {
+        let last = self.materials.len() - 1;
+        self.prisms
+            .get(prism as usize)
+            .map_or(last, |p| (p.material() as usize).min(last))
+    }
+
+    /// The material at a hit: its prism's, the base colour times the texture at its UV.
+    #[inline]
+    pub fn material_at(&self, hit: &Hit) -> Material {
+        let s = &self.materials[self.material_index(hit.prism)];
+        let mut m = s.material;
+        if let Some(t) = s.texture {
+            m.base_color *= self.textures[t as usize].sample(hit.uv);
         }
         m
     }
@@ -311,7 +344,7 @@ fn surface_radiance(
     let mut throughput = Vec3::ONE;
     let mut radiance = Vec3::ZERO;
     for bounce in 0..s.bounces {
-        let m = &s.material_at(hit.uv);
+        let m = &s.material_at(&hit);
         let wo = -dir;
         let (ng, ns) = facing_normals(&hit, dir);
         let (t, b) = onb(ns);
@@ -422,7 +455,7 @@ fn trace_sample(
             radiance: surface_radiance(isect, s, h, ray.dir, ctx, n),
             surface: true,
             normal: facing_normals(&h, ray.dir).1,
-            albedo: shading::guide_albedo(&s.material_at(h.uv)),
+            albedo: shading::guide_albedo(&s.material_at(&h)),
             ..Default::default()
         },
         (_, Some(gt)) => SampleResult {

@@ -11,7 +11,9 @@
 //! environment casts no environment rays; the bake is skipped when the table cache holds a
 //! table made from the same inputs (`table_cache`, keyed by `asset::input_hash`).
 
-use super::beauty::{self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight};
+use super::beauty::{
+    self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight, SurfaceMaterial,
+};
 use super::camera::Camera;
 use super::denoise::{Denoiser, Quality};
 use super::env::{EnvFrame, EnvMap};
@@ -157,15 +159,18 @@ pub struct LookdevSummary {
     /// (PATH)"); absent without `--denoise`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub denoiser: Option<String>,
-    /// The material the beauty shaded with; absent without beauty.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub material: Option<MaterialSummary>,
+    /// The materials the beauty shaded with, those some prism has; empty without beauty.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub materials: Vec<MaterialSummary>,
 }
 
-/// The beauty's material as a summary states it: its factors, from the command line or the
-/// asset, and the base-colour texture it read.
+/// A material of the beauty as a summary states it: its factors, from the command line or
+/// the asset, the base-colour texture it read, and how many prisms have it.
 #[derive(Clone, Debug, Serialize)]
 pub struct MaterialSummary {
+    /// The asset's name for it, or "default" (triangles without a material).
+    pub name: String,
+    pub prisms: usize,
     pub base_color: [f32; 3],
     pub roughness: f32,
     pub metallic: f32,
@@ -174,6 +179,30 @@ pub struct MaterialSummary {
     /// `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
+}
+
+/// The summaries of the materials of `scene` some prism has, in their order.
+fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<MaterialSummary> {
+    let mut prisms = vec![0usize; scene.materials.len()];
+    for i in 0..scene.prisms.len() {
+        prisms[scene.material_index(i as u32)] += 1;
+    }
+    scene
+        .materials
+        .iter()
+        .zip(&asset.list)
+        .zip(prisms)
+        .filter(|(_, n)| *n > 0)
+        .map(|((m, a), prisms)| MaterialSummary {
+            name: a.name.clone(),
+            prisms,
+            base_color: m.material.base_color.to_array(),
+            roughness: m.material.roughness,
+            metallic: m.material.metallic,
+            specular: m.material.specular,
+            texture: m.texture.map(|t| scene.textures[t as usize].describe()),
+        })
+        .collect()
 }
 
 /// What renders the frames of a lookdev job: the CPU (`CpuFrames`, any intersector) or a GPU.
@@ -243,46 +272,42 @@ pub struct Session {
     scene: Scene,
     cam0: Camera,
     up_axis: UpAxis,
-    material: AssetMaterial,
+    materials: AssetMaterials,
     env: Option<EnvMap>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
 }
 
-/// Whether the beauty reads the first material's base-colour texture: only through the UV set
-/// the asset is loaded with (`uv_set`), the one every hit carries.
+/// Whether the beauty reads a material's base-colour texture: only through the UV set the
+/// asset is loaded with (`uv_set`), the one every hit carries.
 fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
     texture.tex_coord == uv_set
 }
 
-/// What the beauty does not take from the asset's materials, if anything: it shades the whole
-/// asset with the first material (its colour factor times its base-colour texture, read through
-/// the asset's UV set `uv_set`; `--base-color` replaces both) and applies no texture transform.
+/// What the beauty does not take from the asset's materials, if anything: a base-colour
+/// texture read through another UV set than the asset's (`uv_set`), and texture transforms.
 pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<String> {
     let mut notes = vec![];
-    if let Some(t) = &mesh.base_color_texture {
-        let c = mesh.base_color.unwrap_or([1.0; 4]);
+    for m in &mesh.materials {
+        let Some(t) = &m.base_color_texture else {
+            continue;
+        };
+        let c = m.base_color;
         if !texture_readable(t, uv_set) {
             notes.push(format!(
-                "the material's base-colour texture ({}) reads TEXCOORD_{} but the asset is \
+                "material '{}': its base-colour texture ({}) reads TEXCOORD_{} but the asset is \
                  loaded with UV set {uv_set}: it is not read, the beauty shades with its colour \
                  factor ({}, {}, {}) (the sidecar's uv_set = {} reads it)",
-                t.name, t.tex_coord, c[0], c[1], c[2], t.tex_coord
+                m.name, t.name, t.tex_coord, c[0], c[1], c[2], t.tex_coord
             ));
         } else if t.transformed {
             notes.push(format!(
-                "the file uses KHR_texture_transform, which is not applied to the base-colour \
-                 texture ({})",
-                t.name
+                "material '{}': the file uses KHR_texture_transform, which is not applied to \
+                 its base-colour texture ({})",
+                m.name, t.name
             ));
         }
-    }
-    if mesh.materials > 1 {
-        notes.push(format!(
-            "{} materials: the beauty shades the whole asset with the first one",
-            mesh.materials
-        ));
     }
     (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets one colour)")
 }
@@ -291,60 +316,104 @@ pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<Str
 pub const DEFAULT_ROUGHNESS: f32 = 0.5;
 /// Metallic of a surface whose asset has no material and no `--metallic`.
 pub const DEFAULT_METALLIC: f32 = 0.0;
+/// Base colour of a surface whose asset has no material and no `--base-color`.
+pub const DEFAULT_BASE_COLOR: Vec3 = Vec3::splat(0.8);
 
-/// The asset's own material as the beauty reads it: the first material's factors and its
-/// base-colour texture, decoded.
-#[derive(Default)]
+/// One of the asset's materials as the beauty reads it (before the command line's overrides).
 struct AssetMaterial {
-    base_color: Option<Vec3>,
-    roughness: Option<f32>,
-    metallic: Option<f32>,
-    texture: Option<ColorMap>,
+    name: String,
+    base_color: Vec3,
+    roughness: f32,
+    metallic: f32,
+    /// Index into `AssetMaterials::textures`.
+    texture: Option<u32>,
 }
 
-/// The asset's material for `job`: nothing unless it renders the beauty; no colour or texture
-/// with `--base-color`. A texture that cannot be decoded is an error.
-fn asset_material(
+/// The asset's materials in file order, then the default one (for triangles without a
+/// material: `BaseMesh::group_material`), and their base-colour textures, decoded.
+struct AssetMaterials {
+    list: Vec<AssetMaterial>,
+    textures: Vec<ColorMap>,
+}
+
+impl AssetMaterials {
+    /// The default material alone (no asset materials, or no beauty to shade).
+    fn plain() -> Self {
+        AssetMaterials {
+            list: vec![AssetMaterial {
+                name: "default".into(),
+                base_color: DEFAULT_BASE_COLOR,
+                roughness: DEFAULT_ROUGHNESS,
+                metallic: DEFAULT_METALLIC,
+                texture: None,
+            }],
+            textures: vec![],
+        }
+    }
+}
+
+/// The asset's materials for `job`: the default alone unless it renders the beauty; no
+/// texture is decoded with `--base-color`, and each image once. A texture that cannot be
+/// decoded is an error.
+fn asset_materials(
     mesh: &crate::mesh::BaseMesh,
     spec: &AssetSpec,
     job: &RenderJob,
     opts: &LookdevOptions,
-) -> Result<AssetMaterial> {
+) -> Result<AssetMaterials> {
+    let mut out = AssetMaterials::plain();
     if !job.aovs.contains(&Aov::Beauty) {
-        return Ok(AssetMaterial::default());
+        return Ok(out);
     }
-    let mut m = AssetMaterial {
-        roughness: mesh.roughness,
-        metallic: mesh.metallic,
-        ..Default::default()
-    };
-    if opts.base_color.is_none() {
+    let read_textures = opts.base_color.is_none();
+    if read_textures {
         if let Some(w) = material_warning(mesh, spec.uv_set) {
             eprintln!("warning: {}: {w}", mesh.source.display());
         }
-        m.base_color = mesh.base_color.map(|c| Vec3::new(c[0], c[1], c[2]));
-        m.texture = match &mesh.base_color_texture {
-            Some(t) if texture_readable(t, spec.uv_set) => Some(ColorMap::load(&mesh.source, t)?),
+    }
+    let default = out.list.pop().expect("the default material");
+    let mut decoded: Vec<&TextureRef> = vec![];
+    for m in &mesh.materials {
+        let texture = match &m.base_color_texture {
+            Some(t) if read_textures && texture_readable(t, spec.uv_set) => {
+                Some(match decoded.iter().position(|d| *d == t) {
+                    Some(i) => i as u32,
+                    None => {
+                        out.textures.push(ColorMap::load(&mesh.source, t)?);
+                        decoded.push(t);
+                        (decoded.len() - 1) as u32
+                    }
+                })
+            }
             _ => None,
         };
+        let c = m.base_color;
+        out.list.push(AssetMaterial {
+            name: m.name.clone(),
+            base_color: Vec3::new(c[0], c[1], c[2]),
+            roughness: m.roughness,
+            metallic: m.metallic,
+            texture,
+        });
     }
-    Ok(m)
+    out.list.push(default);
+    Ok(out)
 }
 
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
 fn load_cached(
     job: &RenderJob,
     opts: &LookdevOptions,
-) -> Result<(Loaded, AssetMaterial, CacheUse)> {
+) -> Result<(Loaded, AssetMaterials, CacheUse)> {
     let Input::Asset(spec) = &job.input else {
         return Ok((
             super::job::load_input(&job.input, &job.repair)?,
-            AssetMaterial::default(),
+            AssetMaterials::plain(),
             CacheUse::Off,
         ));
     };
     let (mesh, map) = asset::load(spec)?;
-    let material = asset_material(&mesh, spec, job, opts)?;
+    let materials = asset_materials(&mesh, spec, job, opts)?;
     let (scene_camera, up_axis) = (mesh.camera, mesh.up_axis.unwrap_or_default());
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
@@ -359,7 +428,7 @@ fn load_cached(
                     scene_camera,
                     up_axis,
                 },
-                material,
+                materials,
                 CacheUse::Reused(path),
             ));
         }
@@ -389,7 +458,7 @@ fn load_cached(
             scene_camera,
             up_axis,
         },
-        material,
+        materials,
         cache,
     ))
 }
@@ -417,7 +486,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     };
     prepare_out_dir(&job.out_dir)?;
     let t0 = Instant::now();
-    let (loaded, material, cache) = load_cached(job, opts)?;
+    let (loaded, materials, cache) = load_cached(job, opts)?;
     let cam0 = base_camera(
         &loaded,
         &job.camera,
@@ -441,7 +510,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         scene,
         cam0,
         up_axis,
-        material,
+        materials,
         env,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
@@ -618,21 +687,21 @@ pub fn render_all(
     let want_beauty = job.aovs.contains(&Aov::Beauty);
     let (lo, hi) = surface_bounds(&s.scene.table);
     let up = up_vector(s.up_axis);
-    let material = Material {
-        base_color: opts
-            .base_color
-            .or(s.material.base_color)
-            .unwrap_or(Vec3::splat(0.8)),
-        roughness: opts
-            .roughness
-            .or(s.material.roughness)
-            .unwrap_or(DEFAULT_ROUGHNESS),
-        metallic: opts
-            .metallic
-            .or(s.material.metallic)
-            .unwrap_or(DEFAULT_METALLIC),
-        specular: opts.specular,
-    };
+    // The asset's materials (and the default), the command line's settings in place of theirs.
+    let materials: Vec<SurfaceMaterial> = s
+        .materials
+        .list
+        .iter()
+        .map(|m| SurfaceMaterial {
+            material: Material {
+                base_color: opts.base_color.unwrap_or(m.base_color),
+                roughness: opts.roughness.unwrap_or(m.roughness),
+                metallic: opts.metallic.unwrap_or(m.metallic),
+                specular: opts.specular,
+            },
+            texture: m.texture.filter(|_| opts.base_color.is_none()),
+        })
+        .collect();
     let env_fallback;
     let env = match &s.env {
         Some(e) => e,
@@ -653,8 +722,9 @@ pub fn render_all(
         key: opts
             .key_light
             .map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
-        material,
-        texture: s.material.texture.as_ref(),
+        materials: &materials,
+        textures: &s.materials.textures,
+        prisms: &s.scene.table.prisms,
         ground: opts.ground.then(|| Ground {
             up,
             height: lo.dot(up).min(hi.dot(up)),
@@ -679,13 +749,10 @@ pub fn render_all(
         shadow_rays: 0,
         contact_sheets: vec![],
         denoiser: s.denoiser.as_ref().map(Denoiser::describe),
-        material: want_beauty.then(|| MaterialSummary {
-            base_color: material.base_color.to_array(),
-            roughness: material.roughness,
-            metallic: material.metallic,
-            specular: material.specular,
-            texture: bscene.texture.map(ColorMap::describe),
-        }),
+        materials: match want_beauty {
+            true => material_summaries(&bscene, &s.materials),
+            false => vec![],
+        },
     };
     let denoise = s.denoiser.as_ref();
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
