@@ -474,33 +474,7 @@ fn the_rocks_base_colour_texture_colours_its_beauty() {
 #[test]
 fn a_broken_base_colour_texture_fails_the_beauty_only() {
     let dir = temp_dir("broken-texture");
-    let mut glb = read(&example("rock/rock.glb"));
-    // Overwrite the embedded PNG's image data (after its signature and header chunk) so that
-    // the GLB stays valid and the PNG does not.
-    let at = glb
-        .windows(8)
-        .position(|w| w == b"\x89PNG\r\n\x1a\n")
-        .expect("rock.glb embeds a PNG");
-    glb[at + 40..at + 400].fill(0x5a);
-    let rock = dir.join("rock.glb");
-    std::fs::write(&rock, glb).unwrap();
-    std::fs::copy(
-        example("rock/rock.prismbake.toml"),
-        dir.join("rock.prismbake.toml"),
-    )
-    .unwrap();
-    std::fs::create_dir_all(dir.join("maps")).unwrap();
-    std::fs::copy(
-        example("maps/scales_256.png"),
-        dir.join("maps/scales_256.png"),
-    )
-    .unwrap();
-    let toml = std::fs::read_to_string(dir.join("rock.prismbake.toml")).unwrap();
-    std::fs::write(
-        dir.join("rock.prismbake.toml"),
-        toml.replace("../maps/", "maps/"),
-    )
-    .unwrap();
+    let rock = rock_with_a_corrupt_texture(&dir);
     let out = dir.join("out");
     render_rock_beauty(&rock, &out, &[]).assert_error(&[
         "rock.glb",
@@ -615,7 +589,12 @@ fn each_gltf_material_shades_its_own_triangles() {
         // corner, the red one (0, 1, 2) the bottom-right.
         let px = read_rgba(&out.join("beauty.exr"));
         let at = |x: usize, y: usize| px[y * 32 + x];
-        for (x, y, red) in [(7, 7, false), (24, 24, true), (12, 8, false), (26, 14, true)] {
+        for (x, y, red) in [
+            (7, 7, false),
+            (24, 24, true),
+            (12, 8, false),
+            (26, 14, true),
+        ] {
             let p = at(x, y);
             assert!(
                 p[3] > 0.99,

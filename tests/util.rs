@@ -169,3 +169,30 @@ pub fn read_channels<const N: usize>(path: &Path, names: [&str; N]) -> [Vec<f32>
             .collect()
     })
 }
+
+/// A copy of the rock example in `dir` (with its sidecar and map) whose embedded base-colour
+/// PNG has its image data overwritten: the GLB stays valid, the texture does not decode.
+pub fn rock_with_a_corrupt_texture(dir: &Path) -> PathBuf {
+    let mut glb = std::fs::read(example("rock/rock.glb")).unwrap();
+    // After the PNG's signature and header chunk.
+    let at = glb
+        .windows(8)
+        .position(|w| w == b"\x89PNG\r\n\x1a\n")
+        .expect("rock.glb embeds a PNG");
+    glb[at + 40..at + 400].fill(0x5a);
+    let rock = dir.join("rock.glb");
+    std::fs::write(&rock, glb).unwrap();
+    let toml = std::fs::read_to_string(example("rock/rock.prismbake.toml")).unwrap();
+    std::fs::write(
+        dir.join("rock.prismbake.toml"),
+        toml.replace("../maps/", "maps/"),
+    )
+    .unwrap();
+    std::fs::create_dir_all(dir.join("maps")).unwrap();
+    std::fs::copy(
+        example("maps/scales_256.png"),
+        dir.join("maps/scales_256.png"),
+    )
+    .unwrap();
+    rock
+}

@@ -68,7 +68,7 @@ fn problems_exit_one_and_name_faces_in_every_format() {
         .descendants()
         .filter(|n| n.has_tag_name("testcase"))
         .collect();
-    assert_eq!(cases.len(), 2 * 10, "one test case per asset × check");
+    assert_eq!(cases.len(), 2 * 11, "one test case per asset × check");
     let failures = doc
         .descendants()
         .filter(|n| n.has_tag_name("failure"))
@@ -127,4 +127,42 @@ fn usage_errors_exit_two() {
         .assert_error(&["no mesh files"])
         .assert_code(2);
     run(&["validate"]).assert_code(2);
+}
+
+#[test]
+fn a_base_colour_texture_that_does_not_decode_fails_the_textures_check() {
+    // The examples pass it (the rock's texture decodes: examples_fail_only_on_their_seam_jumps);
+    // a corrupt one fails it, naming the material and the image, and fails the asset.
+    let dir = temp_dir("validate-texture");
+    let rock = rock_with_a_corrupt_texture(&dir);
+    let r = run(&["validate", s(&rock), "--format", "json"]);
+    r.assert_code(1);
+    let j = r.json();
+    let checks = j["assets"][0]["checks"].as_array().unwrap();
+    let t = checks
+        .iter()
+        .find(|c| c["name"] == "textures")
+        .expect("a textures check");
+    assert_eq!(t["status"], "fail", "{t}");
+    let msg = t["message"].as_str().unwrap();
+    for part in ["material 'rock_mat'", "'rock_albedo'", "cannot decode"] {
+        assert!(msg.contains(part), "no '{part}' in {msg}");
+    }
+    let good = run(&["validate", s(&example("rock/rock.glb")), "--format", "json"]);
+    let j = good.json();
+    let t = j["assets"][0]["checks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["name"] == "textures")
+        .cloned()
+        .unwrap();
+    assert_eq!(t["status"], "pass", "{t}");
+    assert!(
+        t["message"]
+            .as_str()
+            .unwrap()
+            .contains("'rock_albedo' 256x256"),
+        "{t}"
+    );
 }

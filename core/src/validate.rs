@@ -3,7 +3,9 @@
 //! Checks (one JUnit test case each): `mesh` (readable, finite, in range), `uvs` (present),
 //! `uv-range` (inside [0, 1] when the map is clamped), `degenerate-faces`, `inverted-normals`,
 //! `sharp-creases`, `map` (readable), `finite-values` (no NaN/Inf texels), `max-displacement`,
-//! `seam-jump` (the height map's jump across UV seams, which `--seams open` renders as cracks).
+//! `seam-jump` (the height map's jump across UV seams, which `--seams open` renders as cracks),
+//! `textures` (the materials' base-colour textures are there and decode, and the beauty
+//! reads them).
 
 use crate::asset::{self, AssetSpec, Overrides};
 use crate::bake::PrismTable;
@@ -15,11 +17,12 @@ use crate::prism_file;
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
 use crate::seam::{measure_seams, SeamReport};
+use crate::texture::ColorMap;
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 use std::path::Path;
 
-pub const CHECKS: [&str; 10] = [
+pub const CHECKS: [&str; 11] = [
     "mesh",
     "uvs",
     "uv-range",
@@ -30,6 +33,7 @@ pub const CHECKS: [&str; 10] = [
     "finite-values",
     "max-displacement",
     "seam-jump",
+    "textures",
 ];
 
 /// `seam-jump` fails above this jump, as a fraction of `|scale|` (`max_seam_jump` in the
@@ -106,9 +110,55 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
         Some(map) => seam_check(&spec, &repaired, &report, map),
         None => Check::skipped("seam-jump", "no map"),
     });
+    checks.push(texture_check(&mesh, spec.uv_set));
     AssetReport {
         asset: name,
         checks,
+    }
+}
+
+/// The materials' base-colour textures: each one the beauty reads must decode (a missing file,
+/// a corrupt or unsupported image fails); one it does not read (another UV set, a texture
+/// transform) is a warning.
+fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
+    let mut read = vec![];
+    let mut failures = vec![];
+    let mut warnings = vec![];
+    for m in &mesh.materials {
+        let Some(t) = &m.base_color_texture else {
+            continue;
+        };
+        if t.tex_coord != uv_set {
+            warnings.push(format!(
+                "material '{}': its texture '{}' reads TEXCOORD_{}, the asset UV set {uv_set}: \
+                 renders shade with its colour factor (set uv_set = {} in the sidecar)",
+                m.name, t.name, t.tex_coord, t.tex_coord
+            ));
+            continue;
+        }
+        if t.transformed {
+            warnings.push(format!(
+                "material '{}': KHR_texture_transform is not applied to '{}'",
+                m.name, t.name
+            ));
+        }
+        match ColorMap::load(&mesh.source, t) {
+            Ok(c) => read.push(format!("'{}' {}x{}", c.name, c.width, c.height)),
+            Err(e) => failures.push(format!("material '{}': {e}", m.name)),
+        }
+    }
+    if !failures.is_empty() {
+        return Check::fail("textures", failures.join("; "));
+    }
+    if !warnings.is_empty() {
+        return Check::warn("textures", warnings.join("; "));
+    }
+    match read.len() {
+        0 => Check::pass("textures", "no base-colour textures"),
+        n => Check::pass(
+            "textures",
+            format!("{n} base-colour texture(s) decode: {}", read.join(", ")),
+        ),
     }
 }
 

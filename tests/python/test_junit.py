@@ -10,8 +10,8 @@ def test_junit_loads_with_one_case_per_asset_and_check(run, examples, tmp_path):
     suites = list(xml)
     assert len(suites) == 3
     cases = [c for s in suites for c in s]
-    assert len(cases) == 3 * 10
+    assert len(cases) == 3 * 11
     names = {c.name for c in cases}
-    assert {"mesh", "uvs", "sharp-creases", "max-displacement"} <= names
+    assert {"mesh", "uvs", "sharp-creases", "max-displacement", "textures"} <= names
     failures = [c for c in cases if any(isinstance(r, Failure) for r in c.result)]
     assert len(failures) == sum(s.failures for s in suites)
