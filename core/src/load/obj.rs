@@ -1,16 +1,24 @@
 //! Wavefront OBJ into a `BaseMesh`: `v`/`vt`/`vn`, polygons fan-triangulated, each distinct
-//! `v/vt/vn` corner a vertex, `g`/`o` names kept as groups. OBJ's v already points up.
+//! `v/vt/vn` corner a vertex, `g`/`o` names kept as groups (one per name and `usemtl`
+//! material). OBJ's v already points up.
+//!
+//! Materials: the `mtllib` files' `newmtl` entries, in order, with `Kd` (the base colour),
+//! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
+//! importer does; `-clamp on` clamps it, `-o`/`-s` are noted as a texture transform) and the
+//! PBR extension's `Pr`/`Pm` (roughness, metallic). A missing .mtl or an undefined `usemtl`
+//! name is a warning (those faces get the default material), not an error.
 //!
 //! A small parser of our own rather than `tobj`: with `single_index`, tobj 4.0.5 panics
 //! (multiply overflow) on a relative index reaching before the first element
 //! (`f 1/-5 2/1 3/1`), takes a zero index (`f 1/0 ...`) as "absent", and then, like any face
 //! where only some corners carry `vt`, returns fewer UVs than positions, silently misaligned.
-//! Its errors carry no line number; here every error names the line. Materials, smoothing
-//! groups, points, lines and free-form geometry are ignored.
+//! Its errors carry no line number; here every error names the line. Smoothing groups, points,
+//! lines and free-form geometry are ignored.
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, UpAxis};
+use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
+use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::Path;
@@ -31,18 +39,153 @@ struct Parsed {
     /// Triangles of corners, with the group index of each.
     tris: Vec<([Corner; 3], u32)>,
     groups: Vec<String>,
+    /// Per group: its `usemtl` material name, if any.
+    group_material: Vec<Option<String>>,
+    /// `mtllib` file names, in order.
+    mtllibs: Vec<String>,
 }
 
 pub fn load(path: &Path, _opts: &MeshOptions) -> Result<BaseMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     let text = String::from_utf8_lossy(&bytes);
     let parsed = parse(path, &text)?;
-    build_mesh(path, parsed)
+    let (materials, names) = load_materials(path, &parsed.mtllibs)?;
+    let mut mesh = build_mesh(path, &parsed)?;
+    if !materials.is_empty() {
+        let none = materials.len() as u32;
+        let mut undefined = vec![];
+        mesh.group_material = parsed
+            .group_material
+            .iter()
+            .map(|m| match m {
+                None => none,
+                Some(name) => match names.iter().position(|n| n == name) {
+                    Some(i) => i as u32,
+                    None => {
+                        undefined.push(name.as_str());
+                        none
+                    }
+                },
+            })
+            .collect();
+        if !undefined.is_empty() {
+            undefined.dedup();
+            eprintln!(
+                "warning: {}: usemtl names materials no mtllib defines ({}): those faces get \
+                 the default material",
+                path.display(),
+                undefined.join(", ")
+            );
+        }
+        mesh.materials = materials;
+    }
+    Ok(mesh)
+}
+
+/// The materials of the `mtllib` files (relative to the OBJ's folder), in order, and their
+/// names. A file that cannot be read is a warning.
+fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Vec<String>)> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let (mut materials, mut names) = (vec![], vec![]);
+    for lib in libs {
+        let file = dir.join(lib);
+        let text = match std::fs::read(&file) {
+            Ok(b) => String::from_utf8_lossy(&b).into_owned(),
+            Err(e) => {
+                eprintln!(
+                    "warning: {}: mtllib '{lib}' cannot be read ({e}): its materials are left \
+                     out (keep the .mtl next to the .obj)",
+                    path.display()
+                );
+                continue;
+            }
+        };
+        parse_mtl(&file, &text, &mut materials, &mut names)?;
+    }
+    if materials.len() > MAX_MATERIALS {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "has {} materials, more than the {MAX_MATERIALS} supported (merge materials)",
+                materials.len()
+            ),
+        ));
+    }
+    Ok((materials, names))
+}
+
+/// One .mtl file's `newmtl` entries (`Kd`, `map_Kd`, `Pr`, `Pm`; the rest is ignored).
+fn parse_mtl(
+    file: &Path,
+    text: &str,
+    materials: &mut Vec<MeshMaterial>,
+    names: &mut Vec<String>,
+) -> Result<()> {
+    let dir = file.parent().unwrap_or(Path::new("."));
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.split('#').next().unwrap_or("");
+        let mut words = line.split_whitespace();
+        let Some(keyword) = words.next() else {
+            continue;
+        };
+        let at = |what: String| Error::invalid(file, format!("line {}: {what}", i + 1));
+        if keyword == "newmtl" {
+            let name = words.collect::<Vec<_>>().join(" ");
+            names.push(name.clone());
+            materials.push(MeshMaterial {
+                name,
+                base_color: [0.8, 0.8, 0.8, 1.0],
+                roughness: crate::render::lookdev::DEFAULT_ROUGHNESS,
+                metallic: crate::render::lookdev::DEFAULT_METALLIC,
+                base_color_texture: None,
+            });
+            continue;
+        }
+        let Some(m) = materials.last_mut() else {
+            continue;
+        };
+        match keyword {
+            "Kd" => {
+                let [r, g, b] = floats::<3>(&mut words).map_err(at)?;
+                m.base_color = [r, g, b, 1.0];
+            }
+            "Pr" => m.roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
+            "Pm" => m.metallic = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
+            "map_Kd" => {
+                let words: Vec<&str> = words.collect();
+                let Some((name, options)) = words.split_last() else {
+                    return Err(at("map_Kd names no file (fix the line)".into()));
+                };
+                let clamp = options.windows(2).any(|w| w == ["-clamp", "on"]);
+                let wrap = if clamp {
+                    TexWrap::Clamp
+                } else {
+                    TexWrap::Repeat
+                };
+                m.base_color = [1.0; 4];
+                m.base_color_texture = Some(TextureRef {
+                    name: name.to_string(),
+                    data: TextureData::File(dir.join(name)),
+                    sampler: Sampler {
+                        wrap: [wrap; 2],
+                        nearest: false,
+                    },
+                    tex_coord: 0,
+                    transformed: options.iter().any(|o| *o == "-o" || *o == "-s"),
+                });
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 fn parse(path: &Path, text: &str) -> Result<Parsed> {
     let mut p = Parsed::default();
     let mut group: Option<u32> = None;
+    // The current `g`/`o` name and `usemtl` material: a face's group is the pair's.
+    let mut name = "default".to_string();
+    let mut material: Option<String> = None;
     let mut joined = String::new();
     let mut start_line = 0;
     for (i, raw) in text.lines().enumerate() {
@@ -68,14 +211,21 @@ fn parse(path: &Path, text: &str) -> Result<Parsed> {
             "vn" => p.vn.push(Vec3::from(floats::<3>(&mut words).map_err(at)?)),
             "vt" => p.vt.push(Vec2::from(floats::<2>(&mut words).map_err(at)?)),
             "g" | "o" => {
-                let name = words.collect::<Vec<_>>().join(" ");
-                let name = if name.is_empty() {
+                let n = words.collect::<Vec<_>>().join(" ");
+                name = if n.is_empty() {
                     "default".to_string()
                 } else {
-                    name
+                    n
                 };
-                group = Some(group_index(&mut p.groups, name));
+                // Made at the next face: a name or material without faces is no group.
+                group = None;
             }
+            "usemtl" => {
+                let m = words.collect::<Vec<_>>().join(" ");
+                material = (!m.is_empty()).then_some(m);
+                group = None;
+            }
+            "mtllib" => p.mtllibs.extend(words.map(str::to_string)),
             "f" => {
                 let mut corners = Vec::new();
                 for w in words {
@@ -88,7 +238,7 @@ fn parse(path: &Path, text: &str) -> Result<Parsed> {
                         corners.len()
                     )));
                 }
-                let g = *group.get_or_insert_with(|| group_index(&mut p.groups, "default".into()));
+                let g = *group.get_or_insert_with(|| group_index(&mut p, &name, &material));
                 for k in 1..corners.len() - 1 {
                     p.tris.push(([corners[0], corners[k], corners[k + 1]], g));
                 }
@@ -99,12 +249,19 @@ fn parse(path: &Path, text: &str) -> Result<Parsed> {
     Ok(p)
 }
 
-fn group_index(groups: &mut Vec<String>, name: String) -> u32 {
-    match groups.iter().position(|g| *g == name) {
+/// The group of faces named `name` with material `material` (one per pair).
+fn group_index(p: &mut Parsed, name: &str, material: &Option<String>) -> u32 {
+    let found = p
+        .groups
+        .iter()
+        .zip(&p.group_material)
+        .position(|(g, m)| g == name && m == material);
+    match found {
         Some(i) => i as u32,
         None => {
-            groups.push(name);
-            groups.len() as u32 - 1
+            p.groups.push(name.to_string());
+            p.group_material.push(material.clone());
+            p.groups.len() as u32 - 1
         }
     }
 }
@@ -154,11 +311,11 @@ fn resolve(part: Option<&str>, len: usize, what: &str, word: &str) -> Result<Opt
     Ok(Some(zero_based as u32))
 }
 
-fn build_mesh(path: &Path, p: Parsed) -> Result<BaseMesh> {
+fn build_mesh(path: &Path, p: &Parsed) -> Result<BaseMesh> {
     let mut mesh = BaseMesh {
         source: path.into(),
         up_axis: Some(UpAxis::Y),
-        groups: p.groups,
+        groups: p.groups.clone(),
         ..Default::default()
     };
     let any_uv = p.tris.iter().any(|(c, _)| c.iter().any(|c| c.vt.is_some()));

@@ -642,6 +642,59 @@ fn obj_quads_are_triangulated_and_groups_kept() {
 }
 
 #[test]
+fn obj_materials_come_from_the_mtllib_per_usemtl() {
+    let dir = temp_dir("obj-mtl");
+    let path = dir.join("m.obj");
+    let obj = "mtllib m.mtl missing.mtl\n\
+        v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+        f 1 2 3\n\
+        g body\nusemtl paint\nf 1 2 3\n\
+        usemtl rust metal\nf 1 3 4\n\
+        usemtl nowhere\nf 1 2 4\n\
+        usemtl paint\nf 2 3 4\n";
+    let mtl = "# two materials\n\
+        newmtl paint\nKd 0.5 0.25 0.125\nNs 250\nPr 0.3\n\
+        newmtl rust metal\nKd 0.2 0.2 0.2\nPm 1\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n";
+    std::fs::write(&path, obj).unwrap();
+    std::fs::write(dir.join("m.mtl"), mtl).unwrap();
+    let m = load_mesh(&path, &MeshOptions::default()).unwrap();
+    // One group per name and material: default (none), body/paint, body/rust, body/nowhere.
+    assert_eq!(m.groups, ["default", "body", "body", "body"]);
+    assert_eq!(m.face_group, [0, 1, 2, 3, 1]);
+    assert_eq!(m.materials.len(), 2);
+    let per_face: Vec<u32> = (0..5).map(|t| m.face_material(t)).collect();
+    // No usemtl and an undefined name: the default (index 2).
+    assert_eq!(per_face, [2, 0, 1, 2, 0]);
+    let (paint, rust) = (&m.materials[0], &m.materials[1]);
+    assert_eq!(paint.name, "paint");
+    assert_eq!(paint.base_color, [0.5, 0.25, 0.125, 1.0]);
+    assert_eq!((paint.roughness, paint.metallic), (0.3, 0.0));
+    assert_eq!(paint.base_color_texture, None);
+    assert_eq!(rust.name, "rust metal");
+    // map_Kd replaces Kd (as Blender's importer does); -clamp on clamps; -s is a transform.
+    assert_eq!((rust.base_color, rust.metallic), ([1.0; 4], 1.0));
+    let t = rust.base_color_texture.as_ref().unwrap();
+    assert_eq!(t.name, "tex/rust.png");
+    assert_eq!(t.data, TextureData::File(dir.join("tex/rust.png")));
+    assert_eq!(t.sampler.wrap, [TexWrap::Clamp; 2]);
+    assert!(t.transformed);
+    // Without any mtllib: no materials, every face the default.
+    let bare = dir.join("bare.obj");
+    std::fs::write(&bare, obj.replace("mtllib m.mtl missing.mtl\n", "")).unwrap();
+    let b = load_mesh(&bare, &MeshOptions::default()).unwrap();
+    assert!(b.materials.is_empty() && (0..5).all(|t| b.face_material(t) == 0));
+    // A bad number in the .mtl is an error naming it and its line.
+    std::fs::write(dir.join("m.mtl"), "newmtl x\nKd 1 one 1\n").unwrap();
+    let e = load_mesh(&path, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("m.mtl") && e.contains("line 2") && e.contains("'one'"),
+        "{e}"
+    );
+}
+
+#[test]
 fn obj_file_normals_are_read_and_normalised() {
     let dir = temp_dir("obj-normals");
     let path = dir.join("n.obj");
