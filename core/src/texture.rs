@@ -125,6 +125,10 @@ impl ColorMap {
         };
         let bytes = match &texture.data {
             TextureData::Embedded(b) => std::borrow::Cow::Borrowed(b.as_slice()),
+            // A regular file only: a device named by the asset would never end.
+            TextureData::File(p) if !p.is_file() => {
+                return Err(bad(format!("'{}' is not a file", p.display())))
+            }
             TextureData::File(p) => std::borrow::Cow::Owned(
                 std::fs::read(p).map_err(|e| bad(format!("cannot read '{}': {e}", p.display())))?,
             ),
@@ -373,6 +377,8 @@ mod tests {
             t(TextureData::Embedded(b"not an image".to_vec())),
             t(TextureData::Embedded(b"\x89PNG\r\n\x1a\n\0\0".to_vec())),
             t(TextureData::File("/nonexistent/albedo.png".into())),
+            // A device, which a read would never finish.
+            t(TextureData::File("/dev/zero".into())),
         ];
         for case in &cases {
             let e = ColorMap::load(Path::new("asset.glb"), case)

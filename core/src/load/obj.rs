@@ -89,7 +89,15 @@ fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Ve
     let (mut materials, mut names) = (vec![], vec![]);
     for lib in libs {
         let file = dir.join(lib);
-        let text = match std::fs::read(&file) {
+        // A regular file only: a device (`mtllib ../../dev/zero`) would never end.
+        let read = match file.is_file() {
+            true => std::fs::read(&file),
+            false => Err(std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "no such regular file",
+            )),
+        };
+        let text = match read {
             Ok(b) => String::from_utf8_lossy(&b).into_owned(),
             Err(e) => {
                 eprintln!(

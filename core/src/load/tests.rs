@@ -645,7 +645,8 @@ fn obj_quads_are_triangulated_and_groups_kept() {
 fn obj_materials_come_from_the_mtllib_per_usemtl() {
     let dir = temp_dir("obj-mtl");
     let path = dir.join("m.obj");
-    let obj = "mtllib m.mtl missing.mtl\n\
+    // A device (never-ending) is skipped like a missing file.
+    let obj = "mtllib m.mtl missing.mtl /dev/zero\n\
         v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
         f 1 2 3\n\
         g body\nusemtl paint\nf 1 2 3\n\
@@ -680,7 +681,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert!(t.transformed);
     // Without any mtllib: no materials, every face the default.
     let bare = dir.join("bare.obj");
-    std::fs::write(&bare, obj.replace("mtllib m.mtl missing.mtl\n", "")).unwrap();
+    std::fs::write(&bare, obj.replace("mtllib m.mtl missing.mtl /dev/zero\n", "")).unwrap();
     let b = load_mesh(&bare, &MeshOptions::default()).unwrap();
     assert!(b.materials.is_empty() && (0..5).all(|t| b.face_material(t) == 0));
     // A bad number in the .mtl is an error naming it and its line.
