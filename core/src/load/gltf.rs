@@ -288,7 +288,15 @@ fn read_uri(path: &Path, what: &str, uri: &str) -> Result<Vec<u8>> {
     let rel = percent_decode(uri)
         .ok_or_else(|| Error::invalid(path, format!("{what} has a malformed URI '{uri}'")))?;
     let file = path.parent().unwrap_or(Path::new(".")).join(rel);
-    std::fs::read(&file).map_err(|e| {
+    // A regular file only: a device (`"uri": "/dev/zero"`) would never finish reading.
+    let read = match file.is_file() {
+        true => std::fs::read(&file),
+        false => Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            "no such regular file",
+        )),
+    };
+    read.map_err(|e| {
         Error::invalid(
             path,
             format!(

@@ -554,6 +554,14 @@ fn gltf_glb_and_external_bin_load_like_the_embedded_form() {
     std::fs::remove_file(dir.join("ext data.bin")).unwrap();
     let msg = err_naming_file(load_mesh(&ext_path, &MeshOptions::default()), &ext_path);
     assert!(msg.contains("ext data.bin"), "{msg}");
+    // A device is refused, not read forever.
+    let dev = dir.join("dev.gltf");
+    std::fs::write(&dev, doc.json(&rest, Some("/dev/zero".into())).to_string()).unwrap();
+    let msg = err_naming_file(load_mesh(&dev, &MeshOptions::default()), &dev);
+    assert!(
+        msg.contains("/dev/zero") && msg.contains("regular file"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -681,7 +689,11 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert!(t.transformed);
     // Without any mtllib: no materials, every face the default.
     let bare = dir.join("bare.obj");
-    std::fs::write(&bare, obj.replace("mtllib m.mtl missing.mtl /dev/zero\n", "")).unwrap();
+    std::fs::write(
+        &bare,
+        obj.replace("mtllib m.mtl missing.mtl /dev/zero\n", ""),
+    )
+    .unwrap();
     let b = load_mesh(&bare, &MeshOptions::default()).unwrap();
     assert!(b.materials.is_empty() && (0..5).all(|t| b.face_material(t) == 0));
     // A bad number in the .mtl is an error naming it and its line.
