@@ -20,7 +20,8 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
-use crate::mesh::{BaseMesh, UpAxis};
+use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
+use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use glam::{DMat4, DQuat, DVec3, Mat3, Vec2, Vec3};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, Stage};
@@ -57,6 +58,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                 ..Default::default()
             },
             any_uv_missing: false,
+            material_paths: vec![],
         };
         let root = stage.prim(sdf::Path::abs_root());
         for child in children(path, &root)? {
@@ -626,6 +628,9 @@ struct Loader<'a> {
     stage: &'a Stage,
     mesh: BaseMesh,
     any_uv_missing: bool,
+    /// The material prim of each of `mesh.materials` (a material bound to several meshes is
+    /// read once).
+    material_paths: Vec<sdf::Path>,
 }
 
 /// A primvar expanded to one value per face corner.
@@ -785,7 +790,11 @@ impl Loader<'_> {
             n_points,
             "vertex",
         )?;
-        let uvs = self.corner_uvs(prim, &faces, &indices, n_points)?;
+        let (uvs, uv_name) = match self.corner_uvs(prim, &faces, &indices, n_points)? {
+            Some((uvs, name)) => (Some(uvs), Some(name)),
+            None => (None, None),
+        };
+        let material = self.material_index(prim, uv_name.as_deref())?;
 
         // One vertex per distinct (point, normal, UV) corner.
         let mut key_to_vertex: HashMap<(usize, [u32; 3], [u32; 2]), u32> = HashMap::new();
@@ -817,6 +826,7 @@ impl Loader<'_> {
         }
         let g = self.mesh.groups.len() as u32;
         self.mesh.groups.push(at.to_string());
+        self.mesh.group_material.push(material);
         self.mesh.positions.extend(new_pos);
         self.mesh.normals.extend(new_nrm);
         self.mesh.uvs.extend(new_uv);
@@ -835,7 +845,7 @@ impl Loader<'_> {
         faces: &[(usize, usize)],
         indices: &[i64],
         n_points: usize,
-    ) -> Result<Option<Vec<Vec2>>> {
+    ) -> Result<Option<(Vec<Vec2>, String)>> {
         let path = self.path;
         let mut names: Vec<String> = Vec::new();
         // By name, not `Prim::attributes`: that makes a path of every property name the file
@@ -894,16 +904,51 @@ impl Loader<'_> {
             ));
         };
         let full = format!("primvars:{name}");
-        self.corner_values(
-            prim,
-            &full,
-            vec2_array,
-            "texCoord2f[]",
-            faces,
-            indices,
-            n_points,
-            "constant",
-        )
+        Ok(self
+            .corner_values(
+                prim,
+                &full,
+                vec2_array,
+                "texCoord2f[]",
+                faces,
+                indices,
+                n_points,
+                "constant",
+            )?
+            .map(|uvs| (uvs, name.clone())))
+    }
+
+    /// The index into `mesh.materials` of the material bound to `prim` (read at its first
+    /// mesh), or `u32::MAX` for none (`BaseMesh::face_material` takes it as none). `uv_name`:
+    /// the UV primvar the mesh was loaded with.
+    fn material_index(&mut self, prim: &Prim, uv_name: Option<&str>) -> Result<u32> {
+        // Only the beauty reads materials: one it cannot read is a warning, not a failed load.
+        let found = mesh_material(self.path, self.stage, prim, uv_name).unwrap_or_else(|e| {
+            warn(
+                self.path,
+                &format!("{}: its material is not read: {e}", prim.path()),
+            );
+            None
+        });
+        let Some((at, mut material)) = found else {
+            return Ok(u32::MAX);
+        };
+        if let Some(t) = &mut material.base_color_texture {
+            t.tex_coord = self.opts.uv_set;
+        }
+        if let Some(i) = self.material_paths.iter().position(|p| *p == at) {
+            return Ok(i as u32);
+        }
+        if self.mesh.materials.len() >= MAX_MATERIALS {
+            return Err(prim_err(
+                self.path,
+                &at,
+                format!("is past the {MAX_MATERIALS} materials supported (merge materials)"),
+            ));
+        }
+        self.material_paths.push(at);
+        self.mesh.materials.push(material);
+        Ok(self.mesh.materials.len() as u32 - 1)
     }
 
     /// An attribute or primvar expanded to one value per face corner (`None` when absent).
@@ -1233,6 +1278,140 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
         wrap,
         channel: ["R", "G", "B", "A"][channel].to_string(),
         uv_primvar,
+    }))
+}
+
+/// The material bound to a mesh prim as the beauty reads it, if it is a `UsdPreviewSurface`:
+/// `diffuseColor` (a value, or a `UsdUVTexture`'s `rgb` read through the mesh's UV primvar
+/// `uv_name`), `roughness` and `metallic` (values; UsdPreviewSurface's defaults where
+/// unauthored). Returns the material prim too.
+fn mesh_material(
+    path: &Path,
+    stage: &Stage,
+    prim: &Prim,
+    uv_name: Option<&str>,
+) -> Result<Option<(sdf::Path, MeshMaterial)>> {
+    let Some(material) = bound_material(path, stage, prim.path())? else {
+        return Ok(None);
+    };
+    let out = property_path(path, &material, "outputs:surface")?;
+    let Some((surface, _)) = connected_output(path, stage, &out)? else {
+        return Ok(None);
+    };
+    if info_id(path, stage, &surface)?.as_deref() != Some("UsdPreviewSurface") {
+        return Ok(None);
+    }
+    let float = |name: &str, default: f32| -> Result<f32> {
+        Ok(match input_value(path, stage, &surface, name)? {
+            Some(v) => scalar(&v).map_or(default, |x| (x as f32).clamp(0.0, 1.0)),
+            None => default,
+        })
+    };
+    let mut m = MeshMaterial {
+        name: material.to_string(),
+        // UsdPreviewSurface's default diffuseColor.
+        base_color: [0.18, 0.18, 0.18, 1.0],
+        roughness: float("roughness", 0.5)?,
+        metallic: float("metallic", 0.0)?,
+        base_color_texture: None,
+    };
+    let diffuse = property_path(path, &surface, "inputs:diffuseColor")?;
+    match connected_output(path, stage, &diffuse)? {
+        Some((tex, _)) if info_id(path, stage, &tex)?.as_deref() == Some("UsdUVTexture") => {
+            m.base_color = [1.0; 4];
+            m.base_color_texture = diffuse_texture(path, stage, &tex, uv_name)?;
+        }
+        Some((shader, _)) => warn(
+            path,
+            &format!(
+                "{}: diffuseColor comes from {shader}, not a UsdUVTexture: not read",
+                material
+            ),
+        ),
+        None => {
+            if let Some(c) = input_value(path, stage, &surface, "diffuseColor")?
+                .as_ref()
+                .and_then(vec3)
+            {
+                m.base_color = [c.x as f32, c.y as f32, c.z as f32, 1.0];
+            }
+        }
+    }
+    Ok(Some((material, m)))
+}
+
+/// A `UsdUVTexture` feeding a diffuse colour: its file, wrap modes and colour space; `None`
+/// (with a warning) when it reads another UV primvar than the mesh's `uv_name` or has no file.
+fn diffuse_texture(
+    path: &Path,
+    stage: &Stage,
+    tex: &sdf::Path,
+    uv_name: Option<&str>,
+) -> Result<Option<TextureRef>> {
+    let file = match input_value(path, stage, tex, "file")? {
+        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => {
+            resolve_asset(path, stage, tex, &a)
+        }
+        Some(Value::String(s)) if !s.is_empty() => {
+            resolve_asset(path, stage, tex, &sdf::AssetPath::new(s))
+        }
+        _ => {
+            warn(
+                path,
+                &format!("{tex}: the diffuse texture has no inputs:file: not read"),
+            );
+            return Ok(None);
+        }
+    };
+    let st_in = property_path(path, tex, "inputs:st")?;
+    let primvar = match connected_output(path, stage, &st_in)? {
+        Some((reader, _)) => token_input(path, stage, &reader, "varname")?,
+        None => None,
+    };
+    if let (Some(p), Some(uv)) = (primvar.as_deref(), uv_name) {
+        if p != uv {
+            warn(
+                path,
+                &format!(
+                    "{tex}: the diffuse texture reads primvar '{p}', the mesh is loaded with \
+                     '{uv}': not read (choose its UV set with --uv-set)"
+                ),
+            );
+            return Ok(None);
+        }
+    }
+    let wrap = |name: &str| -> Result<TexWrap> {
+        Ok(match token_input(path, stage, tex, name)?.as_deref() {
+            Some("clamp") | Some("black") => TexWrap::Clamp,
+            Some("mirror") => TexWrap::Mirror,
+            _ => TexWrap::Repeat,
+        })
+    };
+    for (name, identity) in [("scale", 1.0), ("bias", 0.0)] {
+        let v = input_value(path, stage, tex, name)?;
+        if v.as_ref()
+            .and_then(vec4)
+            .is_some_and(|v| v[..3].iter().any(|&x| x != identity))
+        {
+            warn(
+                path,
+                &format!("{tex}: the diffuse texture's inputs:{name} is not applied"),
+            );
+        }
+    }
+    Ok(Some(TextureRef {
+        name: file.file_name().map_or_else(
+            || file.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        ),
+        data: TextureData::File(file),
+        sampler: Sampler {
+            wrap: [wrap("wrapS")?, wrap("wrapT")?],
+            nearest: false,
+        },
+        // The mesh's own UV set (checked above): `Loader::material_index` sets it.
+        tex_coord: 0,
+        transformed: false,
     }))
 }
 

@@ -408,6 +408,105 @@ fn displacement_material_gives_scale_and_midlevel() {
 }
 
 #[test]
+fn preview_surface_materials_are_read_per_mesh() {
+    // Two meshes share a textured material (read once), a third has a constant colour with
+    // roughness and metallic, a fourth none; the texture reads the mesh's own UV primvar.
+    let d = dir("materials");
+    let mesh = |name: &str, material: Option<&str>| {
+        let binding = material.map_or(String::new(), |m| {
+            format!("rel material:binding = </A/Looks/{m}>")
+        });
+        format!(
+            r#"    def Mesh "{name}" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {{
+        int[] faceVertexCounts = [3]
+        int[] faceVertexIndices = [0, 1, 2]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (0, 1)] (
+            interpolation = "vertex"
+        )
+        {binding}
+    }}
+"#
+        )
+    };
+    let text = layer(
+        "Y",
+        &format!(
+            r#"def Xform "A"
+{{
+{}{}{}{}    def Scope "Looks"
+    {{
+        def Material "Stone"
+        {{
+            token outputs:surface.connect = </A/Looks/Stone/Surf.outputs:surface>
+            def Shader "Surf"
+            {{
+                uniform token info:id = "UsdPreviewSurface"
+                color3f inputs:diffuseColor.connect = </A/Looks/Stone/Albedo.outputs:rgb>
+                token outputs:surface
+            }}
+            def Shader "Albedo"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                asset inputs:file = @./tex/stone.png@
+                token inputs:wrapS = "mirror"
+                token inputs:wrapT = "clamp"
+                float2 inputs:st.connect = </A/Looks/Stone/Reader.outputs:result>
+                float3 outputs:rgb
+            }}
+            def Shader "Reader"
+            {{
+                uniform token info:id = "UsdPrimvarReader_float2"
+                string inputs:varname = "st"
+                float2 outputs:result
+            }}
+        }}
+        def Material "Gold"
+        {{
+            token outputs:surface.connect = </A/Looks/Gold/Surf.outputs:surface>
+            def Shader "Surf"
+            {{
+                uniform token info:id = "UsdPreviewSurface"
+                color3f inputs:diffuseColor = (1, 0.75, 0.25)
+                float inputs:roughness = 0.2
+                float inputs:metallic = 1
+                token outputs:surface
+            }}
+        }}
+    }}
+}}"#,
+            mesh("M1", Some("Stone")),
+            mesh("M2", Some("Gold")),
+            mesh("M3", Some("Stone")),
+            mesh("M4", None)
+        ),
+    );
+    let p = write(&d, "a.usda", &text);
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    assert_eq!(m.materials.len(), 2);
+    let per_face: Vec<u32> = (0..4).map(|t| m.face_material(t)).collect();
+    assert_eq!(per_face, [0, 1, 0, 2], "Stone, Gold, Stone again, none");
+    let (stone, gold) = (&m.materials[0], &m.materials[1]);
+    assert_eq!(stone.name, "/A/Looks/Stone");
+    assert_eq!(stone.base_color, [1.0; 4], "the texture alone");
+    assert_eq!(
+        (stone.roughness, stone.metallic),
+        (0.5, 0.0),
+        "the defaults"
+    );
+    let t = stone.base_color_texture.as_ref().unwrap();
+    assert_eq!(t.data, TextureData::File(d.join("./tex/stone.png")));
+    assert_eq!(t.sampler.wrap, [TexWrap::Mirror, TexWrap::Clamp]);
+    assert_eq!((t.name.as_str(), t.tex_coord), ("stone.png", 0));
+    assert_eq!(gold.base_color, [1.0, 0.75, 0.25, 1.0]);
+    assert_eq!((gold.roughness, gold.metallic), (0.2, 1.0));
+    assert_eq!(gold.base_color_texture, None);
+}
+
+#[test]
 fn meshes_without_materials_have_no_displacement() {
     let d = dir("nodisp");
     let p = write(&d, "a.usda", &quad_and_pentagon(""));
