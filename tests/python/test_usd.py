@@ -20,6 +20,7 @@ from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, UsdValidation, Vt
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 MAP = ROOT / "examples" / "maps" / "rock_1024.png"
+ALBEDO = ROOT / "examples" / "maps" / "rock_albedo_256.png"
 SCALE, MIDLEVEL = 0.1, 0.5
 
 # Blender is Z-up; its glTF exporter writes Y-up: glTF (x, y, z) = Blender (x, z, -y).
@@ -195,6 +196,33 @@ def test_usd_core_mesh_loads_with_transforms_and_material(run, tmp_path, ext):
     assert np.allclose(info["bounds_max"], list(box.GetMax()), atol=1e-5), (info, box)
     assert info["uv_min"] == [0.0, 0.0] and info["uv_max"] == [1.0, 1.0]
     assert pathlib.Path(info["map"]["path"]) == MAP
+
+
+@pytest.mark.parametrize("ext", ["usda", "usdc"])
+def test_usd_core_preview_surface_shades_the_beauty(run, tmp_path, ext):
+    """The bound UsdPreviewSurface's diffuse texture (through the mesh's own `st`), roughness
+    and metallic are the beauty's material, from text and binary layers alike."""
+    path = tmp_path / f"panel.{ext}"
+    make_usd_core_mesh(path)
+    stage = Usd.Stage.Open(str(path))
+    surf = UsdShade.Shader.Get(stage, "/World/Looks/M/Surface")
+    reader = UsdShade.Shader.Get(stage, "/World/Looks/M/Reader")
+    albedo = UsdShade.Shader.Define(stage, "/World/Looks/M/Albedo")
+    albedo.CreateIdAttr("UsdUVTexture")
+    albedo.CreateInput("file", Sdf.ValueTypeNames.Asset).Set(Sdf.AssetPath(str(ALBEDO)))
+    albedo.CreateInput("wrapS", Sdf.ValueTypeNames.Token).Set("mirror")
+    albedo.CreateInput("st", Sdf.ValueTypeNames.Float2).ConnectToSource(reader.ConnectableAPI(), "result")
+    surf.CreateInput("diffuseColor", Sdf.ValueTypeNames.Color3f).ConnectToSource(albedo.ConnectableAPI(), "rgb")
+    surf.CreateInput("roughness", Sdf.ValueTypeNames.Float).Set(0.3)
+    surf.CreateInput("metallic", Sdf.ValueTypeNames.Float).Set(0.25)
+    stage.GetRootLayer().Save()
+    proc = run("render", path, "--aov", "beauty", "--res", "32x32", "--spp", "2", "--json",
+               "-o", tmp_path / "out", check=0)
+    (m,) = json.loads(proc.stdout)["materials"]
+    assert m["name"] == "/World/Looks/M" and m["prisms"] >= 3, m
+    assert m["texture"] == "rock_albedo_256.png, 256x256, mirror/repeat, bilinear", m
+    assert m["base_color"] == [1.0, 1.0, 1.0], m
+    assert m["roughness"] == pytest.approx(0.3) and m["metallic"] == pytest.approx(0.25), m
 
 
 def test_broken_usd_files_fail_cleanly(run, blender_sphere, tmp_path):
