@@ -81,4 +81,15 @@ fn inspect_reports_mesh_and_map() {
     let t = run(&["inspect", s(&example("torus/torus.obj"))]);
     t.assert_success();
     assert!(t.stdout.contains("triangles"));
+    // No materials in the OBJ: every triangle the default.
+    assert!(t.stdout.contains("material  'default': "), "{}", t.stdout);
+    // The rock's one material with its texture, over all its triangles.
+    let r = run(&["inspect", s(&example("rock/rock.glb")), "--json"]);
+    let j = r.json();
+    let m = &j["materials"];
+    assert_eq!(m.as_array().unwrap().len(), 1, "{m}");
+    assert_eq!(m[0]["name"], "rock_mat");
+    assert_eq!(m[0]["texture"], "rock_albedo");
+    assert_eq!(m[0]["triangles"], j["triangles"]);
+    assert_eq!(m[0]["roughness"].as_f64().unwrap() as f32, 0.7);
 }

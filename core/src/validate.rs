@@ -438,6 +438,54 @@ pub struct InspectInfo {
     /// UV seams of the repaired mesh and their height jump (with a map).
     pub seam_edges: usize,
     pub seams: Option<SeamReport>,
+    /// The file's materials as the beauty reads them (docs/materials.md), with their triangle
+    /// counts; triangles without one are `default` (listed when there are some).
+    pub materials: Vec<MaterialInfo>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct MaterialInfo {
+    pub name: String,
+    pub triangles: usize,
+    pub base_color: [f32; 3],
+    pub roughness: f32,
+    pub metallic: f32,
+    /// The base-colour texture's name (not decoded here: `validate`'s `textures` check does).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub texture: Option<String>,
+}
+
+/// The materials of `mesh` with their triangle counts, then `default` if some triangle has none.
+fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
+    let mut count = vec![0usize; mesh.materials.len() + 1];
+    for t in 0..mesh.triangle_count() {
+        count[mesh.face_material(t) as usize] += 1;
+    }
+    let mut out: Vec<MaterialInfo> = mesh
+        .materials
+        .iter()
+        .zip(&count)
+        .map(|(m, &triangles)| MaterialInfo {
+            name: m.name.clone(),
+            triangles,
+            base_color: [m.base_color[0], m.base_color[1], m.base_color[2]],
+            roughness: m.roughness,
+            metallic: m.metallic,
+            texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
+        })
+        .collect();
+    let none = count[mesh.materials.len()];
+    if none > 0 {
+        out.push(MaterialInfo {
+            name: "default".into(),
+            triangles: none,
+            base_color: crate::render::lookdev::DEFAULT_BASE_COLOR.to_array(),
+            roughness: crate::render::lookdev::DEFAULT_ROUGHNESS,
+            metallic: crate::render::lookdev::DEFAULT_METALLIC,
+            texture: None,
+        });
+    }
+    out
 }
 
 impl InspectInfo {
@@ -465,6 +513,17 @@ impl InspectInfo {
                 j.seam_edges, j.wrap_seams, j.max_jump, 100.0 * j.max_jump_rel, j.rms_jump
             )),
             None => s.push_str(&format!("seams     {} UV seam edges\n", self.seam_edges)),
+        }
+        for m in &self.materials {
+            let [r, g, b] = m.base_color;
+            let texture = m
+                .texture
+                .as_ref()
+                .map_or(String::new(), |t| format!(" x texture {t}"));
+            s.push_str(&format!(
+                "material  '{}': {} triangles, base colour ({r}, {g}, {b}){texture}, roughness {}, metallic {}\n",
+                m.name, m.triangles, m.roughness, m.metallic
+            ));
         }
         s
     }
@@ -566,6 +625,7 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         map,
         seam_edges: repaired.seams.len(),
         seams,
+        materials: material_infos(&mesh),
     })
 }
 
