@@ -15,6 +15,12 @@ use std::path::{Path, PathBuf};
 
 /// Largest texture side accepted (the height map's bound, `load::image::MAX_MAP_DIMENSION`).
 pub const MAX_TEXTURE_DIMENSION: u32 = crate::load::image::MAX_MAP_DIMENSION;
+/// Most texels a texture may have: 16k², 3 GiB of linear texels.
+pub const MAX_TEXTURE_TEXELS: u64 = 1 << 28;
+/// Texels a JPEG may declare per byte of its file (beyond the first 2^20): even a flat one
+/// spends about a bit per 8 × 8 block on its DC scan (a flat 16k² image: 0.5 MB or more), while
+/// a corrupt header declaring 30k² texels in 600 bytes is refused before anything is decoded.
+const JPEG_TEXELS_PER_BYTE: u64 = 1024;
 
 /// Bound on continuous texel coordinates before they become integers (the GPU's
 /// `TEXEL_COORD_BOUND`).
@@ -133,36 +139,75 @@ impl ColorMap {
                 std::fs::read(p).map_err(|e| bad(format!("cannot read '{}': {e}", p.display())))?,
             ),
         };
-        let mut reader = ImageReader::new(std::io::Cursor::new(&bytes[..]))
-            .with_guessed_format()
-            .map_err(|e| bad(e.to_string()))?;
-        match reader.format() {
-            Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) => {}
-            Some(f) => {
-                return Err(bad(format!(
-                    "is {f:?}; glTF base-colour textures are PNG or JPEG"
-                )))
+        let reader = || -> Result<ImageReader<std::io::Cursor<&[u8]>>> {
+            let mut reader = ImageReader::new(std::io::Cursor::new(&bytes[..]))
+                .with_guessed_format()
+                .map_err(|e| bad(e.to_string()))?;
+            match reader.format() {
+                Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) => {}
+                Some(f) => {
+                    return Err(bad(format!(
+                        "is {f:?}; glTF base-colour textures are PNG or JPEG"
+                    )))
+                }
+                None => return Err(bad("is neither PNG nor JPEG".into())),
             }
-            None => return Err(bad("is neither PNG nor JPEG".into())),
-        }
-        let mut limits = Limits::default();
-        limits.max_image_width = Some(MAX_TEXTURE_DIMENSION);
-        limits.max_image_height = Some(MAX_TEXTURE_DIMENSION);
-        // The decoded image and its f32 copy: 4 GiB covers 16k² RGBA8.
-        limits.max_alloc = Some(4 << 30);
-        reader.limits(limits);
-        let image = reader
-            .decode()
+            let mut limits = Limits::default();
+            limits.max_image_width = Some(MAX_TEXTURE_DIMENSION);
+            limits.max_image_height = Some(MAX_TEXTURE_DIMENSION);
+            // The decoded image: 4 GiB covers 16k² RGBA8 (and 16-bit RGB up to 26k²).
+            limits.max_alloc = Some(4 << 30);
+            reader.limits(limits);
+            Ok(reader)
+        };
+        // The header's size first: the JPEG decoder fills in missing image data, so a corrupt
+        // few hundred bytes can declare (and decode to) 30k² texels (found by fuzzing). PNG's
+        // fails on missing data instead, and a flat palette PNG may well hold 8k texels a byte.
+        let head = reader()?;
+        let jpeg = head.format() == Some(::image::ImageFormat::Jpeg);
+        let (width, height) = head
+            .into_dimensions()
             .map_err(|e| bad(format!("cannot decode: {e}")))?;
-        let (width, height) = (image.width(), image.height());
-        if width == 0 || height == 0 {
+        let count = width as u64 * height as u64;
+        if count == 0 {
             return Err(bad(format!("is {width}x{height} texels")));
         }
-        let texels = image
-            .to_rgb32f()
-            .pixels()
-            .map(|p| Vec3::from_array(p.0.map(srgb_to_linear)))
-            .collect();
+        if count > MAX_TEXTURE_TEXELS {
+            return Err(bad(format!(
+                "is {width}x{height} texels, more than the {MAX_TEXTURE_TEXELS} supported \
+                 (downsample it)"
+            )));
+        }
+        if jpeg && count > JPEG_TEXELS_PER_BYTE * bytes.len() as u64 + (1 << 20) {
+            return Err(bad(format!(
+                "its header says {width}x{height} texels, more than its {} bytes can hold: it \
+                 is truncated or corrupt",
+                bytes.len()
+            )));
+        }
+        // A decoder panic (zune-jpeg 0.5.15 on some corrupt JPEGs, found by fuzzing) is this
+        // texture's error, not the program's.
+        let image = reader()?;
+        let image = crate::load::catch_quietly(|| image.decode())
+            .ok_or_else(|| bad("the image decoder crashed on it: it is corrupt".into()))?
+            .map_err(|e| bad(format!("cannot decode: {e}")))?;
+        if (image.width(), image.height()) != (width, height) {
+            return Err(bad("decodes to another size than its header says".into()));
+        }
+        // Straight to linear texels: 8-bit images through a table, others through f32.
+        let texels: Vec<Vec3> = match &image {
+            ::image::DynamicImage::ImageRgb8(b) => {
+                let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0));
+                b.pixels()
+                    .map(|p| Vec3::from_array(p.0.map(|c| lut[c as usize])))
+                    .collect()
+            }
+            other => other
+                .to_rgb32f()
+                .pixels()
+                .map(|p| Vec3::from_array(p.0.map(srgb_to_linear)))
+                .collect(),
+        };
         Ok(ColorMap {
             width,
             height,

@@ -141,3 +141,67 @@ fn usdc_corpus_loads_or_fails_cleanly() {
         drop(load::load_mesh(p, &MeshOptions::default()))
     });
 }
+
+fn load_texture(bytes: &[u8]) -> prismbake::Result<prismbake::texture::ColorMap> {
+    use prismbake::texture::{ColorMap, Sampler, TextureData, TextureRef};
+    ColorMap::load(
+        Path::new("fuzz.glb"),
+        &TextureRef {
+            name: "fuzz".into(),
+            data: TextureData::Embedded(bytes.to_vec()),
+            sampler: Sampler::default(),
+            tex_coord: 0,
+            transformed: false,
+        },
+    )
+}
+
+/// zune-jpeg 0.5.15 (the JPEG decoder of `image`) panics in its AVX2 IDCT
+/// (`idct/avx2.rs:246`, an `Option::unwrap`) on a 16×8 baseline JPEG whose third component
+/// samples 2×3 against the luma's 1×1 (found by the `texture` target in its first seconds):
+/// the texture's error, printed as such, not a crash.
+#[test]
+fn a_jpeg_decoder_panic_is_the_textures_error() {
+    let bytes = include_bytes!("../../fuzz/corpus/texture/regression-zune-jpeg-idct-panic.jpg");
+    let e = load_texture(bytes).unwrap_err().to_string();
+    assert!(e.contains("'fuzz'") && e.contains("crashed"), "{e}");
+}
+
+/// The JPEG decoder fills in missing image data: 517 and 651 corrupt bytes declared 18960 ×
+/// 32561 and 15632 × 9736 texels and decoded to them (7–30 GB on the way; found by the
+/// `texture` target as out-of-memory inputs). Refused from the header, before decoding: the
+/// first by the texel cap, the second by what 651 bytes can hold.
+#[test]
+fn a_jpeg_header_declaring_more_texels_than_its_bytes_hold_is_refused() {
+    for bytes in [
+        &include_bytes!("../../fuzz/corpus/texture/regression-huge-jpeg-header.jpg")[..],
+        &include_bytes!("../../fuzz/corpus/texture/regression-huge-jpeg-header-2.jpg")[..],
+    ] {
+        let e = load_texture(bytes).unwrap_err().to_string();
+        assert!(e.contains("x") && e.contains("texels, more than"), "{e}");
+    }
+    let e = load_texture(include_bytes!(
+        "../../fuzz/corpus/texture/regression-huge-jpeg-header-2.jpg"
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("15632x9736") && e.contains("more than its 651 bytes"),
+        "{e}"
+    );
+}
+
+#[test]
+fn texture_corpus_decodes_or_fails_cleanly() {
+    let mut decoded = 0;
+    for (_, bytes) in corpus("texture") {
+        if let Ok(m) = load_texture(&bytes) {
+            assert_eq!(m.texels.len(), m.width as usize * m.height as usize);
+            decoded += 1;
+        }
+    }
+    assert!(
+        decoded >= 10,
+        "the corpus keeps its seeds ({decoded} decode)"
+    );
+}

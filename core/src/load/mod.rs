@@ -30,6 +30,36 @@ pub struct MapOptions {
     pub wrap: Wrap,
 }
 
+/// Run `f`, turning a panic into `None`: for third-party readers that may panic on corrupt
+/// input (openusd, a JPEG decoder). The panic is expected there, so it prints nothing; every
+/// other panic still reaches the hook that was there before.
+pub(crate) fn catch_quietly<T>(f: impl FnOnce() -> T) -> Option<T> {
+    quiet_panics();
+    let was = QUIET.with(|q| q.replace(true));
+    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    QUIET.with(|q| q.set(was));
+    r.ok()
+}
+
+thread_local! {
+    /// Set while `catch_quietly` runs: a panic on this thread is the reader's, and is caught.
+    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Chain a panic hook, once, that stays silent for panics inside `catch_quietly` and hands
+/// every other panic to the hook that was there before.
+fn quiet_panics() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(|q| q.get()) {
+                previous(info);
+            }
+        }));
+    });
+}
+
 pub const MESH_EXTENSIONS: &str = ".gltf, .glb, .obj, .usda, .usdc or .usd";
 
 /// Load a mesh by extension.

@@ -100,38 +100,16 @@ pub fn displacement(path: &Path) -> Result<Option<UsdDisplacement>> {
 }
 
 /// openusd may panic on some corrupt inputs: turn that into an error naming the file. The
-/// panic is expected here, so it prints nothing (`quiet_panics`): the user sees the error only.
+/// panic is expected here, so it prints nothing (`super::catch_quietly`): the user sees the
+/// error only.
 fn guarded<T>(path: &Path, f: impl FnOnce() -> Result<T>) -> Result<T> {
-    quiet_panics();
-    let was = QUIET.with(|q| q.replace(true));
-    let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
-    QUIET.with(|q| q.set(was));
-    r.unwrap_or_else(|_| {
+    super::catch_quietly(f).unwrap_or_else(|| {
         Err(Error::invalid(
             path,
             "the USD reader (openusd 0.6) crashed on this file: it is corrupt or uses a feature \
              the reader lacks (re-export it, or convert it with `usdcat -o file.usda`)",
         ))
     })
-}
-
-thread_local! {
-    /// Set while `guarded` runs: a panic on this thread is the reader's, and is caught.
-    static QUIET: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
-/// Chain a panic hook, once, that stays silent for panics inside `guarded` and hands every
-/// other panic to the hook that was there before.
-fn quiet_panics() {
-    static ONCE: std::sync::Once = std::sync::Once::new();
-    ONCE.call_once(|| {
-        let previous = std::panic::take_hook();
-        std::panic::set_hook(Box::new(move |info| {
-            if !QUIET.with(|q| q.get()) {
-                previous(info);
-            }
-        }));
-    });
 }
 
 /// Deepest `{`, `(` or `[` nesting accepted in a text layer. openusd's text parser and its
