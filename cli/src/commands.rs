@@ -469,14 +469,15 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
         );
     }
     for m in &summary.materials {
-        let [r, g, b] = m.base_color;
-        let texture = m
-            .texture
-            .as_ref()
-            .map_or(String::new(), |t| format!(" x texture {t}"));
+        let what = prismbake::render::lookdev::describe_material(
+            m.base_color,
+            m.texture.as_deref(),
+            m.roughness,
+            m.metallic,
+        );
         eprintln!(
-            "beauty material '{}' ({} prisms): base colour ({r}, {g}, {b}){texture}, roughness {}, metallic {}, specular {}",
-            m.name, m.prisms, m.roughness, m.metallic, m.specular
+            "beauty material '{}' ({} prisms): {what}, specular {}",
+            m.name, m.prisms, m.specular
         );
     }
     if let Some(d) = &summary.denoiser {

@@ -515,14 +515,15 @@ impl InspectInfo {
             None => s.push_str(&format!("seams     {} UV seam edges\n", self.seam_edges)),
         }
         for m in &self.materials {
-            let [r, g, b] = m.base_color;
-            let texture = m
-                .texture
-                .as_ref()
-                .map_or(String::new(), |t| format!(" x texture {t}"));
+            let what = crate::render::lookdev::describe_material(
+                m.base_color,
+                m.texture.as_deref(),
+                m.roughness,
+                m.metallic,
+            );
             s.push_str(&format!(
-                "material  '{}': {} triangles, base colour ({r}, {g}, {b}){texture}, roughness {}, metallic {}\n",
-                m.name, m.triangles, m.roughness, m.metallic
+                "material  '{}': {} triangles, {what}\n",
+                m.name, m.triangles
             ));
         }
         s

@@ -181,6 +181,19 @@ pub struct MaterialSummary {
     pub texture: Option<String>,
 }
 
+/// A material for people: "base colour (r, g, b) x texture T, roughness R, metallic M" (the
+/// render's summary lines, `inspect`).
+pub fn describe_material(
+    base_color: [f32; 3],
+    texture: Option<&str>,
+    roughness: f32,
+    metallic: f32,
+) -> String {
+    let [r, g, b] = base_color;
+    let texture = texture.map_or(String::new(), |t| format!(" x texture {t}"));
+    format!("base colour ({r}, {g}, {b}){texture}, roughness {roughness}, metallic {metallic}")
+}
+
 /// The summaries of the materials of `scene` some prism has, in their order.
 fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<MaterialSummary> {
     let mut prisms = vec![0usize; scene.materials.len()];
