@@ -14,6 +14,7 @@ use crate::heightmap::{HeightMap, Wrap};
 use crate::load;
 use crate::mesh::BaseMesh;
 use crate::prism_file;
+use crate::render::lookdev::{texture_note, texture_readable};
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
 use crate::seam::{measure_seams, SeamReport};
@@ -128,19 +129,9 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
         let Some(t) = &m.base_color_texture else {
             continue;
         };
-        if t.tex_coord != uv_set {
-            warnings.push(format!(
-                "material '{}': its texture '{}' reads TEXCOORD_{}, the asset UV set {uv_set}: \
-                 renders shade with its colour factor (set uv_set = {} in the sidecar)",
-                m.name, t.name, t.tex_coord, t.tex_coord
-            ));
+        warnings.extend(texture_note(m, uv_set));
+        if !texture_readable(t, uv_set) {
             continue;
-        }
-        if t.transformed {
-            warnings.push(format!(
-                "material '{}': KHR_texture_transform is not applied to '{}'",
-                m.name, t.name
-            ));
         }
         match ColorMap::load(&mesh.source, t) {
             Ok(c) => read.push(format!("'{}' {}x{}", c.name, c.width, c.height)),

@@ -29,7 +29,7 @@ use crate::bake::{self, BakeOptions, RebakeStats};
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
 use crate::load::{self, MapOptions};
-use crate::mesh::UpAxis;
+use crate::mesh::{MeshMaterial, UpAxis};
 use crate::repair;
 use crate::table_cache;
 use crate::texture::{ColorMap, TextureRef};
@@ -294,34 +294,41 @@ pub struct Session {
 
 /// Whether the beauty reads a material's base-colour texture: only through the UV set the
 /// asset is loaded with (`uv_set`), the one every hit carries.
-fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
+pub fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
     texture.tex_coord == uv_set
 }
 
-/// What the beauty does not take from the asset's materials, if anything: a base-colour
-/// texture read through another UV set than the asset's (`uv_set`), and texture transforms.
-pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<String> {
-    let mut notes = vec![];
-    for m in &mesh.materials {
-        let Some(t) = &m.base_color_texture else {
-            continue;
-        };
-        let c = m.base_color;
-        if !texture_readable(t, uv_set) {
-            notes.push(format!(
-                "material '{}': its base-colour texture ({}) reads TEXCOORD_{} but the asset is \
-                 loaded with UV set {uv_set}: it is not read, the beauty shades with its colour \
-                 factor ({}, {}, {}) (the sidecar's uv_set = {} reads it)",
-                m.name, t.name, t.tex_coord, c[0], c[1], c[2], t.tex_coord
-            ));
-        } else if t.transformed {
-            notes.push(format!(
-                "material '{}': the file uses KHR_texture_transform, which is not applied to \
-                 its base-colour texture ({})",
-                m.name, t.name
-            ));
-        }
+/// What the beauty does not take from material `m`'s base-colour texture, if anything: the
+/// texture itself where it reads another UV set than the asset's (`uv_set`), its transform
+/// (`render`'s warning, `validate`'s `textures` check).
+pub fn texture_note(m: &MeshMaterial, uv_set: u32) -> Option<String> {
+    let t = m.base_color_texture.as_ref()?;
+    let c = m.base_color;
+    if !texture_readable(t, uv_set) {
+        Some(format!(
+            "material '{}': its base-colour texture ({}) reads TEXCOORD_{} but the asset is \
+             loaded with UV set {uv_set}: it is not read, the beauty shades with its colour \
+             factor ({}, {}, {}) (the sidecar's uv_set = {} reads it)",
+            m.name, t.name, t.tex_coord, c[0], c[1], c[2], t.tex_coord
+        ))
+    } else if t.transformed {
+        Some(format!(
+            "material '{}': the file uses KHR_texture_transform, which is not applied to its \
+             base-colour texture ({})",
+            m.name, t.name
+        ))
+    } else {
+        None
     }
+}
+
+/// What the beauty does not take from the asset's materials, if anything (`texture_note`).
+pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<String> {
+    let notes: Vec<String> = mesh
+        .materials
+        .iter()
+        .filter_map(|m| texture_note(m, uv_set))
+        .collect();
     (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets one colour)")
 }
 
@@ -349,17 +356,24 @@ struct AssetMaterials {
     textures: Vec<ColorMap>,
 }
 
+impl AssetMaterial {
+    /// The material of triangles without one.
+    fn default_grey() -> Self {
+        AssetMaterial {
+            name: "default".into(),
+            base_color: DEFAULT_BASE_COLOR,
+            roughness: DEFAULT_ROUGHNESS,
+            metallic: DEFAULT_METALLIC,
+            texture: None,
+        }
+    }
+}
+
 impl AssetMaterials {
     /// The default material alone (no asset materials, or no beauty to shade).
     fn plain() -> Self {
         AssetMaterials {
-            list: vec![AssetMaterial {
-                name: "default".into(),
-                base_color: DEFAULT_BASE_COLOR,
-                roughness: DEFAULT_ROUGHNESS,
-                metallic: DEFAULT_METALLIC,
-                texture: None,
-            }],
+            list: vec![AssetMaterial::default_grey()],
             textures: vec![],
         }
     }
@@ -374,17 +388,19 @@ fn asset_materials(
     job: &RenderJob,
     opts: &LookdevOptions,
 ) -> Result<AssetMaterials> {
-    let mut out = AssetMaterials::plain();
     if !job.aovs.contains(&Aov::Beauty) {
-        return Ok(out);
+        return Ok(AssetMaterials::plain());
     }
+    let mut out = AssetMaterials {
+        list: vec![],
+        textures: vec![],
+    };
     let read_textures = opts.base_color.is_none();
     if read_textures {
         if let Some(w) = material_warning(mesh, spec.uv_set) {
             eprintln!("warning: {}: {w}", mesh.source.display());
         }
     }
-    let default = out.list.pop().expect("the default material");
     let mut decoded: Vec<&TextureRef> = vec![];
     for m in &mesh.materials {
         let texture = match &m.base_color_texture {
@@ -409,7 +425,7 @@ fn asset_materials(
             texture,
         });
     }
-    out.list.push(default);
+    out.list.push(AssetMaterial::default_grey());
     Ok(out)
 }
 
