@@ -131,12 +131,9 @@ impl ColorMap {
         };
         let bytes = match &texture.data {
             TextureData::Embedded(b) => std::borrow::Cow::Borrowed(b.as_slice()),
-            // A regular file only: a device named by the asset would never end.
-            TextureData::File(p) if !p.is_file() => {
-                return Err(bad(format!("'{}' is not a file", p.display())))
-            }
             TextureData::File(p) => std::borrow::Cow::Owned(
-                std::fs::read(p).map_err(|e| bad(format!("cannot read '{}': {e}", p.display())))?,
+                crate::load::read_named_file(p)
+                    .map_err(|e| bad(format!("cannot read '{}': {e}", p.display())))?,
             ),
         };
         let reader = || -> Result<ImageReader<std::io::Cursor<&[u8]>>> {

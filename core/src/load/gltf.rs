@@ -8,7 +8,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, SceneCamera, UpAxis, MAX_MATERIALS};
+use crate::mesh::{BaseMesh, MeshMaterial, SceneCamera, UpAxis};
 use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
@@ -23,15 +23,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     }
     let doc = parse_gltf(path, &bytes)?;
     let buffers = load_buffers(path, &doc)?;
-    if doc.materials().len() > MAX_MATERIALS {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "has {} materials, more than the {MAX_MATERIALS} supported (merge materials)",
-                doc.materials().len()
-            ),
-        ));
-    }
+    super::check_material_count(path, doc.materials().len())?;
     let mut loader = Loader {
         path,
         opts,
@@ -288,15 +280,7 @@ fn read_uri(path: &Path, what: &str, uri: &str) -> Result<Vec<u8>> {
     let rel = percent_decode(uri)
         .ok_or_else(|| Error::invalid(path, format!("{what} has a malformed URI '{uri}'")))?;
     let file = path.parent().unwrap_or(Path::new(".")).join(rel);
-    // A regular file only: a device (`"uri": "/dev/zero"`) would never finish reading.
-    let read = match file.is_file() {
-        true => std::fs::read(&file),
-        false => Err(std::io::Error::new(
-            std::io::ErrorKind::NotFound,
-            "no such regular file",
-        )),
-    };
-    read.map_err(|e| {
+    super::read_named_file(&file).map_err(|e| {
         Error::invalid(
             path,
             format!(

@@ -30,6 +30,33 @@ pub struct MapOptions {
     pub wrap: Wrap,
 }
 
+/// A mesh file may have at most `MAX_MATERIALS` materials (a prism keeps its material's index
+/// in 24 bits of its flags).
+pub(crate) fn check_material_count(path: &Path, count: usize) -> Result<()> {
+    if count > crate::mesh::MAX_MATERIALS {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "has {count} materials, more than the {} supported (merge materials)",
+                crate::mesh::MAX_MATERIALS
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The bytes of a file an asset names (a glTF buffer or image, an OBJ material library): a
+/// regular file only, since a device (`/dev/zero`) would never finish reading.
+pub(crate) fn read_named_file(file: &Path) -> std::io::Result<Vec<u8>> {
+    if !file.is_file() {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            "no such regular file",
+        ));
+    }
+    std::fs::read(file)
+}
+
 /// Run `f`, turning a panic into `None`: for third-party readers that may panic on corrupt
 /// input (openusd, a JPEG decoder). The panic is expected there, so it prints nothing; every
 /// other panic still reaches the hook that was there before.

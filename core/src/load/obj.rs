@@ -17,7 +17,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
+use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
 use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -89,15 +89,7 @@ fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Ve
     let (mut materials, mut names) = (vec![], vec![]);
     for lib in libs {
         let file = dir.join(lib);
-        // A regular file only: a device (`mtllib ../../dev/zero`) would never end.
-        let read = match file.is_file() {
-            true => std::fs::read(&file),
-            false => Err(std::io::Error::new(
-                std::io::ErrorKind::NotFound,
-                "no such regular file",
-            )),
-        };
-        let text = match read {
+        let text = match super::read_named_file(&file) {
             Ok(b) => String::from_utf8_lossy(&b).into_owned(),
             Err(e) => {
                 eprintln!(
@@ -110,15 +102,7 @@ fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Ve
         };
         parse_mtl(&file, &text, &mut materials, &mut names)?;
     }
-    if materials.len() > MAX_MATERIALS {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "has {} materials, more than the {MAX_MATERIALS} supported (merge materials)",
-                materials.len()
-            ),
-        ));
-    }
+    super::check_material_count(path, materials.len())?;
     Ok((materials, names))
 }
 
