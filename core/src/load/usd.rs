@@ -1173,20 +1173,12 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
             ))
         }
     };
-    let file = match input_value(path, stage, &tex, "file")? {
-        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => {
-            resolve_asset(path, stage, &tex, &a)
-        }
-        Some(Value::String(s)) if !s.is_empty() => {
-            resolve_asset(path, stage, &tex, &sdf::AssetPath::new(s))
-        }
-        _ => {
-            return Err(prim_err(
-                path,
-                &tex,
-                "the displacement texture has no inputs:file (set the height map's path)",
-            ));
-        }
+    let Some(file) = texture_file(path, stage, &tex)? else {
+        return Err(prim_err(
+            path,
+            &tex,
+            "the displacement texture has no inputs:file (set the height map's path)",
+        ));
     };
     let four = |name: &str, default: [f64; 4]| -> Result<[f64; 4]> {
         Ok(match input_value(path, stage, &tex, name)? {
@@ -1326,20 +1318,12 @@ fn diffuse_texture(
     tex: &sdf::Path,
     uv_name: Option<&str>,
 ) -> Result<Option<TextureRef>> {
-    let file = match input_value(path, stage, tex, "file")? {
-        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => {
-            resolve_asset(path, stage, tex, &a)
-        }
-        Some(Value::String(s)) if !s.is_empty() => {
-            resolve_asset(path, stage, tex, &sdf::AssetPath::new(s))
-        }
-        _ => {
-            warn(
-                path,
-                &format!("{tex}: the diffuse texture has no inputs:file: not read"),
-            );
-            return Ok(None);
-        }
+    let Some(file) = texture_file(path, stage, tex)? else {
+        warn(
+            path,
+            &format!("{tex}: the diffuse texture has no inputs:file: not read"),
+        );
+        return Ok(None);
     };
     let st_in = property_path(path, tex, "inputs:st")?;
     let primvar = match connected_output(path, stage, &st_in)? {
@@ -1391,6 +1375,20 @@ fn diffuse_texture(
         tex_coord: 0,
         transformed: false,
     }))
+}
+
+/// A `UsdUVTexture`'s `inputs:file` (an asset path or a string), resolved; `None` when unset
+/// or empty.
+fn texture_file(path: &Path, stage: &Stage, tex: &sdf::Path) -> Result<Option<PathBuf>> {
+    Ok(match input_value(path, stage, tex, "file")? {
+        Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => {
+            Some(resolve_asset(path, stage, tex, &a))
+        }
+        Some(Value::String(s)) if !s.is_empty() => {
+            Some(resolve_asset(path, stage, tex, &sdf::AssetPath::new(s)))
+        }
+        _ => None,
+    })
 }
 
 /// An asset path, resolved by openusd if it did, else relative to the layer that authored it.
