@@ -13,25 +13,39 @@ fn render_aovs(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= frame.tile_size.x || gid.y >= frame.tile_size.y) {
         return;
     }
+    let job = aov_ray(gid.xy);
+    let hit = intersect(job.ray, job.ctx);
+    if (hit.prism != NO_PRISM) {
+        aov_add(gid.y * frame.tile_size.x + gid.x, hit);
+    }
+}
+
+// The camera ray of tile pixel `gid` for the dispatch's sample, and its random-number context.
+struct AovRay {
+    ray: Ray,
+    ctx: RayContext,
+}
+
+fn aov_ray(gid: vec2<u32>) -> AovRay {
     let x = frame.tile_origin.x + gid.x;
     let y = frame.tile_origin.y + gid.y;
     let pixel = y * frame.width + x;
     let sample = frame.sample_index;
     let jitter = pixel_jitter(pixel, sample);
     let ray = camera_ray(vec2f(f32(x), f32(y)) + jitter);
-    let ctx = RayContext(pixel, sample, 0u, frame.seed);
-    let hit = intersect(ray, ctx);
-    let i = gid.y * frame.tile_size.x + gid.x;
-    if (hit.prism != NO_PRISM) {
-        var acc = aov_out[i];
-        acc.hits += 1.0;
-        acc.depth_sum += hit.t;
-        acc.normal_sum += hit.shading_normal;
-        acc.uv_sum += hit.uv;
-        acc.steps_sum += f32(hit.steps);
-        if (acc.hits == 1.0) {
-            acc.prism = hit.prism + 1u;
-        }
-        aov_out[i] = acc;
+    return AovRay(ray, RayContext(pixel, sample, 0u, frame.seed));
+}
+
+// Add a hit to pixel `i`'s sums.
+fn aov_add(i: u32, hit: Hit) {
+    var acc = aov_out[i];
+    acc.hits += 1.0;
+    acc.depth_sum += hit.t;
+    acc.normal_sum += hit.shading_normal;
+    acc.uv_sum += hit.uv;
+    acc.steps_sum += f32(hit.steps);
+    if (acc.hits == 1.0) {
+        acc.prism = hit.prism + 1u;
     }
+    aov_out[i] = acc;
 }

@@ -139,6 +139,7 @@ fn auto_renders_beauty_on_the_gpu_from_the_cpu_table_cache() {
     let (cpu, _) = render("cpu", "mask");
     assert_eq!(cpu["table_cache"]["cache"], "stored", "{cpu}");
     assert!(cpu.get("gpu_tile").is_none(), "{cpu}");
+    assert!(cpu.get("gpu_walk").is_none(), "{cpu}");
     let (auto, stderr) = render("auto", "beauty");
     assert!(
         stderr.contains("device: gpu ("),
@@ -151,6 +152,11 @@ fn auto_renders_beauty_on_the_gpu_from_the_cpu_table_cache() {
         .as_u64()
         .unwrap_or_else(|| panic!("{auto}"));
     assert!(tile % 8 == 0 && (64..=2048).contains(&tile), "{auto}");
+    // The AOV kernel's walk (GpuContext::aov_walk) is reported.
+    assert!(
+        matches!(auto["gpu_walk"].as_str(), Some("ray" | "packet")),
+        "{auto}"
+    );
     // A software adapter (lavapipe in CI: "…, Cpu, …" in its description) says that the CPU
     // renderer is the faster device there; a GPU does not.
     let software = auto["device"].as_str().unwrap().contains(", Cpu,");

@@ -240,6 +240,10 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
             .ok(),
     };
     if let Some(ctx) = &gpu {
+        let walk = match aovs.iter().any(|a| *a != Aov::Beauty) {
+            true => format!(", AOV walk {}", ctx.aov_walk().name()),
+            false => String::new(),
+        };
         let schedule = match (aovs.contains(&Aov::Beauty), ctx.beauty_schedule()) {
             (false, _) => String::new(),
             (true, s @ prismbake_gpu::BeautySchedule::Wavefront) => format!(
@@ -249,7 +253,10 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
             ),
             (true, s) => format!(", beauty schedule {}", s.name()),
         };
-        eprintln!("device: gpu ({}){schedule}", ctx.adapter_description());
+        eprintln!(
+            "device: gpu ({}){walk}{schedule}",
+            ctx.adapter_description()
+        );
         if ctx.is_software() {
             eprintln!(
                 "note: {} is a software adapter (its kernels run on this machine's CPU); --device cpu renders the same images faster here (1.7-3.8x on the example assets, docs/gpu.md)",

@@ -133,6 +133,7 @@ pub fn run(
     let mut summary = lookdev::render_all(job, look, &session, &frames, progress)?;
     summary.render.setup_seconds += upload_seconds;
     summary.render.gpu_tile = Some(ctx.tile());
+    summary.render.gpu_walk = Some(ctx.aov_walk().name());
     Ok(summary)
 }
 

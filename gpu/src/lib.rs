@@ -1,13 +1,14 @@
 //! prismbake on the GPU: wgpu compute kernels that trace the same displaced surface as the CPU
 //! renderer, with the same hit records and the same random numbers.
 //!
-//! * `GpuContext::new()` — adapter, device, the AOV pipeline and persistent buffers, built
-//!   once (the beauty pipeline on first use). Any wgpu adapter works, software ones included
+//! * `GpuContext::new()` — adapter, device, the AOV pipeline of its walk and persistent
+//!   buffers, built once (the other walk's and the beauty pipelines on first use). Any wgpu adapter works, software ones included
 //!   (Mesa's lavapipe is what CI uses).
 //! * `GpuScene::upload(&ctx, &scene)` — prisms, vertices, a BVH2 over the CPU's prism boxes,
 //!   the height map, and the seam stitch records when the scene stitches (`SeamMode`).
 //! * `render_aovs(&ctx, &gpu_scene, &camera, &settings, &pdm_options, progress)` — one frame of
-//!   AOVs as `prismbake::render::AovImage`, so `render::output::write_frame` writes it.
+//!   AOVs as `prismbake::render::AovImage`, so `render::output::write_frame` writes it; the
+//!   BVH is walked per ray or per subgroup packet (`AovWalk`, `render_aovs_walked`).
 //! * `GpuBeautyScene::upload(&ctx, &beauty_scene)` and `render_beauty(..)` — one beauty frame
 //!   as `prismbake::render::beauty::BeautyImage` (`render::output::write_beauty`).
 //! * `GpuContext::take_kernel_seconds()` — the kernels' own time (GPU timestamps around every
@@ -37,8 +38,8 @@ pub mod shaders;
 mod timer;
 
 pub use beauty::{render_beauty, render_beauty_scheduled, GpuBeautyScene};
-pub use context::{BeautySchedule, GpuContext};
-pub use render::render_aovs;
+pub use context::{AovWalk, BeautySchedule, GpuContext};
+pub use render::{render_aovs, render_aovs_walked};
 pub use scene::GpuScene;
 
 #[derive(Debug, thiserror::Error)]

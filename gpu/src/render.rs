@@ -3,7 +3,7 @@
 //! sums (`render_samples`): tiles of at most the context's tile² pixels, each cleared, its
 //! stages dispatched `spp` times and read back.
 
-use crate::context::{GpuContext, Output, TileBuffers};
+use crate::context::{AovWalk, GpuContext, Output, TileBuffers};
 use crate::layout::{GpuAovPixel, GpuFrame, PATH_RECORD_BYTES, WORKGROUP};
 use crate::scene::GpuScene;
 use crate::GpuError;
@@ -197,10 +197,23 @@ pub fn render_aovs(
     opts: &PdmOptions,
     progress: &dyn Fn(usize),
 ) -> Result<AovImage, GpuError> {
+    render_aovs_walked(ctx, ctx.aov_walk(), scene, cam, s, opts, progress)
+}
+
+/// `render_aovs` with the BVH walk `walk` instead of the context's (`GpuContext::aov_walk`).
+pub fn render_aovs_walked(
+    ctx: &GpuContext,
+    walk: AovWalk,
+    scene: &GpuScene,
+    cam: &Camera,
+    s: &RenderSettings,
+    opts: &PdmOptions,
+    progress: &dyn Fn(usize),
+) -> Result<AovImage, GpuError> {
     check_render(s, opts)?;
     let kernel = Kernel {
         stages: &[Stage {
-            pipeline: &ctx.aov_pipeline,
+            pipeline: ctx.aov_kernel(walk)?,
             layers: 1,
             across: 1,
         }],

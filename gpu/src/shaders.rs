@@ -44,6 +44,18 @@ pub fn aov_module_source() -> String {
     s
 }
 
+/// BVH traversal by subgroup packets and its AOV kernel (needs the adapter's subgroups).
+pub const PACKET: &str = include_str!("../../shaders/packet.wgsl");
+
+/// The AOV module walked by subgroup packets: `enable subgroups;`, the AOV module and
+/// `packet.wgsl` (entry point `render_aovs_packet`).
+pub fn aov_packet_module_source() -> String {
+    let mut s = aov_module_source();
+    s.push('\n');
+    s.push_str(PACKET);
+    s
+}
+
 /// The beauty module: the library, the environment, the material, the texture and
 /// `beauty.wgsl` (entry points `render_beauty`, `beauty_start`, `beauty_trace`,
 /// `beauty_shade`).

@@ -1,7 +1,7 @@
 //! The host structs and the WGSL agree byte for byte: naga (wgpu's own copy) parses the shader
 //! modules and reports each struct's member offsets and size, which must equal `offset_of!` /
 //! `size_of` on the Rust side; the sentinels and constants must have the same values on both
-//! sides; and both modules (AOV, beauty) must pass naga's validator. Breaks on any one-sided
+//! sides; and every module (AOV, its packet walk, beauty) must pass naga's validator. Breaks on any one-sided
 //! edit of a shared struct or constant.
 
 use prismbake_gpu::{layout, shaders};
@@ -14,6 +14,11 @@ fn parse(src: &str) -> naga::Module {
 /// The AOV module (library + aov.wgsl).
 fn module() -> naga::Module {
     parse(&shaders::aov_module_source())
+}
+
+/// The AOV module walked by packets (library + aov.wgsl + packet.wgsl).
+fn packet_module() -> naga::Module {
+    parse(&shaders::aov_packet_module_source())
 }
 
 /// The beauty module (library + env, shading, beauty).
@@ -128,19 +133,20 @@ fn beauty_constants_are_mirrored() {
 
 #[test]
 fn modules_validate_and_state_the_host_workgroup_size() {
-    for (m, entry) in [
-        (module(), "render_aovs"),
-        (beauty_module(), "render_beauty"),
-        (beauty_module(), "beauty_start"),
-        (beauty_module(), "beauty_trace"),
-        (beauty_module(), "beauty_shade"),
+    let plain = naga::valid::Capabilities::default();
+    // The packet walk's subgroup operations: what wgpu::Features::SUBGROUP grants.
+    let subgroups = plain | naga::valid::Capabilities::SUBGROUP;
+    for (m, entry, caps) in [
+        (module(), "render_aovs", plain),
+        (packet_module(), "render_aovs_packet", subgroups),
+        (beauty_module(), "render_beauty", plain),
+        (beauty_module(), "beauty_start", plain),
+        (beauty_module(), "beauty_trace", plain),
+        (beauty_module(), "beauty_shade", plain),
     ] {
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::default(),
-        )
-        .validate(&m)
-        .unwrap_or_else(|e| panic!("{entry}: {e:?}"));
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), caps)
+            .validate(&m)
+            .unwrap_or_else(|e| panic!("{entry}: {e:?}"));
         let ep = m
             .entry_points
             .iter()

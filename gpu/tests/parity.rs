@@ -8,7 +8,7 @@
 use crate::util::{ctx, example_scene};
 use prismbake::render::{self, AovImage, RenderSettings};
 use prismbake::trace::pdm::{Pdm, PdmOptions};
-use prismbake_gpu::{render_aovs, GpuScene};
+use prismbake_gpu::{render_aovs, render_aovs_walked, AovWalk, GpuScene};
 
 pub struct Agreement {
     /// Fraction of the compared pixels that one device hits and the other misses.
@@ -428,4 +428,86 @@ fn rock_leak_ray_as_centre_ray(seed: u32, index: usize) -> (Option<f32>, Option<
         depth(cpu.mask[0], cpu.depth[0]),
         depth(gpu.mask[0], gpu.depth[0]),
     )
+}
+
+/// The context's walk follows its rule (`AovWalk`): packets on a software adapter with
+/// subgroup operations (lavapipe on Vulkan), one ray per invocation elsewhere (a GPU, or
+/// wgpu's GL backend, which has no subgroups).
+#[test]
+fn the_default_walk_is_packets_on_software_adapters_with_subgroups() {
+    let c = ctx();
+    let subgroups = c.device().features().contains(wgpu::Features::SUBGROUP);
+    let want = match c.is_software() && subgroups {
+        true => AovWalk::Packet,
+        false => AovWalk::Ray,
+    };
+    if std::env::var_os("PRISMBAKE_GPU_WALK").is_none() {
+        assert_eq!(c.aov_walk(), want, "{}", c.adapter_description());
+    }
+}
+
+/// Both walks on every example, where the adapter has both: each within the parity bounds of
+/// the CPU, and the two alike (they find each ray's closest hit over the same prisms, so they
+/// differ only where a ray meets two prisms' shared wall and the other prism answers first).
+/// Breaks if the packet walk lost a node some ray needs (a vote or a stack entry), or tested a
+/// prism with a ray that does not enter its leaf.
+#[test]
+fn both_walks_match_the_cpu_and_each_other() {
+    let c = ctx();
+    if !c.device().features().contains(wgpu::Features::SUBGROUP) {
+        eprintln!(
+            "{}: no subgroup operations; the ray walk is the only one (the other tests)",
+            c.adapter_description()
+        );
+        return;
+    }
+    for rel in ["sphere/sphere.glb", "torus/torus.obj", "rock/rock.glb"] {
+        let ex = example_scene(rel);
+        // 100 × 60: partial workgroups at the right and bottom edges (their lanes walk along
+        // without a ray), and two samples with the pixel jitter.
+        let settings = RenderSettings {
+            width: 100,
+            height: 60,
+            spp: 2,
+            seed: 7,
+        };
+        let opts = PdmOptions::default();
+        let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &ex.cam, &settings, &|_| {});
+        let gpu_scene = GpuScene::upload(c, &ex.scene).expect("upload");
+        let walked = |walk| {
+            render_aovs_walked(c, walk, &gpu_scene, &ex.cam, &settings, &opts, &|_| {})
+                .expect("gpu render")
+        };
+        let (ray, packet) = (walked(AovWalk::Ray), walked(AovWalk::Packet));
+        for (name, img) in [("ray", &ray), ("packet", &packet)] {
+            let a = compare(&cpu, img, |_| true);
+            eprintln!(
+                "{}",
+                report(&format!("{rel} 100x60 spp 2, {name} walk"), &a)
+            );
+            assert_parity(&format!("{rel}, {name} walk"), &a, 100 * 60 / 20);
+        }
+        let both = compare(&ray, &packet, |_| true);
+        eprintln!("{}", report(&format!("{rel}: packet against ray"), &both));
+        assert!(
+            both.both_hit >= 100 * 60 / 20,
+            "{rel}: {} pixels",
+            both.both_hit
+        );
+        assert!(
+            both.mask_mismatch <= 0.001,
+            "{rel}: mask {:.3}%",
+            100.0 * both.mask_mismatch
+        );
+        assert!(
+            both.depth_rel_median == 0.0,
+            "{rel}: depth {:.2e}",
+            both.depth_rel_median
+        );
+        assert!(
+            both.normal_deg_median == 0.0,
+            "{rel}: normal {:.4}°",
+            both.normal_deg_median
+        );
+    }
 }

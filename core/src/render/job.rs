@@ -296,6 +296,9 @@ pub struct RenderSummary {
     /// tiles. Absent on the CPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_tile: Option<u32>,
+    /// GPU renders: how the AOV kernel walked the BVH (`ray` or `packet`). Absent on the CPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_walk: Option<&'static str>,
 }
 
 /// The intersector a config names, built over `scene`.

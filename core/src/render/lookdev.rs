@@ -772,6 +772,7 @@ pub fn render_all(
             frames_seconds: 0.0,
             files: vec![],
             gpu_tile: None,
+            gpu_walk: None,
         },
         table_cache: s.cache.clone(),
         beauty_rays: BeautyCounters::default(),
