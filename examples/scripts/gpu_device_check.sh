@@ -22,6 +22,11 @@
 # pixels per invocation of the wavefront's trace kernel; docs/gpu.md, "Rays per invocation").
 # The summary's md5 of each beauty frame shows that they all give the same picture.
 #
+# The AOV job runs once per BVH walk in WALKS (default "ray packet": PRISMBAKE_GPU_WALK; docs/gpu.md,
+# "Packets on lavapipe"): a GPU takes the per-ray walk by default, and whether a subgroup's
+# packet pays there is not known yet (on an adapter without subgroups the packet job fails
+# with a message naming them, and the summary skips it).
+#
 # With PRISMBAKE_OIDN set (Open Image Denoise carried to the machine: install.sh's
 # ~/.local/share/prismbake/oidn/lib, 54 MB), the sphere's 16-spp beauty is also denoised at
 # each quality, on the host's cores (docs/denoising.md): the summary's denoise_seconds.
@@ -35,6 +40,7 @@ RES=${RES:-2048}
 SPP=${SPP:-64}
 ASSETS=${ASSETS:-"sphere torus rock"}
 TRACE_PIXELS=${TRACE_PIXELS:-"1 4 8"}
+WALKS=${WALKS:-"ray packet"}
 mkdir -p "$DEST"
 [ -x "$BIN" ] || { echo "gpu_device_check: no binary at $BIN (cargo build --release -p prismbake-cli)" >&2; exit 2; }
 
@@ -66,7 +72,10 @@ job warmup "$RES" 16 1 gpu "$(asset_path torus)" --aov beauty
 
 for a in $ASSETS; do
   path=$(asset_path "$a")
-  job "${a}_aov_gpu" "$RES" 1 3 gpu "$path" --aov depth,normal,mask
+  for w in $WALKS; do
+    PRISMBAKE_GPU_WALK=$w job "${a}_aov_gpu_$w" "$RES" 1 3 gpu "$path" --aov depth,normal,mask ||
+      echo "gpu_device_check: the $w walk failed on this adapter (above)" >&2
+  done
   job "${a}_beauty_gpu" "$RES" "$SPP" 2 gpu "$path" --aov beauty
   job "${a}_aov_cpu_512" 512 1 3 cpu "$path" --aov depth,normal,mask
   for k in $TRACE_PIXELS; do
@@ -83,10 +92,11 @@ if [ -n "${PRISMBAKE_OIDN:-}" ]; then
   done
 fi
 
-python3 - "$DEST" "$RES" "$SPP" "$ASSETS" "$TRACE_PIXELS" "$DENOISE" <<'PY'
+python3 - "$DEST" "$RES" "$SPP" "$ASSETS" "$TRACE_PIXELS" "$DENOISE" "$WALKS" <<'PY'
 import hashlib, json, pathlib, sys
 dest, res, spp, assets = pathlib.Path(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
 trace_pixels = sys.argv[5].split()
+walks = sys.argv[7].split()
 rows = []
 denoised = []
 for q in sys.argv[6].split():
@@ -95,7 +105,8 @@ for q in sys.argv[6].split():
     print(f"denoise {q:<8} {res}²: {', '.join(f'{s:.3f}' for s in secs)} s per frame ({d['denoiser']})")
     denoised.append({"job": f"sphere_denoise_{q}", "res": res, "denoise_seconds": secs, "frames": d["frames"]})
 for a in assets:
-    jobs = [(f"{a}_aov_gpu", res, 1), (f"{a}_beauty_gpu", res, spp), (f"{a}_aov_cpu_512", 512, 1)]
+    jobs = [(f"{a}_aov_gpu_{w}", res, 1) for w in walks if (dest / f"{a}_aov_gpu_{w}.json").stat().st_size > 0]
+    jobs += [(f"{a}_beauty_gpu", res, spp), (f"{a}_aov_cpu_512", 512, 1)]
     jobs += [(f"{a}_4rays_trace{k}", res, spp) for k in trace_pixels]
     for job, r, s in jobs:
         d = json.loads((dest / f"{job}.json").read_text())
@@ -113,7 +124,7 @@ for a in assets:
         per_pixel = {k: round(v / (r * r * s * len(frames)), 3) for k, v in rays.items()} if rays and rays.get("rays") else None
         last = sorted((dest / job).glob("beauty_*.exr"))
         picture = hashlib.md5(last[-1].read_bytes()).hexdigest()[:12] if last else None
-        rows.append({"job": job, "device": d.get("device"), "res": r, "spp": s,
+        rows.append({"job": job, "device": d.get("device"), "walk": d.get("gpu_walk"), "res": r, "spp": s,
                      "ms_per_sample": round(sec * 1e3 / s, 2), "rays_per_pixel": per_pixel,
                      "picture_md5": picture,
                      "ms_per_frame": round(best["seconds"] * 1e3, 2),
@@ -125,7 +136,7 @@ for a in assets:
 (dest / "summary.json").write_text(json.dumps(rows + denoised, indent=1))
 for row in rows:
     kernel = f"{row['kernel_ms']:>9.3f}" if row["kernel_ms"] is not None else "        -"
-    print(f"{row['job']:<22} {row['res']}² spp {row['spp']:<3} frame {row['ms_per_frame']:>9.2f} ms "
+    print(f"{row['job']:<24} {row['res']}² spp {row['spp']:<3} frame {row['ms_per_frame']:>9.2f} ms "
           f"trace {row['trace_ms']:>9.2f} ms kernels {kernel} ms ({row['ms_per_sample']} ms/sample) "
           f"{row['mrays_per_s']:>9.2f} Mrays/s ({row['mrays_per_s_from']}; {row['device']})"
           + (f" rays/px/sample {row['rays_per_pixel']} md5 {row['picture_md5']}" if row["rays_per_pixel"] else ""))

@@ -18,10 +18,13 @@ def test_device_check_times_every_job(prismbake, tmp_path):
     assert proc.returncode == 0, proc.stderr
     rows = json.loads((tmp_path / "summary.json").read_text())
     assert [r["job"] for r in rows] == [
-        "rock_aov_gpu", "rock_beauty_gpu", "rock_aov_cpu_512", "rock_4rays_trace1", "rock_4rays_trace3",
+        "rock_aov_gpu_ray", "rock_aov_gpu_packet", "rock_beauty_gpu", "rock_aov_cpu_512",
+        "rock_4rays_trace1", "rock_4rays_trace3",
     ]
-    assert [len(r["frames"]) for r in rows] == [3, 2, 3, 2, 2]
-    assert rows[0]["device"].startswith("gpu") and rows[2]["device"].startswith("cpu")
+    assert [len(r["frames"]) for r in rows] == [3, 3, 2, 3, 2, 2]
+    assert rows[0]["device"].startswith("gpu") and rows[3]["device"].startswith("cpu")
+    # Each AOV job took the BVH walk it asked for (lavapipe on Vulkan has subgroups).
+    assert [r["walk"] for r in rows[:2]] == ["ray", "packet"] and rows[3]["walk"] is None
     for r in rows:
         assert r["ms_per_frame"] > 0 and r["mrays_per_s"] > 0
         # The trace time is part of the frame's, the kernels' part of the trace's.
@@ -31,17 +34,17 @@ def test_device_check_times_every_job(prismbake, tmp_path):
     # The "4 rays per pixel" sample: one camera ray per pixel, shadow rays for the key light
     # and the environment where it hits; the same picture whatever the pixels per trace
     # invocation; beauty rows count their rays, AOV rows do not.
-    four = rows[3]["rays_per_pixel"]
+    four = rows[4]["rays_per_pixel"]
     assert four["rays"] == 1.0 and four["key_shadow_rays"] > 0 and four["env_shadow_rays"] > 0
-    assert rows[3]["picture_md5"] and rows[3]["picture_md5"] == rows[4]["picture_md5"]
-    assert rows[1]["rays_per_pixel"]["rays"] >= 1.0 and rows[0]["rays_per_pixel"] is None
-    for r in rows[:2] + rows[3:]:
+    assert rows[4]["picture_md5"] and rows[4]["picture_md5"] == rows[5]["picture_md5"]
+    assert rows[2]["rays_per_pixel"]["rays"] >= 1.0 and rows[0]["rays_per_pixel"] is None
+    for r in rows[:3] + rows[4:]:
         assert r["kernel_ms"] is not None and 0 < r["kernel_ms"] <= r["trace_ms"]
         assert r["mrays_per_s_from"] == "kernel"
-    assert rows[2]["kernel_ms"] is None and rows[2]["mrays_per_s_from"] == "trace"
+    assert rows[3]["kernel_ms"] is None and rows[3]["mrays_per_s_from"] == "trace"
     assert "trace" in proc.stdout and "kernels" in proc.stdout and "Mrays/s" in proc.stdout
     # The renders themselves were written, after the card's warm-up frame.
-    assert (tmp_path / "rock_aov_gpu" / "mask_0002.exr").is_file()
+    assert (tmp_path / "rock_aov_gpu_packet" / "mask_0002.exr").is_file()
     assert (tmp_path / "warmup" / "beauty.exr").is_file()
 
 
