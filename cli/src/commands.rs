@@ -259,7 +259,7 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         );
         if ctx.is_software() {
             eprintln!(
-                "note: {} is a software adapter (its kernels run on this machine's CPU); --device cpu renders the same images faster here (1.7-3.8x on the example assets, docs/gpu.md)",
+                "note: {} is a software adapter (its kernels run on this machine's CPU); --device cpu renders the same images faster here (1.4-4.3x on the example assets on the machines measured, docs/gpu.md)",
                 ctx.adapter_name()
             );
         }
