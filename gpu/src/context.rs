@@ -73,7 +73,7 @@ pub enum AovWalk {
     Ray,
     /// A subgroup's invocations walk their rays together (`render_aovs_packet`,
     /// packet.wgsl); needs subgroup operations. The default on software adapters that have
-    /// them: lavapipe's 512² AOV kernels take 10–20% less time (docs/gpu.md).
+    /// them: lavapipe's 512² AOV kernels take 8–15% less time (docs/gpu.md).
     Packet,
 }
 
@@ -531,17 +531,11 @@ impl GpuContext {
         });
         let software = adapter_info.device_type == wgpu::DeviceType::Cpu;
         let subgroups = device.features().contains(wgpu::Features::SUBGROUP);
-        let aov_walk = match walk_wanted {
-            Some(AovWalk::Packet) if !subgroups => {
-                return Err(GpuError::Unsupported(format!(
-                    "PRISMBAKE_GPU_WALK=packet needs subgroup operations, which {} ({:?}) does not have; unset it or set it to `ray`",
-                    adapter_info.name, adapter_info.backend
-                )))
-            }
-            Some(w) => w,
-            None if software && subgroups => AovWalk::Packet,
-            None => AovWalk::Ray,
-        };
+        // A packet walk asked for where there are no subgroups fails in `aov_kernel` below.
+        let aov_walk = walk_wanted.unwrap_or(match software && subgroups {
+            true => AovWalk::Packet,
+            false => AovWalk::Ray,
+        });
         let beauty_schedule = schedule_wanted.unwrap_or(match software {
             true => BeautySchedule::Fused,
             false => BeautySchedule::Wavefront,
@@ -705,7 +699,7 @@ impl GpuContext {
     pub(crate) fn aov_kernel(&self, walk: AovWalk) -> Result<&wgpu::ComputePipeline, GpuError> {
         if walk == AovWalk::Packet && !self.device.features().contains(wgpu::Features::SUBGROUP) {
             return Err(GpuError::Unsupported(format!(
-                "the packet walk needs subgroup operations, which {} ({:?}) does not have",
+                "the packet walk (PRISMBAKE_GPU_WALK=packet) needs subgroup operations, which {} ({:?}) does not have; unset PRISMBAKE_GPU_WALK or set it to `ray`",
                 self.adapter_info.name, self.adapter_info.backend
             )));
         }

@@ -2,8 +2,8 @@
 //! renderer, with the same hit records and the same random numbers.
 //!
 //! * `GpuContext::new()` — adapter, device, the AOV pipeline of its walk and persistent
-//!   buffers, built once (the other walk's and the beauty pipelines on first use). Any wgpu adapter works, software ones included
-//!   (Mesa's lavapipe is what CI uses).
+//!   buffers, built once (the other walk's and the beauty pipelines on first use). Any wgpu
+//!   adapter works, software ones included (Mesa's lavapipe is what CI uses).
 //! * `GpuScene::upload(&ctx, &scene)` — prisms, vertices, a BVH2 over the CPU's prism boxes,
 //!   the height map, and the seam stitch records when the scene stitches (`SeamMode`).
 //! * `render_aovs(&ctx, &gpu_scene, &camera, &settings, &pdm_options, progress)` — one frame of

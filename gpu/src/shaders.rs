@@ -47,8 +47,9 @@ pub fn aov_module_source() -> String {
 /// BVH traversal by subgroup packets and its AOV kernel (needs the adapter's subgroups).
 pub const PACKET: &str = include_str!("../../shaders/packet.wgsl");
 
-/// The AOV module walked by subgroup packets: `enable subgroups;`, the AOV module and
-/// `packet.wgsl` (entry point `render_aovs_packet`).
+/// The AOV module walked by subgroup packets: the AOV module and `packet.wgsl` (entry point
+/// `render_aovs_packet`). Naga takes subgroup built-ins without WGSL's `enable subgroups;`
+/// (which it rejects as not yet implemented) once the device has `Features::SUBGROUP`.
 pub fn aov_packet_module_source() -> String {
     let mut s = aov_module_source();
     s.push('\n');

@@ -1,8 +1,8 @@
 //! The host structs and the WGSL agree byte for byte: naga (wgpu's own copy) parses the shader
 //! modules and reports each struct's member offsets and size, which must equal `offset_of!` /
 //! `size_of` on the Rust side; the sentinels and constants must have the same values on both
-//! sides; and every module (AOV, its packet walk, beauty) must pass naga's validator. Breaks on any one-sided
-//! edit of a shared struct or constant.
+//! sides; and every module (AOV, its packet walk, beauty) must pass naga's validator. Breaks on
+//! any one-sided edit of a shared struct or constant.
 
 use prismbake_gpu::{layout, shaders};
 use wgpu::naga;
