@@ -220,6 +220,8 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
     // The GPU renders PDM (AOVs and beauty); --watch and the other methods run on the CPU
     // (`auto` falls back to it, `gpu` says so).
     let gpu_able = method == Method::Pdm && !a.watch;
+    // `auto` also renders on the CPU a scene the GPU cannot hold.
+    let auto = a.device == Device::Auto;
     let gpu = match a.device {
         Device::Cpu => None,
         Device::Gpu if !gpu_able => {
@@ -270,7 +272,7 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         .build()
         .map_err(|e| Error::Param(format!("--threads: {e}")))?;
     if a.input.is_dir() {
-        return render_batch(&a, method, &aovs, &look, &pool, gpu.as_ref());
+        return render_batch(&a, method, &aovs, &look, &pool, gpu.as_ref(), auto);
     }
     let input = if prismbake::load::extension(&a.input) == "prisms" {
         Input::Table {
@@ -308,7 +310,8 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
     let pb = progress::bar(frames * rows, "rendering");
     warn_between_redraws(gpu.as_ref(), &pb);
     let report = |frame: usize, done: usize| pb.set_position(frame as u64 * rows + done as u64);
-    let summary = pool.install(|| run_lookdev(gpu.as_ref(), &job, &look, &report))?;
+    let summary =
+        pool.install(|| run_lookdev(gpu.as_ref().map(|g| (g, auto)), &job, &look, &report))?;
     pb.finish_and_clear();
     print_render_summary(&a, &summary);
     Ok(ExitCode::SUCCESS)
@@ -323,15 +326,17 @@ fn warn_between_redraws(gpu: Option<&prismbake_gpu::GpuContext>, pb: &indicatif:
     }
 }
 
-/// One lookdev job on the GPU if there is a context, else on the CPU.
+/// One lookdev job on the GPU if there is a context, else on the CPU; with `auto` (the
+/// context's `bool`), on the CPU too where the GPU cannot hold the scene.
 fn run_lookdev(
-    gpu: Option<&prismbake_gpu::GpuContext>,
+    gpu: Option<(&prismbake_gpu::GpuContext, bool)>,
     job: &RenderJob,
     look: &LookdevOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
     match gpu {
-        Some(ctx) => prismbake_gpu::job::run(ctx, job, look, progress),
+        Some((ctx, false)) => prismbake_gpu::job::run(ctx, job, look, progress),
+        Some((ctx, true)) => prismbake_gpu::job::run_or_cpu(ctx, job, look, progress),
         None => lookdev::run(job, look, progress),
     }
 }
@@ -508,6 +513,7 @@ fn render_batch(
     look: &LookdevOptions,
     pool: &rayon::ThreadPool,
     gpu: Option<&prismbake_gpu::GpuContext>,
+    auto: bool,
 ) -> Result<ExitCode> {
     if a.watch {
         return Err(Error::Param(format!(
@@ -560,7 +566,7 @@ fn render_batch(
             })
             .and_then(|job| {
                 pool.install(|| {
-                    run_lookdev(gpu, &job, look, &|f, _| {
+                    run_lookdev(gpu.map(|g| (g, auto)), &job, look, &|f, _| {
                         pb.set_position(k as u64 * frames + f as u64)
                     })
                 })

@@ -119,6 +119,44 @@ pub fn env_tables(env: &EnvMap, textures: &[ColorMap]) -> EnvTables {
     EnvTables { texels, tables }
 }
 
+/// What to do when the lighting does not fit a storage binding.
+const LIGHTING_FIX: &str = "use a smaller --env map or base-colour textures, or --device cpu";
+
+/// Whether an environment (`None`: the one-texel black a render without `--env` lights with)
+/// and the base-colour textures fit `ctx`'s storage bindings as `GpuBeautyScene::upload` lays
+/// them out (`EnvTables`), counted without building them: the check a job makes before its
+/// first frame, and `upload`'s own.
+pub fn check_lighting_fits(
+    ctx: &GpuContext,
+    env: Option<&EnvMap>,
+    textures: &[ColorMap],
+) -> Result<(), GpuError> {
+    let (env_texels, tables) = env.map_or((1, 0), |e| {
+        let tables = e.marginal_cdf.len()
+            + e.row_weight.len()
+            + e.conditional_cdf.len()
+            + e.texel_weight.len();
+        (e.texels.len(), tables)
+    });
+    let texels = env_texels + textures.iter().map(|t| t.texels.len()).sum::<usize>();
+    let limit = ctx.max_binding_bytes();
+    let f32s = std::mem::size_of::<f32>() as u64;
+    for (what, bytes) in [
+        ("environment and texture texels", texels as u64 * 3 * f32s),
+        ("environment sampling tables", tables as u64 * f32s),
+    ] {
+        if bytes > limit {
+            return Err(GpuError::TooLarge {
+                what,
+                bytes,
+                limit,
+                fix: LIGHTING_FIX,
+            });
+        }
+    }
+    Ok(())
+}
+
 /// A `BeautyScene` on the GPU: bind group 2 of the beauty kernel.
 pub struct GpuBeautyScene {
     pub(crate) group: wgpu::BindGroup,
@@ -141,30 +179,21 @@ impl GpuBeautyScene {
     /// environment's tables, exceed one storage binding (128 MiB on WebGPU defaults: about
     /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
+        check_lighting_fits(ctx, Some(s.env), s.textures)?;
         let env = env_tables(s.env, s.textures);
-        let limit = ctx.max_binding_bytes();
         let mut bytes = 0u64;
-        let mut storage = |what: &'static str, data: &[f32]| -> Result<wgpu::Buffer, GpuError> {
+        let mut storage = |what: &'static str, data: &[f32]| {
             let data: &[u8] = bytemuck::cast_slice(data);
-            if data.len() as u64 > limit {
-                return Err(GpuError::TooLarge {
-                    what,
-                    bytes: data.len() as u64,
-                    limit,
-                    fix: "use a smaller --env map or base-colour textures, or --device cpu",
-                });
-            }
             bytes += data.len() as u64;
-            Ok(ctx
-                .device
+            ctx.device
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(what),
                     contents: data,
                     usage: wgpu::BufferUsages::STORAGE,
-                }))
+                })
         };
-        let texels = storage("environment and texture texels", &env.texels)?;
-        let tables = storage("environment sampling tables", &env.tables)?;
+        let texels = storage("environment and texture texels", &env.texels);
+        let tables = storage("environment sampling tables", &env.tables);
         let records = material_records(s);
         let materials = ctx
             .device

@@ -622,7 +622,8 @@ impl GpuContext {
         *self.warn.lock().unwrap_or_else(|e| e.into_inner()) = Arc::new(sink);
     }
 
-    fn warn(&self, message: &str) {
+    /// Say `message` through the warning sink (stderr unless `set_warning_sink` moved it).
+    pub fn warn(&self, message: &str) {
         let sink = self.warn.lock().unwrap_or_else(|e| e.into_inner()).clone();
         sink(message);
     }

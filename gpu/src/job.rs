@@ -2,7 +2,7 @@
 //! prism-table cache, camera, environment) and `lookdev::render_all` (frames, turntables,
 //! files, contact sheets), with `GpuFrames` rendering each frame.
 
-use crate::beauty::{render_beauty, GpuBeautyScene};
+use crate::beauty::{check_lighting_fits, render_beauty, GpuBeautyScene};
 use crate::context::GpuContext;
 use crate::render::render_aovs;
 use crate::scene::GpuScene;
@@ -101,12 +101,36 @@ impl FrameRenderer for GpuFrames<'_> {
 
 /// Run a lookdev job (AOVs and/or beauty, stills or turntables) on `ctx`'s adapter;
 /// `progress(frame_index, rows_done)` reports progress. The same outputs as
-/// `lookdev::run` on the CPU, up to float rounding.
+/// `lookdev::run` on the CPU, up to float rounding. A scene the adapter cannot hold is an
+/// error (`GpuError::TooLarge`, `OutOfMemory`).
 pub fn run(
     ctx: &GpuContext,
     job: &RenderJob,
     look: &LookdevOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
+    run_on(ctx, job, look, progress, false)
+}
+
+/// `run`, except that a scene the adapter cannot hold (`GpuError::is_capacity`, found before
+/// the first frame, so before any file is written) is rendered by the CPU renderer from the
+/// same loaded session. The context's warning sink hears why, and the summary keeps it
+/// (`gpu_fallback`). What `--device auto` does.
+pub fn run_or_cpu(
+    ctx: &GpuContext,
+    job: &RenderJob,
+    look: &LookdevOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<LookdevSummary> {
+    run_on(ctx, job, look, progress, true)
+}
+
+fn run_on(
+    ctx: &GpuContext,
+    job: &RenderJob,
+    look: &LookdevOptions,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cpu_fallback: bool,
 ) -> Result<LookdevSummary> {
     if job.method.method != Method::Pdm {
         return Err(Error::Param(
@@ -119,8 +143,35 @@ pub fn run(
     }
     let session = lookdev::open(job, look)?;
     let t = Instant::now();
-    let scene = GpuScene::upload(ctx, session.scene()).map_err(gpu_err)?;
-    if job.aovs.contains(&Aov::Beauty) {
+    let want_beauty = job.aovs.contains(&Aov::Beauty);
+    // A failure names the environment's file where the lighting is what does not fit.
+    let uploaded = GpuScene::upload(ctx, session.scene())
+        .map_err(|e| (e, None))
+        .and_then(|scene| {
+            if want_beauty {
+                check_lighting_fits(ctx, session.env(), session.textures())
+                    .map_err(|e| (e, look.env.as_deref()))?;
+            }
+            Ok(scene)
+        });
+    let scene = match uploaded {
+        Ok(scene) => scene,
+        Err((e, _)) if cpu_fallback && e.is_capacity() => {
+            ctx.warn(&format!(
+                "device: cpu ({} cannot hold this scene: {e}); --device gpu makes this an error",
+                ctx.adapter_name()
+            ));
+            // The upload tried counts as set-up, as the GPU's own does.
+            let tried = t.elapsed().as_secs_f64();
+            let mut summary = lookdev::render_all_cpu(job, look, &session, progress)?;
+            summary.render.setup_seconds += tried;
+            summary.render.gpu_fallback = Some(e.to_string());
+            return Ok(summary);
+        }
+        Err((e, Some(env))) => return Err(Error::invalid(env, format!("gpu: {e}"))),
+        Err((e, None)) => return Err(gpu_err(e)),
+    };
+    if want_beauty {
         ctx.prepare_beauty().map_err(gpu_err)?;
     }
     // Upload and (for beauty) kernel compilation count as setup, as loading and baking do.

@@ -73,3 +73,14 @@ pub enum GpuError {
     #[error("{adapter}: out of GPU memory ({detail}); free GPU memory (other applications), render a smaller --res, or raise PRISMBAKE_GPU_MEMORY if it is set")]
     OutOfMemory { adapter: String, detail: String },
 }
+
+impl GpuError {
+    /// The adapter cannot hold the scene (an array over its storage-binding limit, or memory
+    /// the driver refused): the CPU renderer can still render it (`job::run_or_cpu`).
+    pub fn is_capacity(&self) -> bool {
+        matches!(
+            self,
+            GpuError::TooLarge { .. } | GpuError::OutOfMemory { .. }
+        )
+    }
+}

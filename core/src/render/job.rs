@@ -299,6 +299,10 @@ pub struct RenderSummary {
     /// GPU renders: how the AOV kernel walked the BVH (`ray` or `packet`). Absent on the CPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_walk: Option<&'static str>,
+    /// `--device auto` only: why the GPU could not hold the scene, so that the CPU rendered it
+    /// instead. Absent where the device asked for rendered it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_fallback: Option<String>,
 }
 
 /// The intersector a config names, built over `scene`.

@@ -497,6 +497,17 @@ impl Session {
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
+
+    /// The environment a beauty lights with (`None`: black, the key light and ground only).
+    pub fn env(&self) -> Option<&EnvMap> {
+        self.env.as_ref()
+    }
+
+    /// The base-colour textures a beauty reads (what a GPU renderer uploads beside the
+    /// environment).
+    pub fn textures(&self) -> &[ColorMap] {
+        &self.materials.textures
+    }
 }
 
 /// Validate the job, prepare the output folder, load the input through the table cache and
@@ -773,6 +784,7 @@ pub fn render_all(
             files: vec![],
             gpu_tile: None,
             gpu_walk: None,
+            gpu_fallback: None,
         },
         table_cache: s.cache.clone(),
         beauty_rays: BeautyCounters::default(),
@@ -850,8 +862,9 @@ pub fn render_all(
     Ok(summary)
 }
 
-/// Render every frame of a loaded session on the CPU, with the intersector the job names.
-fn render_all_cpu(
+/// Render every frame of a loaded session on the CPU, with the intersector the job names
+/// (also where a GPU cannot hold the session's scene and `--device auto` falls back).
+pub fn render_all_cpu(
     job: &RenderJob,
     opts: &LookdevOptions,
     s: &Session,
