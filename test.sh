@@ -34,7 +34,11 @@ if [ ! -x .venv/bin/python ]; then "$PY" -m venv .venv; fi
 cargo test --workspace --locked
 # The GPU suite again on wgpu's GL backend: what a machine without Vulkan drivers renders with
 # (docs/gpu.md, "wgpu's GL backend").
-WGPU_BACKEND=gl cargo test -p prismbake-gpu --test gpu --locked
+# One test thread: wgpu's GL device is one EGL context behind a lock that panics after 6 s
+# ("Could not lock adapter context"), and with Mesa's shader cache cold (as in CI) one test's
+# kernel compilation can hold it that long while another test waits (seen twice in three cold
+# runs with two threads; cold, one thread takes 74 s against 59 s).
+WGPU_BACKEND=gl cargo test -p prismbake-gpu --test gpu --locked -- --test-threads=1
 
 # The Blender add-on against the real bpy wheel, USD output against Pixar's usd-core, JUnit
 # output against a JUnit consumer. They drive the binary built above.

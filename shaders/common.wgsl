@@ -60,7 +60,7 @@ struct SceneParams {
     disp_scale: f32,
     disp_midlevel: f32,
     prism_count: u32,
-    _pad: u32,
+    map_encoding: u32,   // 0 f32, 1 unorm16, 2 f16 (MapEncoding)
 }
 
 // GpuFrame, 112 bytes.
@@ -159,7 +159,7 @@ struct BeautySums {
 @group(0) @binding(2) var<storage, read> vertices: array<Vertex>;
 @group(0) @binding(3) var<storage, read> nodes: array<BvhNode>;
 @group(0) @binding(4) var<storage, read> prim_indices: array<u32>;
-@group(0) @binding(5) var<storage, read> height_map: array<f32>;
+@group(0) @binding(5) var<storage, read> height_map: array<u32>;
 @group(0) @binding(6) var<storage, read> stitches: array<PrismStitch>;
 
 // prismbake::trace::Ray.

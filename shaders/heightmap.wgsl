@@ -2,6 +2,39 @@
 // texel centres at (i + 0.5) / N, row 0 at the top (v up), repeat or clamp wrap, read with
 // plain loads from a storage buffer so every texel and weight is the CPU's.
 
+// The 16-bit code q's texel q / 65535, correctly rounded, as the CPU's loader divides:
+// q / 65535 = a (1 + 2⁻¹⁶ + 2⁻³² + …) with a = q 2⁻¹⁶, summed as a + (b + c), b = a 2⁻¹⁶,
+// c = a 2⁻³². Every term is exact, and the two additions round to the quotient for every code
+// (checked exhaustively on the CPU, layout::tests, and on the adapter, tests/heightmap.rs).
+// b and c are made from a's exponent bits: written as products, Mesa's GL compiler folds the
+// sum back into q times the rounded reciprocal, which is one ulp low for 512 of the codes.
+fn unorm16_texel(q: u32) -> f32 {
+    let a = f32(q) * (1.0 / 65536.0);
+    let bits = bitcast<u32>(a);
+    let b = bitcast<f32>(bits - (16u << 23u));
+    let c = bitcast<f32>(bits - (32u << 23u));
+    return select(a + (b + c), 0.0, q == 0u);
+}
+
+// The half float h (zero or normal: the encoder admits no other) as f32, by its bits: exact,
+// and without unpack2x16float, which some adapters lack (wgpu's SHADER_F16_IN_F32).
+fn f16_texel(h: u32) -> f32 {
+    let sign = (h & 0x8000u) << 16u;
+    let exp = (h >> 10u) & 0x1fu;
+    return bitcast<f32>(select(sign | ((exp + 112u) << 23u) | ((h & 0x3ffu) << 13u), sign, exp == 0u));
+}
+
+// Texel i (row-major) of the map, as GpuSceneParams::map_encoding stores it: one f32 per word,
+// or two 16-bit codes per word (texel 2k in the low half of word k), unorm16 or half float.
+// One load and selects, no branch: a lock-step implementation would run every branch.
+fn map_texel(i: u32) -> f32 {
+    let packed = scene.map_encoding != 0u;
+    let word = height_map[select(i, i >> 1u, packed)];
+    let code = (word >> ((i & 1u) << 4u)) & 0xffffu;
+    let half = select(unorm16_texel(code), f16_texel(code), scene.map_encoding == 2u);
+    return select(bitcast<f32>(word), half, packed);
+}
+
 // The texel indices of integer coordinates x and x + 1 along an axis of n texels, wrap mode
 // applied: repeat (rem_euclid) wraps x once and steps to its neighbour, clamp clamps both.
 fn axis_pair(x: i32, n: i32) -> vec2<i32> {
@@ -21,10 +54,10 @@ fn footprint(x: i32, y: i32) -> vec4f {
     let xs = axis_pair(x, w);
     let ys = axis_pair(y, h);
     return vec4f(
-        height_map[u32(ys.x * w + xs.x)],
-        height_map[u32(ys.x * w + xs.y)],
-        height_map[u32(ys.y * w + xs.x)],
-        height_map[u32(ys.y * w + xs.y)],
+        map_texel(u32(ys.x * w + xs.x)),
+        map_texel(u32(ys.x * w + xs.y)),
+        map_texel(u32(ys.y * w + xs.x)),
+        map_texel(u32(ys.y * w + xs.y)),
     );
 }
 

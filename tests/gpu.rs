@@ -394,3 +394,101 @@ fn assert_same_pixels(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
         b[differ[0]]
     );
 }
+
+/// A 16-bit map goes up two texels a word (`layout::encode_height_map`): one that fills the
+/// adapter's storage binding exactly renders on it; one row more does not fit, which is an
+/// error under `--device gpu` (no files) and a CPU render under `--device auto`, saying why.
+#[test]
+fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_cpu() {
+    let limit = prismbake_gpu::GpuContext::new()
+        .expect("a wgpu adapter (lavapipe in CI)")
+        .max_binding_bytes();
+    // lavapipe's limit is 128 MiB: an 8192² map. A hardware adapter's (gigabytes) would take
+    // maps of gigabytes here; the test is sized for software adapters and CI.
+    if limit > 256 << 20 {
+        eprintln!("skipped: this adapter's binding limit ({limit} B) is larger than the maps this test writes");
+        return;
+    }
+    let dir = temp_dir("gpu-map-limit");
+    let width = 8192u32;
+    let rows = (limit / 2 / width as u64) as u32;
+    let row: Vec<u16> = (0..width)
+        .map(|x| (32768.0 + 12000.0 * (x as f32 * 0.01).sin()) as u16)
+        .collect();
+    let write_map = |name: &str, height: u32| {
+        let data: Vec<u16> = (0..height).flat_map(|_| row.iter().copied()).collect();
+        let path = dir.join(name);
+        image::ImageBuffer::<image::Luma<u16>, _>::from_raw(width, height, data)
+            .unwrap()
+            .save(&path)
+            .unwrap();
+        path
+    };
+    let sphere = example("sphere/sphere.glb");
+    let render = |device: &str, map: &Path, out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_prismbake"))
+            .args([
+                "render",
+                s(&sphere),
+                "--disp",
+                s(map),
+                "--device",
+                device,
+                "--aov",
+                "mask",
+                "--res",
+                "16x16",
+                "--json",
+                "-o",
+                s(out),
+            ])
+            .env("XDG_CACHE_HOME", dir.join("cache"))
+            .output()
+            .unwrap()
+    };
+    let json = |o: &std::process::Output| -> serde_json::Value {
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stderr}");
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+
+    let fits = write_map("fits.png", rows);
+    let on_gpu = json(&render("gpu", &fits, &dir.join("fits")));
+    assert!(
+        on_gpu["device"].as_str().unwrap().starts_with("gpu ("),
+        "{on_gpu}"
+    );
+    assert_eq!(on_gpu["gpu_map_encoding"], "unorm16", "{on_gpu}");
+    assert!(on_gpu.get("gpu_fallback").is_none(), "{on_gpu}");
+
+    let over = write_map("over.png", rows + 1);
+    let refused = render("gpu", &over, &dir.join("refused"));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("height map") && stderr.contains("storage-binding limit"),
+        "{stderr}"
+    );
+    assert!(files_in(&dir.join("refused")).is_empty());
+
+    let auto = render("auto", &over, &dir.join("auto"));
+    let stderr = String::from_utf8_lossy(&auto.stderr).into_owned();
+    let auto = json(&auto);
+    assert!(
+        auto["device"].as_str().unwrap().starts_with("cpu"),
+        "{auto}"
+    );
+    assert!(
+        auto["gpu_fallback"]
+            .as_str()
+            .unwrap()
+            .contains("height map"),
+        "{auto}"
+    );
+    assert!(
+        stderr.contains("device: cpu (") && stderr.contains("cannot hold this scene"),
+        "{stderr}"
+    );
+    assert!(auto.get("gpu_map_encoding").is_none(), "{auto}");
+    assert!(dir.join("auto/mask.exr").is_file());
+}

@@ -185,6 +185,7 @@ fn run_on(
     summary.render.setup_seconds += upload_seconds;
     summary.render.gpu_tile = Some(ctx.tile());
     summary.render.gpu_walk = Some(ctx.aov_walk().name());
+    summary.render.gpu_map_encoding = Some(scene.map_encoding().name());
     Ok(summary)
 }
 

@@ -98,7 +98,8 @@ pub struct GpuSceneParams {
     pub disp_scale: f32,
     pub disp_midlevel: f32,
     pub prism_count: u32,
-    pub _pad: u32,
+    /// How the height-map buffer holds the texels (`MapEncoding`).
+    pub map_encoding: u32,
 }
 
 /// `GpuSceneParams::wrap` of a map's wrap mode (heightmap.wgsl's `scene.wrap`).
@@ -106,6 +107,90 @@ pub fn wrap_code(wrap: prismbake::Wrap) -> u32 {
     match wrap {
         prismbake::Wrap::Repeat => 0,
         prismbake::Wrap::Clamp => 1,
+    }
+}
+
+/// How the height map's texels are stored on the GPU (`GpuSceneParams::map_encoding`,
+/// heightmap.wgsl's `map_texel`). Every encoding gives back the CPU's f32 texels exactly:
+/// `encode_height_map` picks the narrowest one that does for every texel of the map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapEncoding {
+    /// One f32 per word: any map.
+    F32 = 0,
+    /// Two 16-bit codes `q` per word, the texel `q / 65535`: a 16-bit PNG or TIFF as the
+    /// loader decodes it, and an 8-bit one too (`q₈ / 255 = 257 q₈ / 65535`, the same f32).
+    Unorm16 = 1,
+    /// Two IEEE half floats per word (no subnormals, which a GPU may flush): a half-float EXR.
+    F16 = 2,
+}
+
+impl MapEncoding {
+    pub fn name(self) -> &'static str {
+        match self {
+            MapEncoding::F32 => "f32",
+            MapEncoding::Unorm16 => "unorm16",
+            MapEncoding::F16 => "f16",
+        }
+    }
+}
+
+/// A height map as the GPU stores it: its encoding and the words of the storage buffer.
+pub struct EncodedMap {
+    pub encoding: MapEncoding,
+    pub words: Vec<u32>,
+}
+
+/// The 16-bit code `q` whose texel `q / 65535` (f32, as the loader divides) is `v`, if any.
+/// The shader's decode (`unorm16_texel`) gives that quotient, correctly rounded, for every code.
+fn unorm16_code(v: f32) -> Option<u16> {
+    let q = (v * 65535.0).round();
+    ((0.0..=65535.0).contains(&q) && q / 65535.0 == v && v.to_bits() != (-0.0f32).to_bits())
+        .then_some(q as u16)
+}
+
+/// The IEEE half float equal to `v`, if there is one that is zero or normal.
+fn f16_code(v: f32) -> Option<u16> {
+    let bits = v.to_bits();
+    let sign = ((bits >> 16) & 0x8000) as u16;
+    if v == 0.0 {
+        return Some(sign);
+    }
+    // A half has 10 mantissa bits (the f32's low 13 must be zero) and exponents −14 to 15.
+    let exp = ((bits >> 23) & 0xff) as i32 - 127;
+    if bits & 0x1fff != 0 || !(-14..=15).contains(&exp) {
+        return None;
+    }
+    Some(sign | (((exp + 15) as u16) << 10) | ((bits >> 13) & 0x3ff) as u16)
+}
+
+/// Two 16-bit codes per word, texel `2k` in the low half of word `k`.
+fn pack_halves(codes: impl Iterator<Item = u16>, len: usize) -> Vec<u32> {
+    let mut words = vec![0u32; len.div_ceil(2)];
+    for (i, c) in codes.enumerate() {
+        words[i / 2] |= (c as u32) << (16 * (i % 2));
+    }
+    words
+}
+
+/// The narrowest encoding that gives back every texel of `data` exactly (halving the GPU's
+/// copy of a 16-bit, 8-bit or half-float map: an 8192² map is 128 MiB instead of 256 MiB,
+/// which fits where the storage-binding limit is 128 MiB), and the buffer's words.
+pub fn encode_height_map(data: &[f32]) -> EncodedMap {
+    if data.iter().all(|&v| unorm16_code(v).is_some()) {
+        return EncodedMap {
+            encoding: MapEncoding::Unorm16,
+            words: pack_halves(data.iter().filter_map(|&v| unorm16_code(v)), data.len()),
+        };
+    }
+    if data.iter().all(|&v| f16_code(v).is_some()) {
+        return EncodedMap {
+            encoding: MapEncoding::F16,
+            words: pack_halves(data.iter().filter_map(|&v| f16_code(v)), data.len()),
+        };
+    }
+    EncodedMap {
+        encoding: MapEncoding::F32,
+        words: data.iter().map(|v| v.to_bits()).collect(),
     }
 }
 
@@ -305,7 +390,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 disp_scale,
                 disp_midlevel,
                 prism_count,
-                _pad
+                map_encoding
             }
         ),
         layout!(
@@ -433,5 +518,84 @@ mod tests {
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);
         assert_eq!(offset_of!(GpuBeautySums, normal), 64);
         assert_eq!(offset_of!(GpuBeautySums, albedo), 80);
+    }
+
+    /// The texel of word `words[i / 2]`'s half, decoded as heightmap.wgsl's `map_texel` does
+    /// (`unorm16_texel`: the series of q / 65535 in powers of 2⁻¹⁶, two additions).
+    fn decode(e: &EncodedMap, i: usize) -> f32 {
+        let code = (e.words[i / 2] >> (16 * (i % 2))) & 0xffff;
+        match e.encoding {
+            MapEncoding::F32 => f32::from_bits(e.words[i]),
+            MapEncoding::Unorm16 => {
+                // The shader takes b and c from a's exponent bits: the same exact values.
+                let a = code as f32 / 65536.0;
+                let (b, c) = (a / 65536.0, a / 65536.0 / 65536.0);
+                a + (b + c)
+            }
+            MapEncoding::F16 => {
+                // IEEE half to f32 (normal or zero: the encoder admits no other).
+                let sign = (code & 0x8000) << 16;
+                let exp = (code >> 10) & 0x1f;
+                let bits = match exp {
+                    0 => sign,
+                    _ => sign | ((exp + 127 - 15) << 23) | ((code & 0x3ff) << 13),
+                };
+                f32::from_bits(bits)
+            }
+        }
+    }
+
+    fn round_trip(data: &[f32]) -> MapEncoding {
+        let e = encode_height_map(data);
+        for (i, v) in data.iter().enumerate() {
+            assert_eq!(
+                decode(&e, i).to_bits(),
+                v.to_bits(),
+                "texel {i} ({v}) as {:?}",
+                e.encoding
+            );
+        }
+        let words = match e.encoding {
+            MapEncoding::F32 => data.len(),
+            _ => data.len().div_ceil(2),
+        };
+        assert_eq!(e.words.len(), words);
+        e.encoding
+    }
+
+    #[test]
+    fn height_maps_are_packed_only_where_every_texel_comes_back_exactly() {
+        // Every 16-bit code as the loader divides it, and every 8-bit one: unorm16.
+        let all16: Vec<f32> = (0..=65535u32).map(|q| q as f32 / 65535.0).collect();
+        assert_eq!(round_trip(&all16), MapEncoding::Unorm16);
+        let all8: Vec<f32> = (0..=255u32).rev().map(|q| q as f32 / 255.0).collect();
+        assert_eq!(round_trip(&all8), MapEncoding::Unorm16);
+        // Halves (both signs, the extreme exponents, an odd count): f16.
+        let halves = [
+            0.5f32,
+            -0.0,
+            1.5,
+            -2.75,
+            65504.0,
+            6.103_515_6e-5,
+            -3.0e-2_f32,
+        ];
+        let halves: Vec<f32> = halves
+            .iter()
+            .map(|&v| {
+                // Round to a half's 10 mantissa bits.
+                f32::from_bits(v.to_bits() & !0x1fff)
+            })
+            .collect();
+        assert_eq!(round_trip(&halves), MapEncoding::F16);
+        // One texel that neither keeps (a 16-bit value off its code, a half subnormal, a
+        // 24-bit mantissa) keeps the whole map in f32.
+        for odd in [0.1f32 + 1e-6, 3.0e-6, 0.3] {
+            let mut map = all8.clone();
+            map.push(odd);
+            assert_eq!(round_trip(&map), MapEncoding::F32, "{odd}");
+        }
+        assert_eq!(round_trip(&[-0.0, 0.25]), MapEncoding::F16);
+        assert_eq!(round_trip(&[]), MapEncoding::Unorm16);
     }
 }

@@ -1,7 +1,8 @@
 //! A `prismbake::accel::Scene` on the GPU: prism records, base vertices, a BVH2 over the same
-//! padded prism boxes the CPU uses (`accel::prism_aabbs`), and the height map as a plain f32
-//! storage buffer (read with loads and the CPU's bilinear weights and wrap, so that sampling is
-//! bit-for-bit the CPU's rather than a texture unit's 8-bit-fraction filtering).
+//! padded prism boxes the CPU uses (`accel::prism_aabbs`), and the height map in a storage
+//! buffer, two texels a word where that keeps them exact (`layout::encode_height_map`), read
+//! with loads and the CPU's bilinear weights and wrap, so that sampling is bit-for-bit the
+//! CPU's rather than a texture unit's 8-bit-fraction filtering.
 //!
 //! The CPU scene holds a CWBVH (8-wide, best on CPUs); the GPU gets a binary obvhs BVH2 built
 //! from the same boxes, flattened into `GpuBvhNode`s (obvhs's `small_bvh2_node` layout; the
@@ -15,7 +16,8 @@
 
 use crate::context::GpuContext;
 use crate::layout::{
-    wrap_code, GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams, GpuVertex, NO_STITCH,
+    encode_height_map, wrap_code, GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams, GpuVertex,
+    MapEncoding, NO_STITCH,
 };
 use crate::GpuError;
 use obvhs::bvh2::builder::build_bvh2;
@@ -117,6 +119,7 @@ impl GpuScene {
             .collect();
         let bvh = flatten_bvh(scene);
         let map = &scene.map;
+        let encoded = encode_height_map(&map.data);
         let params = GpuSceneParams {
             map_width: map.width,
             map_height: map.height,
@@ -125,7 +128,7 @@ impl GpuScene {
             disp_scale: table.params.scale,
             disp_midlevel: table.params.midlevel,
             prism_count: prisms.len() as u32,
-            _pad: 0,
+            map_encoding: encoded.encoding as u32,
         };
         let limit = ctx.max_binding_bytes();
         let mut bytes = 0u64;
@@ -159,7 +162,7 @@ impl GpuScene {
         let vertex_buf = storage("vertices", bytemuck::cast_slice(&vertices))?;
         let node_buf = storage("BVH nodes", bytemuck::cast_slice(&bvh.nodes))?;
         let index_buf = storage("BVH prism indices", bytemuck::cast_slice(&bvh.prim_indices))?;
-        let map_buf = storage("height map", bytemuck::cast_slice(&map.data))?;
+        let map_buf = storage("height map", bytemuck::cast_slice(&encoded.words))?;
         let stitch_buf = storage("seam stitch records", bytemuck::cast_slice(&stitches))?;
         let param_buf = ctx
             .device
@@ -214,6 +217,15 @@ impl GpuScene {
             bytes,
             method_bytes,
         })
+    }
+
+    /// How the height map is stored (`MapEncoding`).
+    pub fn map_encoding(&self) -> MapEncoding {
+        match self.params.map_encoding {
+            1 => MapEncoding::Unorm16,
+            2 => MapEncoding::F16,
+            _ => MapEncoding::F32,
+        }
     }
 
     pub fn prism_count(&self) -> u32 {

@@ -8,7 +8,7 @@ use crate::util;
 use glam::Vec2;
 use prismbake::rng;
 use prismbake::{HeightMap, Wrap};
-use prismbake_gpu::layout::{wrap_code, GpuSceneParams};
+use prismbake_gpu::layout::{encode_height_map, wrap_code, GpuSceneParams, MapEncoding};
 use prismbake_gpu::shaders;
 
 const PROBE: &str = r#"
@@ -26,21 +26,40 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 "#;
 
-/// `[sample, sample_grad value, gradient u, gradient v]` per UV, on the adapter.
-fn run_probe(map: &HeightMap, uvs: &[Vec2]) -> Vec<[f32; 4]> {
+/// Per case: in = a texel index, out = the bits of `map_texel` there.
+const TEXEL_PROBE: &str = r#"
+@group(1) @binding(0) var<storage, read_write> io: array<u32>;
+
+@compute @workgroup_size(64)
+fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= arrayLength(&io)) {
+        return;
+    }
+    io[gid.x] = bitcast<u32>(map_texel(io[gid.x]));
+}
+"#;
+
+/// Run `probe` (one of the probes above) over `io` with `map` uploaded as `GpuScene::upload`
+/// does (`encode_height_map`); returns the probe's output and the encoding.
+fn run_map_probe<T: bytemuck::Pod>(
+    probe: &str,
+    map: &HeightMap,
+    io: &[T],
+) -> (Vec<T>, MapEncoding) {
+    let encoded = encode_height_map(&map.data);
     let params = GpuSceneParams {
         map_width: map.width,
         map_height: map.height,
         wrap: wrap_code(map.wrap),
+        map_encoding: encoded.encoding as u32,
         ..Default::default()
     };
-    let src = format!("{}\n{}\n{}", shaders::COMMON, shaders::HEIGHTMAP, PROBE);
-    let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
-    util::run_probe(
+    let src = format!("{}\n{}\n{}", shaders::COMMON, shaders::HEIGHTMAP, probe);
+    let out = util::run_probe(
         "height map probe",
         &src,
         (1, 0),
-        &io,
+        io,
         &[
             // scene, height_map (common.wgsl's bindings)
             (
@@ -52,11 +71,18 @@ fn run_probe(map: &HeightMap, uvs: &[Vec2]) -> Vec<[f32; 4]> {
             (
                 0,
                 5,
-                bytemuck::cast_slice(&map.data),
+                bytemuck::cast_slice(&encoded.words),
                 wgpu::BufferUsages::STORAGE,
             ),
         ],
-    )
+    );
+    (out, encoded.encoding)
+}
+
+/// `[sample, sample_grad value, gradient u, gradient v]` per UV, on the adapter.
+fn run_probe(map: &HeightMap, uvs: &[Vec2]) -> (Vec<[f32; 4]>, MapEncoding) {
+    let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
+    run_map_probe(PROBE, map, &io)
 }
 
 /// UVs where a wrong texel shows: every texel centre and texel edge of the map and of the
@@ -94,14 +120,25 @@ fn probe_uvs(w: u32, h: u32) -> Vec<Vec2> {
 #[test]
 fn height_lookups_read_the_cpus_texels_under_both_wraps() {
     // A non-square map of distinct values, so that any other texel gives another height.
+    // Read as f32, and (its 16-bit quantisation) packed two to a word.
     let (w, h) = (7u32, 5u32);
     let data: Vec<f32> = (0..w * h)
         .map(|i| rng::pcg_hash(i + 1) as f32 / u32::MAX as f32)
         .collect();
-    for wrap in [Wrap::Repeat, Wrap::Clamp] {
+    let data16: Vec<f32> = data
+        .iter()
+        .map(|v| (v * 65535.0).round() / 65535.0)
+        .collect();
+    for (data, encoding, wrap) in [
+        (&data, MapEncoding::F32, Wrap::Repeat),
+        (&data, MapEncoding::F32, Wrap::Clamp),
+        (&data16, MapEncoding::Unorm16, Wrap::Repeat),
+        (&data16, MapEncoding::Unorm16, Wrap::Clamp),
+    ] {
         let map = HeightMap::new(w, h, data.clone(), wrap);
         let uvs = probe_uvs(w, h);
-        let gpu = run_probe(&map, &uvs);
+        let (gpu, got) = run_probe(&map, &uvs);
+        assert_eq!(got, encoding);
         let mut worst = 0.0f32;
         for (uv, g) in uvs.iter().zip(&gpu) {
             let value = map.sample(*uv);
@@ -121,8 +158,51 @@ fn height_lookups_read_the_cpus_texels_under_both_wraps() {
             }
         }
         eprintln!(
-            "{wrap:?}: {} UVs, largest difference {worst:.1e}",
+            "{wrap:?}, {encoding:?}: {} UVs, largest difference {worst:.1e}",
             uvs.len()
+        );
+    }
+}
+
+#[test]
+fn packed_height_maps_give_back_the_cpus_texels_bit_for_bit() {
+    // Every 16-bit code as the loader divides it (the shader's decode is exact for each), 8-bit
+    // codes (the same quotients), half floats of both signs, and a map only f32 holds; odd
+    // sizes, so that the last word is half used.
+    let unorm16: Vec<f32> = (0..=65535u32).map(|q| q as f32 / 65535.0).collect();
+    let unorm8: Vec<f32> = (0..=254u32).map(|q| q as f32 / 255.0).collect();
+    let halves: Vec<f32> = (0..4097u32)
+        .map(|i| {
+            let v = (i as f32 - 2048.0) * 0.37;
+            f32::from_bits(v.to_bits() & !0x1fff)
+        })
+        .collect();
+    let floats: Vec<f32> = (0..4097u32)
+        .map(|i| rng::pcg_hash(i) as f32 / u32::MAX as f32 - 0.5)
+        .collect();
+    for (data, encoding) in [
+        (unorm16, MapEncoding::Unorm16),
+        (unorm8, MapEncoding::Unorm16),
+        (halves, MapEncoding::F16),
+        (floats, MapEncoding::F32),
+    ] {
+        let map = HeightMap::new(data.len() as u32, 1, data.clone(), Wrap::Clamp);
+        let io: Vec<u32> = (0..data.len() as u32).collect();
+        let (gpu, got) = run_map_probe(TEXEL_PROBE, &map, &io);
+        assert_eq!(got, encoding);
+        let wrong: Vec<(usize, f32, f32)> = data
+            .iter()
+            .zip(&gpu)
+            .enumerate()
+            .filter(|(_, (v, g))| v.to_bits() != **g)
+            .map(|(i, (v, g))| (i, *v, f32::from_bits(*g)))
+            .collect();
+        assert!(
+            wrong.is_empty(),
+            "{encoding:?}: {} of {} texels differ, first {:?}",
+            wrong.len(),
+            data.len(),
+            &wrong[..wrong.len().min(5)]
         );
     }
 }

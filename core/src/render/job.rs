@@ -299,6 +299,10 @@ pub struct RenderSummary {
     /// GPU renders: how the AOV kernel walked the BVH (`ray` or `packet`). Absent on the CPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_walk: Option<&'static str>,
+    /// GPU renders: how the height map's texels are stored (`f32`, or two a word: `unorm16`,
+    /// `f16`, where that gives back every texel exactly). Absent on the CPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gpu_map_encoding: Option<&'static str>,
     /// `--device auto` only: why the GPU could not hold the scene, so that the CPU rendered it
     /// instead. Absent where the device asked for rendered it.
     #[serde(skip_serializing_if = "Option::is_none")]

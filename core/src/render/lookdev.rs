@@ -784,6 +784,7 @@ pub fn render_all(
             files: vec![],
             gpu_tile: None,
             gpu_walk: None,
+            gpu_map_encoding: None,
             gpu_fallback: None,
         },
         table_cache: s.cache.clone(),
