@@ -134,10 +134,11 @@ impl MapEncoding {
     }
 }
 
-/// A height map as the GPU stores it: its encoding and the words of the storage buffer.
-pub struct EncodedMap {
+/// A height map as the GPU stores it: its encoding and the words of the storage buffer (an
+/// f32 map's own texels, borrowed: no copy of a map that may be hundreds of megabytes).
+pub struct EncodedMap<'a> {
     pub encoding: MapEncoding,
-    pub words: Vec<u32>,
+    pub words: std::borrow::Cow<'a, [u32]>,
 }
 
 /// The 16-bit code `q` whose texel `q / 65535` (f32, as the loader divides) is `v`, if any.
@@ -175,22 +176,22 @@ fn pack_halves(codes: impl Iterator<Item = u16>, len: usize) -> Vec<u32> {
 /// The narrowest encoding that gives back every texel of `data` exactly (halving the GPU's
 /// copy of a 16-bit, 8-bit or half-float map: an 8192² map is 128 MiB instead of 256 MiB,
 /// which fits where the storage-binding limit is 128 MiB), and the buffer's words.
-pub fn encode_height_map(data: &[f32]) -> EncodedMap {
+pub fn encode_height_map(data: &[f32]) -> EncodedMap<'_> {
     if data.iter().all(|&v| unorm16_code(v).is_some()) {
         return EncodedMap {
             encoding: MapEncoding::Unorm16,
-            words: pack_halves(data.iter().filter_map(|&v| unorm16_code(v)), data.len()),
+            words: pack_halves(data.iter().filter_map(|&v| unorm16_code(v)), data.len()).into(),
         };
     }
     if data.iter().all(|&v| f16_code(v).is_some()) {
         return EncodedMap {
             encoding: MapEncoding::F16,
-            words: pack_halves(data.iter().filter_map(|&v| f16_code(v)), data.len()),
+            words: pack_halves(data.iter().filter_map(|&v| f16_code(v)), data.len()).into(),
         };
     }
     EncodedMap {
         encoding: MapEncoding::F32,
-        words: data.iter().map(|v| v.to_bits()).collect(),
+        words: bytemuck::cast_slice(data).into(),
     }
 }
 
