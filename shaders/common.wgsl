@@ -131,8 +131,9 @@ struct SurfaceMaterial {
     tex_width: u32,
     tex_height: u32,
     tex_offset: u32,     // its first float in env_texels
-    tex_sampler: u32,    // gpu::layout::texture_sampler_code
-    _pad: array<u32, 2>,
+    tex_sampler: u32,    // gpu::layout::texture_sampler_code; bit 5: packed (beauty::TEX_PACKED)
+    tex_table: u32,      // a packed texture's 8-bit sRGB table, its first float in env_texels
+    _pad: u32,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -104,6 +104,12 @@ pub struct ColorMap {
     pub name: String,
 }
 
+/// The linear value of each 8-bit sRGB code: what an 8-bit texture's texels are made of (the
+/// GPU keeps such a texture as its codes and this table, `gpu::beauty::TextureLayout`).
+pub fn srgb8_table() -> [f32; 256] {
+    std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0))
+}
+
 /// sRGB transfer function, decoded: an encoded value in [0, 1] to linear.
 #[inline]
 pub fn srgb_to_linear(x: f32) -> f32 {
@@ -194,7 +200,7 @@ impl ColorMap {
         // Straight to linear texels: 8-bit images through a table, others through f32.
         let texels: Vec<Vec3> = match &image {
             ::image::DynamicImage::ImageRgb8(b) => {
-                let lut: [f32; 256] = std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0));
+                let lut = srgb8_table();
                 b.pixels()
                     .map(|p| Vec3::from_array(p.0.map(|c| lut[c as usize])))
                     .collect()

@@ -25,7 +25,7 @@ use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, Guides
 use prismbake::render::camera::Camera;
 use prismbake::render::env::EnvMap;
 use prismbake::render::RenderSettings;
-use prismbake::texture::ColorMap;
+use prismbake::texture::{srgb8_table, ColorMap};
 use prismbake::trace::pdm::PdmOptions;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
@@ -60,15 +60,108 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
     }
 }
 
-/// The materials of a beauty scene as the kernel reads them (`shaders/texture.wgsl`), their
-/// textures where `env_tables` puts them: after the environment's texels, in order.
-pub fn material_records(s: &BeautyScene) -> Vec<GpuMaterial> {
-    let mut offsets = Vec::with_capacity(s.textures.len());
-    let mut next = 3 * s.env.texels.len();
-    for t in s.textures {
-        offsets.push(next as u32);
-        next += 3 * t.texels.len();
+/// Where the base-colour textures lie in `env_texels`, after the environment's texels, in
+/// order. A texture whose every channel is a value of the 8-bit sRGB table
+/// (`texture::srgb8_table`: every 8-bit PNG and JPEG) is kept as its codes, one word a texel
+/// (`pack_srgb8`), with the table once before the textures: a third of its 3 floats a texel,
+/// and the same texels (texture.wgsl's `tex_texel` looks them up in the CPU's own table).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureLayout {
+    /// First float of the sRGB table (after the environment's texels; unused without a packed
+    /// texture).
+    pub table: u32,
+    /// Per texture: its first float, and whether it is packed.
+    pub textures: Vec<(u32, bool)>,
+    /// Floats of the whole buffer.
+    pub len: usize,
+}
+
+/// Bit 5 of `GpuMaterial::tex_sampler`: the texture is packed (`TextureLayout`).
+pub const TEX_PACKED: u32 = 1 << 5;
+
+/// A packed texel's word as the float `env_texels` holds: codes r, g, b in bits 0–23 and 0x40
+/// above them, so that the float is a normal number (no GPU flushes it on the way).
+const PACKED_TAG: u32 = 0x40 << 24;
+
+/// The 8-bit sRGB code whose table value (`table`) is exactly `v`, if any.
+fn srgb8_code(v: f32, table: &[f32; 256]) -> Option<u32> {
+    let c = (prismbake::render::shading::linear_to_srgb(v) * 255.0).round();
+    if !(0.0..=255.0).contains(&c) {
+        return None;
     }
+    let c = c as i32;
+    // The round trip may land one code off; the table decides.
+    (c - 1..=c + 1)
+        .filter(|k| (0..256).contains(k))
+        .find(|&k| table[k as usize].to_bits() == v.to_bits())
+        .map(|k| k as u32)
+}
+
+/// Texel `c`'s packed word as a float, if all three channels are table values.
+fn pack_srgb8(c: Vec3, table: &[f32; 256]) -> Option<f32> {
+    let [r, g, b] = c.to_array().map(|v| srgb8_code(v, table));
+    Some(f32::from_bits(PACKED_TAG | r? | (g? << 8) | (b? << 16)))
+}
+
+/// The layout of `textures` after `env_texels` environment texels.
+pub fn texture_layout(env_texels: usize, textures: &[ColorMap]) -> TextureLayout {
+    let table = srgb8_table();
+    let packed: Vec<bool> = textures
+        .iter()
+        .map(|t| t.texels.iter().all(|&c| pack_srgb8(c, &table).is_some()))
+        .collect();
+    let mut next = 3 * env_texels;
+    let table_at = next;
+    if packed.contains(&true) {
+        next += table.len();
+    }
+    let textures = textures
+        .iter()
+        .zip(packed)
+        .map(|(t, packed)| {
+            let at = next;
+            next += t.texels.len() * if packed { 1 } else { 3 };
+            (at as u32, packed)
+        })
+        .collect();
+    TextureLayout {
+        table: table_at as u32,
+        textures,
+        len: next,
+    }
+}
+
+/// `env_texels` as `layout` lays it out: the environment's texels (3 floats each), the table if
+/// a texture is packed, then each texture, packed or 3 floats a texel.
+pub fn texel_buffer(
+    env_texels: &[Vec3],
+    textures: &[ColorMap],
+    layout: &TextureLayout,
+) -> Vec<f32> {
+    let table = srgb8_table();
+    let mut out = Vec::with_capacity(layout.len);
+    out.extend(env_texels.iter().flat_map(|c| c.to_array()));
+    if layout.textures.iter().any(|&(_, packed)| packed) {
+        out.extend_from_slice(&table);
+    }
+    for (t, &(at, packed)) in textures.iter().zip(&layout.textures) {
+        debug_assert_eq!(out.len(), at as usize);
+        match packed {
+            true => out.extend(
+                t.texels
+                    .iter()
+                    .map(|&c| pack_srgb8(c, &table).expect("texture_layout checked every texel")),
+            ),
+            false => out.extend(t.texels.iter().flat_map(|c| c.to_array())),
+        }
+    }
+    debug_assert_eq!(out.len(), layout.len);
+    out
+}
+
+/// The materials of a beauty scene as the kernel reads them (`shaders/texture.wgsl`), their
+/// textures where `layout` puts them.
+pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMaterial> {
     s.materials
         .iter()
         .map(|m| {
@@ -81,9 +174,12 @@ pub fn material_records(s: &BeautyScene) -> Vec<GpuMaterial> {
             };
             if let Some(i) = m.texture {
                 let t = &s.textures[i as usize];
+                let (at, packed) = layout.textures[i as usize];
                 (g.tex_width, g.tex_height) = (t.width, t.height);
-                g.tex_offset = offsets[i as usize];
-                g.tex_sampler = texture_sampler_code(&t.sampler);
+                g.tex_offset = at;
+                g.tex_sampler =
+                    texture_sampler_code(&t.sampler) | if packed { TEX_PACKED } else { 0 };
+                g.tex_table = layout.table;
             }
             g
         })
@@ -91,21 +187,16 @@ pub fn material_records(s: &BeautyScene) -> Vec<GpuMaterial> {
 }
 
 /// The environment as the kernel reads it (`shaders/env.wgsl`): `texels` 3 floats per texel,
-/// rows top to bottom, then the base-colour textures' (`textures`, `shaders/texture.wgsl`) the
-/// same way, one after the other; `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h), `conditional_cdf`
-/// (h (w + 1)) and `texel_weight` (w h), one after the other.
+/// rows top to bottom, then the base-colour textures' (`TextureLayout`, `shaders/texture.wgsl`);
+/// `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h), `conditional_cdf` (h (w + 1))
+/// and `texel_weight` (w h), one after the other.
 pub struct EnvTables {
     pub texels: Vec<f32>,
     pub tables: Vec<f32>,
 }
 
-pub fn env_tables(env: &EnvMap, textures: &[ColorMap]) -> EnvTables {
-    let texels = env
-        .texels
-        .iter()
-        .chain(textures.iter().flat_map(|t| &t.texels))
-        .flat_map(|c| c.to_array())
-        .collect();
+pub fn env_tables(env: &EnvMap, textures: &[ColorMap], layout: &TextureLayout) -> EnvTables {
+    let texels = texel_buffer(&env.texels, textures, layout);
     let mut tables = Vec::with_capacity(
         env.marginal_cdf.len()
             + env.row_weight.len()
@@ -138,11 +229,11 @@ pub fn check_lighting_fits(
             + e.texel_weight.len();
         (e.texels.len(), tables)
     });
-    let texels = env_texels + textures.iter().map(|t| t.texels.len()).sum::<usize>();
+    let floats = texture_layout(env_texels, textures).len;
     let limit = ctx.max_binding_bytes();
     let f32s = std::mem::size_of::<f32>() as u64;
     for (what, bytes) in [
-        ("environment and texture texels", texels as u64 * 3 * f32s),
+        ("environment and texture texels", floats as u64 * f32s),
         ("environment sampling tables", tables as u64 * f32s),
     ] {
         if bytes > limit {
@@ -167,6 +258,8 @@ pub struct GpuBeautyScene {
     env_id: (usize, u32, u32),
     texture_id: (usize, usize),
     material_count: usize,
+    /// Where the textures went (`update` rewrites the materials that point there).
+    layout: TextureLayout,
     bytes: u64,
     /// What the uniform holds now (the bounces and lights decide a sample's dispatches).
     current: Mutex<GpuLighting>,
@@ -180,7 +273,8 @@ impl GpuBeautyScene {
     /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
         check_lighting_fits(ctx, Some(s.env), s.textures)?;
-        let env = env_tables(s.env, s.textures);
+        let layout = texture_layout(s.env.texels.len(), s.textures);
+        let env = env_tables(s.env, s.textures, &layout);
         let mut bytes = 0u64;
         let mut storage = |what: &'static str, data: &[f32]| {
             let data: &[u8] = bytemuck::cast_slice(data);
@@ -194,7 +288,7 @@ impl GpuBeautyScene {
         };
         let texels = storage("environment and texture texels", &env.texels);
         let tables = storage("environment sampling tables", &env.tables);
-        let records = material_records(s);
+        let records = material_records(s, &layout);
         let materials = ctx
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -239,6 +333,7 @@ impl GpuBeautyScene {
             env_id: env_id(s.env),
             texture_id: texture_id(s.textures),
             material_count: records.len(),
+            layout,
             materials,
             bytes,
             current: Mutex::new(lighting_uniform(s)),
@@ -264,7 +359,7 @@ impl GpuBeautyScene {
         ctx.queue.write_buffer(
             &self.materials,
             0,
-            bytemuck::cast_slice(&material_records(s)),
+            bytemuck::cast_slice(&material_records(s, &self.layout)),
         );
         *self.current.lock().unwrap_or_else(|e| e.into_inner()) = lighting;
     }

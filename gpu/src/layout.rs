@@ -287,12 +287,15 @@ pub struct GpuMaterial {
     pub tex_height: u32,
     pub tex_offset: u32,
     pub tex_sampler: u32,
-    pub _pad: [u32; 2],
+    /// First float of the 8-bit sRGB table in `env_texels`, for a packed texture
+    /// (`beauty::TextureLayout`; `tex_sampler`'s bit 5).
+    pub tex_table: u32,
+    pub _pad: u32,
 }
 
 /// A texture sampler as the lighting uniform's `tex_sampler` holds it: `wrapS`'s code in bits
 /// 0–1, `wrapT`'s in bits 2–3 (`TexWrap::code`), nearest filtering in bit 4
-/// (`shaders/texture.wgsl`).
+/// (`shaders/texture.wgsl`; bit 5, a packed texture, is `beauty::TEX_PACKED`).
 pub fn texture_sampler_code(s: &prismbake::texture::Sampler) -> u32 {
     s.wrap[0].code() | (s.wrap[1].code() << 2) | ((s.nearest as u32) << 4)
 }
@@ -465,6 +468,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 tex_height,
                 tex_offset,
                 tex_sampler,
+                tex_table,
                 _pad
             }
         ),

@@ -322,6 +322,11 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         ..texture.clone()
     };
     let textures = [texture, other];
+    // An 8-bit PNG: both go up packed (their sRGB codes and the table, `TextureLayout`).
+    assert_eq!(
+        prismbake_gpu::beauty::texture_layout(0, &textures).textures,
+        [(256, true), (256 + 256 * 256, true)]
+    );
     let materials = [
         SurfaceMaterial {
             material: Material {

@@ -124,6 +124,10 @@ fn beauty_constants_are_mirrored() {
     }
     assert_eq!(constant(&m, "DIMS"), naga::Literal::U32(beauty::DIMS));
     assert_eq!(
+        constant(&m, "TEX_PACKED"),
+        naga::Literal::U32(prismbake_gpu::beauty::TEX_PACKED)
+    );
+    assert_eq!(
         constant(&m, "MIRROR_ROUGHNESS"),
         naga::Literal::F32(shading::MIRROR_ROUGHNESS)
     );

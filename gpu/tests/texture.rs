@@ -8,7 +8,8 @@
 use crate::util;
 use glam::{Vec2, Vec3};
 use prismbake::rng;
-use prismbake::texture::{ColorMap, Sampler, TexWrap};
+use prismbake::texture::{srgb8_table, ColorMap, Sampler, TexWrap};
+use prismbake_gpu::beauty::{texel_buffer, texture_layout, TEX_PACKED};
 use prismbake_gpu::layout::{texture_sampler_code, GpuMaterial};
 use prismbake_gpu::shaders;
 
@@ -60,10 +61,35 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             rng::pcg_hash(3 * i + 3) as f32 / u32::MAX as f32,
         )
     };
-    let env_texels = 3u32;
-    let mut texels: Vec<f32> = (0..env_texels).flat_map(|_| [-9.0f32; 3]).collect();
+    // Laid out as `GpuBeautyScene::upload` does, after a 3-texel "environment": an f32 texture
+    // (any colours), and one of 8-bit sRGB colours, which goes up packed (its codes and the
+    // table), in the same buffer.
+    let table = srgb8_table();
     let tex: Vec<Vec3> = (0..w * h).map(colour).collect();
-    texels.extend(tex.iter().flat_map(|c| c.to_array()));
+    let tex8: Vec<Vec3> = (0..w * h)
+        .map(|i| {
+            Vec3::from_array(std::array::from_fn(|k| {
+                table[(rng::pcg_hash(7 * i + k as u32) & 0xff) as usize]
+            }))
+        })
+        .collect();
+    let environment = [Vec3::splat(-9.0); 3];
+    let maps = |sampler: Sampler| {
+        [&tex, &tex8].map(|texels| ColorMap {
+            width: w,
+            height: h,
+            texels: texels.clone(),
+            sampler,
+            name: "probe".into(),
+        })
+    };
+    let layout = texture_layout(environment.len(), &maps(Sampler::default()));
+    assert_eq!(
+        layout.textures.iter().map(|t| t.1).collect::<Vec<_>>(),
+        [false, true]
+    );
+    assert_eq!(layout.len, 3 * 3 + 3 * 15 + 256 + 15);
+    let texels = texel_buffer(&environment, &maps(Sampler::default()), &layout);
     let wraps = [TexWrap::Repeat, TexWrap::Clamp, TexWrap::Mirror];
     let uvs = probe_uvs(w, h);
     let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
@@ -77,54 +103,51 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
                     wrap: [wu, wv],
                     nearest,
                 };
-                let map = ColorMap {
-                    width: w,
-                    height: h,
-                    texels: tex.clone(),
-                    sampler,
-                    name: "probe".into(),
-                };
-                let material = GpuMaterial {
-                    tex_width: w,
-                    tex_height: h,
-                    tex_offset: 3 * env_texels,
-                    tex_sampler: texture_sampler_code(&sampler),
-                    ..Default::default()
-                };
-                let gpu = util::run_probe(
-                    "texture probe",
-                    &src,
-                    (3, 1),
-                    &io,
-                    &[
-                        // env_texels (env.wgsl), materials (texture.wgsl)
-                        (
-                            2,
-                            3,
-                            bytemuck::bytes_of(&material),
-                            wgpu::BufferUsages::STORAGE,
-                        ),
-                        (
-                            2,
-                            1,
-                            bytemuck::cast_slice(&texels),
-                            wgpu::BufferUsages::STORAGE,
-                        ),
-                    ],
-                );
-                for (uv, g) in uvs.iter().zip(&gpu) {
-                    let want = map.sample(*uv);
-                    let err = (Vec3::new(g[0], g[1], g[2]) - want).abs().max_element();
-                    // The same arithmetic up to FMA contraction (~1e-7); a wrong texel moves
-                    // a channel by ~0.1–1.
-                    assert!(
-                        err <= 1e-5,
-                        "{sampler:?} uv {uv}: GPU {g:?}, CPU {want} (|Δ| {err:.2e})"
+                for (map, &(tex_offset, packed)) in maps(sampler).iter().zip(&layout.textures) {
+                    let material = GpuMaterial {
+                        tex_width: w,
+                        tex_height: h,
+                        tex_offset,
+                        tex_sampler: texture_sampler_code(&sampler)
+                            | if packed { TEX_PACKED } else { 0 },
+                        tex_table: layout.table,
+                        ..Default::default()
+                    };
+                    let gpu = util::run_probe(
+                        "texture probe",
+                        &src,
+                        (3, 1),
+                        &io,
+                        &[
+                            // env_texels (env.wgsl), materials (texture.wgsl)
+                            (
+                                2,
+                                3,
+                                bytemuck::bytes_of(&material),
+                                wgpu::BufferUsages::STORAGE,
+                            ),
+                            (
+                                2,
+                                1,
+                                bytemuck::cast_slice(&texels),
+                                wgpu::BufferUsages::STORAGE,
+                            ),
+                        ],
                     );
+                    for (uv, g) in uvs.iter().zip(&gpu) {
+                        let want = map.sample(*uv);
+                        let err = (Vec3::new(g[0], g[1], g[2]) - want).abs().max_element();
+                        // The same arithmetic up to FMA contraction (~1e-7); a wrong texel moves
+                        // a channel by ~0.1–1.
+                        assert!(
+                        err <= 1e-5,
+                        "{sampler:?} packed {packed} uv {uv}: GPU {g:?}, CPU {want} (|Δ| {err:.2e})"
+                    );
+                    }
+                    cases += uvs.len();
                 }
-                cases += uvs.len();
             }
         }
     }
-    eprintln!("texture probe: {cases} lookups agree (18 samplers)");
+    eprintln!("texture probe: {cases} lookups agree (18 samplers, f32 and packed)");
 }
