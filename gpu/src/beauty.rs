@@ -83,17 +83,29 @@ pub const TEX_PACKED: u32 = 1 << 5;
 /// above them, so that the float is a normal number (no GPU flushes it on the way).
 const PACKED_TAG: u32 = 0x40 << 24;
 
-/// The 8-bit sRGB code whose table value (`table`) is exactly `v`, if any.
+/// The 8-bit sRGB code whose table value is exactly `v`, if any. The table rises with the code,
+/// and so do its values' bits: `first[k]` is the first code whose value's upper 16 bits are at
+/// least `k`, and at most two codes share those bits (adjacent values differ by more than
+/// 2⁻⁷ of themselves), so one lookup and two comparisons decide. (`linear_to_srgb` would take a
+/// `powf` per channel: seconds over a 4096² texture.)
 fn srgb8_code(v: f32, table: &[f32; 256]) -> Option<u32> {
-    let c = (prismbake::render::shading::linear_to_srgb(v) * 255.0).round();
-    if !(0.0..=255.0).contains(&c) {
-        return None;
-    }
-    let c = c as i32;
-    // The round trip may land one code off; the table decides.
-    (c - 1..=c + 1)
-        .filter(|k| (0..256).contains(k))
-        .find(|&k| table[k as usize].to_bits() == v.to_bits())
+    static FIRST: std::sync::OnceLock<Vec<u16>> = std::sync::OnceLock::new();
+    let first = FIRST.get_or_init(|| {
+        let table = srgb8_table();
+        let mut first = vec![256u16; 1 << 16];
+        let mut code = 256usize;
+        for k in (0..1usize << 16).rev() {
+            while code > 0 && (table[code - 1].to_bits() >> 16) as usize >= k {
+                code -= 1;
+            }
+            first[k] = code as u16;
+        }
+        first
+    });
+    let bits = v.to_bits();
+    let c = first[(bits >> 16) as usize] as usize;
+    (c..(c + 2).min(256))
+        .find(|&k| table[k].to_bits() == bits)
         .map(|k| k as u32)
 }
 
@@ -522,4 +534,35 @@ fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums],
     c.rays += rays;
     c.key_shadow_rays += key;
     c.env_shadow_rays += env;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_srgb8_value_and_no_other_float_finds_its_code() {
+        let table = srgb8_table();
+        for (code, &v) in table.iter().enumerate() {
+            assert_eq!(srgb8_code(v, &table), Some(code as u32), "{v}");
+            // Its neighbouring floats are no code's value (the table's are > 1 ulp apart).
+            for near in [
+                f32::from_bits(v.to_bits() + 1),
+                f32::from_bits(v.to_bits().max(1) - 1),
+            ] {
+                if near != v && !table.contains(&near) {
+                    assert_eq!(srgb8_code(near, &table), None, "{near} next to code {code}");
+                }
+            }
+        }
+        for v in [-0.5, 1.5, 0.123_456, f32::NAN, f32::INFINITY, -0.0] {
+            assert_eq!(srgb8_code(v, &table), None, "{v}");
+        }
+        // A colour of codes packs and unpacks to them; one other channel keeps it in floats.
+        let c = Vec3::new(table[3], table[200], table[255]);
+        let word = pack_srgb8(c, &table).unwrap().to_bits();
+        assert_eq!(word & 0xff_ffff, 3 | (200 << 8) | (255 << 16));
+        assert!(f32::from_bits(word).is_normal());
+        assert_eq!(pack_srgb8(Vec3::new(table[3], 0.3, table[1]), &table), None);
+    }
 }
