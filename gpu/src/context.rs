@@ -763,6 +763,12 @@ impl GpuContext {
     }
 
     /// Whether the device binds the storage buffers `schedule` needs in one stage.
+    /// Whether this device can run the beauty schedule it renders with (its storage buffers per
+    /// shader stage), before anything is compiled or uploaded.
+    pub fn check_beauty(&self) -> Result<(), GpuError> {
+        self.check_beauty_bindings(self.beauty_schedule)
+    }
+
     fn check_beauty_bindings(&self, schedule: BeautySchedule) -> Result<(), GpuError> {
         let have = self.device.limits().max_storage_buffers_per_shader_stage;
         let need = schedule.storage_buffers();

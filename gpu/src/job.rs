@@ -112,9 +112,10 @@ pub fn run(
     run_on(ctx, job, look, progress, false)
 }
 
-/// `run`, except that a scene the adapter cannot hold (`GpuError::is_capacity`, found before
-/// the first frame, so before any file is written) is rendered by the CPU renderer from the
-/// same loaded session. The context's warning sink hears why, and the summary keeps it
+/// `run`, except that a scene the adapter cannot hold (`GpuError::is_capacity`), or a beauty
+/// it cannot run (too few storage buffers per shader stage), both found before the first frame
+/// and so before any file is written, is rendered by the CPU renderer from the same loaded
+/// session. The context's warning sink hears why, and the summary keeps it
 /// (`gpu_fallback`). What `--device auto` does.
 pub fn run_or_cpu(
     ctx: &GpuContext,
@@ -149,6 +150,7 @@ fn run_on(
         .map_err(|e| (e, None))
         .and_then(|scene| {
             if want_beauty {
+                ctx.check_beauty().map_err(|e| (e, None))?;
                 check_lighting_fits(ctx, session.env(), session.textures())
                     .map_err(|e| (e, look.env.as_deref()))?;
             }
@@ -156,9 +158,16 @@ fn run_on(
         });
     let scene = match uploaded {
         Ok(scene) => scene,
-        Err((e, _)) if cpu_fallback && e.is_capacity() => {
+        // Before the first frame only the beauty's storage-buffer check says `Unsupported`.
+        Err((e, _))
+            if cpu_fallback && (e.is_capacity() || matches!(e, GpuError::Unsupported(_))) =>
+        {
+            let what = match e.is_capacity() {
+                true => "cannot hold this scene",
+                false => "cannot render this job",
+            };
             ctx.warn(&format!(
-                "device: cpu ({} cannot hold this scene: {e}); --device gpu makes this an error",
+                "device: cpu ({} {what}: {e}); --device gpu makes this an error",
                 ctx.adapter_name()
             ));
             // The upload tried counts as set-up, as the GPU's own does.
