@@ -206,6 +206,14 @@ class RenderSummary:
     frames: int
     method: str
     device: str
+    # `--device auto` only: why the GPU could not render the job, which the CPU then rendered.
+    gpu_fallback: Optional[str] = None
+
+    def device_note(self) -> str:
+        """What an artist is told besides the timing: nothing, or that the CPU stood in."""
+        if not self.gpu_fallback:
+            return ""
+        return f"; rendered on the CPU: {self.gpu_fallback}"
 
     def first(self, aov: str, ext: str = ".png") -> Optional[str]:
         for f in self.files:
@@ -223,7 +231,8 @@ def parse_render(data: dict) -> RenderSummary:
         seconds=float(data.get("setup_seconds") or 0.0)
         + sum(float(f.get("seconds") or 0.0) for f in frames if isinstance(f, dict)),
         coverage=cov, frames=len(frames),
-        method=str(data.get("method", "")), device=str(data.get("device", "")))
+        method=str(data.get("method", "")), device=str(data.get("device", "")),
+        gpu_fallback=data.get("gpu_fallback") or None)
 
 
 @dataclasses.dataclass

@@ -65,8 +65,9 @@ class PRISMBAKE_OT_preview(jobs.JobOperator, bpy.types.Operator):
             image.name, self._folder, self._glb, summary.files, summary.seconds, total, result.argv))
         self._folder = None  # kept: the record owns it now
         cov = f", {100 * summary.coverage:.1f}% covered" if summary.coverage is not None else ""
-        self.report({"INFO"}, f"Preview of {self._object_name}: {image.size[0]}x{image.size[1]} in "
-                              f"{total:.2f} s (render {summary.seconds:.2f} s{cov})")
+        self.report({"WARNING"} if summary.gpu_fallback else {"INFO"},
+                    f"Preview of {self._object_name}: {image.size[0]}x{image.size[1]} in "
+                    f"{total:.2f} s (render {summary.seconds:.2f} s{cov}){summary.device_note()}")
         return {"FINISHED"}
 
     def cleanup(self):
@@ -131,8 +132,9 @@ class PRISMBAKE_OT_turntable(jobs.JobOperator, bpy.types.Operator):
         summary = cli_bridge.parse_render(result.json())
         jobs.remember(self._object_name, "turntable", {"folder": self._out, "frames": summary.frames,
                                                        "files": summary.files})
-        self.report({"INFO"}, f"Turntable of {self._object_name}: {summary.frames} frames in "
-                              f"{self._out} ({summary.seconds:.1f} s)")
+        self.report({"WARNING"} if summary.gpu_fallback else {"INFO"},
+                    f"Turntable of {self._object_name}: {summary.frames} frames in "
+                    f"{self._out} ({summary.seconds:.1f} s){summary.device_note()}")
         return {"FINISHED"}
 
     def cleanup(self):

@@ -116,6 +116,15 @@ def test_parse_render_summary(cb):
     assert s.first("mask") == "/o/mask.png" and s.first("normal", ".exr") == "/o/normal.exr"
     assert s.first("depth") is None
     assert s.seconds == pytest.approx(0.75) and s.coverage == 0.35 and s.frames == 1
+    assert s.gpu_fallback is None and s.device_note() == ""
+
+
+def test_parse_render_says_when_the_cpu_stood_in_for_the_gpu(cb):
+    why = "height map: 268435456 bytes exceed this GPU's storage-binding limit of 134217728 bytes"
+    s = cb.parse_render({"method": "pdm", "device": "cpu (2 threads)", "frames": [],
+                         "files": [], "gpu_fallback": why})
+    assert s.gpu_fallback == why
+    assert s.device_note() == f"; rendered on the CPU: {why}"
 
 
 def test_parse_validate_collects_failures_and_faces(cb):
