@@ -466,7 +466,9 @@ fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_c
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert_eq!(refused.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("height map") && stderr.contains("storage-binding limit"),
+        stderr.contains("height map")
+            && stderr.contains("storage-binding limit")
+            && stderr.contains("--device auto"),
         "{stderr}"
     );
     assert!(files_in(&dir.join("refused")).is_empty());

@@ -223,7 +223,8 @@ pub fn env_tables(env: &EnvMap, textures: &[ColorMap], layout: &TextureLayout) -
 }
 
 /// What to do when the lighting does not fit a storage binding.
-const LIGHTING_FIX: &str = "use a smaller --env map or base-colour textures, or --device cpu";
+const LIGHTING_FIX: &str =
+    "use a smaller --env map or base-colour textures, or --device auto or cpu (the CPU renderer has no such limit)";
 
 /// Whether an environment (`None`: the one-texel black a render without `--env` lights with)
 /// and the base-colour textures fit `ctx`'s storage bindings as `GpuBeautyScene::upload` lays

@@ -138,7 +138,7 @@ impl GpuScene {
                     what,
                     bytes: data.len() as u64,
                     limit,
-                    fix: "use --device cpu or a smaller asset",
+                    fix: "use --device auto or cpu (the CPU renderer has no such limit), or a smaller asset",
                 });
             }
             bytes += data.len() as u64;
