@@ -301,12 +301,18 @@ fn table_cache_is_reused_unless_disabled() {
     );
 }
 
-/// A smooth 64² height map with an optional raised 4×4 patch.
-fn write_map(path: &Path, patch: bool) {
+/// A smooth 64² height map (68–188) with an optional line of 4 texels (x 8, y 20–23, in view of
+/// the sphere's camera) set to `line`. A line one texel wide fills no prism's footprint, so
+/// every prism it touches keeps texels of the smooth field: raising the line grows those
+/// prisms' boxes (the BVH is rebuilt); lowering it again to a value above the field's keeps
+/// them.
+fn write_map(path: &Path, line: Option<u8>) {
     let img = image::GrayImage::from_fn(64, 64, |x, y| {
         let v = 128.0 + 60.0 * ((x as f32) * 0.3).sin() * ((y as f32) * 0.2).cos();
-        let bump = patch && (40..44).contains(&x) && (20..24).contains(&y);
-        image::Luma([if bump { 255 } else { v as u8 }])
+        match line {
+            Some(l) if x == 8 && (20..24).contains(&y) => image::Luma([l]),
+            _ => image::Luma([v as u8]),
+        }
     });
     // Written next to the map and renamed over it, as editors save.
     let tmp = path.with_extension("tmp.png");
@@ -314,12 +320,16 @@ fn write_map(path: &Path, patch: bool) {
     std::fs::rename(&tmp, path).unwrap();
 }
 
-#[test]
-fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
-    let dir = temp_dir("watch");
+/// `render --watch` on `device`: a first render, an edit that raises a line of texels (a few
+/// prisms re-baked, their boxes grown: the BVH is rebuilt), then one that lowers it part of the
+/// way (the grown bounds still hold: the BVH is kept, and on the GPU the scene is rewritten in
+/// place). Each re-render shows its map: both edits move the depth of some pixels. Returns the
+/// watch's stderr, the final depth and the folder (its `ball.glb` now reads the final map).
+fn watch_two_edits(device: &str) -> (String, Vec<f32>, PathBuf) {
+    let dir = temp_dir(&format!("watch-{device}"));
     std::fs::copy(example("sphere/sphere.glb"), dir.join("ball.glb")).unwrap();
     let map = dir.join("h.png");
-    write_map(&map, false);
+    write_map(&map, None);
     std::fs::write(
         dir.join("ball.prismbake.toml"),
         "disp = \"h.png\"\nscale = 0.05\n",
@@ -330,14 +340,16 @@ fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
         .args([
             "render",
             s(&dir.join("ball.glb")),
+            "--device",
+            device,
             "--res",
-            "16x16",
+            "64x64",
             "--aov",
-            "mask",
+            "depth,mask",
             "--no-cache",
             "--watch",
             "--watch-max",
-            "1",
+            "2",
             "-o",
             s(&out),
         ])
@@ -345,40 +357,134 @@ fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let deadline = Instant::now() + Duration::from_secs(120);
-    while !out.join("mask.png").is_file() {
-        assert!(Instant::now() < deadline, "first render never finished");
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let first = read(&out.join("mask.exr"));
-    std::thread::sleep(Duration::from_millis(300));
-    write_map(&map, true);
-    while child.try_wait().unwrap().is_none() {
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            panic!("watch did not re-render within the deadline");
+    // stderr line by line, as the watch prints it.
+    let lines = std::sync::Arc::new(std::sync::Mutex::new(Vec::<String>::new()));
+    let reader = {
+        let lines = lines.clone();
+        let stderr = child.stderr.take().unwrap();
+        std::thread::spawn(move || {
+            for l in std::io::BufRead::lines(std::io::BufReader::new(stderr)) {
+                lines.lock().unwrap().push(l.unwrap());
+            }
+        })
+    };
+    let deadline = Instant::now() + Duration::from_secs(180);
+    let wait_for = |what: &str, n: usize| {
+        while lines
+            .lock()
+            .unwrap()
+            .iter()
+            .filter(|l| l.contains(what))
+            .count()
+            < n
+        {
+            if Instant::now() > deadline {
+                let _ = Command::new("kill").arg(child.id().to_string()).status();
+                panic!(
+                    "{device}: no {n}× `{what}` in time:\n{}",
+                    lines.lock().unwrap().join("\n")
+                );
+            }
+            std::thread::sleep(Duration::from_millis(50));
         }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(child.stderr.as_mut().unwrap(), &mut stderr).unwrap();
-    assert!(child.wait().unwrap().success(), "{stderr}");
+    };
+    let depth = || {
+        let [y] = read_channels(&out.join("depth.exr"), ["Y"]);
+        y
+    };
+    wait_for("watching", 1);
+    let first = depth();
+    std::thread::sleep(Duration::from_millis(300));
+    write_map(&map, Some(255));
+    wait_for("map changed", 1);
+    let raised = depth();
+    std::thread::sleep(Duration::from_millis(300));
+    write_map(&map, Some(215));
+    wait_for("map changed", 2);
+    assert!(child.wait().unwrap().success());
+    reader.join().unwrap();
+    let stderr = lines.lock().unwrap().join("\n");
+    let lowered = depth();
     // "re-baked K of N prisms": a 4x4-texel edit touches a few prisms, not the table.
-    let line = stderr
-        .lines()
-        .find(|l| l.contains("re-baked"))
-        .unwrap_or_else(|| panic!("no re-bake line\n{stderr}"));
-    let nums: Vec<usize> = line
+    let events: Vec<&str> = stderr.lines().filter(|l| l.contains("re-baked")).collect();
+    let nums: Vec<usize> = events[0]
         .split_whitespace()
         .filter_map(|w| w.parse().ok())
         .collect();
     let (k, n) = (nums[0], nums[1]);
-    assert!(k > 0 && k < n / 4, "re-baked {k} of {n}: {line}");
+    assert!(k > 0 && k < n / 20, "re-baked {k} of {n}: {}", events[0]);
     assert!(
-        line.contains("re-rendered in") && line.contains("BVH"),
-        "{line}"
+        events[0].contains("BVH rebuilt") && events[0].contains("re-rendered in"),
+        "{stderr}"
     );
-    assert!(out.join("mask.exr").is_file() && read(&out.join("mask.exr")).len() == first.len());
+    assert!(
+        events[1].contains("re-baked 0 of") && events[1].contains("BVH kept"),
+        "{stderr}"
+    );
+    // Depth where both renders hit (0 elsewhere): each edit moves some pixels' depth by far
+    // more than rounding.
+    let moved = |a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .filter(|(x, y)| **x > 0.0 && **y > 0.0 && ((**x - **y) / **x).abs() > 1e-4)
+            .count()
+    };
+    assert!(
+        moved(&first, &raised) >= 2,
+        "{device}: the raised line shows in no pixel"
+    );
+    assert!(
+        moved(&raised, &lowered) >= 2,
+        "{device}: the lowered line shows in no pixel"
+    );
+    (stderr, lowered, dir)
+}
+
+#[test]
+fn watch_rerenders_after_a_map_edit_and_rebakes_few_prisms() {
+    let (stderr, _, _) = watch_two_edits("cpu");
+    assert!(!stderr.contains("gpu:"), "{stderr}");
+}
+
+#[test]
+fn watch_on_the_gpu_rewrites_the_scene_in_place_when_the_bvh_is_kept() {
+    let (stderr, lowered, dir) = watch_two_edits("gpu");
+    // The scene rewritten in place renders the final map as a fresh CPU render of it does
+    // (issue 4's parity bounds: depth within 1e-3 where both hit, masks within 0.5%).
+    let out = dir.join("fresh");
+    run(&[
+        "render",
+        s(&dir.join("ball.glb")),
+        "--device",
+        "cpu",
+        "--res",
+        "64x64",
+        "--aov",
+        "depth",
+        "--no-cache",
+        "-o",
+        s(&out),
+    ])
+    .assert_success();
+    let [fresh] = read_channels(&out.join("depth.exr"), ["Y"]);
+    let (mut both, mut worse, mut one) = (0, 0, 0);
+    for (g, c) in lowered.iter().zip(&fresh) {
+        match (*g > 0.0, *c > 0.0) {
+            (true, true) => {
+                both += 1;
+                worse += (((g - c) / c).abs() > 1e-3) as usize;
+            }
+            (false, false) => {}
+            _ => one += 1,
+        }
+    }
+    assert!(both > 500 && worse == 0, "{worse} of {both} pixels off");
+    assert!(one * 200 <= fresh.len(), "{one} mask pixels differ");
+    // The raise rebuilt the BVH (a new upload); the undo kept it (prisms and map rewritten).
+    let gpu: Vec<&str> = stderr.lines().filter(|l| l.starts_with("gpu: ")).collect();
+    assert_eq!(gpu.len(), 2, "{stderr}");
+    assert!(gpu[0].contains("uploaded anew"), "{stderr}");
+    assert!(gpu[1].contains("rewritten in place"), "{stderr}");
 }
 
 /// How much the colour (not the brightness) varies over the pixels the asset covers: the

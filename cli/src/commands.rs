@@ -217,16 +217,16 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
         .map(|s| s.parse::<Aov>())
         .collect::<std::result::Result<Vec<_>, _>>()
         .map_err(Error::Param)?;
-    // The GPU renders PDM (AOVs and beauty); --watch and the other methods run on the CPU
-    // (`auto` falls back to it, `gpu` says so).
-    let gpu_able = method == Method::Pdm && !a.watch;
+    // The GPU renders PDM (AOVs and beauty, stills, turntables, --watch); the other methods run
+    // on the CPU (`auto` falls back to it, `gpu` says so).
+    let gpu_able = method == Method::Pdm;
     // `auto` also renders on the CPU a scene the GPU cannot hold.
     let auto = a.device == Device::Auto;
     let gpu = match a.device {
         Device::Cpu => None,
         Device::Gpu if !gpu_able => {
             return Err(Error::Param(
-                "--device gpu traces --method pdm and does not --watch; use --device cpu".into(),
+                "--device gpu traces --method pdm; use --device cpu for the other methods".into(),
             ));
         }
         Device::Gpu => Some(
@@ -294,15 +294,12 @@ fn render(a: RenderArgs) -> Result<ExitCode> {
                 ev.rebake.prisms_rebaked, ev.rebake.prisms, ev.rebake.records_updated, ev.bvh, ev.latency_ms, s.render.files.len(), ev.rebake_ms
             );
         };
-        let summary = pool.install(|| {
-            lookdev::watch(
-                &job,
-                &look,
-                a.watch_max,
-                &|m| eprintln!("{m}"),
-                &on_event,
-                &|_, _| {},
-            )
+        let log = |m: &str| eprintln!("{m}");
+        let summary = pool.install(|| match &gpu {
+            Some(ctx) => {
+                prismbake_gpu::job::watch(ctx, &job, &look, a.watch_max, &log, &on_event, auto)
+            }
+            None => lookdev::watch(&job, &look, a.watch_max, &log, &on_event, &|_, _| {}),
         })?;
         print_render_summary(&a, &summary);
         return Ok(ExitCode::SUCCESS);

@@ -10,7 +10,9 @@ use crate::GpuError;
 use prismbake::render::beauty::{BeautyImage, BeautyScene};
 use prismbake::render::camera::Camera;
 use prismbake::render::job::{Method, RenderJob};
-use prismbake::render::lookdev::{self, FrameRenderer, LookdevOptions, LookdevSummary};
+use prismbake::render::lookdev::{
+    self, FrameRenderer, LookdevOptions, LookdevSummary, Session, WatchEvent,
+};
 use prismbake::render::{Aov, AovImage, RenderSettings};
 use prismbake::trace::pdm::PdmOptions;
 use prismbake::{Error, Result};
@@ -133,6 +135,58 @@ fn run_on(
     progress: &(dyn Fn(usize, usize) + Sync),
     cpu_fallback: bool,
 ) -> Result<LookdevSummary> {
+    check_method(job)?;
+    let session = lookdev::open(job, look)?;
+    let mut scene = None;
+    render_session(ctx, job, look, &session, &mut scene, progress, cpu_fallback)
+}
+
+/// Run a job as `run` (`run_or_cpu` with `cpu_fallback`), then re-render it whenever its height
+/// map file changes (`lookdev::watch_with`). A change the re-bake answered without rebuilding
+/// the BVH rewrites only the prism records, the stitch records and the map on the device
+/// (`GpuScene::update_map`); the vertices, the BVH and the compiled kernels stay.
+pub fn watch(
+    ctx: &GpuContext,
+    job: &RenderJob,
+    look: &LookdevOptions,
+    max_rerenders: Option<u32>,
+    log: &dyn Fn(&str),
+    on_event: &dyn Fn(&WatchEvent, &LookdevSummary),
+    cpu_fallback: bool,
+) -> Result<LookdevSummary> {
+    check_method(job)?;
+    let mut scene: Option<GpuScene> = None;
+    lookdev::watch_with(
+        job,
+        look,
+        max_rerenders,
+        log,
+        on_event,
+        &mut |session, change| {
+            if let (Some(s), Some(bvh_kept)) =
+                (scene.as_mut(), change.map(|c| !c.bvh_rebuild_needed))
+            {
+                if bvh_kept && s.update_map(ctx, session.scene()) {
+                    log("gpu: prisms, stitches and map rewritten in place (vertices, BVH and kernels kept)");
+                } else {
+                    log("gpu: scene uploaded anew");
+                    scene = None;
+                }
+            }
+            render_session(
+                ctx,
+                job,
+                look,
+                session,
+                &mut scene,
+                &|_, _| {},
+                cpu_fallback,
+            )
+        },
+    )
+}
+
+fn check_method(job: &RenderJob) -> Result<()> {
     if job.method.method != Method::Pdm {
         return Err(Error::Param(
             format!(
@@ -142,22 +196,38 @@ fn run_on(
             .to_lowercase(),
         ));
     }
-    let session = lookdev::open(job, look)?;
+    Ok(())
+}
+
+/// Render every frame of a loaded session on `ctx`, uploading its scene into `scene` first
+/// unless it holds one already. With `cpu_fallback`, a scene the adapter cannot hold, or a
+/// beauty it cannot run, is rendered by the CPU renderer instead (`run_or_cpu`).
+fn render_session(
+    ctx: &GpuContext,
+    job: &RenderJob,
+    look: &LookdevOptions,
+    session: &Session,
+    scene: &mut Option<GpuScene>,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cpu_fallback: bool,
+) -> Result<LookdevSummary> {
     let t = Instant::now();
     let want_beauty = job.aovs.contains(&Aov::Beauty);
     // A failure names the environment's file where the lighting is what does not fit.
-    let uploaded = GpuScene::upload(ctx, session.scene())
-        .map_err(|e| (e, None))
-        .and_then(|scene| {
-            if want_beauty {
-                ctx.check_beauty().map_err(|e| (e, None))?;
-                check_lighting_fits(ctx, session.env(), session.textures())
-                    .map_err(|e| (e, look.env.as_deref()))?;
-            }
-            Ok(scene)
-        });
-    let scene = match uploaded {
-        Ok(scene) => scene,
+    let uploaded = match scene.take() {
+        Some(s) => Ok(s),
+        None => GpuScene::upload(ctx, session.scene()).map_err(|e| (e, None)),
+    }
+    .and_then(|scene| {
+        if want_beauty {
+            ctx.check_beauty().map_err(|e| (e, None))?;
+            check_lighting_fits(ctx, session.env(), session.textures())
+                .map_err(|e| (e, look.env.as_deref()))?;
+        }
+        Ok(scene)
+    });
+    let uploaded = match uploaded {
+        Ok(uploaded) => scene.insert(uploaded),
         // Before the first frame only the beauty's storage-buffer check says `Unsupported`.
         Err((e, _))
             if cpu_fallback && (e.is_capacity() || matches!(e, GpuError::Unsupported(_))) =>
@@ -172,7 +242,7 @@ fn run_on(
             ));
             // The upload tried counts as set-up, as the GPU's own does.
             let tried = t.elapsed().as_secs_f64();
-            let mut summary = lookdev::render_all_cpu(job, look, &session, progress)?;
+            let mut summary = lookdev::render_all_cpu(job, look, session, progress)?;
             summary.render.setup_seconds += tried;
             summary.render.gpu_fallback = Some(e.to_string());
             return Ok(summary);
@@ -189,12 +259,12 @@ fn run_on(
         normal_mode: job.method.normal_mode,
         ..job.method.pdm
     };
-    let frames = GpuFrames::new(ctx, &scene, opts, look.env.clone());
-    let mut summary = lookdev::render_all(job, look, &session, &frames, progress)?;
+    let frames = GpuFrames::new(ctx, uploaded, opts, look.env.clone());
+    let mut summary = lookdev::render_all(job, look, session, &frames, progress)?;
     summary.render.setup_seconds += upload_seconds;
     summary.render.gpu_tile = Some(ctx.tile());
     summary.render.gpu_walk = Some(ctx.aov_walk().name());
-    summary.render.gpu_map_encoding = Some(scene.map_encoding().name());
+    summary.render.gpu_map_encoding = Some(uploaded.map_encoding().name());
     Ok(summary)
 }
 

@@ -16,8 +16,8 @@
 
 use crate::context::GpuContext;
 use crate::layout::{
-    encode_height_map, wrap_code, GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams, GpuVertex,
-    MapEncoding, NO_STITCH,
+    encode_height_map, wrap_code, EncodedMap, GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams,
+    GpuVertex, MapEncoding, NO_STITCH,
 };
 use crate::GpuError;
 use obvhs::bvh2::builder::build_bvh2;
@@ -75,19 +75,36 @@ pub struct GpuScene {
     stitched_prisms: u32,
     bytes: u64,
     method_bytes: u64,
+    buffers: MapBuffers,
 }
 
-impl GpuScene {
-    /// Upload a scene. Fails with `GpuError::TooLarge` if one array exceeds the device's
-    /// storage-binding limit (128 MiB on WebGPU defaults: ~33 M map texels, ~3.3 M prisms).
-    pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
-        let table = &scene.table;
+/// The buffers a new height map rewrites (`GpuScene::update_map`).
+struct MapBuffers {
+    params: wgpu::Buffer,
+    prisms: wgpu::Buffer,
+    map: wgpu::Buffer,
+    stitches: wgpu::Buffer,
+}
+
+/// What of a scene depends on its height map: the prism records (bounds, stitch references),
+/// the stitch records (one zeroed record where there are none: a binding holds one at least)
+/// and the encoded map.
+struct MapArrays<'a> {
+    prisms: Vec<GpuPrism>,
+    stitches: Vec<GpuPrismStitch>,
+    stitched_prisms: u32,
+    encoded: EncodedMap<'a>,
+}
+
+impl<'a> MapArrays<'a> {
+    fn new(scene: &'a Scene) -> Self {
         let empty = StitchField::empty();
         let stitch = match scene.seam_mode() {
             SeamMode::Stitch => scene.stitch(),
             SeamMode::Open => &empty,
         };
-        let prisms: Vec<GpuPrism> = table
+        let prisms: Vec<GpuPrism> = scene
+            .table
             .prisms
             .iter()
             .enumerate()
@@ -109,6 +126,41 @@ impl GpuScene {
             // Zero-sized bindings are invalid, and a runtime array binds one element at least.
             stitches.push(GpuPrismStitch::default());
         }
+        MapArrays {
+            prisms,
+            stitches,
+            stitched_prisms,
+            encoded: encode_height_map(&scene.map.data),
+        }
+    }
+}
+
+/// The scene constants of `scene` with `node_count` BVH nodes and its map stored as `encoding`.
+fn scene_params(scene: &Scene, node_count: u32, encoding: MapEncoding) -> GpuSceneParams {
+    let map = &scene.map;
+    GpuSceneParams {
+        map_width: map.width,
+        map_height: map.height,
+        wrap: wrap_code(map.wrap),
+        node_count,
+        disp_scale: scene.table.params.scale,
+        disp_midlevel: scene.table.params.midlevel,
+        prism_count: scene.table.prisms.len() as u32,
+        map_encoding: encoding as u32,
+    }
+}
+
+impl GpuScene {
+    /// Upload a scene. Fails with `GpuError::TooLarge` if one array exceeds the device's
+    /// storage-binding limit (128 MiB on WebGPU defaults: ~33 M map texels, ~3.3 M prisms).
+    pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
+        let table = &scene.table;
+        let MapArrays {
+            prisms,
+            stitches,
+            stitched_prisms,
+            encoded,
+        } = MapArrays::new(scene);
         let vertices: Vec<GpuVertex> = (0..table.positions.len())
             .map(|i| GpuVertex {
                 position: table.positions[i].to_array(),
@@ -118,18 +170,7 @@ impl GpuScene {
             })
             .collect();
         let bvh = flatten_bvh(scene);
-        let map = &scene.map;
-        let encoded = encode_height_map(&map.data);
-        let params = GpuSceneParams {
-            map_width: map.width,
-            map_height: map.height,
-            wrap: wrap_code(map.wrap),
-            node_count: bvh.nodes.len() as u32,
-            disp_scale: table.params.scale,
-            disp_midlevel: table.params.midlevel,
-            prism_count: prisms.len() as u32,
-            map_encoding: encoded.encoding as u32,
-        };
+        let params = scene_params(scene, bvh.nodes.len() as u32, encoded.encoding);
         let limit = ctx.max_binding_bytes();
         let mut bytes = 0u64;
         let mut storage = |what: &'static str, data: &[u8]| -> Result<wgpu::Buffer, GpuError> {
@@ -155,7 +196,8 @@ impl GpuScene {
                 .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some(what),
                     contents,
-                    usage: wgpu::BufferUsages::STORAGE,
+                    // Writable for `update_map`.
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                 }))
         };
         let prism_buf = storage("prisms", bytemuck::cast_slice(&prisms))?;
@@ -169,7 +211,7 @@ impl GpuScene {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("scene params"),
                 contents: bytemuck::bytes_of(&params),
-                usage: wgpu::BufferUsages::UNIFORM,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("scene"),
@@ -216,7 +258,49 @@ impl GpuScene {
             stitched_prisms,
             bytes,
             method_bytes,
+            buffers: MapBuffers {
+                params: param_buf,
+                prisms: prism_buf,
+                map: map_buf,
+                stitches: stitch_buf,
+            },
         })
+    }
+
+    /// Rewrite in place what a new height map changes (`watch`): the prism records (their
+    /// re-baked bounds and stitch references), the stitch records, the map and the scene
+    /// constants, keeping the vertices and the BVH, whose boxes still hold the prisms when the
+    /// re-bake kept the CPU's BVH (`RebakeStats::bvh_rebuild_needed` false). Returns `false`,
+    /// writing nothing, where an array's size changed (another map size or encoding, another
+    /// number of stitched prisms): the caller uploads the scene anew.
+    pub fn update_map(&mut self, ctx: &GpuContext, scene: &Scene) -> bool {
+        let arrays = MapArrays::new(scene);
+        // `upload`'s sizes: the data's, 32 bytes for an empty array.
+        let size = |b: &wgpu::Buffer, data: &[u8]| {
+            b.size()
+                == if data.is_empty() {
+                    32
+                } else {
+                    data.len() as u64
+                }
+        };
+        let b = &self.buffers;
+        if arrays.prisms.len() as u32 != self.params.prism_count
+            || !size(&b.prisms, bytemuck::cast_slice(&arrays.prisms))
+            || !size(&b.stitches, bytemuck::cast_slice(&arrays.stitches))
+            || !size(&b.map, bytemuck::cast_slice(&arrays.encoded.words))
+        {
+            return false;
+        }
+        let params = scene_params(scene, self.params.node_count, arrays.encoded.encoding);
+        let q = &ctx.queue;
+        q.write_buffer(&b.prisms, 0, bytemuck::cast_slice(&arrays.prisms));
+        q.write_buffer(&b.stitches, 0, bytemuck::cast_slice(&arrays.stitches));
+        q.write_buffer(&b.map, 0, bytemuck::cast_slice(&arrays.encoded.words));
+        q.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
+        self.params = params;
+        self.stitched_prisms = arrays.stitched_prisms;
+        true
     }
 
     /// How the height map is stored (`MapEncoding`).

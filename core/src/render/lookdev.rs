@@ -955,11 +955,27 @@ pub fn watch(
     on_event: &dyn Fn(&WatchEvent, &LookdevSummary),
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
+    watch_with(job, opts, max_rerenders, log, on_event, &mut |s, _| {
+        render_all_cpu(job, opts, s, progress)
+    })
+}
+
+/// `watch` with another renderer: `render(session, change)` renders every frame of the
+/// session, first with `change` `None`, then after each change with its re-bake (whether the
+/// BVH was rebuilt: a GPU renderer keeps its uploaded scene when it was not).
+pub fn watch_with(
+    job: &RenderJob,
+    opts: &LookdevOptions,
+    max_rerenders: Option<u32>,
+    log: &dyn Fn(&str),
+    on_event: &dyn Fn(&WatchEvent, &LookdevSummary),
+    render: &mut dyn FnMut(&Session, Option<&RebakeStats>) -> Result<LookdevSummary>,
+) -> Result<LookdevSummary> {
     let (map_path, map_opts) = map_source(&job.input)?;
     // Taken before loading, so that an edit made while the first frame renders is not missed.
     let mut last = stamp(&map_path);
     let mut session = open(job, opts)?;
-    let mut summary = render_all_cpu(job, opts, &session, progress)?;
+    let mut summary = render(&session, None)?;
     log(&format!(
         "watching {} for changes (Ctrl-C to stop)",
         map_path.display()
@@ -998,7 +1014,7 @@ pub fn watch(
             "kept"
         };
         let rebake_ms = detected.elapsed().as_secs_f64() * 1e3;
-        summary = render_all_cpu(job, opts, &session, progress)?;
+        summary = render(&session, Some(&rebake))?;
         count += 1;
         let event = WatchEvent {
             rebake,
