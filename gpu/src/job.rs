@@ -38,13 +38,33 @@ impl<'a> GpuFrames<'a> {
         opts: PdmOptions,
         env_path: Option<PathBuf>,
     ) -> Self {
+        Self::with_lighting(ctx, scene, opts, env_path, None)
+    }
+
+    /// `new` with lighting uploaded before (a `watch`'s earlier render of the same session):
+    /// kept where it serves the frames' `BeautyScene`, so that its environment and textures
+    /// are not uploaded again.
+    pub fn with_lighting(
+        ctx: &'a GpuContext,
+        scene: &'a GpuScene,
+        opts: PdmOptions,
+        env_path: Option<PathBuf>,
+        lighting: Option<GpuBeautyScene>,
+    ) -> Self {
         GpuFrames {
             ctx,
             scene,
             opts,
             env_path,
-            lighting: Mutex::new(None),
+            lighting: Mutex::new(lighting),
         }
+    }
+
+    /// The lighting the frames uploaded (or were given), for the next render of the session.
+    pub fn into_lighting(self) -> Option<GpuBeautyScene> {
+        self.lighting
+            .into_inner()
+            .unwrap_or_else(|e| e.into_inner())
     }
 }
 
@@ -137,8 +157,16 @@ fn run_on(
 ) -> Result<LookdevSummary> {
     check_method(job)?;
     let session = lookdev::open(job, look)?;
-    let mut scene = None;
-    render_session(ctx, job, look, &session, &mut scene, progress, cpu_fallback)
+    let mut kept = Uploaded::default();
+    render_session(ctx, job, look, &session, &mut kept, progress, cpu_fallback)
+}
+
+/// What a session keeps on the device between its renders (`watch`): the scene, and the
+/// lighting a beauty uploaded.
+#[derive(Default)]
+struct Uploaded {
+    scene: Option<GpuScene>,
+    lighting: Option<GpuBeautyScene>,
 }
 
 /// Run a job as `run` (`run_or_cpu` with `cpu_fallback`), then re-render it whenever its height
@@ -155,7 +183,7 @@ pub fn watch(
     cpu_fallback: bool,
 ) -> Result<LookdevSummary> {
     check_method(job)?;
-    let mut scene: Option<GpuScene> = None;
+    let mut kept = Uploaded::default();
     lookdev::watch_with(
         job,
         look,
@@ -164,24 +192,16 @@ pub fn watch(
         on_event,
         &mut |session, change| {
             if let (Some(s), Some(bvh_kept)) =
-                (scene.as_mut(), change.map(|c| !c.bvh_rebuild_needed))
+                (kept.scene.as_mut(), change.map(|c| !c.bvh_rebuild_needed))
             {
                 if bvh_kept && s.update_map(ctx, session.scene()) {
                     log("gpu: prisms, stitches and map rewritten in place (vertices, BVH and kernels kept)");
                 } else {
                     log("gpu: scene uploaded anew");
-                    scene = None;
+                    kept.scene = None;
                 }
             }
-            render_session(
-                ctx,
-                job,
-                look,
-                session,
-                &mut scene,
-                &|_, _| {},
-                cpu_fallback,
-            )
+            render_session(ctx, job, look, session, &mut kept, &|_, _| {}, cpu_fallback)
         },
     )
 }
@@ -199,20 +219,22 @@ fn check_method(job: &RenderJob) -> Result<()> {
     Ok(())
 }
 
-/// Render every frame of a loaded session on `ctx`, uploading its scene into `scene` first
-/// unless it holds one already. With `cpu_fallback`, a scene the adapter cannot hold, or a
-/// beauty it cannot run, is rendered by the CPU renderer instead (`run_or_cpu`).
+/// Render every frame of a loaded session on `ctx`, uploading its scene first unless `kept`
+/// holds it already (and keeping the scene and the lighting there for the next render). With
+/// `cpu_fallback`, a scene the adapter cannot hold, or a beauty it cannot run, is rendered by
+/// the CPU renderer instead (`run_or_cpu`).
 fn render_session(
     ctx: &GpuContext,
     job: &RenderJob,
     look: &LookdevOptions,
     session: &Session,
-    scene: &mut Option<GpuScene>,
+    kept: &mut Uploaded,
     progress: &(dyn Fn(usize, usize) + Sync),
     cpu_fallback: bool,
 ) -> Result<LookdevSummary> {
     let t = Instant::now();
     let want_beauty = job.aovs.contains(&Aov::Beauty);
+    let scene = &mut kept.scene;
     // A failure names the environment's file where the lighting is what does not fit.
     let uploaded = match scene.take() {
         Some(s) => Ok(s),
@@ -259,8 +281,11 @@ fn render_session(
         normal_mode: job.method.normal_mode,
         ..job.method.pdm
     };
-    let frames = GpuFrames::new(ctx, uploaded, opts, look.env.clone());
-    let mut summary = lookdev::render_all(job, look, session, &frames, progress)?;
+    let frames =
+        GpuFrames::with_lighting(ctx, uploaded, opts, look.env.clone(), kept.lighting.take());
+    let rendered = lookdev::render_all(job, look, session, &frames, progress);
+    kept.lighting = frames.into_lighting();
+    let mut summary = rendered?;
     summary.render.setup_seconds += upload_seconds;
     summary.render.gpu_tile = Some(ctx.tile());
     summary.render.gpu_walk = Some(ctx.aov_walk().name());
