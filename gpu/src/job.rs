@@ -169,8 +169,9 @@ struct Uploaded {
     lighting: Option<GpuBeautyScene>,
 }
 
-/// Run a job as `run` (`run_or_cpu` with `cpu_fallback`), then re-render it whenever its height
-/// map file changes (`lookdev::watch_with`). A change the re-bake answered without rebuilding
+/// Run a job as `run` (`run_or_cpu` with `cpu_fallback`, and once the CPU took over it keeps
+/// the session), then re-render it whenever its height map file changes
+/// (`lookdev::watch_with`). A change the re-bake answered without rebuilding
 /// the BVH rewrites only the prism records, the stitch records and the map on the device
 /// (`GpuScene::update_map`); the vertices, the BVH and the compiled kernels stay.
 pub fn watch(
@@ -184,6 +185,9 @@ pub fn watch(
 ) -> Result<LookdevSummary> {
     check_method(job)?;
     let mut kept = Uploaded::default();
+    // Why the CPU took over (`cpu_fallback`): the rest of the session stays there rather than
+    // try the same upload again at every change.
+    let mut on_cpu: Option<String> = None;
     lookdev::watch_with(
         job,
         look,
@@ -191,6 +195,11 @@ pub fn watch(
         log,
         on_event,
         &mut |session, change| {
+            if let Some(why) = &on_cpu {
+                let mut summary = lookdev::render_all_cpu(job, look, session, &|_, _| {})?;
+                summary.render.gpu_fallback = Some(why.clone());
+                return Ok(summary);
+            }
             if let (Some(s), Some(bvh_kept)) =
                 (kept.scene.as_mut(), change.map(|c| !c.bvh_rebuild_needed))
             {
@@ -201,7 +210,10 @@ pub fn watch(
                     kept.scene = None;
                 }
             }
-            render_session(ctx, job, look, session, &mut kept, &|_, _| {}, cpu_fallback)
+            let summary =
+                render_session(ctx, job, look, session, &mut kept, &|_, _| {}, cpu_fallback)?;
+            on_cpu.clone_from(&summary.render.gpu_fallback);
+            Ok(summary)
         },
     )
 }
