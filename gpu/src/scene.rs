@@ -152,7 +152,8 @@ fn scene_params(scene: &Scene, node_count: u32, encoding: MapEncoding) -> GpuSce
 
 impl GpuScene {
     /// Upload a scene. Fails with `GpuError::TooLarge` if one array exceeds the device's
-    /// storage-binding limit (128 MiB on WebGPU defaults: ~33 M map texels, ~3.3 M prisms).
+    /// storage-binding limit (128 MiB on WebGPU defaults: ~3.3 M prisms, ~33 M map texels in
+    /// f32 or ~67 M packed two a word).
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
         let table = &scene.table;
         let MapArrays {
