@@ -209,12 +209,7 @@ pub struct EnvTables {
 
 pub fn env_tables(env: &EnvMap, textures: &[ColorMap], layout: &TextureLayout) -> EnvTables {
     let texels = texel_buffer(&env.texels, textures, layout);
-    let mut tables = Vec::with_capacity(
-        env.marginal_cdf.len()
-            + env.row_weight.len()
-            + env.conditional_cdf.len()
-            + env.texel_weight.len(),
-    );
+    let mut tables = Vec::with_capacity(table_floats(env));
     tables.extend_from_slice(&env.marginal_cdf);
     tables.extend_from_slice(&env.row_weight);
     tables.extend_from_slice(&env.conditional_cdf);
@@ -235,18 +230,27 @@ pub fn check_lighting_fits(
     env: Option<&EnvMap>,
     textures: &[ColorMap],
 ) -> Result<(), GpuError> {
-    let (env_texels, tables) = env.map_or((1, 0), |e| {
-        let tables = e.marginal_cdf.len()
-            + e.row_weight.len()
-            + e.conditional_cdf.len()
-            + e.texel_weight.len();
-        (e.texels.len(), tables)
-    });
-    let floats = texture_layout(env_texels, textures).len;
+    let env_texels = env.map_or(1, |e| e.texels.len());
+    let layout = texture_layout(env_texels, textures);
+    check_lighting_sizes(ctx, &layout, env.map_or(0, table_floats))
+}
+
+/// Floats of an environment's sampling tables (`EnvTables::tables`).
+fn table_floats(e: &EnvMap) -> usize {
+    e.marginal_cdf.len() + e.row_weight.len() + e.conditional_cdf.len() + e.texel_weight.len()
+}
+
+/// `check_lighting_fits` for a layout already made (each makes it once: a pass over every
+/// texture's texels).
+fn check_lighting_sizes(
+    ctx: &GpuContext,
+    layout: &TextureLayout,
+    tables: usize,
+) -> Result<(), GpuError> {
     let limit = ctx.max_binding_bytes();
     let f32s = std::mem::size_of::<f32>() as u64;
     for (what, bytes) in [
-        ("environment and texture texels", floats as u64 * f32s),
+        ("environment and texture texels", layout.len as u64 * f32s),
         ("environment sampling tables", tables as u64 * f32s),
     ] {
         if bytes > limit {
@@ -285,8 +289,8 @@ impl GpuBeautyScene {
     /// environment's tables, exceed one storage binding (128 MiB on WebGPU defaults: about
     /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
-        check_lighting_fits(ctx, Some(s.env), s.textures)?;
         let layout = texture_layout(s.env.texels.len(), s.textures);
+        check_lighting_sizes(ctx, &layout, table_floats(s.env))?;
         let env = env_tables(s.env, s.textures, &layout);
         let mut bytes = 0u64;
         let mut storage = |what: &'static str, data: &[f32]| {
