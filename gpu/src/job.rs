@@ -135,9 +135,9 @@ pub fn run(
 }
 
 /// `run`, except that a scene the adapter cannot hold (`GpuError::is_capacity`), or a beauty
-/// it cannot run (too few storage buffers per shader stage), both found before the first frame
-/// and so before any file is written, is rendered by the CPU renderer from the same loaded
-/// session. The context's warning sink hears why, and the summary keeps it
+/// it cannot run (too few storage buffers per shader stage, or a kernel its driver rejects),
+/// all found before the first frame and so before any file is written, is rendered by the CPU
+/// renderer from the same loaded session. The context's warning sink hears why, and the summary keeps it
 /// (`gpu_fallback`). What `--device auto` does.
 pub fn run_or_cpu(
     ctx: &GpuContext,
@@ -257,14 +257,19 @@ fn render_session(
             ctx.check_beauty().map_err(|e| (e, None))?;
             check_lighting_fits(ctx, session.env(), session.textures())
                 .map_err(|e| (e, look.env.as_deref()))?;
+            // Compiled before the first frame too: a kernel the driver rejects is found here.
+            ctx.prepare_beauty().map_err(|e| (e, None))?;
         }
         Ok(scene)
     });
     let uploaded = match uploaded {
         Ok(uploaded) => scene.insert(uploaded),
-        // Before the first frame only the beauty's storage-buffer check says `Unsupported`.
+        // Before the first frame only the beauty's storage-buffer check says `Unsupported`,
+        // and only its kernel's compilation `Shader` (a driver that rejects it).
         Err((e, _))
-            if cpu_fallback && (e.is_capacity() || matches!(e, GpuError::Unsupported(_))) =>
+            if cpu_fallback
+                && (e.is_capacity()
+                    || matches!(e, GpuError::Unsupported(_) | GpuError::Shader(_))) =>
         {
             let what = match e.is_capacity() {
                 true => "cannot hold this scene",
@@ -284,9 +289,6 @@ fn render_session(
         Err((e, Some(env))) => return Err(Error::invalid(env, format!("gpu: {e}"))),
         Err((e, None)) => return Err(gpu_err(e)),
     };
-    if want_beauty {
-        ctx.prepare_beauty().map_err(gpu_err)?;
-    }
     // Upload and (for beauty) kernel compilation count as setup, as loading and baking do.
     let upload_seconds = t.elapsed().as_secs_f64();
     let opts = PdmOptions {
