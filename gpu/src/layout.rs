@@ -164,34 +164,38 @@ fn f16_code(v: f32) -> Option<u16> {
     Some(sign | (((exp + 15) as u16) << 10) | ((bits >> 13) & 0x3ff) as u16)
 }
 
-/// Two 16-bit codes per word, texel `2k` in the low half of word `k`.
-fn pack_halves(codes: impl Iterator<Item = u16>, len: usize) -> Vec<u32> {
-    let mut words = vec![0u32; len.div_ceil(2)];
-    for (i, c) in codes.enumerate() {
-        words[i / 2] |= (c as u32) << (16 * (i % 2));
+/// Every texel's 16-bit code (`code`), two per word, texel `2k` in the low half of word `k`;
+/// `None` at the first texel without one. One pass: a map that packs is read once, and one
+/// that does not usually stops at its first texel.
+fn pack_halves(data: &[f32], code: fn(f32) -> Option<u16>) -> Option<Vec<u32>> {
+    let mut words = vec![0u32; data.len().div_ceil(2)];
+    for (pair, word) in data.chunks(2).zip(&mut words) {
+        for (k, &v) in pair.iter().enumerate() {
+            *word |= (code(v)? as u32) << (16 * k);
+        }
     }
-    words
+    Some(words)
 }
 
 /// The narrowest encoding that gives back every texel of `data` exactly (halving the GPU's
 /// copy of a 16-bit, 8-bit or half-float map: an 8192² map is 128 MiB instead of 256 MiB,
 /// which fits where the storage-binding limit is 128 MiB), and the buffer's words.
 pub fn encode_height_map(data: &[f32]) -> EncodedMap<'_> {
-    if data.iter().all(|&v| unorm16_code(v).is_some()) {
-        return EncodedMap {
-            encoding: MapEncoding::Unorm16,
-            words: pack_halves(data.iter().filter_map(|&v| unorm16_code(v)), data.len()).into(),
-        };
-    }
-    if data.iter().all(|&v| f16_code(v).is_some()) {
-        return EncodedMap {
-            encoding: MapEncoding::F16,
-            words: pack_halves(data.iter().filter_map(|&v| f16_code(v)), data.len()).into(),
-        };
-    }
-    EncodedMap {
-        encoding: MapEncoding::F32,
-        words: bytemuck::cast_slice(data).into(),
+    let packed = [
+        (MapEncoding::Unorm16, unorm16_code as fn(f32) -> Option<u16>),
+        (MapEncoding::F16, f16_code),
+    ]
+    .into_iter()
+    .find_map(|(encoding, code)| Some((encoding, pack_halves(data, code)?)));
+    match packed {
+        Some((encoding, words)) => EncodedMap {
+            encoding,
+            words: words.into(),
+        },
+        None => EncodedMap {
+            encoding: MapEncoding::F32,
+            words: bytemuck::cast_slice(data).into(),
+        },
     }
 }
 
