@@ -124,7 +124,8 @@ for a in assets:
         per_pixel = {k: round(v / (r * r * s * len(frames)), 3) for k, v in rays.items()} if rays and rays.get("rays") else None
         last = sorted((dest / job).glob("beauty_*.exr"))
         picture = hashlib.md5(last[-1].read_bytes()).hexdigest()[:12] if last else None
-        rows.append({"job": job, "device": d.get("device"), "walk": d.get("gpu_walk"), "res": r, "spp": s,
+        rows.append({"job": job, "device": d.get("device"), "walk": d.get("gpu_walk"),
+                     "map_encoding": d.get("gpu_map_encoding"), "res": r, "spp": s,
                      "ms_per_sample": round(sec * 1e3 / s, 2), "rays_per_pixel": per_pixel,
                      "picture_md5": picture,
                      "ms_per_frame": round(best["seconds"] * 1e3, 2),

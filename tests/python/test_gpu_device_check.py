@@ -25,6 +25,8 @@ def test_device_check_times_every_job(prismbake, tmp_path):
     assert rows[0]["device"].startswith("gpu") and rows[3]["device"].startswith("cpu")
     # Each AOV job took the BVH walk it asked for (lavapipe on Vulkan has subgroups).
     assert [r["walk"] for r in rows[:2]] == ["ray", "packet"] and rows[3]["walk"] is None
+    # The rock's 8-bit map goes up two texels a word on the GPU; the CPU has no such row.
+    assert rows[0]["map_encoding"] == "unorm16" and rows[3]["map_encoding"] is None
     for r in rows:
         assert r["ms_per_frame"] > 0 and r["mrays_per_s"] > 0
         # The trace time is part of the frame's, the kernels' part of the trace's.
