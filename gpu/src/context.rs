@@ -762,13 +762,13 @@ impl GpuContext {
             .map_err(|e| GpuError::Shader(e.clone()))
     }
 
-    /// Whether the device binds the storage buffers `schedule` needs in one stage.
     /// Whether this device can run the beauty schedule it renders with (its storage buffers per
     /// shader stage), before anything is compiled or uploaded.
     pub fn check_beauty(&self) -> Result<(), GpuError> {
         self.check_beauty_bindings(self.beauty_schedule)
     }
 
+    /// Whether the device binds the storage buffers `schedule` needs in one stage.
     fn check_beauty_bindings(&self, schedule: BeautySchedule) -> Result<(), GpuError> {
         let have = self.device.limits().max_storage_buffers_per_shader_stage;
         let need = schedule.storage_buffers();

@@ -32,19 +32,10 @@ pub struct GpuFrames<'a> {
 }
 
 impl<'a> GpuFrames<'a> {
+    /// Frames of `scene`, with `lighting` uploaded before if any (a `watch`'s earlier render of
+    /// the same session): kept where it serves the frames' `BeautyScene`, so that its
+    /// environment and textures are not uploaded again.
     pub fn new(
-        ctx: &'a GpuContext,
-        scene: &'a GpuScene,
-        opts: PdmOptions,
-        env_path: Option<PathBuf>,
-    ) -> Self {
-        Self::with_lighting(ctx, scene, opts, env_path, None)
-    }
-
-    /// `new` with lighting uploaded before (a `watch`'s earlier render of the same session):
-    /// kept where it serves the frames' `BeautyScene`, so that its environment and textures
-    /// are not uploaded again.
-    pub fn with_lighting(
         ctx: &'a GpuContext,
         scene: &'a GpuScene,
         opts: PdmOptions,
@@ -137,8 +128,8 @@ pub fn run(
 /// `run`, except that a scene the adapter cannot hold (`GpuError::is_capacity`), or a beauty
 /// it cannot run (too few storage buffers per shader stage, or a kernel its driver rejects),
 /// all found before the first frame and so before any file is written, is rendered by the CPU
-/// renderer from the same loaded session. The context's warning sink hears why, and the summary keeps it
-/// (`gpu_fallback`). What `--device auto` does.
+/// renderer from the same loaded session. The context's warning sink hears why, and the
+/// summary keeps it (`gpu_fallback`). What `--device auto` does.
 pub fn run_or_cpu(
     ctx: &GpuContext,
     job: &RenderJob,
@@ -196,9 +187,7 @@ pub fn watch(
         on_event,
         &mut |session, change| {
             if let Some(why) = &on_cpu {
-                let mut summary = lookdev::render_all_cpu(job, look, session, &|_, _| {})?;
-                summary.render.gpu_fallback = Some(why.clone());
-                return Ok(summary);
+                return render_on_cpu(job, look, session, &|_, _| {}, why.clone());
             }
             if let (Some(s), Some(bvh_kept)) =
                 (kept.scene.as_mut(), change.map(|c| !c.bvh_rebuild_needed))
@@ -255,8 +244,12 @@ fn render_session(
     .and_then(|scene| {
         if want_beauty {
             ctx.check_beauty().map_err(|e| (e, None))?;
-            check_lighting_fits(ctx, session.env(), session.textures())
-                .map_err(|e| (e, look.env.as_deref()))?;
+            // Lighting kept from an earlier render of the session fits: its environment and
+            // textures are the session's, unchanged.
+            if kept.lighting.is_none() {
+                check_lighting_fits(ctx, session.env(), session.textures())
+                    .map_err(|e| (e, look.env.as_deref()))?;
+            }
             // Compiled before the first frame too: a kernel the driver rejects is found here.
             ctx.prepare_beauty().map_err(|e| (e, None))?;
         }
@@ -281,9 +274,8 @@ fn render_session(
             ));
             // The upload tried counts as set-up, as the GPU's own does.
             let tried = t.elapsed().as_secs_f64();
-            let mut summary = lookdev::render_all_cpu(job, look, session, progress)?;
+            let mut summary = render_on_cpu(job, look, session, progress, e.to_string())?;
             summary.render.setup_seconds += tried;
-            summary.render.gpu_fallback = Some(e.to_string());
             return Ok(summary);
         }
         Err((e, Some(env))) => return Err(Error::invalid(env, format!("gpu: {e}"))),
@@ -295,8 +287,7 @@ fn render_session(
         normal_mode: job.method.normal_mode,
         ..job.method.pdm
     };
-    let frames =
-        GpuFrames::with_lighting(ctx, uploaded, opts, look.env.clone(), kept.lighting.take());
+    let frames = GpuFrames::new(ctx, uploaded, opts, look.env.clone(), kept.lighting.take());
     let rendered = lookdev::render_all(job, look, session, &frames, progress);
     kept.lighting = frames.into_lighting();
     let mut summary = rendered?;
@@ -304,6 +295,20 @@ fn render_session(
     summary.render.gpu_tile = Some(ctx.tile());
     summary.render.gpu_walk = Some(ctx.aov_walk().name());
     summary.render.gpu_map_encoding = Some(uploaded.map_encoding().name());
+    Ok(summary)
+}
+
+/// The session rendered by the CPU renderer because the GPU could not take it (`why`, kept in
+/// the summary's `gpu_fallback`).
+fn render_on_cpu(
+    job: &RenderJob,
+    look: &LookdevOptions,
+    session: &Session,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    why: String,
+) -> Result<LookdevSummary> {
+    let mut summary = lookdev::render_all_cpu(job, look, session, progress)?;
+    summary.render.gpu_fallback = Some(why);
     Ok(summary)
 }
 

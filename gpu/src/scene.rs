@@ -286,8 +286,7 @@ impl GpuScene {
                 }
         };
         let b = &self.buffers;
-        if arrays.prisms.len() as u32 != self.params.prism_count
-            || !size(&b.prisms, bytemuck::cast_slice(&arrays.prisms))
+        if !size(&b.prisms, bytemuck::cast_slice(&arrays.prisms))
             || !size(&b.stitches, bytemuck::cast_slice(&arrays.stitches))
             || !size(&b.map, bytemuck::cast_slice(&arrays.encoded.words))
         {

@@ -303,8 +303,8 @@ pub struct RenderSummary {
     /// `f16`, where that gives back every texel exactly). Absent on the CPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_map_encoding: Option<&'static str>,
-    /// `--device auto` only: why the GPU could not hold the scene, so that the CPU rendered it
-    /// instead. Absent where the device asked for rendered it.
+    /// `--device auto` only: why the GPU could not hold the scene or run the job, so that the
+    /// CPU rendered it instead. Absent where the device asked for rendered it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub gpu_fallback: Option<String>,
 }
