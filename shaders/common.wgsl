@@ -149,7 +149,7 @@ struct BeautySums {
     key_shadow_rays: u32,
     env_shadow_rays: u32,
     normal: vec3f,
-    _pad: u32,
+    preview: u32,        // tonemap_preview's 8-bit sRGB codes (red low), after the last sample
     albedo: vec3f,
     _pad2: u32,
 }

@@ -134,6 +134,22 @@ fn denoised_beauty_is_closer_to_the_converged_picture() {
     let e_gpu = rms(&g, &b);
     eprintln!("GPU denoised against CPU denoised: RMS {e_gpu:.2e}");
     assert!(e_gpu < 0.1 * e_denoised, "{e_gpu} vs {e_denoised}");
+    // Its PNG is the denoised picture too, not the preview the GPU tonemapped before the
+    // filter (the noisy one, which the CPU's noisy preview all but equals).
+    let gap = |a: &Path, b: &Path| {
+        let (a, b) = (png(a), png(b));
+        let sum: u64 = a
+            .iter()
+            .zip(b.iter())
+            .map(|(p, q)| p.abs_diff(*q) as u64)
+            .sum();
+        sum as f64 / a.len() as f64
+    };
+    let (g_png, noisy_png) = (gap(&gpu, &denoised), gap(&noisy, &denoised));
+    eprintln!(
+        "PNG mean |Δ| against the CPU's denoised: GPU denoised {g_png:.3}, noisy {noisy_png:.3}"
+    );
+    assert!(g_png < 0.25 * noisy_png, "{g_png} vs {noisy_png}");
 }
 
 /// The shadow catcher's shadow (in alpha) is filtered too: at 4 samples its alpha is much

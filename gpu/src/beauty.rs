@@ -430,20 +430,25 @@ pub fn render_beauty_scheduled(
     progress: &dyn Fn(usize),
 ) -> Result<BeautyImage, GpuError> {
     crate::render::check_render(s, opts)?;
-    let stages = match schedule {
-        BeautySchedule::Fused => vec![Stage {
-            pipeline: ctx.beauty_fused()?,
-            layers: 1,
-            across: 1,
-        }],
-        BeautySchedule::Wavefront => sample_stages(
-            ctx.beauty_wavefront()?,
-            &lighting.uniform(),
-            ctx.trace_pixels(),
-        ),
+    let once = |pipeline| Stage {
+        pipeline,
+        layers: 1,
+        across: 1,
+    };
+    let (stages, tonemap) = match schedule {
+        BeautySchedule::Fused => {
+            let k = ctx.beauty_fused()?;
+            (vec![once(&k.render)], once(&k.tonemap))
+        }
+        BeautySchedule::Wavefront => {
+            let k = ctx.beauty_wavefront()?;
+            let stages = sample_stages(k, &lighting.uniform(), ctx.trace_pixels());
+            (stages, once(&k.tonemap))
+        }
     };
     let dispatch = Kernel {
         stages: &stages,
+        finish: &[tonemap],
         output: Output::BeautySums,
         groups: &[&lighting.group],
         paths: schedule == BeautySchedule::Wavefront,
@@ -457,6 +462,7 @@ pub fn render_beauty_scheduled(
         background: vec![Vec3::ZERO; n],
         guides: vec![Guides::default(); n],
         counters: BeautyCounters::default(),
+        preview: Some(vec![[0; 3]; n]),
     };
     let frame = FrameJob {
         ctx,
@@ -497,7 +503,8 @@ fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting, trace_pixels: u32) ->
 }
 
 /// Resolve a tile of the kernel's sums into `image` exactly as the CPU resolves its own
-/// (`PixelSums::resolve`), on all cores and straight from the read-back.
+/// (`PixelSums::resolve`), on all cores and straight from the read-back; the preview's codes
+/// as `tonemap.wgsl` left them.
 fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums], spp: u32) {
     use rayon::prelude::*;
     let resolve = |g: &GpuBeautySums| PixelSums {
@@ -512,22 +519,31 @@ fn resolve_tile(image: &mut BeautyImage, rect: TileRect, tile: &[GpuBeautySums],
         albedo: Vec3::from_array(g.albedo),
     };
     // One pass over the tile: its pixels resolved into the frame, its rays counted.
+    let pixels = image.rgba.len();
+    let preview = image.preview.get_or_insert_with(|| vec![[0; 3]; pixels]);
     let (rays, key, env) = rect
         .frame_rows(&mut image.rgba)
         .zip(rect.frame_rows(&mut image.background))
         .zip(rect.frame_rows(&mut image.guides))
+        .zip(rect.frame_rows(preview))
         .zip(rect.tile_rows(tile))
-        .map(|(((rgba, background), guides), src)| {
+        .map(|((((rgba, background), guides), preview), src)| {
             let dst = rect
                 .span(rgba)
                 .iter_mut()
                 .zip(rect.span(background))
-                .zip(rect.span(guides));
+                .zip(rect.span(guides))
+                .zip(rect.span(preview));
             let mut counts = (0u64, 0u64, 0u64);
-            for (((c, b), f), g) in dst.zip(src) {
+            for ((((c, b), f), p), g) in dst.zip(src) {
                 let sums = resolve(g);
                 (*c, *b) = sums.resolve(spp);
                 *f = sums.guides(spp);
+                *p = [
+                    g.preview as u8,
+                    (g.preview >> 8) as u8,
+                    (g.preview >> 16) as u8,
+                ];
                 counts.0 += g.rays as u64;
                 counts.1 += g.key_shadow_rays as u64;
                 counts.2 += g.env_shadow_rays as u64;

@@ -88,11 +88,19 @@ impl AovWalk {
 }
 
 /// The wavefront schedule's pipelines (built on first use), the entry points of
-/// `beauty.wgsl`: a sample is `start`, then (`trace`, `shade`) per step of the longest path.
+/// `beauty.wgsl`: a sample is `start`, then (`trace`, `shade`) per step of the longest path;
+/// `tonemap` (`tonemap.wgsl`) makes the tile's preview after its last sample.
 pub(crate) struct BeautyKernel {
     pub(crate) start: wgpu::ComputePipeline,
     pub(crate) trace: wgpu::ComputePipeline,
     pub(crate) shade: wgpu::ComputePipeline,
+    pub(crate) tonemap: wgpu::ComputePipeline,
+}
+
+/// The fused schedule's pipelines: `render_beauty` (a whole sample), then `tonemap`.
+pub(crate) struct BeautyFused {
+    pub(crate) render: wgpu::ComputePipeline,
+    pub(crate) tonemap: wgpu::ComputePipeline,
 }
 
 /// Which kernel's output a dispatch writes (`GpuContext::output`; it indexes
@@ -151,7 +159,7 @@ pub struct GpuContext {
     beauty_layout: wgpu::BindGroupLayout,
     /// Group 3 of the beauty kernels (their path records).
     work_layout: wgpu::BindGroupLayout,
-    beauty_fused: OnceLock<Result<wgpu::ComputePipeline, String>>,
+    beauty_fused: OnceLock<Result<BeautyFused, String>>,
     beauty_wavefront: OnceLock<Result<BeautyKernel, String>>,
     /// The beauty schedule a render takes (`Wavefront` on hardware adapters, `Fused` on
     /// software ones, or `PRISMBAKE_GPU_BEAUTY`).
@@ -733,20 +741,20 @@ impl GpuContext {
     }
 
     /// The fused beauty kernel, compiled on first use (an AOV-only run never builds it).
-    pub(crate) fn beauty_fused(&self) -> Result<&wgpu::ComputePipeline, GpuError> {
+    pub(crate) fn beauty_fused(&self) -> Result<&BeautyFused, GpuError> {
         let build = || {
             self.check_beauty_bindings(BeautySchedule::Fused)?;
-            let [fused] = pollster::block_on(build_pipelines(
+            let [render, tonemap] = pollster::block_on(build_pipelines(
                 &self.device,
                 &shaders::beauty_module_source(),
-                ["render_beauty"],
+                ["render_beauty", "tonemap_preview"],
                 &[
                     &self.scene_layout,
                     &self.beauty_layout,
                     &self.lighting_layout,
                 ],
             ))?;
-            Ok(fused)
+            Ok(BeautyFused { render, tonemap })
         };
         self.beauty_fused
             .get_or_init(|| build().map_err(|e: GpuError| e.to_string()))
@@ -783,10 +791,15 @@ impl GpuContext {
 
     async fn build_wavefront(&self) -> Result<BeautyKernel, GpuError> {
         self.check_beauty_bindings(BeautySchedule::Wavefront)?;
-        let [start, trace, shade] = build_pipelines(
+        let [start, trace, shade, tonemap] = build_pipelines(
             &self.device,
             &shaders::beauty_module_source(),
-            ["beauty_start", "beauty_trace", "beauty_shade"],
+            [
+                "beauty_start",
+                "beauty_trace",
+                "beauty_shade",
+                "tonemap_preview",
+            ],
             &[
                 &self.scene_layout,
                 &self.beauty_layout,
@@ -799,6 +812,7 @@ impl GpuContext {
             start,
             trace,
             shade,
+            tonemap,
         })
     }
 

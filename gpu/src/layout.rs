@@ -320,7 +320,9 @@ pub struct GpuBeautySums {
     pub key_shadow_rays: u32,
     pub env_shadow_rays: u32,
     pub normal: [f32; 3],
-    pub _pad: u32,
+    /// The pixel's preview, `beauty::preview_pixel`'s codes (red in the low byte), written by
+    /// `tonemap.wgsl` after the tile's last sample.
+    pub preview: u32,
     pub albedo: [f32; 3],
     pub _pad2: u32,
 }
@@ -490,7 +492,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 key_shadow_rays,
                 env_shadow_rays,
                 normal,
-                _pad,
+                preview,
                 albedo,
                 _pad2
             }

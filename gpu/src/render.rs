@@ -68,11 +68,13 @@ pub(crate) struct Stage<'a> {
 }
 
 /// A kernel over a frame: the stages one sample dispatches, in order (wgpu puts a barrier
-/// between dispatches that write the same buffer), the output its group 1 writes (`T` per
-/// pixel of a tile; group 0 is the scene), its bind groups 2..., and whether it takes the
-/// beauty path records as its last group (`TileBuffers::work`).
+/// between dispatches that write the same buffer), those dispatched once more after a tile's
+/// last sample (`finish`: the beauty's preview), the output its group 1 writes (`T` per pixel
+/// of a tile; group 0 is the scene), its bind groups 2..., and whether it takes the beauty
+/// path records as its last group (`TileBuffers::work`).
 pub(crate) struct Kernel<'a> {
     pub stages: &'a [Stage<'a>],
+    pub finish: &'a [Stage<'a>],
     pub output: Output,
     pub groups: &'a [&'a wgpu::BindGroup],
     pub paths: bool,
@@ -149,7 +151,9 @@ pub(crate) fn render_samples<T: bytemuck::Pod>(
                 for (i, g) in groups.chain(paths.map(|p| &p.group)).enumerate() {
                     pass.set_bind_group(i as u32 + 2, g, &[]);
                 }
-                for stage in kernel.stages {
+                let last = sample + 1 == spp;
+                let finish = kernel.finish.iter().filter(|_| last);
+                for stage in kernel.stages.iter().chain(finish) {
                     pass.set_pipeline(stage.pipeline);
                     pass.dispatch_workgroups(
                         tw.div_ceil(WORKGROUP * stage.across),
@@ -217,6 +221,7 @@ pub fn render_aovs_walked(
             layers: 1,
             across: 1,
         }],
+        finish: &[],
         output: Output::Aov,
         groups: &[],
         paths: false,

@@ -30,6 +30,8 @@ pub const SHADING: &str = include_str!("../../shaders/shading.wgsl");
 pub const TEXTURE: &str = include_str!("../../shaders/texture.wgsl");
 /// The beauty kernel (mirror of `prismbake::render::beauty`).
 pub const BEAUTY: &str = include_str!("../../shaders/beauty.wgsl");
+/// The beauty's PNG preview (mirror of `prismbake::render::beauty::preview_pixel`).
+pub const TONEMAP: &str = include_str!("../../shaders/tonemap.wgsl");
 
 /// Every stage but the entry points and the lighting: what every kernel builds on.
 pub const LIBRARY: [&str; 9] = [
@@ -57,12 +59,12 @@ pub fn aov_packet_module_source() -> String {
     s
 }
 
-/// The beauty module: the library, the environment, the material, the texture and
+/// The beauty module: the library, the environment, the material, the texture,
 /// `beauty.wgsl` (entry points `render_beauty`, `beauty_start`, `beauty_trace`,
-/// `beauty_shade`).
+/// `beauty_shade`) and `tonemap.wgsl` (entry point `tonemap_preview`).
 pub fn beauty_module_source() -> String {
     let mut s = LIBRARY.join("\n");
-    for part in [ENV, SHADING, TEXTURE, BEAUTY] {
+    for part in [ENV, SHADING, TEXTURE, BEAUTY, TONEMAP] {
         s.push('\n');
         s.push_str(part);
     }

@@ -161,6 +161,10 @@ pub struct BeautyImage {
     /// What the denoiser needs of each pixel beyond its colour (`Guides`).
     pub guides: Vec<Guides>,
     pub counters: BeautyCounters,
+    /// The PNG preview's pixels (`beauty_preview`'s sRGB codes) where the device that rendered
+    /// the frame tonemapped it too (the GPU's `tonemap.wgsl`); `None` on the CPU, and cleared
+    /// by whatever changes the pixels after the render (the denoiser).
+    pub preview: Option<Vec<[u8; 3]>>,
 }
 
 /// One pixel's denoising guides and the parts its alpha and background are made of.
@@ -543,22 +547,40 @@ pub fn render_beauty(
         background,
         guides: sums.iter().map(|a| a.guides(spp)).collect(),
         counters,
+        preview: None,
     }
 }
 
 /// The sRGB preview: radiance plus the background where the asset does not cover the pixel,
-/// filmic tonemapped.
+/// filmic tonemapped (`preview_pixel`), on all cores; the device's own where it made one
+/// (`BeautyImage::preview`).
 pub fn beauty_preview(img: &BeautyImage) -> Vec<u8> {
-    let mut rgb = Vec::with_capacity(img.rgba.len() * 3);
-    for (c, bg) in img.rgba.iter().zip(&img.background) {
-        let lin = Vec3::new(c[0], c[1], c[2]) + *bg;
-        let t = shading::tonemap_filmic(lin);
-        rgb.extend(
-            t.to_array()
-                .map(|v| (shading::linear_to_srgb(v) * 255.0).round() as u8),
-        );
+    if let Some(p) = &img.preview {
+        return p.iter().flatten().copied().collect();
     }
+    let mut rgb = vec![0u8; img.rgba.len() * 3];
+    rgb.par_chunks_mut(3 * 1024)
+        .zip(
+            img.rgba
+                .par_chunks(1024)
+                .zip(img.background.par_chunks(1024)),
+        )
+        .for_each(|(out, (rgba, bg))| {
+            for ((o, c), b) in out.chunks_exact_mut(3).zip(rgba).zip(bg) {
+                o.copy_from_slice(&preview_pixel(*c, *b));
+            }
+        });
     rgb
+}
+
+/// One pixel of the preview (premultiplied RGBA over its background), as 8-bit sRGB codes:
+/// the filmic curve, then the sRGB curve rounded half away from zero. `tonemap.wgsl` mirrors it.
+#[inline]
+pub fn preview_pixel(c: [f32; 4], background: Vec3) -> [u8; 3] {
+    let lin = Vec3::new(c[0], c[1], c[2]) + background;
+    let t = shading::tonemap_filmic(lin);
+    t.to_array()
+        .map(|v| (shading::linear_to_srgb(v) * 255.0).round() as u8)
 }
 
 /// Offset for ray origins: a relative 1e-4 of the scene diagonal clears PDM's refined hit

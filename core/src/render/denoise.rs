@@ -330,6 +330,8 @@ impl Denoiser {
         let albedo: Vec<[f32; 3]> = img.guides.iter().map(|g| g.albedo.to_array()).collect();
         let normal: Vec<[f32; 3]> = img.guides.iter().map(|g| g.normal.to_array()).collect();
         self.filter(img.width, img.height, &mut color, &albedo, &normal)?;
+        // The device's preview was of the noisy pixels.
+        img.preview = None;
         for ((c, d), g) in img.rgba.iter_mut().zip(&color).zip(&img.guides) {
             let keep = g.coverage > 0.0;
             for k in 0..3 {

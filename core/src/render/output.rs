@@ -268,3 +268,67 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<String>, Vec<f32>)> {
     }
     Ok((size.0 as u32, size.1 as u32, names, data))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::beauty::{preview_pixel, BeautyCounters, BeautyImage, Guides};
+    use glam::Vec3;
+
+    fn png_pixels(path: &Path) -> Vec<u8> {
+        image::open(path).unwrap().to_rgb8().into_raw()
+    }
+
+    #[test]
+    fn the_beauty_png_is_the_devices_preview_where_it_made_one_else_the_hosts() {
+        let dir = std::env::temp_dir().join(format!("prismbake-preview-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Dark, mid, bright past the curve's knee, linear-segment dark, a background only.
+        let rgba = vec![
+            [0.0, 0.0, 0.0, 1.0],
+            [0.18, 0.18, 0.18, 1.0],
+            [4.0, 2.0, 0.5, 1.0],
+            [0.001, 0.0005, 0.002, 1.0],
+            [0.0, 0.0, 0.0, 0.0],
+            [0.3, 0.1, 0.0, 0.5],
+        ];
+        let background = vec![
+            Vec3::ZERO,
+            Vec3::ZERO,
+            Vec3::ZERO,
+            Vec3::ZERO,
+            Vec3::ONE,
+            Vec3::splat(0.2),
+        ];
+        let mut img = BeautyImage {
+            width: 3,
+            height: 2,
+            guides: vec![Guides::default(); 6],
+            counters: BeautyCounters::default(),
+            preview: None,
+            rgba,
+            background,
+        };
+        let host: Vec<u8> = img
+            .rgba
+            .iter()
+            .zip(&img.background)
+            .flat_map(|(c, b)| preview_pixel(*c, *b))
+            .collect();
+        assert_eq!(
+            &host[..6],
+            &[0, 0, 0, 141, 141, 141],
+            "the filmic curve moved"
+        );
+        let written = write_beauty(dir.as_path(), &img, None).unwrap();
+        assert_eq!(png_pixels(&dir.as_path().join("beauty.png")), host);
+        assert_eq!(written.previews, vec![(Aov::Beauty, host.clone())]);
+        // A device's preview is written as it is, not tonemapped again.
+        let device: Vec<[u8; 3]> = (0..6u8).map(|i| [i, 100 + i, 200 + i]).collect();
+        img.preview = Some(device.clone());
+        write_beauty(dir.as_path(), &img, Some(7)).unwrap();
+        let flat: Vec<u8> = device.iter().flatten().copied().collect();
+        assert_eq!(png_pixels(&dir.as_path().join("beauty_0007.png")), flat);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
