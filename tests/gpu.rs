@@ -494,3 +494,91 @@ fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_c
     assert!(auto.get("gpu_map_encoding").is_none(), "{auto}");
     assert!(dir.join("auto/mask.exr").is_file());
 }
+
+/// `PRISMBAKE_GPU_LIMITS=webgpu` opens the device with WebGPU's default limits, 8 storage
+/// buffers a shader stage among them: the AOV kernel binds 8 and renders there; the beauty binds
+/// 10 (fused) or 11 (wavefront), which is an error under `--device gpu` (exit 2, no files, the
+/// fix named) and a CPU render under `--device auto` that says why. A setting it does not know
+/// is refused before any device is opened.
+#[test]
+fn a_device_with_too_few_storage_buffers_renders_aovs_and_auto_renders_the_beauty_on_the_cpu() {
+    let dir = temp_dir("gpu-webgpu-limits");
+    let rock = example("rock/rock.glb");
+    let render = |limits: &str, device: &str, aovs: &str, out: &str| {
+        Command::new(env!("CARGO_BIN_EXE_prismbake"))
+            .args([
+                "render",
+                s(&rock),
+                "--device",
+                device,
+                "--aov",
+                aovs,
+                "--spp",
+                "2",
+                "--res",
+                "24x24",
+                "--json",
+                "-o",
+                s(&dir.join(out)),
+            ])
+            .env("PRISMBAKE_GPU_LIMITS", limits)
+            .env("XDG_CACHE_HOME", dir.join("cache"))
+            .output()
+            .unwrap()
+    };
+    let json = |o: &std::process::Output| -> serde_json::Value {
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{stderr}");
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+
+    let aovs = json(&render("webgpu", "gpu", "depth,normal,mask", "aovs"));
+    let device = aovs["device"].as_str().unwrap();
+    assert!(
+        device.starts_with("gpu (") && device.contains("WebGPU's default limits"),
+        "{aovs}"
+    );
+    assert!(dir.join("aovs/mask.exr").is_file());
+
+    let refused = render("webgpu", "gpu", "beauty", "refused");
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("storage buffers in one shader stage")
+            && stderr.contains("allows 8")
+            && stderr.contains("--device auto"),
+        "{stderr}"
+    );
+    assert!(files_in(&dir.join("refused")).is_empty());
+
+    let auto = render("webgpu", "auto", "beauty,mask", "auto");
+    let stderr = String::from_utf8_lossy(&auto.stderr).into_owned();
+    let auto = json(&auto);
+    assert!(
+        auto["device"].as_str().unwrap().starts_with("cpu"),
+        "{auto}"
+    );
+    assert!(
+        auto["gpu_fallback"]
+            .as_str()
+            .unwrap()
+            .contains("storage buffers"),
+        "{auto}"
+    );
+    assert!(stderr.contains("device: cpu ("), "{stderr}");
+    assert!(dir.join("auto/beauty.exr").is_file() && dir.join("auto/mask.exr").is_file());
+
+    // The adapter's own limits take the beauty (every adapter the GPU tests run on has 11).
+    let full = json(&render("adapter", "gpu", "beauty", "full"));
+    assert!(full.get("gpu_fallback").is_none(), "{full}");
+    assert!(dir.join("full/beauty.exr").is_file());
+
+    let bad = render("tiny", "gpu", "mask", "bad");
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("PRISMBAKE_GPU_LIMITS=tiny") && stderr.contains("`webgpu`"),
+        "{stderr}"
+    );
+    assert!(files_in(&dir.join("bad")).is_empty());
+}

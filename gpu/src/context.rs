@@ -152,6 +152,8 @@ pub struct GpuContext {
     /// The walk `render_aovs` takes (`Packet` on software adapters with subgroup operations,
     /// else `Ray`, or `PRISMBAKE_GPU_WALK`).
     aov_walk: AovWalk,
+    /// The limits the device was opened with (`PRISMBAKE_GPU_LIMITS`).
+    limits: DeviceLimits,
     pub(crate) frame_buffer: wgpu::Buffer,
     aov_layout: wgpu::BindGroupLayout,
     /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables, materials).
@@ -288,6 +290,53 @@ fn schedule_setting(value: Option<&str>) -> Result<Option<BeautySchedule>, GpuEr
     })
 }
 
+/// The limits a context opens its device with (`PRISMBAKE_GPU_LIMITS`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DeviceLimits {
+    /// WebGPU's defaults, raised to what the adapter has for the storage-binding and buffer
+    /// sizes and for storage buffers per stage up to beauty's `BEAUTY_STORAGE_BUFFERS`.
+    Adapter,
+    /// WebGPU's defaults alone (`wgpu::Limits::defaults()`: 128 MiB a storage binding, 256 MiB
+    /// a buffer, 8 storage buffers per stage), the least an adapter wgpu takes has: a job is
+    /// checked against the smallest GPUs of a farm on a larger one, or in CI.
+    WebGpu,
+}
+
+/// The limits `PRISMBAKE_GPU_LIMITS` asks for (`None` unset or empty), or why it cannot be
+/// used.
+fn limits_setting(value: Option<&str>) -> Result<Option<DeviceLimits>, GpuError> {
+    let choices = [
+        ("adapter", DeviceLimits::Adapter),
+        ("webgpu", DeviceLimits::WebGpu),
+    ];
+    choice_setting(value, &choices, |v| {
+        format!(
+            "PRISMBAKE_GPU_LIMITS={v}: the device's limits are `adapter` (what the adapter has where a scene needs it) or `webgpu` (WebGPU's defaults, the least any adapter has: to check that a job fits the smallest GPUs); unset it for the default (adapter)"
+        )
+    })
+}
+
+/// The limits a device is opened with under `limits` on an adapter that `supports` these.
+fn device_limits(limits: DeviceLimits, supported: &wgpu::Limits) -> wgpu::Limits {
+    match limits {
+        DeviceLimits::WebGpu => wgpu::Limits::defaults(),
+        DeviceLimits::Adapter => wgpu::Limits {
+            // Use what the adapter has for the one limit a large scene meets first.
+            max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
+            max_buffer_size: supported.max_buffer_size,
+            // Beauty's 10 or 11 where the adapter has them; an 8-buffer adapter still renders
+            // AOVs.
+            max_storage_buffers_per_shader_stage: supported
+                .max_storage_buffers_per_shader_stage
+                .clamp(
+                    wgpu::Limits::defaults().max_storage_buffers_per_shader_stage,
+                    BEAUTY_STORAGE_BUFFERS,
+                ),
+            ..wgpu::Limits::defaults()
+        },
+    }
+}
+
 /// The walk `PRISMBAKE_GPU_WALK` asks for (`None` unset or empty), or why it cannot be used.
 fn walk_setting(value: Option<&str>) -> Result<Option<AovWalk>, GpuError> {
     let choices = [("ray", AovWalk::Ray), ("packet", AovWalk::Packet)];
@@ -415,6 +464,8 @@ impl GpuContext {
                 .unwrap_or(TRACE_PIXELS);
         let memory = memory_setting(std::env::var("PRISMBAKE_GPU_MEMORY").ok().as_deref())?;
         let walk_wanted = walk_setting(std::env::var("PRISMBAKE_GPU_WALK").ok().as_deref())?;
+        let limits = limits_setting(std::env::var("PRISMBAKE_GPU_LIMITS").ok().as_deref())?
+            .unwrap_or(DeviceLimits::Adapter);
         let mut instance_desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         // Where the backend tracks a memory budget (Vulkan with VK_EXT_memory_budget, D3D12),
         // a buffer that would take the GPU's use past this share is refused as out of memory.
@@ -451,20 +502,7 @@ impl GpuContext {
             }
         };
         let adapter_info = adapter.get_info();
-        let supported = adapter.limits();
-        let required_limits = wgpu::Limits {
-            // Use what the adapter has for the one limit a large scene meets first.
-            max_storage_buffer_binding_size: supported.max_storage_buffer_binding_size,
-            max_buffer_size: supported.max_buffer_size,
-            // Beauty's 10 or 11 where the adapter has them; an 8-buffer adapter still renders AOVs.
-            max_storage_buffers_per_shader_stage: supported
-                .max_storage_buffers_per_shader_stage
-                .clamp(
-                    wgpu::Limits::defaults().max_storage_buffers_per_shader_stage,
-                    BEAUTY_STORAGE_BUFFERS,
-                ),
-            ..wgpu::Limits::defaults()
-        };
+        let required_limits = device_limits(limits, &adapter.limits());
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("prismbake"),
@@ -565,6 +603,7 @@ impl GpuContext {
             scene_layout,
             aov_kernels: Default::default(),
             aov_walk,
+            limits,
             frame_buffer,
             aov_layout,
             lighting_layout,
@@ -593,18 +632,30 @@ impl GpuContext {
 
     /// "name (backend, device type, driver version)", for logs: the driver version tells
     /// lavapipes apart, whose names only carry the LLVM version (docs/gpu.md, "lavapipe
-    /// versions").
+    /// versions"). A device held to WebGPU's default limits says so.
     pub fn adapter_description(&self) -> String {
         let info = &self.adapter_info;
         let driver = info.driver_info.trim();
+        let limits = match self.limits {
+            DeviceLimits::Adapter => "",
+            DeviceLimits::WebGpu => ", WebGPU's default limits",
+        };
         if driver.is_empty() {
-            format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type)
+            format!(
+                "{} ({:?}, {:?}{limits})",
+                info.name, info.backend, info.device_type
+            )
         } else {
             format!(
-                "{} ({:?}, {:?}, {driver})",
+                "{} ({:?}, {:?}, {driver}{limits})",
                 info.name, info.backend, info.device_type
             )
         }
+    }
+
+    /// The limits the device was opened with.
+    pub fn device_limits(&self) -> DeviceLimits {
+        self.limits
     }
 
     /// Pixels per side of one dispatch's tile (frames larger than it take several dispatches).
@@ -782,7 +833,7 @@ impl GpuContext {
         let need = schedule.storage_buffers();
         if have < need {
             return Err(GpuError::Unsupported(format!(
-                "beauty ({schedule:?}) binds {need} storage buffers in one shader stage and {} allows {have}; render AOVs on it or use --device cpu",
+                "beauty ({schedule:?}) binds {need} storage buffers in one shader stage and {} allows {have}; render AOVs on it, or the beauty with --device auto (on the CPU where the GPU cannot) or --device cpu",
                 self.adapter_info.name
             )));
         }
