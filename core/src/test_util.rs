@@ -375,3 +375,58 @@ fn strip_hits_against_reference(
     }
     (in_strips, wrong)
 }
+
+/// The bytes of a scan-line EXR whose header states `width × height` texels in `channels`
+/// float channels under `compression` (OpenEXR's code: 0 none, 3 ZIP, 4 PIZ, 9 DWAB), with
+/// its offset table and the first line's chunk only: what a truncated or hostile file looks
+/// like to a reader that trusts its header. The first line is 1.0 in every channel.
+pub fn exr_header_only(width: u32, height: u32, channels: &[&str], compression: u8) -> Vec<u8> {
+    fn attr(out: &mut Vec<u8>, name: &str, ty: &str, data: &[u8]) {
+        for s in [name, ty] {
+            out.extend_from_slice(s.as_bytes());
+            out.push(0);
+        }
+        out.extend_from_slice(&(data.len() as i32).to_le_bytes());
+        out.extend_from_slice(data);
+    }
+    let mut list = Vec::new();
+    let mut sorted = channels.to_vec();
+    sorted.sort();
+    for name in sorted {
+        list.extend_from_slice(name.as_bytes());
+        list.push(0);
+        list.extend_from_slice(&2i32.to_le_bytes()); // FLOAT
+        list.extend_from_slice(&[0, 0, 0, 0]); // linear, reserved
+        list.extend_from_slice(&1i32.to_le_bytes());
+        list.extend_from_slice(&1i32.to_le_bytes());
+    }
+    list.push(0);
+    let window: Vec<u8> = [0, 0, width as i32 - 1, height as i32 - 1]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let mut out = Vec::new();
+    out.extend_from_slice(&20000630i32.to_le_bytes());
+    out.extend_from_slice(&2u32.to_le_bytes());
+    attr(&mut out, "channels", "chlist", &list);
+    attr(&mut out, "compression", "compression", &[compression]);
+    attr(&mut out, "dataWindow", "box2i", &window);
+    attr(&mut out, "displayWindow", "box2i", &window);
+    attr(&mut out, "lineOrder", "lineOrder", &[0]);
+    attr(&mut out, "pixelAspectRatio", "float", &1f32.to_le_bytes());
+    attr(&mut out, "screenWindowCenter", "v2f", &[0; 8]);
+    attr(&mut out, "screenWindowWidth", "float", &1f32.to_le_bytes());
+    out.push(0);
+    // One chunk per line (uncompressed; ZIP's 16 and PIZ's 32 lines a chunk only make the
+    // table longer than a reader needs), every offset but the first left 0.
+    let first = out.len() as u64 + 8 * height as u64;
+    out.extend_from_slice(&first.to_le_bytes());
+    out.resize(first as usize, 0);
+    let line = width as usize * 4 * channels.len();
+    out.extend_from_slice(&0i32.to_le_bytes());
+    out.extend_from_slice(&(line as i32).to_le_bytes());
+    for _ in 0..width as usize * channels.len() {
+        out.extend_from_slice(&1f32.to_le_bytes());
+    }
+    out
+}

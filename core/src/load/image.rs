@@ -69,12 +69,9 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         )
     };
     // Header first: refuse absurd sizes before the reader allocates pixel storage.
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(corrupt)?;
-    let header =
-        meta.headers.iter().find(|h| !h.deep).ok_or_else(|| {
-            Error::invalid(path, "has only deep-data layers (write a flat image)")
-        })?;
+    let header = exr_flat_header(path)?;
     check_dimensions(path, header.layer_size.width(), header.layer_size.height())?;
+    check_exr_size(path, &header)?;
     let names: Vec<String> = header
         .channels
         .list
@@ -122,6 +119,69 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         ));
     }
     Ok((w, h, data, name))
+}
+
+/// The header of an EXR's first flat layer (the one `first_valid_layer` decodes), read
+/// before any pixel.
+pub(crate) fn exr_flat_header(path: &Path) -> Result<exr::meta::header::Header> {
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| {
+        Error::invalid(
+            path,
+            format!("cannot read as OpenEXR: {e} (the file is truncated or corrupt; re-export it)"),
+        )
+    })?;
+    meta.headers
+        .into_iter()
+        .find(|h| !h.deep)
+        .ok_or_else(|| Error::invalid(path, "has only deep-data layers (write a flat image)"))
+}
+
+/// The most an EXR compression expands its bytes to, with room to spare. Measured on the most
+/// compressible image there is (constant 2048² RGB, half and float, written by OpenEXR 3.3):
+/// RLE 61:1, ZIPS 389, ZIP 902, PIZ 399, PXR24 1 203, B44A 10.7, DWAA 4 146, DWAB 16 716.
+fn exr_max_ratio(c: exr::compression::Compression) -> u64 {
+    use exr::compression::Compression::*;
+    match c {
+        Uncompressed => 1,
+        RLE => 128,
+        // Deflate's limit is 1 032:1; PIZ's run-length codes stay under it.
+        ZIP1 | ZIP16 | PIZ => 1_100,
+        PXR24 => 1_500,
+        B44 | B44A => 16,
+        DWAA(_) | DWAB(_) | HTJ2K32 | HTJ2K256 => 65_536,
+    }
+}
+
+/// An EXR's pixels come out of its bytes through its compression: a header stating more
+/// pixel bytes than the file can expand to (`exr_max_ratio`) is corrupt, and is refused
+/// before the reader allocates storage for every channel of it (by hand: a 480 KB file
+/// stating 60 000² texels made the reader ask for 14.4 GB and abort).
+pub(crate) fn check_exr_size(path: &Path, header: &exr::meta::header::Header) -> Result<()> {
+    let file = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    let (w, h) = (
+        header.layer_size.width() as u64,
+        header.layer_size.height() as u64,
+    );
+    let per_texel: u64 = (header.channels.list.iter())
+        .map(|c| c.sample_type.bytes_per_sample() as u64)
+        .sum();
+    let pixels = w.saturating_mul(h).saturating_mul(per_texel);
+    let ratio = exr_max_ratio(header.compression);
+    if pixels > file.saturating_mul(ratio).saturating_add(1 << 16) {
+        return Err(Error::invalid(
+            path,
+            format!(
+                "the header says {w}x{h} texels in {} channels ({pixels} bytes of pixels), more \
+                 than a {file}-byte file with {} can hold: the file is truncated or corrupt \
+                 (re-export it)",
+                header.channels.list.len(),
+                header.compression
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// The requested channel, else `Y`, else `R`, else the first alphabetically.

@@ -848,6 +848,37 @@ fn a_png_header_larger_than_its_data_is_an_error() {
     );
 }
 
+/// An EXR height map whose header states more pixel bytes than its file can hold under its
+/// compression is refused from the header, before the reader allocates storage for every
+/// channel (a 480 KB file once asked for 14.4 GB and aborted); the same writer's whole image
+/// loads.
+#[test]
+fn an_exr_header_larger_than_its_data_is_an_error() {
+    use crate::test_util::exr_header_only;
+    let dir = temp_dir("exr-huge");
+    let whole = dir.join("whole.exr");
+    std::fs::write(&whole, exr_header_only(4, 1, &["Y"], 0)).unwrap();
+    let map = load_height_map(&whole, &MapOptions::default()).unwrap();
+    assert_eq!(
+        (map.width, map.height, map.data.as_slice()),
+        (4, 1, &[1.0; 4][..])
+    );
+    // 20 000² texels of four floats: 6.4 GB stated, in under half a megabyte.
+    for (name, compression) in [("none.exr", 0u8), ("zip.exr", 3), ("piz.exr", 4)] {
+        let path = dir.join(name);
+        std::fs::write(
+            &path,
+            exr_header_only(20_000, 20_000, &["A", "B", "G", "R"], compression),
+        )
+        .unwrap();
+        let e = err_naming_file(load_height_map(&path, &MapOptions::default()), &path);
+        assert!(
+            e.contains("20000x20000 texels in 4 channels") && e.contains("truncated or corrupt"),
+            "{e}"
+        );
+    }
+}
+
 #[test]
 fn png_and_tiff_integers_are_normalised() {
     let dir = temp_dir("png16");

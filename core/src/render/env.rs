@@ -280,33 +280,68 @@ impl EnvMap {
                 "--env needs an equirectangular .exr (linear HDR) map",
             ));
         }
-        let (w, h, names, data) = super::output::read_exr(path)?;
-        if w == 0 || h == 0 || w > MAX_ENV_SIDE || h > MAX_ENV_SIDE {
+        // The header first: sizes a hostile file states are refused before pixel storage.
+        let header = crate::load::image::exr_flat_header(path)?;
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        if w == 0 || h == 0 || w > MAX_ENV_SIDE as usize || h > MAX_ENV_SIDE as usize {
             return Err(Error::invalid(
                 path,
                 format!("environment is {w}x{h}; each side must be 1..={MAX_ENV_SIDE}"),
             ));
         }
-        let k = names.len();
+        crate::load::image::check_exr_size(path, &header)?;
+        let (w, h) = (w as u32, h as u32);
+        let names: Vec<String> = (header.channels.list.iter())
+            .map(|c| c.name.to_string())
+            .collect();
         let find = |n: &str| {
             names
                 .iter()
                 .position(|c| c == n || c.ends_with(&format!(".{n}")))
         };
-        let idx = match (find("R"), find("G"), find("B")) {
-            (Some(r), Some(g), Some(b)) => [r, g, b],
-            _ => {
-                let c = find("Y").unwrap_or(0);
-                [c, c, c]
-            }
+        let picked: Vec<usize> = match (find("R"), find("G"), find("B")) {
+            (Some(r), Some(g), Some(b)) => vec![r, g, b],
+            _ => vec![find("Y").unwrap_or(0)],
         };
-        let mut texels = Vec::with_capacity((w * h) as usize);
-        for i in 0..(w * h) as usize {
-            let c = Vec3::new(
-                data[i * k + idx[0]],
-                data[i * k + idx[1]],
-                data[i * k + idx[2]],
-            );
+        let picked: Vec<String> = picked.into_iter().map(|i| names[i].clone()).collect();
+        use exr::prelude::{ReadChannels, ReadLayers};
+        let image = exr::prelude::read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .first_valid_layer()
+            .all_attributes()
+            .from_file(path)
+            .map_err(|e| Error::invalid(path, format!("could not read EXR: {e}")))?;
+        let n = (w * h) as usize;
+        let mut planes: Vec<Vec<f32>> = Vec::with_capacity(3);
+        for name in &picked {
+            let channel = (image.layer_data.channel_data.list.iter())
+                .find(|c| c.name.to_string() == *name)
+                .ok_or_else(|| {
+                    Error::invalid(
+                        path,
+                        format!("channel '{name}' vanished between header and pixels"),
+                    )
+                })?;
+            let plane: Vec<f32> = channel.sample_data.values_as_f32().collect();
+            if plane.len() != n {
+                return Err(Error::invalid(
+                    path,
+                    format!(
+                        "channel '{name}' has {} samples for {w}x{h} texels (subsampled channels \
+                         are not supported; write the environment at full resolution)",
+                        plane.len()
+                    ),
+                ));
+            }
+            planes.push(plane);
+        }
+        let channel = |k: usize| &planes[k.min(planes.len() - 1)];
+        let (r, g, b) = (channel(0), channel(1), channel(2));
+        let mut texels = Vec::with_capacity(n);
+        for i in 0..n {
+            let c = Vec3::new(r[i], g[i], b[i]);
             if !c.is_finite() {
                 let (x, y) = (i as u32 % w, i as u32 / w);
                 return Err(Error::invalid(
@@ -324,6 +359,44 @@ impl EnvMap {
 mod tests {
     use super::*;
     use crate::rng::{random, Purpose};
+
+    /// An environment EXR whose header states more than its file holds is refused before any
+    /// pixel storage (by hand: a 480 KB file stating 60 000² texels aborted the render asking
+    /// for 14.4 GB); one over the side limit too; a whole one of the same writer loads.
+    #[test]
+    fn an_environment_header_larger_than_its_data_is_an_error() {
+        use crate::test_util::exr_header_only;
+        let dir = std::env::temp_dir().join(format!("prismbake-env-huge-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let frame = EnvFrame {
+            z_up: false,
+            rotation: 0.0,
+        };
+        let whole = dir.join("whole.exr");
+        std::fs::write(&whole, exr_header_only(8, 1, &["R", "G", "B"], 0)).unwrap();
+        let env = EnvMap::load_exr(&whole, 2.0, frame).unwrap();
+        assert_eq!(
+            (env.width, env.height, env.texels[7]),
+            (8, 1, Vec3::splat(2.0))
+        );
+        for (name, w, h, compression, says) in [
+            (
+                "none.exr",
+                16_000,
+                8_000,
+                0u8,
+                "16000x8000 texels in 3 channels",
+            ),
+            ("zip.exr", 16_000, 8_000, 3, "truncated or corrupt"),
+            ("wide.exr", 60_000, 60_000, 0, "each side must be 1..=16384"),
+        ] {
+            let path = dir.join(name);
+            std::fs::write(&path, exr_header_only(w, h, &["R", "G", "B"], compression)).unwrap();
+            let e = EnvMap::load_exr(&path, 1.0, frame).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains(says), "{e}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// A lopsided map: one bright spot near the horizon, a dim gradient elsewhere.
     fn spot_map(frame: EnvFrame) -> EnvMap {
