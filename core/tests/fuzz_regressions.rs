@@ -121,6 +121,51 @@ fn height_exr_corpus_loads_or_fails_cleanly() {
     });
 }
 
+/// Found by the `env_exr` target on its first seed (a `height_exr` corpus file): an EXR
+/// whose channel list reads as empty made the environment loader index the missing first
+/// channel and panic (the height-map loader already refused it, naming no channel).
+#[test]
+fn an_environment_without_channels_is_an_error() {
+    use prismbake::render::env::{EnvFrame, EnvMap};
+    let bytes = include_bytes!("../../fuzz/corpus/env_exr/regression-no-channels.exr");
+    let path = scratch("no-channels.exr", bytes);
+    let frame = EnvFrame {
+        z_up: false,
+        rotation: 0.0,
+    };
+    let e = EnvMap::load_exr(&path, 1.0, frame).unwrap_err().to_string();
+    assert!(
+        e.contains("no-channels.exr") && e.contains("has no channels"),
+        "{e}"
+    );
+}
+
+/// The `--env` HDRI loader over its corpus: a clean error, or an environment whose sampling
+/// stays finite (the `env_exr` target's invariants).
+#[test]
+fn env_exr_corpus_loads_or_fails_cleanly() {
+    use glam::Vec2;
+    use prismbake::render::env::{env_pdf, env_sample, EnvFrame, EnvMap};
+    let frame = EnvFrame {
+        z_up: false,
+        rotation: 0.7,
+    };
+    let loaded = std::cell::Cell::new(0);
+    replay_files("env_exr", "exr", |p| {
+        let Ok(env) = EnvMap::load_exr(p, 1.0, frame) else {
+            return;
+        };
+        loaded.set(loaded.get() + 1);
+        assert!(env.total_weight.is_finite(), "{}", p.display());
+        for u in [Vec2::ZERO, Vec2::splat(0.5), Vec2::new(0.123, 0.877)] {
+            let s = env_sample(&env, u);
+            assert!(s.dir.is_finite() && s.pdf.is_finite(), "{}", p.display());
+            assert!(env_pdf(&env, s.dir).is_finite());
+        }
+    });
+    assert!(loaded.get() > 0, "the corpus keeps environments that load");
+}
+
 #[test]
 fn height_tiff_corpus_loads_or_fails_cleanly() {
     replay_files("height_tiff", "tif", |p| {

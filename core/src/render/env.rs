@@ -301,6 +301,12 @@ impl EnvMap {
         };
         let picked: Vec<usize> = match (find("R"), find("G"), find("B")) {
             (Some(r), Some(g), Some(b)) => vec![r, g, b],
+            _ if names.is_empty() => {
+                return Err(Error::invalid(
+                    path,
+                    "has no channels (write the environment as R, G, B or Y)",
+                ))
+            }
             _ => vec![find("Y").unwrap_or(0)],
         };
         let picked: Vec<String> = picked.into_iter().map(|i| names[i].clone()).collect();
@@ -349,9 +355,28 @@ impl EnvMap {
                     format!("texel ({x}, {y}) is NaN or infinite; clamp the HDR before using it"),
                 ));
             }
-            texels.push(c.max(Vec3::ZERO) * intensity);
+            let c = c.max(Vec3::ZERO) * intensity;
+            if !c.is_finite() {
+                let (x, y) = (i as u32 % w, i as u32 / w);
+                return Err(Error::invalid(
+                    path,
+                    format!("texel ({x}, {y}) times the intensity {intensity} is past f32's range; lower --env-intensity"),
+                ));
+            }
+            texels.push(c);
         }
-        Ok(EnvMap::new(w, h, texels, frame))
+        let env = EnvMap::new(w, h, texels, frame);
+        // Sampling weighs each texel by its luminance and solid angle: their sum must be a
+        // number, or every pdf is NaN and the beauty with it.
+        if !env.total_weight.is_finite() {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "its radiance (times the intensity {intensity}) sums past f32's range; scale it down (--env-intensity) or clamp its brightest texels"
+                ),
+            ));
+        }
+        Ok(env)
     }
 }
 
@@ -395,6 +420,20 @@ mod tests {
             let e = EnvMap::load_exr(&path, 1.0, frame).unwrap_err().to_string();
             assert!(e.contains(name) && e.contains(says), "{e}");
         }
+        // Every texel finite, but their weights sum past f32's range: no NaN pdfs.
+        let bright = dir.join("bright.exr");
+        std::fs::write(&bright, exr_header_only(8, 1, &["R", "G", "B"], 0)).unwrap();
+        let e = EnvMap::load_exr(&bright, 1e38, frame)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bright.exr") && e.contains("sums past f32's range"),
+            "{e}"
+        );
+        let e = EnvMap::load_exr(&bright, f32::MAX * 2.0, frame)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("texel (0, 0) times the intensity"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
