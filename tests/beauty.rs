@@ -715,3 +715,88 @@ fn each_gltf_material_shades_its_own_triangles() {
         }
     }
 }
+
+/// `--env` takes a Radiance `.hdr` as well as an EXR: the same radiance in either renders the
+/// same beauty, byte for byte, on the CPU and on the GPU.
+#[test]
+fn a_radiance_hdr_environment_lights_as_its_exr_twin() {
+    use exr::prelude::{
+        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
+        WritableImage,
+    };
+    use image::codecs::hdr::{HdrDecoder, HdrEncoder};
+    use image::ImageDecoder;
+    let dir = temp_dir("env-hdr");
+    let (w, h) = (32usize, 16usize);
+    let sky: Vec<image::Rgb<f32>> = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let sun = if (x, y) == (9, 4) { 400.0 } else { 0.0 };
+            image::Rgb([
+                0.3 + sun,
+                0.4 + 0.05 * y as f32,
+                0.9 - 0.04 * y as f32 + sun,
+            ])
+        })
+        .collect();
+    let hdr = dir.join("sky.hdr");
+    let mut bytes = Vec::new();
+    HdrEncoder::new(&mut bytes).encode(&sky, w, h).unwrap();
+    std::fs::write(&hdr, &bytes).unwrap();
+    // The texels the .hdr holds (RGBE-rounded), written as an EXR.
+    let decoder = HdrDecoder::new(std::io::Cursor::new(&bytes)).unwrap();
+    let mut raw = vec![0u8; decoder.total_bytes() as usize];
+    decoder.read_image(&mut raw).unwrap();
+    let floats: Vec<f32> = raw
+        .chunks_exact(4)
+        .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    let ch = |name: &str, k: usize| {
+        let plane = floats.iter().skip(k).step_by(3).copied().collect();
+        AnyChannel::new(name, FlatSamples::F32(plane))
+    };
+    let exr = dir.join("sky.exr");
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(vec![ch("R", 0), ch("G", 1), ch("B", 2)].into()),
+    );
+    Image::from_layer(layer).write().to_file(&exr).unwrap();
+
+    let render = |env: &Path, device: &str| {
+        let out = dir.join(format!(
+            "{}-{device}",
+            env.extension().unwrap().to_str().unwrap()
+        ));
+        run(&[
+            "render",
+            s(&example("sphere/sphere.glb")),
+            "--res",
+            "24x24",
+            "--spp",
+            "4",
+            "--aov",
+            "beauty",
+            "--env",
+            s(env),
+            "--device",
+            device,
+            "-o",
+            s(&out),
+        ])
+        .assert_success();
+        read(&out.join("beauty.exr"))
+    };
+    for device in ["cpu", "gpu"] {
+        let (from_hdr, from_exr) = (render(&hdr, device), render(&exr, device));
+        assert!(
+            from_hdr == from_exr,
+            "{device}: the .hdr and its EXR twin differ"
+        );
+    }
+    // The sun lights the sphere: the picture is not the sky's ambient alone.
+    let lit = read_rgba(&dir.join("hdr-cpu/beauty.exr"));
+    let peak = lit.iter().map(|p| p[0].max(p[2])).fold(0.0f32, f32::max);
+    assert!(peak > 1.0, "brightest pixel {peak}");
+}

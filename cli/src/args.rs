@@ -137,8 +137,9 @@ pub struct RenderArgs {
 /// Beauty settings: lights, material, bounces, ground.
 #[derive(Args, Debug, Clone)]
 pub struct LookArgs {
-    /// Equirectangular HDR environment (.exr); default: a neutral built-in sky.
-    #[arg(long, value_name = "MAP.exr")]
+    /// Equirectangular HDR environment (.exr, or Radiance .hdr); default: a neutral built-in
+    /// sky.
+    #[arg(long, value_name = "MAP.exr|MAP.hdr")]
     pub env: Option<PathBuf>,
     /// Rotate the environment about the up axis (degrees).
     #[arg(

@@ -166,6 +166,29 @@ fn env_exr_corpus_loads_or_fails_cleanly() {
     assert!(loaded.get() > 0, "the corpus keeps environments that load");
 }
 
+/// Radiance `.hdr` environments over the `env_hdr` corpus: a clean error, or sampling that
+/// stays finite.
+#[test]
+fn env_hdr_corpus_loads_or_fails_cleanly() {
+    use glam::Vec2;
+    use prismbake::render::env::{env_sample, EnvFrame, EnvMap};
+    let frame = EnvFrame {
+        z_up: true,
+        rotation: 0.0,
+    };
+    let loaded = std::cell::Cell::new(0);
+    replay_files("env_hdr", "hdr", |p| {
+        let Ok(env) = EnvMap::load(p, 1.0, frame) else {
+            return;
+        };
+        loaded.set(loaded.get() + 1);
+        assert!(env.total_weight.is_finite(), "{}", p.display());
+        let s = env_sample(&env, Vec2::splat(0.5));
+        assert!(s.dir.is_finite() && s.pdf.is_finite(), "{}", p.display());
+    });
+    assert!(loaded.get() >= 4, "the corpus keeps its four seeds");
+}
+
 #[test]
 fn height_tiff_corpus_loads_or_fails_cleanly() {
     replay_files("height_tiff", "tif", |p| {

@@ -188,6 +188,20 @@ pub fn env_pdf(env: &EnvMap, d: Vec3) -> f32 {
     pdf_of_texel(env, x, y, uv.y)
 }
 
+/// Radiance's older run-length scheme: at most 16 384 decoded texel bytes a file byte.
+const HDR_MAX_RATIO: u64 = 16_384;
+
+/// An environment's sides, from its header: each in `1..=MAX_ENV_SIDE`.
+fn check_env_sides(path: &Path, w: usize, h: usize) -> Result<()> {
+    if w == 0 || h == 0 || w > MAX_ENV_SIDE as usize || h > MAX_ENV_SIDE as usize {
+        return Err(Error::invalid(
+            path,
+            format!("environment is {w}x{h}; each side must be 1..={MAX_ENV_SIDE}"),
+        ));
+    }
+    Ok(())
+}
+
 impl EnvMap {
     /// Build the sampling tables for `texels` (radiance already scaled by the intensity).
     pub fn new(width: u32, height: u32, texels: Vec<Vec3>, frame: EnvFrame) -> Self {
@@ -272,23 +286,62 @@ impl EnvMap {
         EnvMap::new(8, 4, vec![radiance; 32], frame)
     }
 
-    /// Read an equirect EXR (R, G, B; or a single channel as grey), scaled by `intensity`.
-    pub fn load_exr(path: &Path, intensity: f32, frame: EnvFrame) -> Result<Self> {
-        if super::super::load::extension(path) != "exr" {
+    /// Read an equirect HDRI, OpenEXR (`load_exr`) or Radiance RGBE (`load_hdr`) by its
+    /// extension, scaled by `intensity`.
+    pub fn load(path: &Path, intensity: f32, frame: EnvFrame) -> Result<Self> {
+        match super::super::load::extension(path).as_str() {
+            "exr" => Self::load_exr(path, intensity, frame),
+            "hdr" => Self::load_hdr(path, intensity, frame),
+            _ => Err(Error::invalid(
+                path,
+                "--env needs an equirectangular HDR map: .exr (OpenEXR) or .hdr (Radiance RGBE)",
+            )),
+        }
+    }
+
+    /// Read an equirect Radiance RGBE `.hdr` (the format most HDRI libraries offer beside
+    /// EXR), scaled by `intensity`. Its size is checked from the header before any texel is
+    /// decoded, as `load_exr` checks an EXR's.
+    pub fn load_hdr(path: &Path, intensity: f32, frame: EnvFrame) -> Result<Self> {
+        use image::ImageDecoder;
+        let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let bytes = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        let corrupt = |e: image::ImageError| {
+            Error::invalid(
+                path,
+                format!("cannot read as Radiance HDR: {e} (the file is truncated or corrupt; re-export it)"),
+            )
+        };
+        let decoder =
+            image::codecs::hdr::HdrDecoder::new(std::io::BufReader::new(file)).map_err(corrupt)?;
+        let (w, h) = decoder.dimensions();
+        check_env_sides(path, w as usize, h as usize)?;
+        // Radiance's older run-length scheme fills a scanline from a pixel and two run
+        // counts: 12 bytes give at most 16 384 texels of 12 decoded bytes.
+        let decoded = w as u64 * h as u64 * 12;
+        if decoded > bytes.saturating_mul(HDR_MAX_RATIO).saturating_add(1 << 16) {
             return Err(Error::invalid(
                 path,
-                "--env needs an equirectangular .exr (linear HDR) map",
+                format!("the header says {w}x{h} texels, more than a {bytes}-byte Radiance file can hold: the file is truncated or corrupt (re-export it)"),
             ));
         }
+        let mut rgb = vec![0f32; w as usize * h as usize * 3];
+        let mut raw = vec![0u8; decoder.total_bytes() as usize];
+        decoder.read_image(&mut raw).map_err(corrupt)?;
+        for (v, b) in rgb.iter_mut().zip(raw.chunks_exact(4)) {
+            *v = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+        }
+        drop(raw);
+        let texels = rgb.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2]));
+        Self::from_radiance(path, w, h, texels, intensity, frame)
+    }
+
+    /// Read an equirect EXR (R, G, B; or a single channel as grey), scaled by `intensity`.
+    pub fn load_exr(path: &Path, intensity: f32, frame: EnvFrame) -> Result<Self> {
         // The header first: sizes a hostile file states are refused before pixel storage.
         let header = crate::load::image::exr_flat_header(path)?;
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
-        if w == 0 || h == 0 || w > MAX_ENV_SIDE as usize || h > MAX_ENV_SIDE as usize {
-            return Err(Error::invalid(
-                path,
-                format!("environment is {w}x{h}; each side must be 1..={MAX_ENV_SIDE}"),
-            ));
-        }
+        check_env_sides(path, w, h)?;
         crate::load::image::check_exr_size(path, &header)?;
         let (w, h) = (w as u32, h as u32);
         let names: Vec<String> = (header.channels.list.iter())
@@ -345,11 +398,25 @@ impl EnvMap {
         }
         let channel = |k: usize| &planes[k.min(planes.len() - 1)];
         let (r, g, b) = (channel(0), channel(1), channel(2));
-        let mut texels = Vec::with_capacity(n);
-        for i in 0..n {
-            let c = Vec3::new(r[i], g[i], b[i]);
+        let texels = (0..n).map(|i| Vec3::new(r[i], g[i], b[i]));
+        Self::from_radiance(path, w, h, texels, intensity, frame)
+    }
+
+    /// The environment of `texels` (row 0 at the top) read from `path`, times `intensity`:
+    /// NaN or infinite texels are an error, negative ones count as 0, and the product and the
+    /// sampling weights' sum must stay in f32's range.
+    fn from_radiance(
+        path: &Path,
+        w: u32,
+        h: u32,
+        texels: impl Iterator<Item = Vec3>,
+        intensity: f32,
+        frame: EnvFrame,
+    ) -> Result<Self> {
+        let mut scaled = Vec::with_capacity((w * h) as usize);
+        for (i, c) in texels.enumerate() {
+            let (x, y) = (i as u32 % w, i as u32 / w);
             if !c.is_finite() {
-                let (x, y) = (i as u32 % w, i as u32 / w);
                 return Err(Error::invalid(
                     path,
                     format!("texel ({x}, {y}) is NaN or infinite; clamp the HDR before using it"),
@@ -357,15 +424,14 @@ impl EnvMap {
             }
             let c = c.max(Vec3::ZERO) * intensity;
             if !c.is_finite() {
-                let (x, y) = (i as u32 % w, i as u32 / w);
                 return Err(Error::invalid(
                     path,
                     format!("texel ({x}, {y}) times the intensity {intensity} is past f32's range; lower --env-intensity"),
                 ));
             }
-            texels.push(c);
+            scaled.push(c);
         }
-        let env = EnvMap::new(w, h, texels, frame);
+        let env = EnvMap::new(w, h, scaled, frame);
         // Sampling weighs each texel by its luminance and solid angle: their sum must be a
         // number, or every pdf is NaN and the beauty with it.
         if !env.total_weight.is_finite() {
@@ -384,6 +450,87 @@ impl EnvMap {
 mod tests {
     use super::*;
     use crate::rng::{random, Purpose};
+
+    /// A Radiance `.hdr` loads as the radiance it was written from, up to RGBE's 8-bit
+    /// mantissas under a shared exponent; `load` picks the reader by extension and names both
+    /// formats for any other; a header stating far more texels than the file holds, or more
+    /// than the side limit, is refused before decoding.
+    #[test]
+    fn radiance_hdr_environments_load_like_exr_ones() {
+        use image::codecs::hdr::HdrEncoder;
+        let dir = std::env::temp_dir().join(format!("prismbake-env-hdr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let frame = EnvFrame {
+            z_up: false,
+            rotation: 0.0,
+        };
+        let (w, h) = (16usize, 8usize);
+        let texel = |i: usize| {
+            let (x, y) = (i % w, i / w);
+            [
+                0.02 + x as f32 * 0.3,
+                0.5 + y as f32 * 7.0,
+                if (x, y) == (3, 2) { 5000.0 } else { 0.25 },
+            ]
+        };
+        let rgb: Vec<image::Rgb<f32>> = (0..w * h).map(|i| image::Rgb(texel(i))).collect();
+        let hdr = dir.join("sky.hdr");
+        let mut bytes = Vec::new();
+        HdrEncoder::new(&mut bytes).encode(&rgb, w, h).unwrap();
+        std::fs::write(&hdr, &bytes).unwrap();
+        let env = EnvMap::load(&hdr, 2.0, frame).unwrap();
+        assert_eq!((env.width, env.height), (w as u32, h as u32));
+        for (i, t) in env.texels.iter().enumerate() {
+            let want = Vec3::from_array(texel(i)) * 2.0;
+            // RGBE shares one exponent: each channel is within 1/128 of the largest.
+            assert!(
+                (*t - want).abs().max_element() <= want.max_element() / 128.0,
+                "texel {i}: {t} against {want}"
+            );
+        }
+        // The bright texel (row 2 from the top, column 3) takes most of its row's samples.
+        let share = env.texel_weight[2 * w + 3];
+        assert!(share > 0.5, "{share}");
+
+        let e = EnvMap::load(&dir.join("sky.png"), 1.0, frame)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(".exr (OpenEXR) or .hdr (Radiance RGBE)"), "{e}");
+        // The same header stating 16 000 × 8 000 texels over the same 16 × 8 texels' bytes.
+        let text = String::from_utf8_lossy(&bytes).into_owned();
+        let at = text.find("-Y 8 +X 16").expect("the dimension line");
+        let mut huge = bytes[..at].to_vec();
+        huge.extend_from_slice(b"-Y 8000 +X 16000");
+        huge.extend_from_slice(&bytes[at + "-Y 8 +X 16".len()..]);
+        for (name, data, says) in [
+            ("huge.hdr", huge, "more than a"),
+            ("wide.hdr", bytes.clone(), ""),
+            (
+                "cut.hdr",
+                bytes[..bytes.len() / 2].to_vec(),
+                "truncated or corrupt",
+            ),
+        ] {
+            let data = if name == "wide.hdr" {
+                let mut d = bytes[..at].to_vec();
+                d.extend_from_slice(b"-Y 8 +X 20000");
+                d.extend_from_slice(&bytes[at + "-Y 8 +X 16".len()..]);
+                d
+            } else {
+                data
+            };
+            let path = dir.join(name);
+            std::fs::write(&path, data).unwrap();
+            let e = EnvMap::load(&path, 1.0, frame).unwrap_err().to_string();
+            let says = if says.is_empty() {
+                "each side must be 1..=16384"
+            } else {
+                says
+            };
+            assert!(e.contains(name) && e.contains(says), "{e}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     /// An environment EXR whose header states more than its file holds is refused before any
     /// pixel storage (by hand: a 480 KB file stating 60 000² texels aborted the render asking

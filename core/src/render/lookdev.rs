@@ -539,7 +539,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
             rotation: opts.env_rotate_deg.to_radians(),
         };
         Some(match &opts.env {
-            Some(p) => EnvMap::load_exr(p, opts.env_intensity, frame)?,
+            Some(p) => EnvMap::load(p, opts.env_intensity, frame)?,
             None => EnvMap::default_sky(opts.env_intensity, frame),
         })
     } else {
