@@ -325,14 +325,13 @@ impl EnvMap {
                 format!("the header says {w}x{h} texels, more than a {bytes}-byte Radiance file can hold: the file is truncated or corrupt (re-export it)"),
             ));
         }
-        let mut rgb = vec![0f32; w as usize * h as usize * 3];
+        // The decoder writes RGB f32 texels as native-endian bytes.
         let mut raw = vec![0u8; decoder.total_bytes() as usize];
         decoder.read_image(&mut raw).map_err(corrupt)?;
-        for (v, b) in rgb.iter_mut().zip(raw.chunks_exact(4)) {
-            *v = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
-        }
-        drop(raw);
-        let texels = rgb.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2]));
+        let float = |b: &[u8]| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
+        let texels = raw
+            .chunks_exact(12)
+            .map(|t| Vec3::new(float(&t[0..4]), float(&t[4..8]), float(&t[8..12])));
         Self::from_radiance(path, w, h, texels, intensity, frame)
     }
 
