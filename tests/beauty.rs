@@ -800,3 +800,66 @@ fn a_radiance_hdr_environment_lights_as_its_exr_twin() {
     let peak = lit.iter().map(|p| p[0].max(p[2])).fold(0.0f32, f32::max);
     assert!(peak > 1.0, "brightest pixel {peak}");
 }
+
+/// A material whose values are not numbers (an `.mtl`'s `Kd nan 0.5 inf`, `Pr nan`) fails the
+/// beauty before any frame, naming the file, the material and the flag that overrides it (it
+/// rendered NaN pixels before); the flags that override those values render it, and AOVs
+/// never read materials.
+#[test]
+fn a_material_with_nan_values_fails_the_beauty_naming_the_override() {
+    let dir = temp_dir("nan-material");
+    let obj = dir.join("quad.obj");
+    std::fs::write(
+        &obj,
+        "mtllib quad.mtl\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+         vn 0 0 1\nusemtl bad\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("quad.mtl"), "newmtl bad\nKd nan 0.5 inf\nPr nan\n").unwrap();
+    let map = example("maps/scales_256.png");
+    let render = |out: &str, aovs: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            s(&obj),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0.05",
+            "--res",
+            "16x16",
+            "--spp",
+            "2",
+            "--aov",
+            aovs,
+            "-o",
+        ];
+        let out = dir.join(out);
+        args.push(s(&out));
+        args.extend_from_slice(extra);
+        (run(&args), out)
+    };
+    let (failed, out) = render("nan", "beauty", &[]);
+    failed.assert_error(&["quad.obj", "material 'bad'", "base colour", "--base-color"]);
+    assert!(!out.exists() || files_in(&out).is_empty());
+    let (failed, _) = render("nan-roughness", "beauty", &["--base-color", "0.5,0.5,0.5"]);
+    failed.assert_error(&["material 'bad'", "roughness", "--roughness"]);
+    let overrides = ["--base-color", "0.5,0.5,0.5", "--roughness", "0.4"];
+    let (ok, out) = render("overridden", "beauty", &overrides);
+    ok.assert_success();
+    let px = read_rgba(&out.join("beauty.exr"));
+    assert!(px.iter().all(|p| p.iter().all(|v| v.is_finite())));
+    assert!(px.iter().any(|p| p[3] > 0.5), "the quad is in view");
+    let (aovs, _) = render("aovs", "depth,mask", &[]);
+    aovs.assert_success();
+    // `validate` fails the asset's `textures` check (the materials) for it.
+    let report = run(&["validate", s(&obj), "--disp", s(&map)]);
+    assert_ne!(report.code, 0, "{}", report.stdout);
+    assert!(
+        report.stdout.contains("textures")
+            && report
+                .stdout
+                .contains("material 'bad' has a NaN or infinite base colour"),
+        "{}",
+        report.stdout
+    );
+}

@@ -4,8 +4,8 @@
 //! `uv-range` (inside [0, 1] when the map is clamped), `degenerate-faces`, `inverted-normals`,
 //! `sharp-creases`, `map` (readable), `finite-values` (no NaN/Inf texels), `max-displacement`,
 //! `seam-jump` (the height map's jump across UV seams, which `--seams open` renders as cracks),
-//! `textures` (the materials' base-colour textures are there and decode, and the beauty
-//! reads them).
+//! `textures` (the materials' values are numbers, their base-colour textures are there and
+//! decode, and the beauty reads them).
 
 use crate::asset::{self, AssetSpec, Overrides};
 use crate::bake::PrismTable;
@@ -14,7 +14,9 @@ use crate::heightmap::{HeightMap, Wrap};
 use crate::load;
 use crate::mesh::BaseMesh;
 use crate::prism_file;
-use crate::render::lookdev::{texture_note, texture_readable};
+use crate::render::lookdev::{
+    check_material_values, texture_note, texture_readable, LookdevOptions,
+};
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
 use crate::seam::{measure_seams, SeamReport};
@@ -118,14 +120,18 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
     }
 }
 
-/// The materials' base-colour textures: each one the beauty reads must decode (a missing file,
-/// a corrupt or unsupported image fails); one it does not read (another UV set, a texture
-/// transform) is a warning.
+/// The materials the beauty shades with: their values must be numbers (a NaN or infinite base
+/// colour, roughness or metallic fails), and each base-colour texture the beauty reads must
+/// decode (a missing file, a corrupt or unsupported image fails); one it does not read (another
+/// UV set, a texture transform) is a warning.
 fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
     let mut read = vec![];
     let mut failures = vec![];
     let mut warnings = vec![];
     for m in &mesh.materials {
+        if let Err(e) = check_material_values(mesh, m, &LookdevOptions::default()) {
+            failures.push(e.to_string());
+        }
         let Some(t) = &m.base_color_texture else {
             continue;
         };

@@ -379,6 +379,49 @@ impl AssetMaterials {
     }
 }
 
+/// A material's values the beauty shades with must be numbers: a NaN or infinite base colour,
+/// roughness or metallic (an `.mtl`'s `Kd nan …`, a USD `inf`) would make every pixel it shades
+/// NaN. One the command line overrides is not read (`validate` passes the defaults: none).
+pub fn check_material_values(
+    mesh: &crate::mesh::BaseMesh,
+    m: &crate::mesh::MeshMaterial,
+    opts: &LookdevOptions,
+) -> Result<()> {
+    let c = m.base_color;
+    let values = [
+        (
+            "base colour",
+            "--base-color R,G,B",
+            opts.base_color.is_none(),
+            &c[..3],
+        ),
+        (
+            "roughness",
+            "--roughness R",
+            opts.roughness.is_none(),
+            &[m.roughness][..],
+        ),
+        (
+            "metallic",
+            "--metallic M",
+            opts.metallic.is_none(),
+            &[m.metallic][..],
+        ),
+    ];
+    for (what, flag, read, v) in values {
+        if read && v.iter().any(|x| !x.is_finite()) {
+            return Err(Error::invalid(
+                &mesh.source,
+                format!(
+                    "material '{}' has a NaN or infinite {what} ({v:?}): fix it in the asset, or override it with {flag}",
+                    m.name
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The asset's materials for `job`: the default alone unless it renders the beauty; no
 /// texture is decoded with `--base-color`, and each image once. A texture that cannot be
 /// decoded is an error.
@@ -403,6 +446,7 @@ fn asset_materials(
     }
     let mut decoded: Vec<&TextureRef> = vec![];
     for m in &mesh.materials {
+        check_material_values(mesh, m, opts)?;
         let texture = match &m.base_color_texture {
             Some(t) if read_textures && texture_readable(t, spec.uv_set) => {
                 Some(match decoded.iter().position(|d| *d == t) {
