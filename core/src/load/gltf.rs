@@ -68,7 +68,16 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         mesh.group_material.clear();
     }
     if let Some((world, yfov)) = loader.camera {
-        mesh.camera = Some(scene_camera(&mesh, world, yfov));
+        let camera = scene_camera(&mesh, world, yfov);
+        match camera_fault(&camera) {
+            None => mesh.camera = Some(camera),
+            // Such a camera renders a degenerate or flipped picture (a yfov of 0 sends every
+            // ray one way, a negative one turns the image over): framed from the bounds instead.
+            Some(fault) => eprintln!(
+                "warning: {}: its camera {fault}: ignored, the view is framed from the bounds (fix the camera, or set the view with --camera-from, --camera-to and --fov)",
+                path.display()
+            ),
+        }
     }
     Ok(mesh)
 }
@@ -679,6 +688,22 @@ fn count_mismatch(path: &Path, group: &str, attr: &str, got: usize, n: usize) ->
         path,
         format!("primitive '{group}': {attr} has {got} elements but POSITION has {n} (re-export)"),
     )
+}
+
+/// Why a scene camera cannot be rendered through, if it cannot: a field of view outside what
+/// `--fov` takes (0–179°, glTF requires `yfov` > 0), or a position or target that is not finite.
+fn camera_fault(c: &SceneCamera) -> Option<String> {
+    if !(c.yfov_deg > 0.0 && c.yfov_deg < 179.0) {
+        return Some(format!(
+            "has a vertical field of view of {}° (yfov {} rad), outside 0–179°",
+            c.yfov_deg,
+            c.yfov_deg.to_radians()
+        ));
+    }
+    if !(c.from.is_finite() && c.to.is_finite() && c.up.is_finite()) {
+        return Some("is placed at a position that is not finite".into());
+    }
+    None
 }
 
 /// Camera looking down its local -Z with local +Y up; the target is the mesh centre projected

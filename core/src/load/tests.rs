@@ -623,6 +623,31 @@ fn gltf_perspective_camera_becomes_the_scene_camera() {
     assert!((cam.yfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
 }
 
+/// A camera `--fov` would refuse (a yfov of 0 sends every ray one way, a negative one turns
+/// the picture over, one past 179° folds it) or placed at an infinite position is left out,
+/// with a warning, and the view is framed from the bounds; the mesh still loads.
+#[test]
+fn a_gltf_camera_that_cannot_be_rendered_through_is_left_out() {
+    let dir = temp_dir("gltf-bad-camera");
+    for (i, (yfov, z)) in [(0.0, 5.0), (-0.5, 5.0), (3.2, 5.0), (0.5, 1e39)]
+        .into_iter()
+        .enumerate()
+    {
+        let mut doc = GltfDoc::default();
+        let a_pos = doc.floats(&TRI, 3);
+        let rest = json!({
+            "scene": 0,
+            "scenes": [{"nodes": [0, 1]}],
+            "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, z]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
+            "cameras": [{"type": "perspective", "perspective": {"yfov": yfov, "znear": 0.1}}],
+        });
+        let name = format!("cam{i}.gltf");
+        let m = load_gltf_doc(&dir, &name, &doc, &rest, &MeshOptions::default()).unwrap();
+        assert!(m.camera.is_none(), "yfov {yfov}, z {z}: {:?}", m.camera);
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // 3. OBJ
 
