@@ -61,13 +61,6 @@ type Decoded = (u32, u32, Vec<f32>, String);
 
 /// EXR: the first layer, every channel read, then one picked by name.
 fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
-    use exr::prelude::{read, FlatSamples, ReadChannels, ReadLayers};
-    let corrupt = |e: exr::error::Error| {
-        Error::invalid(
-            path,
-            format!("cannot read as OpenEXR: {e} (the file is truncated or corrupt; re-export it)"),
-        )
-    };
     // Header first: refuse absurd sizes before the reader allocates pixel storage.
     let header = exr_flat_header(path)?;
     check_dimensions(path, header.layer_size.width(), header.layer_size.height())?;
@@ -80,6 +73,31 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         .collect();
     let name = pick_exr_channel(path, &names, requested)?;
 
+    let (w, h, mut planes) = read_exr_channels(path, std::slice::from_ref(&name), "the height")?;
+    let (w, h) = check_dimensions(path, w, h)?;
+    let data = planes.pop().unwrap_or_default();
+    Ok((w, h, data, name))
+}
+
+/// An EXR's unreadable header or pixels, as the error of `path`.
+fn exr_corrupt(path: &Path, e: exr::error::Error) -> Error {
+    Error::invalid(
+        path,
+        format!("cannot read as OpenEXR: {e} (the file is truncated or corrupt; re-export it)"),
+    )
+}
+
+/// Channels `names` of an EXR's first flat layer (after its header's checks: `exr_flat_header`,
+/// `check_exr_size`), each as one f32 a texel, and the layer's width and height. A float
+/// channel's samples move out of the decoded layer rather than being copied (a 4096² map is
+/// 64 MiB of f32, and two copies at once doubled a load's peak memory). A subsampled channel
+/// is an error whose fix names `what` ("the height").
+pub(crate) fn read_exr_channels(
+    path: &Path,
+    names: &[String],
+    what: &str,
+) -> Result<(usize, usize, Vec<Vec<f32>>)> {
+    use exr::prelude::{read, FlatSamples, ReadChannels, ReadLayers};
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -87,49 +105,45 @@ fn load_exr(path: &Path, requested: Option<&str>) -> Result<Decoded> {
         .first_valid_layer()
         .all_attributes()
         .from_file(path)
-        .map_err(corrupt)?;
+        .map_err(|e| exr_corrupt(path, e))?;
     let layer = image.layer_data;
-    let (w, h) = check_dimensions(path, layer.size.width(), layer.size.height())?;
-    // Take the channel out of the decoded layer: its samples move, not copy (a 4096² map is
-    // 64 MiB of f32, and two copies at once doubled the load's peak memory).
-    let channel = layer
-        .channel_data
-        .list
-        .into_iter()
-        .find(|c| c.name.to_string() == name)
-        .ok_or_else(|| {
-            Error::invalid(
+    let (w, h) = (layer.size.width(), layer.size.height());
+    let mut channels = layer.channel_data.list;
+    let mut planes = Vec::with_capacity(names.len());
+    for name in names {
+        let i = (channels.iter())
+            .position(|c| c.name.to_string() == *name)
+            .ok_or_else(|| {
+                Error::invalid(
+                    path,
+                    format!("channel '{name}' vanished between header and pixels"),
+                )
+            })?;
+        let plane: Vec<f32> = match channels.swap_remove(i).sample_data {
+            FlatSamples::F16(s) => s.iter().map(|v| v.to_f32()).collect(),
+            FlatSamples::F32(s) => s,
+            FlatSamples::U32(s) => s.iter().map(|&v| v as f32).collect(),
+        };
+        if plane.len() != w * h {
+            return Err(Error::invalid(
                 path,
-                format!("channel '{name}' vanished between header and pixels"),
-            )
-        })?;
-    let data: Vec<f32> = match channel.sample_data {
-        FlatSamples::F16(s) => s.iter().map(|v| v.to_f32()).collect(),
-        FlatSamples::F32(s) => s,
-        FlatSamples::U32(s) => s.iter().map(|&v| v as f32).collect(),
-    };
-    if data.len() != w as usize * h as usize {
-        return Err(Error::invalid(
-            path,
-            format!(
-                "channel '{name}' has {} samples for {w}x{h} texels (subsampled channels are not \
-                 supported; write the height at full resolution)",
-                data.len()
-            ),
-        ));
+                format!(
+                    "channel '{name}' has {} samples for {w}x{h} texels (subsampled channels are \
+                     not supported; write {what} at full resolution)",
+                    plane.len()
+                ),
+            ));
+        }
+        planes.push(plane);
     }
-    Ok((w, h, data, name))
+    Ok((w, h, planes))
 }
 
 /// The header of an EXR's first flat layer (the one `first_valid_layer` decodes), read
 /// before any pixel.
 pub(crate) fn exr_flat_header(path: &Path) -> Result<exr::meta::header::Header> {
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| {
-        Error::invalid(
-            path,
-            format!("cannot read as OpenEXR: {e} (the file is truncated or corrupt; re-export it)"),
-        )
-    })?;
+    let meta =
+        exr::meta::MetaData::read_from_file(path, false).map_err(|e| exr_corrupt(path, e))?;
     meta.headers
         .into_iter()
         .find(|h| !h.deep)

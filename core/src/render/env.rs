@@ -342,7 +342,6 @@ impl EnvMap {
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
         check_env_sides(path, w, h)?;
         crate::load::image::check_exr_size(path, &header)?;
-        let (w, h) = (w as u32, h as u32);
         let names: Vec<String> = (header.channels.list.iter())
             .map(|c| c.name.to_string())
             .collect();
@@ -362,39 +361,11 @@ impl EnvMap {
             _ => vec![find("Y").unwrap_or(0)],
         };
         let picked: Vec<String> = picked.into_iter().map(|i| names[i].clone()).collect();
-        use exr::prelude::{ReadChannels, ReadLayers};
-        let image = exr::prelude::read()
-            .no_deep_data()
-            .largest_resolution_level()
-            .all_channels()
-            .first_valid_layer()
-            .all_attributes()
-            .from_file(path)
-            .map_err(|e| Error::invalid(path, format!("could not read EXR: {e}")))?;
+        let (w, h, planes) =
+            crate::load::image::read_exr_channels(path, &picked, "the environment")?;
+        check_env_sides(path, w, h)?;
+        let (w, h) = (w as u32, h as u32);
         let n = (w * h) as usize;
-        let mut planes: Vec<Vec<f32>> = Vec::with_capacity(3);
-        for name in &picked {
-            let channel = (image.layer_data.channel_data.list.iter())
-                .find(|c| c.name.to_string() == *name)
-                .ok_or_else(|| {
-                    Error::invalid(
-                        path,
-                        format!("channel '{name}' vanished between header and pixels"),
-                    )
-                })?;
-            let plane: Vec<f32> = channel.sample_data.values_as_f32().collect();
-            if plane.len() != n {
-                return Err(Error::invalid(
-                    path,
-                    format!(
-                        "channel '{name}' has {} samples for {w}x{h} texels (subsampled channels \
-                         are not supported; write the environment at full resolution)",
-                        plane.len()
-                    ),
-                ));
-            }
-            planes.push(plane);
-        }
         let channel = |k: usize| &planes[k.min(planes.len() - 1)];
         let (r, g, b) = (channel(0), channel(1), channel(2));
         let texels = (0..n).map(|i| Vec3::new(r[i], g[i], b[i]));
