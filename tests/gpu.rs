@@ -395,6 +395,22 @@ fn assert_same_pixels(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
     );
 }
 
+/// The summary of a `--device auto` render the CPU took over from the GPU, checked to say so:
+/// the device, `gpu_fallback` naming `reason`, and the log's device line.
+fn rendered_on_the_cpu_because(o: &Output, reason: &str) -> serde_json::Value {
+    let json = o.assert_success().json();
+    assert!(
+        json["device"].as_str().unwrap().starts_with("cpu"),
+        "{json}"
+    );
+    assert!(
+        json["gpu_fallback"].as_str().unwrap().contains(reason),
+        "{json}"
+    );
+    assert!(o.stderr.contains("device: cpu ("), "{}", o.stderr);
+    json
+}
+
 /// A 16-bit map goes up two texels a word (`layout::encode_height_map`): one that fills the
 /// storage binding exactly renders on the device; one row more does not fit, which is an error
 /// under `--device gpu` (no files) and a CPU render under `--device auto`, saying why. The
@@ -420,35 +436,28 @@ fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_c
     };
     let sphere = example("sphere/sphere.glb");
     let render = |device: &str, map: &Path, out: &Path| {
-        Command::new(env!("CARGO_BIN_EXE_prismbake"))
-            .args([
-                "render",
-                s(&sphere),
-                "--disp",
-                s(map),
-                "--device",
-                device,
-                "--aov",
-                "mask",
-                "--res",
-                "16x16",
-                "--json",
-                "-o",
-                s(out),
-            ])
-            .env("PRISMBAKE_GPU_LIMITS", "webgpu")
-            .env("XDG_CACHE_HOME", dir.join("cache"))
-            .output()
-            .unwrap()
-    };
-    let json = |o: &std::process::Output| -> serde_json::Value {
-        let stderr = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success(), "{stderr}");
-        serde_json::from_slice(&o.stdout).unwrap()
+        let args = [
+            "render",
+            s(&sphere),
+            "--disp",
+            s(map),
+            "--device",
+            device,
+            "--aov",
+            "mask",
+            "--res",
+            "16x16",
+            "--json",
+            "-o",
+            s(out),
+        ];
+        run_in_env(&repo_root(), &args, &[("PRISMBAKE_GPU_LIMITS", "webgpu")])
     };
 
     let fits = write_map("fits.png", rows);
-    let on_gpu = json(&render("gpu", &fits, &dir.join("fits")));
+    let on_gpu = render("gpu", &fits, &dir.join("fits"))
+        .assert_success()
+        .json();
     assert!(
         on_gpu["device"].as_str().unwrap().starts_with("gpu ("),
         "{on_gpu}"
@@ -457,35 +466,18 @@ fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_c
     assert!(on_gpu.get("gpu_fallback").is_none(), "{on_gpu}");
 
     let over = write_map("over.png", rows + 1);
-    let refused = render("gpu", &over, &dir.join("refused"));
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(2), "{stderr}");
-    assert!(
-        stderr.contains("height map")
-            && stderr.contains("storage-binding limit")
-            && stderr.contains("--device auto"),
-        "{stderr}"
-    );
+    render("gpu", &over, &dir.join("refused"))
+        .assert_code(2)
+        .assert_error(&["height map", "storage-binding limit", "--device auto"]);
     assert!(files_in(&dir.join("refused")).is_empty());
 
     let auto = render("auto", &over, &dir.join("auto"));
-    let stderr = String::from_utf8_lossy(&auto.stderr).into_owned();
-    let auto = json(&auto);
     assert!(
-        auto["device"].as_str().unwrap().starts_with("cpu"),
-        "{auto}"
+        auto.stderr.contains("cannot hold this scene"),
+        "{}",
+        auto.stderr
     );
-    assert!(
-        auto["gpu_fallback"]
-            .as_str()
-            .unwrap()
-            .contains("height map"),
-        "{auto}"
-    );
-    assert!(
-        stderr.contains("device: cpu (") && stderr.contains("cannot hold this scene"),
-        "{stderr}"
-    );
+    let auto = rendered_on_the_cpu_because(&auto, "height map");
     assert!(auto.get("gpu_map_encoding").is_none(), "{auto}");
     assert!(dir.join("auto/mask.exr").is_file());
 }
@@ -500,34 +492,28 @@ fn a_device_with_too_few_storage_buffers_renders_aovs_and_auto_renders_the_beaut
     let dir = temp_dir("gpu-webgpu-limits");
     let rock = example("rock/rock.glb");
     let render = |limits: &str, device: &str, aovs: &str, out: &str| {
-        Command::new(env!("CARGO_BIN_EXE_prismbake"))
-            .args([
-                "render",
-                s(&rock),
-                "--device",
-                device,
-                "--aov",
-                aovs,
-                "--spp",
-                "2",
-                "--res",
-                "24x24",
-                "--json",
-                "-o",
-                s(&dir.join(out)),
-            ])
-            .env("PRISMBAKE_GPU_LIMITS", limits)
-            .env("XDG_CACHE_HOME", dir.join("cache"))
-            .output()
-            .unwrap()
-    };
-    let json = |o: &std::process::Output| -> serde_json::Value {
-        let stderr = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success(), "{stderr}");
-        serde_json::from_slice(&o.stdout).unwrap()
+        let out = dir.join(out);
+        let args = [
+            "render",
+            s(&rock),
+            "--device",
+            device,
+            "--aov",
+            aovs,
+            "--spp",
+            "2",
+            "--res",
+            "24x24",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        run_in_env(&repo_root(), &args, &[("PRISMBAKE_GPU_LIMITS", limits)])
     };
 
-    let aovs = json(&render("webgpu", "gpu", "depth,normal,mask", "aovs"));
+    let aovs = render("webgpu", "gpu", "depth,normal,mask", "aovs")
+        .assert_success()
+        .json();
     let device = aovs["device"].as_str().unwrap();
     assert!(
         device.starts_with("gpu (") && device.contains("WebGPU's default limits"),
@@ -535,45 +521,28 @@ fn a_device_with_too_few_storage_buffers_renders_aovs_and_auto_renders_the_beaut
     );
     assert!(dir.join("aovs/mask.exr").is_file());
 
-    let refused = render("webgpu", "gpu", "beauty", "refused");
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert_eq!(refused.status.code(), Some(2), "{stderr}");
-    assert!(
-        stderr.contains("storage buffers in one shader stage")
-            && stderr.contains("allows 8")
-            && stderr.contains("--device auto"),
-        "{stderr}"
-    );
+    render("webgpu", "gpu", "beauty", "refused")
+        .assert_code(2)
+        .assert_error(&[
+            "storage buffers in one shader stage",
+            "allows 8",
+            "--device auto",
+        ]);
     assert!(files_in(&dir.join("refused")).is_empty());
 
     let auto = render("webgpu", "auto", "beauty,mask", "auto");
-    let stderr = String::from_utf8_lossy(&auto.stderr).into_owned();
-    let auto = json(&auto);
-    assert!(
-        auto["device"].as_str().unwrap().starts_with("cpu"),
-        "{auto}"
-    );
-    assert!(
-        auto["gpu_fallback"]
-            .as_str()
-            .unwrap()
-            .contains("storage buffers"),
-        "{auto}"
-    );
-    assert!(stderr.contains("device: cpu ("), "{stderr}");
+    rendered_on_the_cpu_because(&auto, "storage buffers");
     assert!(dir.join("auto/beauty.exr").is_file() && dir.join("auto/mask.exr").is_file());
 
     // The adapter's own limits take the beauty (every adapter the GPU tests run on has 11).
-    let full = json(&render("adapter", "gpu", "beauty", "full"));
+    let full = render("adapter", "gpu", "beauty", "full")
+        .assert_success()
+        .json();
     assert!(full.get("gpu_fallback").is_none(), "{full}");
     assert!(dir.join("full/beauty.exr").is_file());
 
-    let bad = render("tiny", "gpu", "mask", "bad");
-    let stderr = String::from_utf8_lossy(&bad.stderr);
-    assert_eq!(bad.status.code(), Some(2), "{stderr}");
-    assert!(
-        stderr.contains("PRISMBAKE_GPU_LIMITS=tiny") && stderr.contains("`webgpu`"),
-        "{stderr}"
-    );
+    render("tiny", "gpu", "mask", "bad")
+        .assert_code(2)
+        .assert_error(&["PRISMBAKE_GPU_LIMITS=tiny", "`webgpu`"]);
     assert!(files_in(&dir.join("bad")).is_empty());
 }

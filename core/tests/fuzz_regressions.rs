@@ -140,19 +140,15 @@ fn an_environment_without_channels_is_an_error() {
     );
 }
 
-/// The `--env` HDRI loader over its corpus: a clean error, or an environment whose sampling
-/// stays finite (the `env_exr` target's invariants).
-#[test]
-fn env_exr_corpus_loads_or_fails_cleanly() {
+/// Replay an environment corpus through `EnvMap::load` under `frame`: each file a clean error,
+/// or an environment whose sampling stays finite (the `env_exr` / `env_hdr` targets'
+/// invariants). Returns how many loaded.
+fn replay_environments(target: &str, ext: &str, frame: prismbake::render::env::EnvFrame) -> usize {
     use glam::Vec2;
-    use prismbake::render::env::{env_pdf, env_sample, EnvFrame, EnvMap};
-    let frame = EnvFrame {
-        z_up: false,
-        rotation: 0.7,
-    };
+    use prismbake::render::env::{env_pdf, env_sample, EnvMap};
     let loaded = std::cell::Cell::new(0);
-    replay_files("env_exr", "exr", |p| {
-        let Ok(env) = EnvMap::load_exr(p, 1.0, frame) else {
+    replay_files(target, ext, |p| {
+        let Ok(env) = EnvMap::load(p, 1.0, frame) else {
             return;
         };
         loaded.set(loaded.get() + 1);
@@ -163,30 +159,31 @@ fn env_exr_corpus_loads_or_fails_cleanly() {
             assert!(env_pdf(&env, s.dir).is_finite());
         }
     });
-    assert!(loaded.get() > 0, "the corpus keeps environments that load");
+    loaded.get()
 }
 
-/// Radiance `.hdr` environments over the `env_hdr` corpus: a clean error, or sampling that
-/// stays finite.
+/// The `--env` EXR loader over its corpus.
+#[test]
+fn env_exr_corpus_loads_or_fails_cleanly() {
+    use prismbake::render::env::EnvFrame;
+    let frame = EnvFrame {
+        z_up: false,
+        rotation: 0.7,
+    };
+    let loaded = replay_environments("env_exr", "exr", frame);
+    assert!(loaded > 0, "the corpus keeps environments that load");
+}
+
+/// Radiance `.hdr` environments over the `env_hdr` corpus.
 #[test]
 fn env_hdr_corpus_loads_or_fails_cleanly() {
-    use glam::Vec2;
-    use prismbake::render::env::{env_sample, EnvFrame, EnvMap};
+    use prismbake::render::env::EnvFrame;
     let frame = EnvFrame {
         z_up: true,
         rotation: 0.0,
     };
-    let loaded = std::cell::Cell::new(0);
-    replay_files("env_hdr", "hdr", |p| {
-        let Ok(env) = EnvMap::load(p, 1.0, frame) else {
-            return;
-        };
-        loaded.set(loaded.get() + 1);
-        assert!(env.total_weight.is_finite(), "{}", p.display());
-        let s = env_sample(&env, Vec2::splat(0.5));
-        assert!(s.dir.is_finite() && s.pdf.is_finite(), "{}", p.display());
-    });
-    assert!(loaded.get() >= 4, "the corpus keeps its four seeds");
+    let loaded = replay_environments("env_hdr", "hdr", frame);
+    assert!(loaded >= 4, "the corpus keeps its four seeds");
 }
 
 #[test]

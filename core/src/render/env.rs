@@ -430,10 +430,7 @@ mod tests {
         use image::codecs::hdr::HdrEncoder;
         let dir = std::env::temp_dir().join(format!("prismbake-env-hdr-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let frame = EnvFrame {
-            z_up: false,
-            rotation: 0.0,
-        };
+        let frame = frames()[0];
         let (w, h) = (16usize, 8usize);
         let texel = |i: usize| {
             let (x, y) = (i % w, i / w);
@@ -510,10 +507,7 @@ mod tests {
         use crate::test_util::exr_header_only;
         let dir = std::env::temp_dir().join(format!("prismbake-env-huge-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let frame = EnvFrame {
-            z_up: false,
-            rotation: 0.0,
-        };
+        let frame = frames()[0];
         let whole = dir.join("whole.exr");
         std::fs::write(&whole, exr_header_only(8, 1, &["R", "G", "B"], 0)).unwrap();
         let env = EnvMap::load_exr(&whole, 2.0, frame).unwrap();
