@@ -693,9 +693,10 @@ fn count_mismatch(path: &Path, group: &str, attr: &str, got: usize, n: usize) ->
 /// Why a scene camera cannot be rendered through, if it cannot: a field of view outside what
 /// `--fov` takes (0–179°, glTF requires `yfov` > 0), or a position or target that is not finite.
 fn camera_fault(c: &SceneCamera) -> Option<String> {
-    if !(c.yfov_deg > 0.0 && c.yfov_deg < 179.0) {
+    use crate::render::camera::{usable_fov, MAX_FOV_DEG};
+    if !usable_fov(c.yfov_deg) {
         return Some(format!(
-            "has a vertical field of view of {}° (yfov {} rad), outside 0–179°",
+            "has a vertical field of view of {}° (yfov {} rad), outside 0–{MAX_FOV_DEG}°",
             c.yfov_deg,
             c.yfov_deg.to_radians()
         ));

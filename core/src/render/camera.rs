@@ -5,6 +5,16 @@ use crate::mesh::{SceneCamera, UpAxis};
 use crate::trace::Ray;
 use glam::{Quat, Vec2, Vec3};
 
+/// The widest vertical field of view a camera may have, degrees (exclusive).
+pub const MAX_FOV_DEG: f32 = 179.0;
+
+/// Whether a vertical field of view (degrees) gives a usable picture: above 0 (all rays one
+/// way, or the picture turned over below it) and below `MAX_FOV_DEG` (folded past 180°). What
+/// `--fov` and a scene file's camera must both meet.
+pub fn usable_fov(deg: f32) -> bool {
+    deg > 0.0 && deg < MAX_FOV_DEG
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     pub from: Vec3,

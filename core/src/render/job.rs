@@ -145,9 +145,10 @@ impl RenderJob {
             return Err(Error::Param("--frames needs --turntable N".into()));
         }
         if let Some(f) = self.camera.fov_deg {
-            if !(f > 0.0 && f < 179.0) {
+            if !super::camera::usable_fov(f) {
                 return Err(Error::Param(format!(
-                    "--fov {f}: must be between 0 and 179 degrees"
+                    "--fov {f}: must be between 0 and {} degrees",
+                    super::camera::MAX_FOV_DEG
                 )));
             }
         }
