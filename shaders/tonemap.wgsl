@@ -52,6 +52,6 @@ fn tonemap_preview(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (!in_tile(gid)) {
         return;
     }
-    let i = gid.y * frame.tile_size.x + gid.x;
+    let i = pixel_ref(gid).i;
     beauty_sums[i].preview = preview_word(beauty_sums[i], frame.spp);
 }

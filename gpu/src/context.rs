@@ -292,7 +292,7 @@ fn schedule_setting(value: Option<&str>) -> Result<Option<BeautySchedule>, GpuEr
 
 /// The limits a context opens its device with (`PRISMBAKE_GPU_LIMITS`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum DeviceLimits {
+pub(crate) enum DeviceLimits {
     /// WebGPU's defaults, raised to what the adapter has for the storage-binding and buffer
     /// sizes and for storage buffers per stage up to beauty's `BEAUTY_STORAGE_BUFFERS`.
     Adapter,
@@ -653,10 +653,6 @@ impl GpuContext {
         }
     }
 
-    /// The limits the device was opened with.
-    pub fn device_limits(&self) -> DeviceLimits {
-        self.limits
-    }
 
     /// Pixels per side of one dispatch's tile (frames larger than it take several dispatches).
     pub fn tile(&self) -> u32 {

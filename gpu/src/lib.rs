@@ -38,7 +38,7 @@ pub mod shaders;
 mod timer;
 
 pub use beauty::{render_beauty, render_beauty_scheduled, GpuBeautyScene};
-pub use context::{AovWalk, BeautySchedule, DeviceLimits, GpuContext};
+pub use context::{AovWalk, BeautySchedule, GpuContext};
 pub use render::{render_aovs, render_aovs_walked};
 pub use scene::GpuScene;
 
