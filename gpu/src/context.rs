@@ -653,7 +653,6 @@ impl GpuContext {
         }
     }
 
-
     /// Pixels per side of one dispatch's tile (frames larger than it take several dispatches).
     pub fn tile(&self) -> u32 {
         self.tile.load(Ordering::Relaxed)

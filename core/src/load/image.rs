@@ -185,7 +185,7 @@ pub(crate) fn check_exr_size(path: &Path, header: &exr::meta::header::Header) ->
         .sum();
     let pixels = w.saturating_mul(h).saturating_mul(per_texel);
     let ratio = exr_max_ratio(header.compression);
-    if pixels > file.saturating_mul(ratio).saturating_add(1 << 16) {
+    if states_more_than_it_holds(pixels, file, ratio) {
         return Err(Error::invalid(
             path,
             format!(
@@ -289,6 +289,13 @@ fn first_channel_only(path: &Path, requested: Option<&str>, name: &str) -> Resul
     }
 }
 
+/// Whether a header stating `decoded` bytes of pixels asks for more than a `file`-byte file can
+/// hold when its compression expands at most `ratio` times (with 64 KiB to spare for tiny
+/// files): the check every image reader here makes before it allocates the pixels.
+pub(crate) fn states_more_than_it_holds(decoded: u64, file: u64, ratio: u64) -> bool {
+    decoded > file.saturating_mul(ratio).saturating_add(1 << 16)
+}
+
 /// Deflate's largest ratio of output to input (1032:1), with room for a PNG's chunks.
 const DEFLATE_MAX_RATIO: u64 = 1100;
 
@@ -300,11 +307,7 @@ fn check_png_size(path: &Path, w: u32, h: u32, bytes_per_texel: u64) -> Result<(
         .map_err(|e| Error::io(path, e))?
         .len();
     let pixels = w as u64 * h as u64 * bytes_per_texel;
-    if pixels
-        > file
-            .saturating_mul(DEFLATE_MAX_RATIO)
-            .saturating_add(1 << 16)
-    {
+    if states_more_than_it_holds(pixels, file, DEFLATE_MAX_RATIO) {
         return Err(Error::invalid(
             path,
             format!(

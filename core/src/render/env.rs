@@ -319,7 +319,7 @@ impl EnvMap {
         // Radiance's older run-length scheme fills a scanline from a pixel and two run
         // counts: 12 bytes give at most 16 384 texels of 12 decoded bytes.
         let decoded = w as u64 * h as u64 * 12;
-        if decoded > bytes.saturating_mul(HDR_MAX_RATIO).saturating_add(1 << 16) {
+        if crate::load::image::states_more_than_it_holds(decoded, bytes, HDR_MAX_RATIO) {
             return Err(Error::invalid(
                 path,
                 format!("the header says {w}x{h} texels, more than a {bytes}-byte Radiance file can hold: the file is truncated or corrupt (re-export it)"),
