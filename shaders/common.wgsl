@@ -121,7 +121,7 @@ struct Lighting {
     _pad2: u32,
 }
 
-// GpuMaterial, 48 bytes: beauty::SurfaceMaterial, its base-colour texture in env_texels
+// GpuMaterial, 48 bytes: beauty::SurfaceMaterial, its base-colour texture in texture_texels
 // (texture.wgsl; 0 x 0: none).
 struct SurfaceMaterial {
     base_color: vec3f,
@@ -130,9 +130,9 @@ struct SurfaceMaterial {
     specular: f32,
     tex_width: u32,
     tex_height: u32,
-    tex_offset: u32,     // its first float in env_texels
+    tex_offset: u32,     // its first float in texture_texels
     tex_sampler: u32,    // gpu::layout::texture_sampler_code; bit 5: packed (beauty::TEX_PACKED)
-    tex_table: u32,      // a packed texture's 8-bit sRGB table, its first float in env_texels
+    tex_table: u32,      // a packed texture's 8-bit sRGB table, its first float in texture_texels
     _pad: u32,
 }
 

@@ -2,19 +2,26 @@
 // map rotated about the asset's up axis, read nearest-texel for lighting (`env_radiance`) and
 // bilinearly for the camera's background (`env_radiance_smooth`), importance sampled with the
 // CPU's own tables (`EnvMap::{marginal_cdf, conditional_cdf, row_weight, texel_weight}`,
-// uploaded as they are: gpu/src/beauty.rs), so that `env_sample` picks the texel the CPU picks.
+// uploaded value for value: gpu/src/beauty.rs), so that `env_sample` picks the texel the CPU
+// picks.
 //
 // The rotation's sine and cosine come from the host, computed as the CPU computes them
 // (`(-rotation).sin_cos()` one way, `rotation.sin_cos()` the other).
 
-// Radiance × intensity, 3 floats per texel, rows top (zenith) to bottom.
-@group(2) @binding(1) var<storage, read> env_texels: array<f32>;
-// marginal_cdf [h + 1], row_weight [h], conditional_cdf [h (w + 1)], texel_weight [w h].
+// The environment goes up in two textures, so that its size is bounded by the device's
+// largest texture side, not by one storage binding (128 MiB on lavapipe: a 4K × 2K map, where
+// a 6K or 8K one is what a lookdev artist lights with). Texel (x, y), rows top (zenith) to
+// bottom: `env_radiance_map` holds the radiance × intensity in rgb and the CPU's
+// `texel_weight[y w + x]` in a; `env_conditional` holds `conditional_cdf[y (w + 1) + x + 1]`
+// (a row's first entry is 0, which is never stored). rgba32float and r32float, read with
+// textureLoad: the CPU's floats bit for bit.
+@group(2) @binding(4) var env_radiance_map: texture_2d<f32>;
+@group(2) @binding(5) var env_conditional: texture_2d<f32>;
+// marginal_cdf [h + 1], then row_weight [h].
 @group(2) @binding(2) var<storage, read> env_tables: array<f32>;
 
 const FRAC_1_PI: f32 = 0.318309886183790671538;
 
-// The offsets of the tables in `env_tables` (EnvTables in gpu/src/beauty.rs lays them out).
 fn env_marginal_cdf(i: u32) -> f32 {
     return env_tables[i];
 }
@@ -23,18 +30,20 @@ fn env_row_weight(y: u32) -> f32 {
     return env_tables[lighting.env_height + 1u + y];
 }
 
-fn env_conditional_base(y: u32) -> u32 {
-    return 2u * lighting.env_height + 1u + y * (lighting.env_width + 1u);
+// conditional_cdf of row y, entry i in 0..=w.
+fn env_conditional_cdf(y: u32, i: u32) -> f32 {
+    if (i == 0u) {
+        return 0.0;
+    }
+    return textureLoad(env_conditional, vec2<u32>(i - 1u, y), 0).x;
 }
 
 fn env_texel_weight(x: u32, y: u32) -> f32 {
-    let base = 2u * lighting.env_height + 1u + lighting.env_height * (lighting.env_width + 1u);
-    return env_tables[base + y * lighting.env_width + x];
+    return textureLoad(env_radiance_map, vec2<u32>(x, y), 0).w;
 }
 
 fn env_texel(x: u32, y: u32) -> vec3f {
-    let i = 3u * (y * lighting.env_width + x);
-    return vec3f(env_texels[i], env_texels[i + 1u], env_texels[i + 2u]);
+    return textureLoad(env_radiance_map, vec2<u32>(x, y), 0).xyz;
 }
 
 // env::world_to_env.
@@ -124,9 +133,18 @@ fn env_radiance_smooth(d: vec3f) -> vec3f {
     return lerp3(top, bottom, fy);
 }
 
-// env::find_interval over `len` entries of env_tables from `base`: the last i with
-// cdf[i] <= u.
-fn find_interval(base: u32, len: u32, u: f32) -> u32 {
+// env::find_interval over `len` entries of a cdf: the last i with cdf[i] <= u. Row `y` of
+// the conditional cdf, or the marginal cdf where `y` is MARGINAL.
+const MARGINAL: u32 = 0xffffffffu;
+
+fn cdf_entry(y: u32, i: u32) -> f32 {
+    if (y == MARGINAL) {
+        return env_marginal_cdf(i);
+    }
+    return env_conditional_cdf(y, i);
+}
+
+fn find_interval(y: u32, len: u32, u: f32) -> u32 {
     var lo = 0u;
     var hi = len - 1u;
     loop {
@@ -134,7 +152,7 @@ fn find_interval(base: u32, len: u32, u: f32) -> u32 {
             break;
         }
         let mid = (lo + hi) / 2u;
-        if (env_tables[base + mid] <= u) {
+        if (cdf_entry(y, mid) <= u) {
             lo = mid;
         } else {
             hi = mid;
@@ -153,17 +171,16 @@ struct EnvSample {
 fn env_sample(u: vec2f) -> EnvSample {
     let w = lighting.env_width;
     let h = lighting.env_height;
-    let y = min(find_interval(0u, h + 1u, u.y), h - 1u);
+    let y = min(find_interval(MARGINAL, h + 1u, u.y), h - 1u);
     let c0 = env_marginal_cdf(y);
     let c1 = env_marginal_cdf(y + 1u);
     var fy = 0.5;
     if (c1 > c0) {
         fy = clamp((u.y - c0) / (c1 - c0), 0.0, 1.0);
     }
-    let row = env_conditional_base(y);
-    let x = min(find_interval(row, w + 1u, u.x), w - 1u);
-    let r0 = env_tables[row + x];
-    let r1 = env_tables[row + x + 1u];
+    let x = min(find_interval(y, w + 1u, u.x), w - 1u);
+    let r0 = env_conditional_cdf(y, x);
+    let r1 = env_conditional_cdf(y, x + 1u);
     var fx = 0.5;
     if (r1 > r0) {
         fx = clamp((u.x - r0) / (r1 - r0), 0.0, 1.0);

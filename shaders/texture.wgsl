@@ -1,14 +1,17 @@
 // texture.wgsl — the materials and their base-colour textures, the mirror of
 // core/src/texture.rs (`ColorMap`) and of `BeautyScene::material_at`. A texture is linear RGB,
 // 3 floats per texel, or (packed) one word of 8-bit sRGB codes per texel and the CPU's table of
-// their linear values (gpu::beauty::TextureLayout), rows top to bottom, stored in `env_texels`
-// after the environment's texels (from its material's `tex_offset`), sampled with the height
+// their linear values (gpu::beauty::TextureLayout), rows top to bottom, stored in
+// `texture_texels` (from its material's `tex_offset`), sampled with the height
 // map's texel conventions and the glTF sampler's wrap modes and magnification filter
 // (`tex_sampler`, gpu::layout::texture_sampler_code).
 
 // The scene's materials (BeautyScene::materials): a prism's is its flags' upper bits
 // (bake::PRISM_MATERIAL_SHIFT), the last one for an index past the end.
 @group(2) @binding(3) var<storage, read> materials: array<SurfaceMaterial>;
+
+// The base-colour textures' texels as gpu::beauty::TextureLayout lays them out.
+@group(2) @binding(1) var<storage, read> texture_texels: array<f32>;
 
 const PRISM_MATERIAL_SHIFT: u32 = 8u;
 
@@ -41,16 +44,16 @@ fn tex_texel(m: SurfaceMaterial, x: i32, y: i32) -> vec3f {
     let i = u32(wrap_index(y, h, (code >> 2u) & 3u) * w + wrap_index(x, w, code & 3u));
     if ((code & TEX_PACKED) != 0u) {
         // One word a texel: its 8-bit sRGB codes, looked up in the CPU's table.
-        let word = bitcast<u32>(env_texels[m.tex_offset + i]);
+        let word = bitcast<u32>(texture_texels[m.tex_offset + i]);
         let t = m.tex_table;
         return vec3f(
-            env_texels[t + (word & 0xffu)],
-            env_texels[t + ((word >> 8u) & 0xffu)],
-            env_texels[t + ((word >> 16u) & 0xffu)],
+            texture_texels[t + (word & 0xffu)],
+            texture_texels[t + ((word >> 8u) & 0xffu)],
+            texture_texels[t + ((word >> 16u) & 0xffu)],
         );
     }
     let k = m.tex_offset + 3u * i;
-    return vec3f(env_texels[k], env_texels[k + 1u], env_texels[k + 2u]);
+    return vec3f(texture_texels[k], texture_texels[k + 1u], texture_texels[k + 2u]);
 }
 
 // ColorMap::sample of material `m`'s texture: bilinear over the four nearest texel centres,

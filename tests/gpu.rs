@@ -482,6 +482,68 @@ fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_c
     assert!(dir.join("auto/mask.exr").is_file());
 }
 
+/// An environment is bounded on the GPU by the device's largest texture side, not by one storage
+/// binding: 8192 × 1400 texels are 138 MB as f32 RGB, over the 128 MiB binding that lavapipe
+/// (and WebGPU's defaults) allow, and the beauty lit by it renders on the device, not on the
+/// CPU. (It used to be refused: 8K lookdev HDRIs went to the CPU.)
+#[test]
+fn an_environment_larger_than_a_storage_binding_lights_the_beauty_on_the_gpu() {
+    use exr::prelude::*;
+    let dir = temp_dir("gpu-env-large");
+    let (w, h) = (8192usize, 1400usize);
+    assert!(w * h * 12 > 128 << 20);
+    // A sky graded by row with a sun, in runs that RLE keeps small on disk (~2 MB).
+    let value = |k: usize| {
+        move |i: usize| {
+            let (x, y) = (i % w, i / w);
+            let sun = if (5000..5040).contains(&x) && (300..330).contains(&y) {
+                500.0
+            } else {
+                0.0
+            };
+            0.2 + 0.1 * k as f32 + 0.5 * (y as f32 / h as f32) + sun
+        }
+    };
+    let ch = |name: &str, k: usize| {
+        AnyChannel::new(name, FlatSamples::F32((0..w * h).map(value(k)).collect()))
+    };
+    let env = dir.join("sky_8k.exr");
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(vec![ch("R", 0), ch("G", 1), ch("B", 2)].into()),
+    );
+    Image::from_layer(layer).write().to_file(&env).unwrap();
+    let out = dir.join("out");
+    let rock = example("rock/rock.glb");
+    let json = run(&[
+        "render",
+        s(&rock),
+        "--env",
+        s(&env),
+        "--device",
+        "auto",
+        "--aov",
+        "beauty",
+        "--res",
+        "16x16",
+        "--spp",
+        "1",
+        "--json",
+        "-o",
+        s(&out),
+    ])
+    .assert_success()
+    .json();
+    assert!(
+        json["device"].as_str().unwrap().starts_with("gpu ("),
+        "{json}"
+    );
+    assert!(json.get("gpu_fallback").is_none(), "{json}");
+    assert!(out.join("beauty.exr").is_file());
+}
+
 /// `PRISMBAKE_GPU_LIMITS=webgpu` opens the device with WebGPU's default limits, 8 storage
 /// buffers a shader stage among them: the AOV kernel binds 8 and renders there; the beauty binds
 /// 10 (fused) or 11 (wavefront), which is an error under `--device gpu` (exit 2, no files, the

@@ -2,10 +2,12 @@
 //! same `BeautyImage` (so `render::output::write_beauty` writes it: linear RGBA EXR, filmic PNG).
 //!
 //! * `GpuBeautyScene::upload` — the lighting uniform (`GpuLighting`, from the CPU's
-//!   `BeautyScene`) and the environment: texels and the CPU's own sampling tables, uploaded as
-//!   they are (`env_tables`), so importance sampling picks the texels the CPU picks; the
-//!   base-colour textures' linear texels follow the environment's in the same buffer, and
-//!   the materials (`GpuMaterial`) locate them there.
+//!   `BeautyScene`) and the environment: its texels and the CPU's own sampling tables, value
+//!   for value, so importance sampling picks the texels the CPU picks. The per-texel arrays go
+//!   up as two textures (`EnvTextures`: bounded by the device's largest texture side, not by a
+//!   storage binding), the marginal arrays in a buffer (`env_tables`); the base-colour
+//!   textures' linear texels in a buffer of their own (`TextureLayout`), which the materials
+//!   (`GpuMaterial`) locate.
 //! * `render_beauty` — per tile: clear the running sums, one submission per sample (each
 //!   pixel's sample is added to its sums when its path ends, the CPU's order of
 //!   accumulation), read the sums back and resolve them with `PixelSums::resolve`. A sample
@@ -33,9 +35,6 @@ use wgpu::util::DeviceExt;
 /// The lighting uniform of a beauty scene (everything but the environment's tables and the
 /// materials).
 pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
-    let env = s.env;
-    let (to_sin, to_cos) = (-env.frame.rotation).sin_cos();
-    let (from_sin, from_cos) = env.frame.rotation.sin_cos();
     let key = s.key;
     let ground = s.ground;
     GpuLighting {
@@ -48,6 +47,16 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
         has_key: key.is_some() as u32,
         has_ground: ground.is_some() as u32,
         env_lights: s.env_lights as u32,
+        ..env_lighting(s.env)
+    }
+}
+
+/// The environment's part of the lighting uniform (its size, weight and frame), the rest at
+/// its defaults.
+pub fn env_lighting(env: &EnvMap) -> GpuLighting {
+    let (to_sin, to_cos) = (-env.frame.rotation).sin_cos();
+    let (from_sin, from_cos) = env.frame.rotation.sin_cos();
+    GpuLighting {
         env_z_up: env.frame.z_up as u32,
         env_width: env.width,
         env_height: env.height,
@@ -60,15 +69,13 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
     }
 }
 
-/// Where the base-colour textures lie in `env_texels`, after the environment's texels, in
-/// order. A texture whose every channel is a value of the 8-bit sRGB table
+/// Where the base-colour textures lie in `texture_texels`, in order. A texture whose every channel is a value of the 8-bit sRGB table
 /// (`texture::srgb8_table`: every 8-bit PNG and JPEG) is kept as its codes, one word a texel
 /// (`pack_srgb8`), with the table once before the textures: a third of its 3 floats a texel,
 /// and the same texels (texture.wgsl's `tex_texel` looks them up in the CPU's own table).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TextureLayout {
-    /// First float of the sRGB table (after the environment's texels; unused without a packed
-    /// texture).
+    /// First float of the sRGB table (unused without a packed texture).
     pub table: u32,
     /// Per texture: its first float, and whether it is packed.
     pub textures: Vec<(u32, bool)>,
@@ -79,7 +86,7 @@ pub struct TextureLayout {
 /// Bit 5 of `GpuMaterial::tex_sampler`: the texture is packed (`TextureLayout`).
 pub const TEX_PACKED: u32 = 1 << 5;
 
-/// A packed texel's word as the float `env_texels` holds: codes r, g, b in bits 0–23 and 0x40
+/// A packed texel's word as the float `texture_texels` holds: codes r, g, b in bits 0–23 and 0x40
 /// above them, so that the float is a normal number (no GPU flushes it on the way).
 const PACKED_TAG: u32 = 0x40 << 24;
 
@@ -115,14 +122,14 @@ fn pack_srgb8(c: Vec3, table: &[f32; 256]) -> Option<f32> {
     Some(f32::from_bits(PACKED_TAG | r? | (g? << 8) | (b? << 16)))
 }
 
-/// The layout of `textures` after `env_texels` environment texels.
-pub fn texture_layout(env_texels: usize, textures: &[ColorMap]) -> TextureLayout {
+/// The layout of `textures` in `texture_texels`.
+pub fn texture_layout(textures: &[ColorMap]) -> TextureLayout {
     let table = srgb8_table();
     let packed: Vec<bool> = textures
         .iter()
         .map(|t| t.texels.iter().all(|&c| pack_srgb8(c, &table).is_some()))
         .collect();
-    let mut next = 3 * env_texels;
+    let mut next = 0;
     let table_at = next;
     if packed.contains(&true) {
         next += table.len();
@@ -143,16 +150,11 @@ pub fn texture_layout(env_texels: usize, textures: &[ColorMap]) -> TextureLayout
     }
 }
 
-/// `env_texels` as `layout` lays it out: the environment's texels (3 floats each), the table if
-/// a texture is packed, then each texture, packed or 3 floats a texel.
-pub fn texel_buffer(
-    env_texels: &[Vec3],
-    textures: &[ColorMap],
-    layout: &TextureLayout,
-) -> Vec<f32> {
+/// `texture_texels` as `layout` lays it out: the table if a texture is packed, then each
+/// texture, packed or 3 floats a texel.
+pub fn texel_buffer(textures: &[ColorMap], layout: &TextureLayout) -> Vec<f32> {
     let table = srgb8_table();
     let mut out = Vec::with_capacity(layout.len);
-    out.extend(env_texels.iter().flat_map(|c| c.to_array()));
     if layout.textures.iter().any(|&(_, packed)| packed) {
         out.extend_from_slice(&table);
     }
@@ -198,60 +200,167 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
         .collect()
 }
 
-/// The environment as the kernel reads it (`shaders/env.wgsl`): `texels` 3 floats per texel,
-/// rows top to bottom, then the base-colour textures' (`TextureLayout`, `shaders/texture.wgsl`);
-/// `tables` the CPU's `marginal_cdf` (h + 1), `row_weight` (h), `conditional_cdf` (h (w + 1))
-/// and `texel_weight` (w h), one after the other.
-pub struct EnvTables {
-    pub texels: Vec<f32>,
-    pub tables: Vec<f32>,
-}
-
-pub fn env_tables(env: &EnvMap, textures: &[ColorMap], layout: &TextureLayout) -> EnvTables {
-    let texels = texel_buffer(&env.texels, textures, layout);
+/// The environment's marginal arrays as `env_tables` (`shaders/env.wgsl`) holds them: the
+/// CPU's `marginal_cdf` (h + 1) and `row_weight` (h), one after the other.
+pub fn env_tables(env: &EnvMap) -> Vec<f32> {
     let mut tables = Vec::with_capacity(table_floats(env));
     tables.extend_from_slice(&env.marginal_cdf);
     tables.extend_from_slice(&env.row_weight);
-    tables.extend_from_slice(&env.conditional_cdf);
-    tables.extend_from_slice(&env.texel_weight);
-    EnvTables { texels, tables }
+    tables
 }
 
-/// What to do when the lighting does not fit a storage binding.
+/// The environment's per-texel arrays as `shaders/env.wgsl` reads them, texel (x, y) rows top
+/// to bottom: `radiance` (rgba32float) the texel's radiance in rgb and its `texel_weight` in
+/// a; `conditional` (r32float) its row's `conditional_cdf` entry x + 1 (entry 0 is 0 in every
+/// row and is not stored, so both are w × h).
+pub struct EnvTextures {
+    pub radiance: wgpu::Texture,
+    pub conditional: wgpu::Texture,
+}
+
+/// Rows of the environment written to its textures at a time (the rgba rows are built on the
+/// host: a band, not the whole map, is held twice).
+const ENV_BAND_TEXELS: usize = 1 << 20;
+
+/// `env`'s radiance and weights, interleaved as `EnvTextures::radiance` holds them, rows
+/// `rows` (for a band's upload, and for the tests).
+pub fn env_radiance_rows(env: &EnvMap, rows: std::ops::Range<u32>) -> Vec<[f32; 4]> {
+    let w = env.width as usize;
+    let span = rows.start as usize * w..rows.end as usize * w;
+    env.texels[span.clone()]
+        .iter()
+        .zip(&env.texel_weight[span])
+        .map(|(c, &wt)| [c.x, c.y, c.z, wt])
+        .collect()
+}
+
+impl EnvTextures {
+    /// Create and fill the two textures (the caller checks the sides: `check_lighting_fits`).
+    pub fn upload(ctx: &GpuContext, env: &EnvMap) -> EnvTextures {
+        Self::upload_in_bands(ctx, env, ENV_BAND_TEXELS)
+    }
+
+    /// `upload`, writing whole rows of about `band_texels` texels at a time.
+    pub fn upload_in_bands(ctx: &GpuContext, env: &EnvMap, band_texels: usize) -> EnvTextures {
+        let size = wgpu::Extent3d {
+            width: env.width,
+            height: env.height,
+            depth_or_array_layers: 1,
+        };
+        let texture = |label, format| {
+            ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            })
+        };
+        let radiance = texture("environment radiance", wgpu::TextureFormat::Rgba32Float);
+        let conditional = texture("environment conditional cdf", wgpu::TextureFormat::R32Float);
+        let (w, h) = (env.width, env.height);
+        let band = (band_texels / w as usize).max(1) as u32;
+        let write = |texture: &wgpu::Texture, y0: u32, rows: u32, data: &[u8], layout| {
+            ctx.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d { x: 0, y: y0, z: 0 },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                data,
+                layout,
+                wgpu::Extent3d {
+                    width: w,
+                    height: rows,
+                    depth_or_array_layers: 1,
+                },
+            );
+        };
+        let f32s = std::mem::size_of::<f32>() as u32;
+        for y0 in (0..h).step_by(band as usize) {
+            let rows = band.min(h - y0);
+            let texels = env_radiance_rows(env, y0..y0 + rows);
+            let layout = wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * f32s * w),
+                rows_per_image: Some(rows),
+            };
+            write(&radiance, y0, rows, bytemuck::cast_slice(&texels), layout);
+            // Each row's w + 1 entries, from the second on: the array as it is, no copy.
+            let first = (y0 * (w + 1)) as usize;
+            let cdf = &env.conditional_cdf[first..first + (rows * (w + 1)) as usize];
+            let layout = wgpu::TexelCopyBufferLayout {
+                offset: f32s as u64,
+                bytes_per_row: Some(f32s * (w + 1)),
+                rows_per_image: Some(rows),
+            };
+            write(&conditional, y0, rows, bytemuck::cast_slice(cdf), layout);
+        }
+        EnvTextures {
+            radiance,
+            conditional,
+        }
+    }
+
+    /// Bytes on the device.
+    fn bytes(env: &EnvMap) -> u64 {
+        (env.width as u64 * env.height as u64) * (16 + 4)
+    }
+}
+
+/// What to do when the lighting does not fit the device.
 const LIGHTING_FIX: &str =
     "use a smaller --env map or base-colour textures, or --device auto or cpu (the CPU renderer has no such limit)";
 
 /// Whether an environment (`None`: the one-texel black a render without `--env` lights with)
-/// and the base-colour textures fit `ctx`'s storage bindings as `GpuBeautyScene::upload` lays
-/// them out (`EnvTables`), counted without building them: the check a job makes before its
-/// first frame, and `upload`'s own.
+/// and the base-colour textures fit `ctx` as `GpuBeautyScene::upload` lays them out: the
+/// environment's sides within the device's largest texture side, the textures' texels and the
+/// environment's marginal arrays within a storage binding; counted without building them. The
+/// check a job makes before its first frame, and `upload`'s own.
 pub fn check_lighting_fits(
     ctx: &GpuContext,
     env: Option<&EnvMap>,
     textures: &[ColorMap],
 ) -> Result<(), GpuError> {
-    let env_texels = env.map_or(1, |e| e.texels.len());
-    let layout = texture_layout(env_texels, textures);
-    check_lighting_sizes(ctx, &layout, env.map_or(0, table_floats))
+    let layout = texture_layout(textures);
+    check_lighting_sizes(ctx, env, &layout)
 }
 
-/// Floats of an environment's sampling tables (`EnvTables::tables`).
+/// Floats of an environment's marginal arrays (`env_tables`).
 fn table_floats(e: &EnvMap) -> usize {
-    e.marginal_cdf.len() + e.row_weight.len() + e.conditional_cdf.len() + e.texel_weight.len()
+    e.marginal_cdf.len() + e.row_weight.len()
 }
 
 /// `check_lighting_fits` for a layout already made (each makes it once: a pass over every
 /// texture's texels).
 fn check_lighting_sizes(
     ctx: &GpuContext,
+    env: Option<&EnvMap>,
     layout: &TextureLayout,
-    tables: usize,
 ) -> Result<(), GpuError> {
+    if let Some(e) = env {
+        let side = ctx.device.limits().max_texture_dimension_2d;
+        if e.width > side || e.height > side {
+            return Err(GpuError::EnvTooLarge {
+                width: e.width,
+                height: e.height,
+                side,
+                fix: LIGHTING_FIX,
+            });
+        }
+    }
     let limit = ctx.max_binding_bytes();
     let f32s = std::mem::size_of::<f32>() as u64;
     for (what, bytes) in [
-        ("environment and texture texels", layout.len as u64 * f32s),
-        ("environment sampling tables", tables as u64 * f32s),
+        ("base-colour texture texels", layout.len as u64 * f32s),
+        (
+            "environment sampling tables",
+            env.map_or(0, table_floats) as u64 * f32s,
+        ),
     ] {
         if bytes > limit {
             return Err(GpuError::TooLarge {
@@ -289,10 +398,9 @@ impl GpuBeautyScene {
     /// environment's tables, exceed one storage binding (128 MiB on WebGPU defaults: about
     /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
-        let layout = texture_layout(s.env.texels.len(), s.textures);
-        check_lighting_sizes(ctx, &layout, table_floats(s.env))?;
-        let env = env_tables(s.env, s.textures, &layout);
-        let mut bytes = 0u64;
+        let layout = texture_layout(s.textures);
+        check_lighting_sizes(ctx, Some(s.env), &layout)?;
+        let mut bytes = EnvTextures::bytes(s.env);
         let mut storage = |what: &'static str, data: &[f32]| {
             let data: &[u8] = bytemuck::cast_slice(data);
             bytes += data.len() as u64;
@@ -303,8 +411,15 @@ impl GpuBeautyScene {
                     usage: wgpu::BufferUsages::STORAGE,
                 })
         };
-        let texels = storage("environment and texture texels", &env.texels);
-        let tables = storage("environment sampling tables", &env.tables);
+        let mut texels = texel_buffer(s.textures, &layout);
+        if texels.is_empty() {
+            texels.push(0.0); // a binding is never empty
+        }
+        let texels = storage("base-colour texture texels", &texels);
+        let tables = storage("environment sampling tables", &env_tables(s.env));
+        let env = EnvTextures::upload(ctx, s.env);
+        let view = |t: &wgpu::Texture| t.create_view(&wgpu::TextureViewDescriptor::default());
+        let (radiance, conditional) = (view(&env.radiance), view(&env.conditional));
         let records = material_records(s, &layout);
         let materials = ctx
             .device
@@ -331,7 +446,7 @@ impl GpuBeautyScene {
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: texels.as_entire_binding(),
-                }, // env_texels
+                }, // texture_texels
                 wgpu::BindGroupEntry {
                     binding: 2,
                     resource: tables.as_entire_binding(),
@@ -340,6 +455,14 @@ impl GpuBeautyScene {
                     binding: 3,
                     resource: materials.as_entire_binding(),
                 }, // materials
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: wgpu::BindingResource::TextureView(&radiance),
+                }, // env_radiance_map
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: wgpu::BindingResource::TextureView(&conditional),
+                }, // env_conditional
             ],
         });
         // A buffer the driver refused (out of memory) shows here, not as a panic.

@@ -419,6 +419,21 @@ fn tile_side(setting: Option<u32>, software: bool, limit: u64) -> u32 {
         .min(fits.max(WORKGROUP))
 }
 
+/// A 2D f32 texture read with `textureLoad` (32-bit float formats are not filterable
+/// without a feature; nothing here filters).
+fn float_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
 pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
@@ -563,9 +578,11 @@ impl GpuContext {
             label: Some("lighting"),
             entries: &[
                 uniform_entry(0),       // lighting: Lighting
-                storage_entry(1, true), // env_texels: array<f32>
+                storage_entry(1, true), // texture_texels: array<f32>
                 storage_entry(2, true), // env_tables: array<f32>
                 storage_entry(3, true), // materials: array<SurfaceMaterial>
+                float_texture_entry(4), // env_radiance_map: texture_2d<f32> (rgba32float)
+                float_texture_entry(5), // env_conditional: texture_2d<f32> (r32float)
             ],
         });
 

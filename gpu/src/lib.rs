@@ -63,6 +63,16 @@ pub enum GpuError {
         /// What to do about it.
         fix: &'static str,
     },
+    /// An environment map wider or taller than the device's largest 2D texture.
+    #[error(
+        "environment map: {width} × {height} texels, over this GPU's largest texture side of {side}; {fix}"
+    )]
+    EnvTooLarge {
+        width: u32,
+        height: u32,
+        side: u32,
+        fix: &'static str,
+    },
     #[error("not supported on the GPU: {0}")]
     Unsupported(String),
     /// A setting of the GPU path (an environment variable) that cannot be used.
@@ -75,12 +85,12 @@ pub enum GpuError {
 }
 
 impl GpuError {
-    /// The adapter cannot hold the scene (an array over its storage-binding limit, or memory
-    /// the driver refused): the CPU renderer can still render it (`job::run_or_cpu`).
+    /// The adapter cannot hold the scene (an array over its storage-binding limit, an
+    /// environment over its largest texture, or memory the driver refused): the CPU renderer can still render it (`job::run_or_cpu`).
     pub fn is_capacity(&self) -> bool {
         matches!(
             self,
-            GpuError::TooLarge { .. } | GpuError::OutOfMemory { .. }
+            GpuError::TooLarge { .. } | GpuError::EnvTooLarge { .. } | GpuError::OutOfMemory { .. }
         )
     }
 }

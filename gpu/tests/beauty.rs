@@ -364,7 +364,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
     let textures = [texture, other];
     // An 8-bit PNG: both go up packed (their sRGB codes and the table, `TextureLayout`).
     assert_eq!(
-        prismbake_gpu::beauty::texture_layout(0, &textures).textures,
+        prismbake_gpu::beauty::texture_layout(&textures).textures,
         [(256, true), (256 + 256 * 256, true)]
     );
     let materials = [

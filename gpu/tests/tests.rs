@@ -5,6 +5,7 @@
 mod util;
 
 mod beauty;
+mod env;
 mod errors;
 mod heightmap;
 mod layout;

@@ -1,7 +1,7 @@
 //! The WGSL base-colour texture is the CPU's: `texture_sample` evaluated on the adapter at UVs
 //! on and off the texture (texel centres and edges, the borders, far outside) equals
-//! `ColorMap::sample` for every wrap mode per axis and both filters, with the texels placed
-//! after an environment's in the one buffer, as `GpuBeautyScene::upload` lays them out. Breaks
+//! `ColorMap::sample` for every wrap mode per axis and both filters, with the texels laid out
+//! in one buffer as `GpuBeautyScene::upload` lays them out. Breaks
 //! if the GPU reads another texel than the CPU anywhere (a wrap at a border, a mirrored
 //! period, the nearest texel's rounding), which a parity render sees only in a few pixels.
 
@@ -51,8 +51,8 @@ fn probe_uvs(w: u32, h: u32) -> Vec<Vec2> {
 
 #[test]
 fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
-    // A non-square texture of distinct colours after a 3-texel "environment", so that any
-    // other texel, or an offset that misses the environment's, gives another colour.
+    // A non-square texture of distinct colours, so that any other texel, or an offset that
+    // misses the texture's, gives another colour.
     let (w, h) = (5u32, 3u32);
     let colour = |i: u32| {
         Vec3::new(
@@ -61,9 +61,8 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             rng::pcg_hash(3 * i + 3) as f32 / u32::MAX as f32,
         )
     };
-    // Laid out as `GpuBeautyScene::upload` does, after a 3-texel "environment": an f32 texture
-    // (any colours), and one of 8-bit sRGB colours, which goes up packed (its codes and the
-    // table), in the same buffer.
+    // Laid out as `GpuBeautyScene::upload` does: an f32 texture (any colours), and one of 8-bit
+    // sRGB colours, which goes up packed (its codes and the table), in the same buffer.
     let table = srgb8_table();
     let tex: Vec<Vec3> = (0..w * h).map(colour).collect();
     let tex8: Vec<Vec3> = (0..w * h)
@@ -73,7 +72,6 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             }))
         })
         .collect();
-    let environment = [Vec3::splat(-9.0); 3];
     let maps = |sampler: Sampler| {
         [&tex, &tex8].map(|texels| ColorMap {
             width: w,
@@ -83,13 +81,13 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             name: "probe".into(),
         })
     };
-    let layout = texture_layout(environment.len(), &maps(Sampler::default()));
+    let layout = texture_layout(&maps(Sampler::default()));
     assert_eq!(
         layout.textures.iter().map(|t| t.1).collect::<Vec<_>>(),
         [false, true]
     );
-    assert_eq!(layout.len, 3 * 3 + 3 * 15 + 256 + 15);
-    let texels = texel_buffer(&environment, &maps(Sampler::default()), &layout);
+    assert_eq!(layout.len, 256 + 3 * 15 + 15);
+    let texels = texel_buffer(&maps(Sampler::default()), &layout);
     let wraps = [TexWrap::Repeat, TexWrap::Clamp, TexWrap::Mirror];
     let uvs = probe_uvs(w, h);
     let io: Vec<[f32; 4]> = uvs.iter().map(|uv| [uv.x, uv.y, 0.0, 0.0]).collect();
@@ -119,7 +117,7 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
                         (3, 1),
                         &io,
                         &[
-                            // env_texels (env.wgsl), materials (texture.wgsl)
+                            // texture_texels and materials (texture.wgsl)
                             (
                                 2,
                                 3,

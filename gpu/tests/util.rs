@@ -98,6 +98,18 @@ pub fn run_probe<T: bytemuck::Pod>(
     io: &[T],
     inputs: &[(u32, u32, &[u8], wgpu::BufferUsages)],
 ) -> Vec<T> {
+    run_probe_with_textures(label, src, io_at, io, inputs, &[])
+}
+
+/// `run_probe` with texture views bound too, at `(group, binding)`.
+pub fn run_probe_with_textures<T: bytemuck::Pod>(
+    label: &str,
+    src: &str,
+    io_at: (u32, u32),
+    io: &[T],
+    inputs: &[(u32, u32, &[u8], wgpu::BufferUsages)],
+    textures: &[(u32, u32, &wgpu::TextureView)],
+) -> Vec<T> {
     use wgpu::util::DeviceExt;
     let ctx = ctx();
     let device = ctx.device();
@@ -137,20 +149,31 @@ pub fn run_probe<T: bytemuck::Pod>(
         .map(|&(g, b, data, usage)| (g, b, init("input", data, usage)))
         .collect();
     bound.push((io_at.0, io_at.1, io_buf));
-    let mut groups: Vec<u32> = bound.iter().map(|&(g, _, _)| g).collect();
+    let mut groups: Vec<u32> = bound
+        .iter()
+        .map(|&(g, _, _)| g)
+        .chain(textures.iter().map(|&(g, _, _)| g))
+        .collect();
     groups.sort_unstable();
     groups.dedup();
     let bind_groups: Vec<(u32, wgpu::BindGroup)> = groups
         .iter()
         .map(|&g| {
-            let entries: Vec<wgpu::BindGroupEntry> = bound
-                .iter()
-                .filter(|(bg, _, _)| *bg == g)
-                .map(|(_, binding, buf)| wgpu::BindGroupEntry {
-                    binding: *binding,
-                    resource: buf.as_entire_binding(),
-                })
-                .collect();
+            let entries: Vec<wgpu::BindGroupEntry> =
+                bound
+                    .iter()
+                    .filter(|(bg, _, _)| *bg == g)
+                    .map(|(_, binding, buf)| wgpu::BindGroupEntry {
+                        binding: *binding,
+                        resource: buf.as_entire_binding(),
+                    })
+                    .chain(textures.iter().filter(|(tg, _, _)| *tg == g).map(
+                        |&(_, binding, view)| wgpu::BindGroupEntry {
+                            binding,
+                            resource: wgpu::BindingResource::TextureView(view),
+                        },
+                    ))
+                    .collect();
             let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: None,
                 layout: &pipeline.get_bind_group_layout(g),
