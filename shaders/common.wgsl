@@ -160,7 +160,8 @@ struct BeautySums {
 @group(0) @binding(2) var<storage, read> vertices: array<Vertex>;
 @group(0) @binding(3) var<storage, read> nodes: array<BvhNode>;
 @group(0) @binding(4) var<storage, read> prim_indices: array<u32>;
-@group(0) @binding(5) var<storage, read> height_map: array<u32>;
+// The map's words (layout::EncodedMap), a row of the texture a row of the map.
+@group(0) @binding(5) var height_map: texture_2d<u32>;
 @group(0) @binding(6) var<storage, read> stitches: array<PrismStitch>;
 
 // prismbake::trace::Ray.

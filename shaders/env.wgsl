@@ -8,26 +8,30 @@
 // The rotation's sine and cosine come from the host, computed as the CPU computes them
 // (`(-rotation).sin_cos()` one way, `rotation.sin_cos()` the other).
 
-// The environment goes up in two textures, so that its size is bounded by the device's
+// The environment goes up in three textures, so that its size is bounded by the device's
 // largest texture side, not by one storage binding (128 MiB on lavapipe: a 4K × 2K map, where
 // a 6K or 8K one is what a lookdev artist lights with). Texel (x, y), rows top (zenith) to
 // bottom: `env_radiance_map` holds the radiance × intensity in rgb and the CPU's
 // `texel_weight[y w + x]` in a; `env_conditional` holds `conditional_cdf[y (w + 1) + x + 1]`
-// (a row's first entry is 0, which is never stored). rgba32float and r32float, read with
-// textureLoad: the CPU's floats bit for bit.
+// (a row's first entry is 0, which is never stored); texel (y, 0) of `env_rows` holds
+// `marginal_cdf[y + 1]` (its first entry is 0 too) and `row_weight[y]`. rgba32float, r32float
+// and rg32float, read with textureLoad: the CPU's floats bit for bit.
 @group(2) @binding(4) var env_radiance_map: texture_2d<f32>;
 @group(2) @binding(5) var env_conditional: texture_2d<f32>;
-// marginal_cdf [h + 1], then row_weight [h].
-@group(2) @binding(2) var<storage, read> env_tables: array<f32>;
+@group(2) @binding(2) var env_rows: texture_2d<f32>;
 
 const FRAC_1_PI: f32 = 0.318309886183790671538;
 
+// marginal_cdf, entry i in 0..=h.
 fn env_marginal_cdf(i: u32) -> f32 {
-    return env_tables[i];
+    if (i == 0u) {
+        return 0.0;
+    }
+    return textureLoad(env_rows, vec2<u32>(i - 1u, 0u), 0).x;
 }
 
 fn env_row_weight(y: u32) -> f32 {
-    return env_tables[lighting.env_height + 1u + y];
+    return textureLoad(env_rows, vec2<u32>(y, 0u), 0).y;
 }
 
 // conditional_cdf of row y, entry i in 0..=w.

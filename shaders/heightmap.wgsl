@@ -1,6 +1,7 @@
 // heightmap.wgsl — the mirror of prismbake::heightmap::HeightMap: bilinear sampling with
-// texel centres at (i + 0.5) / N, row 0 at the top (v up), repeat or clamp wrap, read with
-// plain loads from a storage buffer so every texel and weight is the CPU's.
+// texel centres at (i + 0.5) / N, row 0 at the top (v up), repeat or clamp wrap, its words read
+// with textureLoad from an r32uint texture (no filtering, no conversion) so every texel and
+// weight is the CPU's.
 
 // The 16-bit code q's texel q / 65535, correctly rounded, as the CPU's loader divides:
 // q / 65535 = a (1 + 2⁻¹⁶ + 2⁻³² + …) with a = q 2⁻¹⁶, summed as a + (b + c), b = a 2⁻¹⁶,
@@ -24,13 +25,14 @@ fn f16_texel(h: u32) -> f32 {
     return bitcast<f32>(select(sign | ((exp + 112u) << 23u) | ((h & 0x3ffu) << 13u), sign, exp == 0u));
 }
 
-// Texel i (row-major) of the map, as GpuSceneParams::map_encoding stores it: one f32 per word,
-// or two 16-bit codes per word (texel 2k in the low half of word k), unorm16 or half float.
-// One load and selects, no branch: a lock-step implementation would run every branch.
-fn map_texel(i: u32) -> f32 {
+// Texel (x, y) of the map, as GpuSceneParams::map_encoding stores it (layout::EncodedMap): one
+// f32 per word, or two 16-bit codes per word of its row (texel 2k in the low half of word k),
+// unorm16 or half float. One load and selects, no branch: a lock-step implementation would
+// run every branch.
+fn map_texel(x: u32, y: u32) -> f32 {
     let packed = scene.map_encoding != 0u;
-    let word = height_map[select(i, i >> 1u, packed)];
-    let code = (word >> ((i & 1u) << 4u)) & 0xffffu;
+    let word = textureLoad(height_map, vec2<u32>(select(x, x >> 1u, packed), y), 0).x;
+    let code = (word >> ((x & 1u) << 4u)) & 0xffffu;
     let half = select(unorm16_texel(code), f16_texel(code), scene.map_encoding == 2u);
     return select(bitcast<f32>(word), half, packed);
 }
@@ -53,11 +55,13 @@ fn footprint(x: i32, y: i32) -> vec4f {
     let h = i32(scene.map_height);
     let xs = axis_pair(x, w);
     let ys = axis_pair(y, h);
+    let cols = vec2<u32>(xs);
+    let rows = vec2<u32>(ys);
     return vec4f(
-        map_texel(u32(ys.x * w + xs.x)),
-        map_texel(u32(ys.x * w + xs.y)),
-        map_texel(u32(ys.y * w + xs.x)),
-        map_texel(u32(ys.y * w + xs.y)),
+        map_texel(cols.x, rows.x),
+        map_texel(cols.y, rows.x),
+        map_texel(cols.x, rows.y),
+        map_texel(cols.y, rows.y),
     );
 }
 

@@ -411,22 +411,24 @@ fn rendered_on_the_cpu_because(o: &Output, reason: &str) -> serde_json::Value {
     json
 }
 
-/// A 16-bit map goes up two texels a word (`layout::encode_height_map`): one that fills the
-/// storage binding exactly renders on the device; one row more does not fit, which is an error
-/// under `--device gpu` (no files) and a CPU render under `--device auto`, saying why. The
-/// device is held to WebGPU's default limits (`PRISMBAKE_GPU_LIMITS=webgpu`: 128 MiB a
-/// binding, lavapipe's own), so that a hardware adapter's gigabytes run the same test.
+/// The height map goes up as an r32uint texture, two 16-bit texels a word where that keeps
+/// them exact (`layout::encode_height_map`): bounded by the device's largest texture side, not
+/// by one storage binding. On a device held to WebGPU's default limits
+/// (`PRISMBAKE_GPU_LIMITS=webgpu`: 8192 texels a side, 128 MiB a storage binding), so that a
+/// hardware adapter runs the same test:
+/// * an f32 map of 8192 × 4200 texels (138 MB, over the binding that used to hold the map)
+///   renders on the device;
+/// * a 16-bit map 16 384 texels wide (8192 words a row) renders there, and one two texels
+///   wider does not fit, which is an error under `--device gpu` (no files) and a CPU render
+///   under `--device auto`, saying why.
 #[test]
-fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_cpu() {
-    let limit: u64 = 128 << 20;
+fn maps_up_to_the_largest_texture_render_on_the_gpu_and_auto_renders_a_wider_one_on_the_cpu() {
+    use exr::prelude::*;
     let dir = temp_dir("gpu-map-limit");
-    let width = 8192u32;
-    let rows = (limit / 2 / width as u64) as u32;
-    let row: Vec<u16> = (0..width)
-        .map(|x| (32768.0 + 12000.0 * (x as f32 * 0.01).sin()) as u16)
-        .collect();
-    let write_map = |name: &str, height: u32| {
-        let data: Vec<u16> = (0..height).flat_map(|_| row.iter().copied()).collect();
+    let write_png = |name: &str, width: u32, height: u32| {
+        let data: Vec<u16> = (0..width * height)
+            .map(|i| (32768.0 + 12000.0 * ((i % width) as f32 * 0.01).sin()) as u16)
+            .collect();
         let path = dir.join(name);
         image::ImageBuffer::<image::Luma<u16>, _>::from_raw(width, height, data)
             .unwrap()
@@ -453,22 +455,43 @@ fn a_map_that_fills_the_gpu_renders_there_and_auto_renders_a_larger_one_on_the_c
         ];
         run_in_env(&repo_root(), &args, &[("PRISMBAKE_GPU_LIMITS", "webgpu")])
     };
+    let on_gpu = |o: Output, encoding: &str| {
+        let json = o.assert_success().json();
+        assert!(
+            json["device"].as_str().unwrap().starts_with("gpu ("),
+            "{json}"
+        );
+        assert_eq!(json["gpu_map_encoding"], encoding, "{json}");
+        assert!(json.get("gpu_fallback").is_none(), "{json}");
+    };
 
-    let fits = write_map("fits.png", rows);
-    let on_gpu = render("gpu", &fits, &dir.join("fits"))
-        .assert_success()
-        .json();
-    assert!(
-        on_gpu["device"].as_str().unwrap().starts_with("gpu ("),
-        "{on_gpu}"
+    // A gentle wave along the rows, in runs that RLE keeps small on disk.
+    let (w, h) = (8192usize, 4200usize);
+    assert!(w * h * 4 > 128 << 20);
+    let f32_map = dir.join("f32.exr");
+    let data: Vec<f32> = (0..w * h)
+        .map(|i| 0.5 + 0.2 * ((i % w / 64) as f32 * 0.3).sin())
+        .collect();
+    let layer = Layer::new(
+        (w, h),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(vec![AnyChannel::new("Y", FlatSamples::F32(data))].into()),
     );
-    assert_eq!(on_gpu["gpu_map_encoding"], "unorm16", "{on_gpu}");
-    assert!(on_gpu.get("gpu_fallback").is_none(), "{on_gpu}");
+    Image::from_layer(layer).write().to_file(&f32_map).unwrap();
+    on_gpu(render("gpu", &f32_map, &dir.join("f32")), "f32");
 
-    let over = write_map("over.png", rows + 1);
+    let fits = write_png("fits.png", 16384, 4);
+    on_gpu(render("gpu", &fits, &dir.join("fits")), "unorm16");
+
+    let over = write_png("over.png", 16386, 4);
     render("gpu", &over, &dir.join("refused"))
         .assert_code(2)
-        .assert_error(&["height map", "storage-binding limit", "--device auto"]);
+        .assert_error(&[
+            "height map",
+            "largest texture side of 8192",
+            "--device auto",
+        ]);
     assert!(files_in(&dir.join("refused")).is_empty());
 
     let auto = render("auto", &over, &dir.join("auto"));
@@ -545,15 +568,16 @@ fn an_environment_larger_than_a_storage_binding_lights_the_beauty_on_the_gpu() {
 }
 
 /// `PRISMBAKE_GPU_LIMITS=webgpu` opens the device with WebGPU's default limits, 8 storage
-/// buffers a shader stage among them: the AOV kernel binds 8 and renders there; the beauty binds
-/// 10 (fused) or 11 (wavefront), which is an error under `--device gpu` (exit 2, no files, the
-/// fix named) and a CPU render under `--device auto` that says why. A setting it does not know
-/// is refused before any device is opened.
+/// buffers a shader stage among them: the AOV kernel (6) and the fused beauty (8) render there,
+/// so the beauty runs on any adapter. The wavefront beauty binds 9: asked for
+/// (`PRISMBAKE_GPU_BEAUTY=wavefront`) on such a device, it is an error under `--device gpu`
+/// (exit 2, no files, the fix named) and a CPU render under `--device auto` that says why. A
+/// setting it does not know is refused before any device is opened.
 #[test]
-fn a_device_with_too_few_storage_buffers_renders_aovs_and_auto_renders_the_beauty_on_the_cpu() {
+fn under_webgpus_default_limits_the_beauty_renders_and_a_wavefront_that_cannot_falls_back() {
     let dir = temp_dir("gpu-webgpu-limits");
     let rock = example("rock/rock.glb");
-    let render = |limits: &str, device: &str, aovs: &str, out: &str| {
+    let render = |env: &[(&str, &str)], device: &str, aovs: &str, out: &str| {
         let out = dir.join(out);
         let args = [
             "render",
@@ -570,40 +594,51 @@ fn a_device_with_too_few_storage_buffers_renders_aovs_and_auto_renders_the_beaut
             "-o",
             s(&out),
         ];
-        run_in_env(&repo_root(), &args, &[("PRISMBAKE_GPU_LIMITS", limits)])
+        run_in_env(&repo_root(), &args, env)
     };
+    let webgpu = [("PRISMBAKE_GPU_LIMITS", "webgpu")];
+    let wavefront = [
+        ("PRISMBAKE_GPU_LIMITS", "webgpu"),
+        ("PRISMBAKE_GPU_BEAUTY", "wavefront"),
+    ];
 
-    let aovs = render("webgpu", "gpu", "depth,normal,mask", "aovs")
+    let both = render(&webgpu, "gpu", "beauty,depth,normal,mask", "both")
         .assert_success()
         .json();
-    let device = aovs["device"].as_str().unwrap();
+    let device = both["device"].as_str().unwrap();
     assert!(
         device.starts_with("gpu (") && device.contains("WebGPU's default limits"),
-        "{aovs}"
+        "{both}"
     );
-    assert!(dir.join("aovs/mask.exr").is_file());
+    assert!(both.get("gpu_fallback").is_none(), "{both}");
+    assert!(dir.join("both/beauty.exr").is_file() && dir.join("both/mask.exr").is_file());
 
-    render("webgpu", "gpu", "beauty", "refused")
+    render(&wavefront, "gpu", "beauty", "refused")
         .assert_code(2)
         .assert_error(&[
-            "storage buffers in one shader stage",
+            "binds 9 storage buffers in one shader stage",
             "allows 8",
             "--device auto",
         ]);
     assert!(files_in(&dir.join("refused")).is_empty());
 
-    let auto = render("webgpu", "auto", "beauty,mask", "auto");
+    let auto = render(&wavefront, "auto", "beauty,mask", "auto");
     rendered_on_the_cpu_because(&auto, "storage buffers");
     assert!(dir.join("auto/beauty.exr").is_file() && dir.join("auto/mask.exr").is_file());
 
-    // The adapter's own limits take the beauty (every adapter the GPU tests run on has 11).
-    let full = render("adapter", "gpu", "beauty", "full")
-        .assert_success()
-        .json();
+    // The adapter's own limits take the wavefront (every adapter the GPU tests run on has 9).
+    let full = render(
+        &[("PRISMBAKE_GPU_BEAUTY", "wavefront")],
+        "gpu",
+        "beauty",
+        "full",
+    )
+    .assert_success()
+    .json();
     assert!(full.get("gpu_fallback").is_none(), "{full}");
     assert!(dir.join("full/beauty.exr").is_file());
 
-    render("tiny", "gpu", "mask", "bad")
+    render(&[("PRISMBAKE_GPU_LIMITS", "tiny")], "gpu", "mask", "bad")
         .assert_code(2)
         .assert_error(&["PRISMBAKE_GPU_LIMITS=tiny", "`webgpu`"]);
     assert!(files_in(&dir.join("bad")).is_empty());

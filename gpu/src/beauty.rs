@@ -3,11 +3,10 @@
 //!
 //! * `GpuBeautyScene::upload` — the lighting uniform (`GpuLighting`, from the CPU's
 //!   `BeautyScene`) and the environment: its texels and the CPU's own sampling tables, value
-//!   for value, so importance sampling picks the texels the CPU picks. The per-texel arrays go
-//!   up as two textures (`EnvTextures`: bounded by the device's largest texture side, not by a
-//!   storage binding), the marginal arrays in a buffer (`env_tables`); the base-colour
-//!   textures' linear texels in a buffer of their own (`TextureLayout`), which the materials
-//!   (`GpuMaterial`) locate.
+//!   for value, so importance sampling picks the texels the CPU picks. They go up as three
+//!   textures (`EnvTextures`: bounded by the device's largest texture side, not by a storage
+//!   binding); the base-colour textures' linear texels in a buffer of their own
+//!   (`TextureLayout`), which the materials (`GpuMaterial`) locate.
 //! * `render_beauty` — per tile: clear the running sums, one submission per sample (each
 //!   pixel's sample is added to its sums when its path ends, the CPU's order of
 //!   accumulation), read the sums back and resolve them with `PixelSums::resolve`. A sample
@@ -200,22 +199,24 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
         .collect()
 }
 
-/// The environment's marginal arrays as `env_tables` (`shaders/env.wgsl`) holds them: the
-/// CPU's `marginal_cdf` (h + 1) and `row_weight` (h), one after the other.
-pub fn env_tables(env: &EnvMap) -> Vec<f32> {
-    let mut tables = Vec::with_capacity(table_floats(env));
-    tables.extend_from_slice(&env.marginal_cdf);
-    tables.extend_from_slice(&env.row_weight);
-    tables
+/// The environment's per-row arrays as `env_rows` (`shaders/env.wgsl`) holds them: texel y
+/// the CPU's `marginal_cdf[y + 1]` (entry 0 is 0 and is not stored) and `row_weight[y]`.
+pub fn env_rows(env: &EnvMap) -> Vec<[f32; 2]> {
+    env.marginal_cdf[1..]
+        .iter()
+        .zip(&env.row_weight)
+        .map(|(&c, &w)| [c, w])
+        .collect()
 }
 
-/// The environment's per-texel arrays as `shaders/env.wgsl` reads them, texel (x, y) rows top
-/// to bottom: `radiance` (rgba32float) the texel's radiance in rgb and its `texel_weight` in
-/// a; `conditional` (r32float) its row's `conditional_cdf` entry x + 1 (entry 0 is 0 in every
-/// row and is not stored, so both are w × h).
+/// The environment as `shaders/env.wgsl` reads it, texel (x, y) rows top to bottom:
+/// `radiance` (rgba32float) the texel's radiance in rgb and its `texel_weight` in a;
+/// `conditional` (r32float) its row's `conditional_cdf` entry x + 1 (entry 0 is 0 in every row
+/// and is not stored, so both are w × h); `rows` (rg32float, h × 1) `env_rows`.
 pub struct EnvTextures {
     pub radiance: wgpu::Texture,
     pub conditional: wgpu::Texture,
+    pub rows: wgpu::Texture,
 }
 
 /// Rows of the environment written to its textures at a time (the rgba rows are built on the
@@ -242,12 +243,12 @@ impl EnvTextures {
 
     /// `upload`, writing whole rows of about `band_texels` texels at a time.
     pub fn upload_in_bands(ctx: &GpuContext, env: &EnvMap, band_texels: usize) -> EnvTextures {
-        let size = wgpu::Extent3d {
-            width: env.width,
-            height: env.height,
+        let extent = |width, height| wgpu::Extent3d {
+            width,
+            height,
             depth_or_array_layers: 1,
         };
-        let texture = |label, format| {
+        let texture = |label, format, size| {
             ctx.device.create_texture(&wgpu::TextureDescriptor {
                 label: Some(label),
                 size,
@@ -259,9 +260,33 @@ impl EnvTextures {
                 view_formats: &[],
             })
         };
-        let radiance = texture("environment radiance", wgpu::TextureFormat::Rgba32Float);
-        let conditional = texture("environment conditional cdf", wgpu::TextureFormat::R32Float);
         let (w, h) = (env.width, env.height);
+        let size = extent(w, h);
+        let radiance = texture(
+            "environment radiance",
+            wgpu::TextureFormat::Rgba32Float,
+            size,
+        );
+        let conditional = texture(
+            "environment conditional cdf",
+            wgpu::TextureFormat::R32Float,
+            size,
+        );
+        let rows = texture(
+            "environment rows",
+            wgpu::TextureFormat::Rg32Float,
+            extent(h, 1),
+        );
+        ctx.queue.write_texture(
+            rows.as_image_copy(),
+            bytemuck::cast_slice(&env_rows(env)),
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(8 * h),
+                rows_per_image: Some(1),
+            },
+            extent(h, 1),
+        );
         let band = (band_texels / w as usize).max(1) as u32;
         let write = |texture: &wgpu::Texture, y0: u32, rows: u32, data: &[u8], layout| {
             ctx.queue.write_texture(
@@ -303,12 +328,13 @@ impl EnvTextures {
         EnvTextures {
             radiance,
             conditional,
+            rows,
         }
     }
 
     /// Bytes on the device.
     fn bytes(env: &EnvMap) -> u64 {
-        (env.width as u64 * env.height as u64) * (16 + 4)
+        (env.width as u64 * env.height as u64) * (16 + 4) + env.height as u64 * 8
     }
 }
 
@@ -318,9 +344,9 @@ const LIGHTING_FIX: &str =
 
 /// Whether an environment (`None`: the one-texel black a render without `--env` lights with)
 /// and the base-colour textures fit `ctx` as `GpuBeautyScene::upload` lays them out: the
-/// environment's sides within the device's largest texture side, the textures' texels and the
-/// environment's marginal arrays within a storage binding; counted without building them. The
-/// check a job makes before its first frame, and `upload`'s own.
+/// environment's sides within the device's largest texture side, the textures' texels within a
+/// storage binding; counted without building them. The check a job makes before its first
+/// frame, and `upload`'s own.
 pub fn check_lighting_fits(
     ctx: &GpuContext,
     env: Option<&EnvMap>,
@@ -328,11 +354,6 @@ pub fn check_lighting_fits(
 ) -> Result<(), GpuError> {
     let layout = texture_layout(textures);
     check_lighting_sizes(ctx, env, &layout)
-}
-
-/// Floats of an environment's marginal arrays (`env_tables`).
-fn table_floats(e: &EnvMap) -> usize {
-    e.marginal_cdf.len() + e.row_weight.len()
 }
 
 /// `check_lighting_fits` for a layout already made (each makes it once: a pass over every
@@ -345,7 +366,8 @@ fn check_lighting_sizes(
     if let Some(e) = env {
         let side = ctx.device.limits().max_texture_dimension_2d;
         if e.width > side || e.height > side {
-            return Err(GpuError::EnvTooLarge {
+            return Err(GpuError::TextureTooLarge {
+                what: "environment map",
                 width: e.width,
                 height: e.height,
                 side,
@@ -354,22 +376,14 @@ fn check_lighting_sizes(
         }
     }
     let limit = ctx.max_binding_bytes();
-    let f32s = std::mem::size_of::<f32>() as u64;
-    for (what, bytes) in [
-        ("base-colour texture texels", layout.len as u64 * f32s),
-        (
-            "environment sampling tables",
-            env.map_or(0, table_floats) as u64 * f32s,
-        ),
-    ] {
-        if bytes > limit {
-            return Err(GpuError::TooLarge {
-                what,
-                bytes,
-                limit,
-                fix: LIGHTING_FIX,
-            });
-        }
+    let bytes = layout.len as u64 * std::mem::size_of::<f32>() as u64;
+    if bytes > limit {
+        return Err(GpuError::TooLarge {
+            what: "base-colour texture texels",
+            bytes,
+            limit,
+            fix: LIGHTING_FIX,
+        });
     }
     Ok(())
 }
@@ -416,10 +430,10 @@ impl GpuBeautyScene {
             texels.push(0.0); // a binding is never empty
         }
         let texels = storage("base-colour texture texels", &texels);
-        let tables = storage("environment sampling tables", &env_tables(s.env));
         let env = EnvTextures::upload(ctx, s.env);
         let view = |t: &wgpu::Texture| t.create_view(&wgpu::TextureViewDescriptor::default());
-        let (radiance, conditional) = (view(&env.radiance), view(&env.conditional));
+        let (radiance, conditional, rows) =
+            (view(&env.radiance), view(&env.conditional), view(&env.rows));
         let records = material_records(s, &layout);
         let materials = ctx
             .device
@@ -449,8 +463,8 @@ impl GpuBeautyScene {
                 }, // texture_texels
                 wgpu::BindGroupEntry {
                     binding: 2,
-                    resource: tables.as_entire_binding(),
-                }, // env_tables
+                    resource: wgpu::BindingResource::TextureView(&rows),
+                }, // env_rows
                 wgpu::BindGroupEntry {
                     binding: 3,
                     resource: materials.as_entire_binding(),

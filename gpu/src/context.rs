@@ -27,22 +27,26 @@ pub const MAX_TILE: u32 = 512;
 /// frames only what they use, `TileBuffers`); `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
 pub const HARDWARE_TILE: u32 = 2048;
 
-/// Storage buffers the beauty kernels bind in the compute stage: the scene's six (prisms,
-/// vertices, BVH nodes and indices, height map, seam stitch records), the sums, the
-/// environment's texels and tables, the materials, and in the wavefront schedule the path
-/// records. Up to three over WebGPU's default of 8, so they are requested from the adapter (native Vulkan, Metal
-/// and DX12 adapters allow far more); the AOV kernel binds 7.
-pub const BEAUTY_STORAGE_BUFFERS: u32 = 11;
+/// Storage buffers the beauty kernels bind in the compute stage: the scene's five (prisms,
+/// vertices, BVH nodes and indices, seam stitch records), the sums, the base-colour textures'
+/// texels, the materials, and in the wavefront schedule the path records. The height map and
+/// the environment are textures. The fused schedule's 8 are WebGPU's default, so it runs on
+/// every adapter; the wavefront's 9 are requested from the adapter (native Vulkan, Metal and
+/// DX12 adapters allow far more), and where it has only 8 the beauty takes the fused schedule.
+/// The AOV kernel binds 6.
+pub const BEAUTY_STORAGE_BUFFERS: u32 = 9;
 
 /// How a beauty sample is dispatched (`shaders/beauty.wgsl`); both render the same image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BeautySchedule {
     /// One invocation renders its pixel's whole sample (`render_beauty`). The default on
-    /// software adapters: lavapipe runs it 1.25× faster than the wavefront.
+    /// software adapters (lavapipe runs it 1.25× faster than the wavefront) and on adapters
+    /// that bind only WebGPU's 8 storage buffers a stage.
     Fused,
     /// Trace and shade as separate dispatches over per-pixel path records (`beauty_start`,
     /// `beauty_trace`, `beauty_shade`), `PATH_RECORD_BYTES` of GPU memory per pixel of a tile.
-    /// The default on hardware adapters: 19–27% less time per sample on an NVIDIA H200.
+    /// The default on hardware adapters that bind its 9 storage buffers: 19–27% less time
+    /// per sample on an NVIDIA H200.
     Wavefront,
 }
 
@@ -419,14 +423,16 @@ fn tile_side(setting: Option<u32>, software: bool, limit: u64) -> u32 {
         .min(fits.max(WORKGROUP))
 }
 
-/// A 2D f32 texture read with `textureLoad` (32-bit float formats are not filterable
-/// without a feature; nothing here filters).
-fn float_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+/// 32-bit float textures (not filterable without a feature; nothing here filters).
+const FLOAT: wgpu::TextureSampleType = wgpu::TextureSampleType::Float { filterable: false };
+
+/// A 2D texture read with `textureLoad`.
+fn texture_entry(binding: u32, sample_type: wgpu::TextureSampleType) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
         ty: wgpu::BindingType::Texture {
-            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            sample_type,
             view_dimension: wgpu::TextureViewDimension::D2,
             multisampled: false,
         },
@@ -546,13 +552,13 @@ impl GpuContext {
         let scene_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene"),
             entries: &[
-                uniform_entry(0),       // scene: SceneParams
-                storage_entry(1, true), // prisms: array<Prism>
-                storage_entry(2, true), // vertices: array<Vertex>
-                storage_entry(3, true), // nodes: array<BvhNode>
-                storage_entry(4, true), // prim_indices: array<u32>
-                storage_entry(5, true), // height_map: array<f32>
-                storage_entry(6, true), // stitches: array<PrismStitch>
+                uniform_entry(0),                                // scene: SceneParams
+                storage_entry(1, true),                          // prisms: array<Prism>
+                storage_entry(2, true),                          // vertices: array<Vertex>
+                storage_entry(3, true),                          // nodes: array<BvhNode>
+                storage_entry(4, true),                          // prim_indices: array<u32>
+                texture_entry(5, wgpu::TextureSampleType::Uint), // height_map: texture_2d<u32>
+                storage_entry(6, true),                          // stitches: array<PrismStitch>
             ],
         });
         let aov_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -577,12 +583,12 @@ impl GpuContext {
         let lighting_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("lighting"),
             entries: &[
-                uniform_entry(0),       // lighting: Lighting
-                storage_entry(1, true), // texture_texels: array<f32>
-                storage_entry(2, true), // env_tables: array<f32>
-                storage_entry(3, true), // materials: array<SurfaceMaterial>
-                float_texture_entry(4), // env_radiance_map: texture_2d<f32> (rgba32float)
-                float_texture_entry(5), // env_conditional: texture_2d<f32> (r32float)
+                uniform_entry(0),        // lighting: Lighting
+                storage_entry(1, true),  // texture_texels: array<f32>
+                texture_entry(2, FLOAT), // env_rows: texture_2d<f32> (rg32float)
+                storage_entry(3, true),  // materials: array<SurfaceMaterial>
+                texture_entry(4, FLOAT), // env_radiance_map: texture_2d<f32> (rgba32float)
+                texture_entry(5, FLOAT), // env_conditional: texture_2d<f32> (r32float)
             ],
         });
 
@@ -599,7 +605,11 @@ impl GpuContext {
             true => AovWalk::Packet,
             false => AovWalk::Ray,
         });
-        let beauty_schedule = schedule_wanted.unwrap_or(match software {
+        // The wavefront where the device binds its path records too (and not on software
+        // adapters, where the fused kernel is faster).
+        let wavefront_fits = device.limits().max_storage_buffers_per_shader_stage
+            >= BeautySchedule::Wavefront.storage_buffers();
+        let beauty_schedule = schedule_wanted.unwrap_or(match software || !wavefront_fits {
             true => BeautySchedule::Fused,
             false => BeautySchedule::Wavefront,
         });

@@ -134,11 +134,21 @@ impl MapEncoding {
     }
 }
 
-/// A height map as the GPU stores it: its encoding and the words of the storage buffer (an
-/// f32 map's own texels, borrowed: no copy of a map that may be hundreds of megabytes).
+/// A height map as the GPU stores it: its encoding and the words of its r32uint texture, row
+/// after row, `row_words` a row (an f32 map's own texels, borrowed: no copy of a map that may
+/// be hundreds of megabytes).
 pub struct EncodedMap<'a> {
     pub encoding: MapEncoding,
     pub words: std::borrow::Cow<'a, [u32]>,
+    /// Words a row: the map's width in f32, half of it (rounded up) packed.
+    pub row_words: u32,
+}
+
+impl EncodedMap<'_> {
+    /// Rows (the map's height; 1 for an empty map, as its texture has one).
+    pub fn rows(&self) -> u32 {
+        (self.words.len() / self.row_words.max(1) as usize).max(1) as u32
+    }
 }
 
 /// The 16-bit code `q` whose texel `q / 65535` (f32, as the loader divides) is `v`, if any.
@@ -164,37 +174,46 @@ fn f16_code(v: f32) -> Option<u16> {
     Some(sign | (((exp + 15) as u16) << 10) | ((bits >> 13) & 0x3ff) as u16)
 }
 
-/// Every texel's 16-bit code (`code`), two per word, texel `2k` in the low half of word `k`;
-/// `None` at the first texel without one. One pass: a map that packs is read once, and one
-/// that does not usually stops at its first texel.
-fn pack_halves(data: &[f32], code: fn(f32) -> Option<u16>) -> Option<Vec<u32>> {
-    let mut words = vec![0u32; data.len().div_ceil(2)];
-    for (pair, word) in data.chunks(2).zip(&mut words) {
-        for (k, &v) in pair.iter().enumerate() {
-            *word |= (code(v)? as u32) << (16 * k);
+/// Every texel's 16-bit code (`code`), two per word in each row of `width` texels: texel
+/// `(2k, y)` in the low half of the row's word `k`, `(2k + 1, y)` in the high half (an odd
+/// row's last word has its high half 0). `None` at the first texel without one. One pass: a
+/// map that packs is read once, and one that does not usually stops at its first texel.
+fn pack_halves(data: &[f32], width: usize, code: fn(f32) -> Option<u16>) -> Option<Vec<u32>> {
+    let row_words = width.div_ceil(2);
+    let mut words = vec![0u32; data.len().div_ceil(width.max(1)) * row_words];
+    for (row, out) in data
+        .chunks(width.max(1))
+        .zip(words.chunks_mut(row_words.max(1)))
+    {
+        for (pair, word) in row.chunks(2).zip(out) {
+            for (k, &v) in pair.iter().enumerate() {
+                *word |= (code(v)? as u32) << (16 * k);
+            }
         }
     }
     Some(words)
 }
 
-/// The narrowest encoding that gives back every texel of `data` exactly (halving the GPU's
-/// copy of a 16-bit, 8-bit or half-float map: an 8192² map is 128 MiB instead of 256 MiB,
-/// which fits where the storage-binding limit is 128 MiB), and the buffer's words.
-pub fn encode_height_map(data: &[f32]) -> EncodedMap<'_> {
+/// The narrowest encoding that gives back every texel of `data` (rows of `width` texels)
+/// exactly, halving the GPU's copy of a 16-bit, 8-bit or half-float map (an 8192² map is
+/// 128 MiB instead of 256 MiB), and the texture's words.
+pub fn encode_height_map(data: &[f32], width: u32) -> EncodedMap<'_> {
     let packed = [
         (MapEncoding::Unorm16, unorm16_code as fn(f32) -> Option<u16>),
         (MapEncoding::F16, f16_code),
     ]
     .into_iter()
-    .find_map(|(encoding, code)| Some((encoding, pack_halves(data, code)?)));
+    .find_map(|(encoding, code)| Some((encoding, pack_halves(data, width as usize, code)?)));
     match packed {
         Some((encoding, words)) => EncodedMap {
             encoding,
             words: words.into(),
+            row_words: width.div_ceil(2),
         },
         None => EncodedMap {
             encoding: MapEncoding::F32,
             words: bytemuck::cast_slice(data).into(),
+            row_words: width,
         },
     }
 }
@@ -531,12 +550,17 @@ mod tests {
         assert_eq!(offset_of!(GpuBeautySums, albedo), 80);
     }
 
-    /// The texel of word `words[i / 2]`'s half, decoded as heightmap.wgsl's `map_texel` does
-    /// (`unorm16_texel`: the series of q / 65535 in powers of 2⁻¹⁶, two additions).
-    fn decode(e: &EncodedMap, i: usize) -> f32 {
-        let code = (e.words[i / 2] >> (16 * (i % 2))) & 0xffff;
+    /// Texel `(x, y)`, from its row's word `x / 2`'s half, decoded as heightmap.wgsl's
+    /// `map_texel` does (`unorm16_texel`: the series of q / 65535 in powers of 2⁻¹⁶, two
+    /// additions).
+    fn decode(e: &EncodedMap, x: usize, y: usize) -> f32 {
+        let row = y * e.row_words as usize;
+        if e.encoding == MapEncoding::F32 {
+            return f32::from_bits(e.words[row + x]);
+        }
+        let code = (e.words[row + x / 2] >> (16 * (x % 2))) & 0xffff;
         match e.encoding {
-            MapEncoding::F32 => f32::from_bits(e.words[i]),
+            MapEncoding::F32 => unreachable!(),
             MapEncoding::Unorm16 => {
                 // The shader takes b and c from a's exponent bits: the same exact values.
                 let a = code as f32 / 65536.0;
@@ -556,22 +580,28 @@ mod tests {
         }
     }
 
-    fn round_trip(data: &[f32]) -> MapEncoding {
-        let e = encode_height_map(data);
+    /// Encoded in rows of `width` texels and decoded again, texel by texel.
+    fn round_trip_rows(data: &[f32], width: usize) -> MapEncoding {
+        let e = encode_height_map(data, width as u32);
         for (i, v) in data.iter().enumerate() {
             assert_eq!(
-                decode(&e, i).to_bits(),
+                decode(&e, i % width, i / width).to_bits(),
                 v.to_bits(),
                 "texel {i} ({v}) as {:?}",
                 e.encoding
             );
         }
+        let rows = data.len().div_ceil(width.max(1));
         let words = match e.encoding {
             MapEncoding::F32 => data.len(),
-            _ => data.len().div_ceil(2),
+            _ => rows * width.div_ceil(2),
         };
         assert_eq!(e.words.len(), words);
         e.encoding
+    }
+
+    fn round_trip(data: &[f32]) -> MapEncoding {
+        round_trip_rows(data, data.len().max(1))
     }
 
     #[test]
@@ -608,5 +638,12 @@ mod tests {
         }
         assert_eq!(round_trip(&[-0.0, 0.25]), MapEncoding::F16);
         assert_eq!(round_trip(&[]), MapEncoding::Unorm16);
+        // Rows of an odd width pack on their own: each row's last word holds one texel.
+        let rows: Vec<f32> = (0..5 * 7)
+            .map(|q| (q * 997 % 65536) as f32 / 65535.0)
+            .collect();
+        assert_eq!(round_trip_rows(&rows, 7), MapEncoding::Unorm16);
+        assert_eq!(encode_height_map(&rows, 7).row_words, 4);
+        assert_eq!(encode_height_map(&rows, 7).rows(), 5);
     }
 }

@@ -63,11 +63,13 @@ pub enum GpuError {
         /// What to do about it.
         fix: &'static str,
     },
-    /// An environment map wider or taller than the device's largest 2D texture.
+    /// A texture (the environment map, the height map as stored) wider or taller than the
+    /// device's largest 2D texture.
     #[error(
-        "environment map: {width} × {height} texels, over this GPU's largest texture side of {side}; {fix}"
+        "{what}: {width} × {height} texels, over this GPU's largest texture side of {side}; {fix}"
     )]
-    EnvTooLarge {
+    TextureTooLarge {
+        what: &'static str,
         width: u32,
         height: u32,
         side: u32,
@@ -85,12 +87,14 @@ pub enum GpuError {
 }
 
 impl GpuError {
-    /// The adapter cannot hold the scene (an array over its storage-binding limit, an
-    /// environment over its largest texture, or memory the driver refused): the CPU renderer can still render it (`job::run_or_cpu`).
+    /// The adapter cannot hold the scene (an array over its storage-binding limit, a map over
+    /// its largest texture, or memory the driver refused): the CPU renderer can still render it (`job::run_or_cpu`).
     pub fn is_capacity(&self) -> bool {
         matches!(
             self,
-            GpuError::TooLarge { .. } | GpuError::EnvTooLarge { .. } | GpuError::OutOfMemory { .. }
+            GpuError::TooLarge { .. }
+                | GpuError::TextureTooLarge { .. }
+                | GpuError::OutOfMemory { .. }
         )
     }
 }

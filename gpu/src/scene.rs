@@ -1,8 +1,10 @@
 //! A `prismbake::accel::Scene` on the GPU: prism records, base vertices, a BVH2 over the same
-//! padded prism boxes the CPU uses (`accel::prism_aabbs`), and the height map in a storage
-//! buffer, two texels a word where that keeps them exact (`layout::encode_height_map`), read
-//! with loads and the CPU's bilinear weights and wrap, so that sampling is bit-for-bit the
-//! CPU's rather than a texture unit's 8-bit-fraction filtering.
+//! padded prism boxes the CPU uses (`accel::prism_aabbs`), and the height map in an r32uint
+//! texture, two texels a word where that keeps them exact (`layout::encode_height_map`), read
+//! with `textureLoad` and the CPU's bilinear weights and wrap, so that sampling is bit-for-bit
+//! the CPU's rather than a texture unit's 8-bit-fraction filtering. A texture, not a storage
+//! buffer: the map is bounded by the device's largest texture side (an 8192² f32 map on any
+//! adapter), not by one storage binding (128 MiB on lavapipe and WebGPU's defaults).
 //!
 //! The CPU scene holds a CWBVH (8-wide, best on CPUs); the GPU gets a binary obvhs BVH2 built
 //! from the same boxes, flattened into `GpuBvhNode`s (obvhs's `small_bvh2_node` layout; the
@@ -82,7 +84,7 @@ pub struct GpuScene {
 struct MapBuffers {
     params: wgpu::Buffer,
     prisms: wgpu::Buffer,
-    map: wgpu::Buffer,
+    map: wgpu::Texture,
     stitches: wgpu::Buffer,
 }
 
@@ -130,7 +132,7 @@ impl<'a> MapArrays<'a> {
             prisms,
             stitches,
             stitched_prisms,
-            encoded: encode_height_map(&scene.map.data),
+            encoded: encode_height_map(&scene.map.data, scene.map.width),
         }
     }
 }
@@ -152,8 +154,9 @@ fn scene_params(scene: &Scene, node_count: u32, encoding: MapEncoding) -> GpuSce
 
 impl GpuScene {
     /// Upload a scene. Fails with `GpuError::TooLarge` if one array exceeds the device's
-    /// storage-binding limit (128 MiB on WebGPU defaults: ~3.3 M prisms, ~33 M map texels in
-    /// f32 or ~67 M packed two a word).
+    /// storage-binding limit (128 MiB on WebGPU defaults: ~3.3 M prisms), and with
+    /// `GpuError::TextureTooLarge` if the map's texture has a side over the device's largest
+    /// (8192 on WebGPU's defaults: an 8192² f32 map, or 16384 × 8192 packed two a word).
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
         let table = &scene.table;
         let MapArrays {
@@ -205,7 +208,9 @@ impl GpuScene {
         let vertex_buf = storage("vertices", bytemuck::cast_slice(&vertices))?;
         let node_buf = storage("BVH nodes", bytemuck::cast_slice(&bvh.nodes))?;
         let index_buf = storage("BVH prism indices", bytemuck::cast_slice(&bvh.prim_indices))?;
-        let map_buf = storage("height map", bytemuck::cast_slice(&encoded.words))?;
+        check_map_fits(ctx, &encoded)?;
+        let map_tex = map_texture(ctx, &encoded);
+        let map_view = map_tex.create_view(&Default::default());
         let stitch_buf = storage("seam stitch records", bytemuck::cast_slice(&stitches))?;
         let param_buf = ctx
             .device
@@ -240,7 +245,7 @@ impl GpuScene {
                 }, // prim_indices
                 wgpu::BindGroupEntry {
                     binding: 5,
-                    resource: map_buf.as_entire_binding(),
+                    resource: wgpu::BindingResource::TextureView(&map_view),
                 }, // height_map
                 wgpu::BindGroupEntry {
                     binding: 6,
@@ -248,6 +253,7 @@ impl GpuScene {
                 }, // stitches
             ],
         });
+        bytes += std::mem::size_of_val(&encoded.words[..]) as u64;
         let method_bytes = (std::mem::size_of_val(&bvh.nodes[..])
             + std::mem::size_of_val(&bvh.prim_indices[..])
             + std::mem::size_of_val(&prisms[..])) as u64;
@@ -262,7 +268,7 @@ impl GpuScene {
             buffers: MapBuffers {
                 params: param_buf,
                 prisms: prism_buf,
-                map: map_buf,
+                map: map_tex,
                 stitches: stitch_buf,
             },
         })
@@ -288,7 +294,7 @@ impl GpuScene {
         let b = &self.buffers;
         if !size(&b.prisms, bytemuck::cast_slice(&arrays.prisms))
             || !size(&b.stitches, bytemuck::cast_slice(&arrays.stitches))
-            || !size(&b.map, bytemuck::cast_slice(&arrays.encoded.words))
+            || b.map.size() != map_extent(&arrays.encoded)
         {
             return false;
         }
@@ -296,7 +302,7 @@ impl GpuScene {
         let q = &ctx.queue;
         q.write_buffer(&b.prisms, 0, bytemuck::cast_slice(&arrays.prisms));
         q.write_buffer(&b.stitches, 0, bytemuck::cast_slice(&arrays.stitches));
-        q.write_buffer(&b.map, 0, bytemuck::cast_slice(&arrays.encoded.words));
+        write_map(ctx, &b.map, &arrays.encoded);
         q.write_buffer(&b.params, 0, bytemuck::bytes_of(&params));
         self.params = params;
         self.stitched_prisms = arrays.stitched_prisms;
@@ -331,4 +337,66 @@ impl GpuScene {
     pub fn method_bytes(&self) -> u64 {
         self.method_bytes
     }
+}
+
+/// The texture of an encoded map: `row_words` × rows.
+fn map_extent(e: &EncodedMap) -> wgpu::Extent3d {
+    wgpu::Extent3d {
+        width: e.row_words.max(1),
+        height: e.rows(),
+        depth_or_array_layers: 1,
+    }
+}
+
+/// Whether the map's texture fits the device's largest texture side.
+fn check_map_fits(ctx: &GpuContext, e: &EncodedMap) -> Result<(), GpuError> {
+    let side = ctx.device.limits().max_texture_dimension_2d;
+    let size = map_extent(e);
+    if size.width > side || size.height > side {
+        return Err(GpuError::TextureTooLarge {
+            what: match e.encoding {
+                MapEncoding::F32 => "height map (one f32 texel a texel of its texture)",
+                _ => "height map (two 16-bit texels a texel of its texture)",
+            },
+            width: size.width,
+            height: size.height,
+            side,
+            fix: "use --device auto or cpu (the CPU renderer has no such limit), or a smaller map",
+        });
+    }
+    Ok(())
+}
+
+/// The map's r32uint texture, filled (`check_map_fits` first).
+pub fn map_texture(ctx: &GpuContext, e: &EncodedMap) -> wgpu::Texture {
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("height map"),
+        size: map_extent(e),
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R32Uint,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    write_map(ctx, &texture, e);
+    texture
+}
+
+/// Write an encoded map into its texture (of `map_extent`); an empty map leaves it zero.
+fn write_map(ctx: &GpuContext, texture: &wgpu::Texture, e: &EncodedMap) {
+    if e.words.is_empty() {
+        return;
+    }
+    let size = map_extent(e);
+    ctx.queue.write_texture(
+        texture.as_image_copy(),
+        bytemuck::cast_slice(&e.words),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(4 * size.width),
+            rows_per_image: Some(size.height),
+        },
+        size,
+    );
 }

@@ -2,15 +2,15 @@
 //! density from the same random numbers, and `env_radiance`, `env_radiance_smooth` and `env_pdf`
 //! read the CPU's texels and tables, with the environment uploaded as `GpuBeautyScene::upload`
 //! uploads it (`EnvTextures`: radiance and texel weights in one rgba32float texture, each row's
-//! conditional cdf without its leading 0 in an r32float one; the marginal arrays in
-//! `env_tables`). Breaks if a texel or a cdf entry is read one off (a sampled direction a texel
+//! conditional cdf without its leading 0 in an r32float one, the marginal cdf without its
+//! leading 0 and the row weights in an rg32float one). Breaks if a texel or a cdf entry is read one off (a sampled direction a texel
 //! away, another texel's radiance or weight), which a beauty parity render sees only as noise.
 
 use crate::util;
 use glam::{Vec2, Vec3};
 use prismbake::render::env::{self, EnvFrame, EnvMap};
 use prismbake::rng;
-use prismbake_gpu::beauty::{check_lighting_fits, env_lighting, env_tables, EnvTextures};
+use prismbake_gpu::beauty::{check_lighting_fits, env_lighting, EnvTextures};
 use prismbake_gpu::shaders;
 
 const PROBE: &str = r#"
@@ -122,29 +122,24 @@ fn environment_sampling_and_lookups_read_the_cpus_texels_and_tables() {
         // must meet (the last one short).
         let textures = EnvTextures::upload_in_bands(ctx, &e, 2 * w as usize);
         let view = |t: &wgpu::Texture| t.create_view(&Default::default());
-        let (radiance, conditional) = (view(&textures.radiance), view(&textures.conditional));
+        let (radiance, conditional, rows) = (
+            view(&textures.radiance),
+            view(&textures.conditional),
+            view(&textures.rows),
+        );
         let lighting = env_lighting(&e);
-        let tables = env_tables(&e);
         let gpu = util::run_probe_with_textures(
             "environment probe",
             &src,
             (3, 1),
             &io,
-            &[
-                (
-                    2,
-                    0,
-                    bytemuck::bytes_of(&lighting),
-                    wgpu::BufferUsages::UNIFORM,
-                ),
-                (
-                    2,
-                    2,
-                    bytemuck::cast_slice(&tables),
-                    wgpu::BufferUsages::STORAGE,
-                ),
-            ],
-            &[(2, 4, &radiance), (2, 5, &conditional)],
+            &[(
+                2,
+                0,
+                bytemuck::bytes_of(&lighting),
+                wgpu::BufferUsages::UNIFORM,
+            )],
+            &[(2, 2, &rows), (2, 4, &radiance), (2, 5, &conditional)],
         );
         let mut pdf_flips = 0;
         for ((u, d), g) in cases.iter().zip(&gpu) {

@@ -9,6 +9,7 @@ use glam::Vec2;
 use prismbake::rng;
 use prismbake::{HeightMap, Wrap};
 use prismbake_gpu::layout::{encode_height_map, wrap_code, GpuSceneParams, MapEncoding};
+use prismbake_gpu::scene::map_texture;
 use prismbake_gpu::shaders;
 
 const PROBE: &str = r#"
@@ -26,7 +27,7 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 "#;
 
-/// Per case: in = a texel index, out = the bits of `map_texel` there.
+/// Per case: in = a texel index (row-major), out = the bits of `map_texel` there.
 const TEXEL_PROBE: &str = r#"
 @group(1) @binding(0) var<storage, read_write> io: array<u32>;
 
@@ -35,7 +36,8 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= arrayLength(&io)) {
         return;
     }
-    io[gid.x] = bitcast<u32>(map_texel(io[gid.x]));
+    let i = io[gid.x];
+    io[gid.x] = bitcast<u32>(map_texel(i % scene.map_width, i / scene.map_width));
 }
 "#;
 
@@ -46,7 +48,7 @@ fn run_map_probe<T: bytemuck::Pod>(
     map: &HeightMap,
     io: &[T],
 ) -> (Vec<T>, MapEncoding) {
-    let encoded = encode_height_map(&map.data);
+    let encoded = encode_height_map(&map.data, map.width);
     let params = GpuSceneParams {
         map_width: map.width,
         map_height: map.height,
@@ -55,26 +57,21 @@ fn run_map_probe<T: bytemuck::Pod>(
         ..Default::default()
     };
     let src = format!("{}\n{}\n{}", shaders::COMMON, shaders::HEIGHTMAP, probe);
-    let out = util::run_probe(
+    let texture = map_texture(util::ctx(), &encoded);
+    let view = texture.create_view(&Default::default());
+    let out = util::run_probe_with_textures(
         "height map probe",
         &src,
         (1, 0),
         io,
-        &[
-            // scene, height_map (common.wgsl's bindings)
-            (
-                0,
-                0,
-                bytemuck::bytes_of(&params),
-                wgpu::BufferUsages::UNIFORM,
-            ),
-            (
-                0,
-                5,
-                bytemuck::cast_slice(&encoded.words),
-                wgpu::BufferUsages::STORAGE,
-            ),
-        ],
+        // scene, height_map (common.wgsl's bindings)
+        &[(
+            0,
+            0,
+            bytemuck::bytes_of(&params),
+            wgpu::BufferUsages::UNIFORM,
+        )],
+        &[(0, 5, &view)],
     );
     (out, encoded.encoding)
 }
@@ -168,7 +165,7 @@ fn height_lookups_read_the_cpus_texels_under_both_wraps() {
 fn packed_height_maps_give_back_the_cpus_texels_bit_for_bit() {
     // Every 16-bit code as the loader divides it (the shader's decode is exact for each), 8-bit
     // codes (the same quotients), half floats of both signs, and a map only f32 holds; odd
-    // sizes, so that the last word is half used.
+    // widths, so that each row's last word is half used.
     let unorm16: Vec<f32> = (0..=65535u32).map(|q| q as f32 / 65535.0).collect();
     let unorm8: Vec<f32> = (0..=254u32).map(|q| q as f32 / 255.0).collect();
     let halves: Vec<f32> = (0..4097u32)
@@ -180,13 +177,18 @@ fn packed_height_maps_give_back_the_cpus_texels_bit_for_bit() {
     let floats: Vec<f32> = (0..4097u32)
         .map(|i| rng::pcg_hash(i) as f32 / u32::MAX as f32 - 0.5)
         .collect();
-    for (data, encoding) in [
-        (unorm16, MapEncoding::Unorm16),
-        (unorm8, MapEncoding::Unorm16),
-        (halves, MapEncoding::F16),
-        (floats, MapEncoding::F32),
+    for (values, width, encoding) in [
+        (unorm16, 255u32, MapEncoding::Unorm16),
+        (unorm8, 17, MapEncoding::Unorm16),
+        (halves, 17, MapEncoding::F16),
+        (floats, 17, MapEncoding::F32),
     ] {
-        let map = HeightMap::new(data.len() as u32, 1, data.clone(), Wrap::Clamp);
+        // Rows of `width` texels, the values over and over until every one is in.
+        let height = (values.len() as u32).div_ceil(width);
+        let data: Vec<f32> = (0..(width * height) as usize)
+            .map(|i| values[i % values.len()])
+            .collect();
+        let map = HeightMap::new(width, height, data.clone(), Wrap::Clamp);
         let io: Vec<u32> = (0..data.len() as u32).collect();
         let (gpu, got) = run_map_probe(TEXEL_PROBE, &map, &io);
         assert_eq!(got, encoding);

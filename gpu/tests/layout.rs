@@ -175,4 +175,10 @@ fn beauty_binds_the_storage_buffers_the_device_is_asked_for() {
         prismbake_gpu::context::BEAUTY_STORAGE_BUFFERS
     );
     assert!(storage(&module()) <= wgpu::Limits::defaults().max_storage_buffers_per_shader_stage);
+    // The fused schedule (all but the wavefront's path records) fits WebGPU's defaults, so
+    // the beauty runs on every adapter.
+    assert!(
+        prismbake_gpu::context::BEAUTY_STORAGE_BUFFERS - 1
+            <= wgpu::Limits::defaults().max_storage_buffers_per_shader_stage
+    );
 }
