@@ -68,7 +68,8 @@ pub fn env_lighting(env: &EnvMap) -> GpuLighting {
     }
 }
 
-/// Where the base-colour textures lie in `texture_texels`, in order. A texture whose every channel is a value of the 8-bit sRGB table
+/// Where the base-colour textures lie in `texture_texels`, in order. A texture whose every
+/// channel is a value of the 8-bit sRGB table
 /// (`texture::srgb8_table`: every 8-bit PNG and JPEG) is kept as its codes, one word a texel
 /// (`pack_srgb8`), with the table once before the textures: a third of its 3 floats a texel,
 /// and the same texels (texture.wgsl's `tex_texel` looks them up in the CPU's own table).
@@ -236,7 +237,7 @@ pub fn env_radiance_rows(env: &EnvMap, rows: std::ops::Range<u32>) -> Vec<[f32; 
 }
 
 impl EnvTextures {
-    /// Create and fill the two textures (the caller checks the sides: `check_lighting_fits`).
+    /// Create and fill the three textures (the caller checks the sides: `check_lighting_fits`).
     pub fn upload(ctx: &GpuContext, env: &EnvMap) -> EnvTextures {
         Self::upload_in_bands(ctx, env, ENV_BAND_TEXELS)
     }
