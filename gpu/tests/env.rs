@@ -3,8 +3,9 @@
 //! read the CPU's texels and tables, with the environment uploaded as `GpuBeautyScene::upload`
 //! uploads it (`EnvTextures`: radiance and texel weights in one rgba32float texture, each row's
 //! conditional cdf without its leading 0 in an r32float one, the marginal cdf without its
-//! leading 0 and the row weights in an rg32float one). Breaks if a texel or a cdf entry is read one off (a sampled direction a texel
-//! away, another texel's radiance or weight), which a beauty parity render sees only as noise.
+//! leading 0 and the row weights in an rg32float one). Breaks if a texel or a cdf entry is read
+//! one off (a sampled direction a texel away, another texel's radiance or weight), which a
+//! beauty parity render sees only as noise.
 
 use crate::util;
 use glam::{Vec2, Vec3};
