@@ -31,7 +31,7 @@ pub const HARDWARE_TILE: u32 = 2048;
 /// vertices, BVH nodes and indices, seam stitch records), the sums, the base-colour textures'
 /// texels, the materials, and in the wavefront schedule the path records. The height map and
 /// the environment are textures. The fused schedule's 8 are WebGPU's default, so it runs on
-/// every adapter; the wavefront's 9 are requested from the adapter (native Vulkan, Metal and
+/// every adapter that has WebGPU's limits; the wavefront's 9 are requested from the adapter (native Vulkan, Metal and
 /// DX12 adapters allow far more), and where it has only 8 the beauty takes the fused schedule.
 /// The AOV kernel binds 6.
 pub const BEAUTY_STORAGE_BUFFERS: u32 = 9;

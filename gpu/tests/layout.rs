@@ -176,7 +176,7 @@ fn beauty_binds_the_storage_buffers_the_device_is_asked_for() {
     );
     assert!(storage(&module()) <= wgpu::Limits::defaults().max_storage_buffers_per_shader_stage);
     // The fused schedule (all but the wavefront's path records) fits WebGPU's defaults, so
-    // the beauty runs on every adapter.
+    // the beauty runs on every adapter that has them.
     assert!(
         prismbake_gpu::context::BEAUTY_STORAGE_BUFFERS - 1
             <= wgpu::Limits::defaults().max_storage_buffers_per_shader_stage
