@@ -12,15 +12,8 @@ fn read(path: &Path) -> Vec<u8> {
 
 /// A constant-radiance equirect EXR.
 fn write_constant_env(path: &Path, radiance: f32) {
-    use exr::prelude::*;
-    let ch = |name: &str| AnyChannel::new(name, FlatSamples::F32(vec![radiance; 16 * 8]));
-    let layer = Layer::new(
-        (16, 8),
-        LayerAttributes::default(),
-        Encoding::UNCOMPRESSED,
-        AnyChannels::sort(vec![ch("R"), ch("G"), ch("B")].into()),
-    );
-    Image::from_layer(layer).write().to_file(path).unwrap();
+    let ch = |name| (name, vec![radiance; 16 * 8]);
+    write_exr(path, 16, 8, vec![ch("R"), ch("G"), ch("B")], false);
 }
 
 #[test]
@@ -720,10 +713,6 @@ fn each_gltf_material_shades_its_own_triangles() {
 /// same beauty, byte for byte, on the CPU and on the GPU.
 #[test]
 fn a_radiance_hdr_environment_lights_as_its_exr_twin() {
-    use exr::prelude::{
-        AnyChannel, AnyChannels, Encoding, FlatSamples, Image, Layer, LayerAttributes,
-        WritableImage,
-    };
     use image::codecs::hdr::{HdrDecoder, HdrEncoder};
     use image::ImageDecoder;
     let dir = temp_dir("env-hdr");
@@ -751,18 +740,9 @@ fn a_radiance_hdr_environment_lights_as_its_exr_twin() {
         .chunks_exact(4)
         .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
         .collect();
-    let ch = |name: &str, k: usize| {
-        let plane = floats.iter().skip(k).step_by(3).copied().collect();
-        AnyChannel::new(name, FlatSamples::F32(plane))
-    };
+    let ch = |name, k: usize| (name, floats.iter().skip(k).step_by(3).copied().collect());
     let exr = dir.join("sky.exr");
-    let layer = Layer::new(
-        (w, h),
-        LayerAttributes::default(),
-        Encoding::UNCOMPRESSED,
-        AnyChannels::sort(vec![ch("R", 0), ch("G", 1), ch("B", 2)].into()),
-    );
-    Image::from_layer(layer).write().to_file(&exr).unwrap();
+    write_exr(&exr, w, h, vec![ch("R", 0), ch("G", 1), ch("B", 2)], false);
 
     let render = |env: &Path, device: &str| {
         let out = dir.join(format!(

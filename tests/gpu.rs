@@ -423,7 +423,6 @@ fn rendered_on_the_cpu_because(o: &Output, reason: &str) -> serde_json::Value {
 ///   under `--device auto`, saying why.
 #[test]
 fn maps_up_to_the_largest_texture_render_on_the_gpu_and_auto_renders_a_wider_one_on_the_cpu() {
-    use exr::prelude::*;
     let dir = temp_dir("gpu-map-limit");
     let write_png = |name: &str, width: u32, height: u32| {
         let data: Vec<u16> = (0..width * height)
@@ -472,13 +471,7 @@ fn maps_up_to_the_largest_texture_render_on_the_gpu_and_auto_renders_a_wider_one
     let data: Vec<f32> = (0..w * h)
         .map(|i| 0.5 + 0.2 * ((i % w / 64) as f32 * 0.3).sin())
         .collect();
-    let layer = Layer::new(
-        (w, h),
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(vec![AnyChannel::new("Y", FlatSamples::F32(data))].into()),
-    );
-    Image::from_layer(layer).write().to_file(&f32_map).unwrap();
+    write_exr(&f32_map, w, h, vec![("Y", data)], true);
     on_gpu(render("gpu", &f32_map, &dir.join("f32")), "f32");
 
     let fits = write_png("fits.png", 16384, 4);
@@ -511,7 +504,6 @@ fn maps_up_to_the_largest_texture_render_on_the_gpu_and_auto_renders_a_wider_one
 /// CPU. (It used to be refused: 8K lookdev HDRIs went to the CPU.)
 #[test]
 fn an_environment_larger_than_a_storage_binding_lights_the_beauty_on_the_gpu() {
-    use exr::prelude::*;
     let dir = temp_dir("gpu-env-large");
     let (w, h) = (8192usize, 1400usize);
     assert!(w * h * 12 > 128 << 20);
@@ -527,17 +519,9 @@ fn an_environment_larger_than_a_storage_binding_lights_the_beauty_on_the_gpu() {
             0.2 + 0.1 * k as f32 + 0.5 * (y as f32 / h as f32) + sun
         }
     };
-    let ch = |name: &str, k: usize| {
-        AnyChannel::new(name, FlatSamples::F32((0..w * h).map(value(k)).collect()))
-    };
+    let ch = |name, k: usize| (name, (0..w * h).map(value(k)).collect());
     let env = dir.join("sky_8k.exr");
-    let layer = Layer::new(
-        (w, h),
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(vec![ch("R", 0), ch("G", 1), ch("B", 2)].into()),
-    );
-    Image::from_layer(layer).write().to_file(&env).unwrap();
+    write_exr(&env, w, h, vec![ch("R", 0), ch("G", 1), ch("B", 2)], true);
     let out = dir.join("out");
     let rock = example("rock/rock.glb");
     let json = run(&[

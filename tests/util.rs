@@ -149,6 +149,32 @@ pub fn files_in(dir: &Path) -> Vec<String> {
     v
 }
 
+/// Write a one-layer f32 EXR of `width` × `height` pixels: each channel by name, its pixels in
+/// row order; `compressed` takes RLE (runs of equal values stay small on disk).
+pub fn write_exr(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(&str, Vec<f32>)>,
+    compressed: bool,
+) {
+    use exr::prelude::*;
+    let channels = channels
+        .into_iter()
+        .map(|(name, plane)| AnyChannel::new(name, FlatSamples::F32(plane)))
+        .collect::<Vec<_>>();
+    let layer = Layer::new(
+        (width, height),
+        LayerAttributes::default(),
+        match compressed {
+            true => Encoding::FAST_LOSSLESS,
+            false => Encoding::UNCOMPRESSED,
+        },
+        AnyChannels::sort(channels.into()),
+    );
+    Image::from_layer(layer).write().to_file(path).unwrap();
+}
+
 /// RGBA pixels of a beauty EXR.
 pub fn read_rgba(path: &Path) -> Vec<[f32; 4]> {
     let [r, g, b, a] = read_channels(path, ["R", "G", "B", "A"]);

@@ -244,87 +244,36 @@ impl EnvTextures {
 
     /// `upload`, writing whole rows of about `band_texels` texels at a time.
     pub fn upload_in_bands(ctx: &GpuContext, env: &EnvMap, band_texels: usize) -> EnvTextures {
-        let extent = |width, height| wgpu::Extent3d {
-            width,
-            height,
-            depth_or_array_layers: 1,
-        };
-        let texture = |label, format, size| {
-            ctx.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size,
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            })
-        };
+        use wgpu::TextureFormat::{R32Float, Rg32Float, Rgba32Float};
         let (w, h) = (env.width, env.height);
-        let size = extent(w, h);
-        let radiance = texture(
-            "environment radiance",
-            wgpu::TextureFormat::Rgba32Float,
-            size,
-        );
-        let conditional = texture(
-            "environment conditional cdf",
-            wgpu::TextureFormat::R32Float,
-            size,
-        );
-        let rows = texture(
-            "environment rows",
-            wgpu::TextureFormat::Rg32Float,
-            extent(h, 1),
-        );
-        ctx.queue.write_texture(
-            rows.as_image_copy(),
-            bytemuck::cast_slice(&env_rows(env)),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(8 * h),
-                rows_per_image: Some(1),
-            },
-            extent(h, 1),
-        );
+        let radiance = ctx.load_texture("environment radiance", Rgba32Float, w, h);
+        let conditional = ctx.load_texture("environment conditional cdf", R32Float, w, h);
+        let rows = ctx.load_texture("environment rows", Rg32Float, h, 1);
+        ctx.write_texture_rows(&rows, 0, 1, bytemuck::cast_slice(&env_rows(env)), 0, 8 * h);
         let band = (band_texels / w as usize).max(1) as u32;
-        let write = |texture: &wgpu::Texture, y0: u32, rows: u32, data: &[u8], layout| {
-            ctx.queue.write_texture(
-                wgpu::TexelCopyTextureInfo {
-                    texture,
-                    mip_level: 0,
-                    origin: wgpu::Origin3d { x: 0, y: y0, z: 0 },
-                    aspect: wgpu::TextureAspect::All,
-                },
-                data,
-                layout,
-                wgpu::Extent3d {
-                    width: w,
-                    height: rows,
-                    depth_or_array_layers: 1,
-                },
-            );
-        };
         let f32s = std::mem::size_of::<f32>() as u32;
         for y0 in (0..h).step_by(band as usize) {
-            let rows = band.min(h - y0);
-            let texels = env_radiance_rows(env, y0..y0 + rows);
-            let layout = wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(4 * f32s * w),
-                rows_per_image: Some(rows),
-            };
-            write(&radiance, y0, rows, bytemuck::cast_slice(&texels), layout);
+            let n = band.min(h - y0);
+            let texels = env_radiance_rows(env, y0..y0 + n);
+            ctx.write_texture_rows(
+                &radiance,
+                y0,
+                n,
+                bytemuck::cast_slice(&texels),
+                0,
+                4 * f32s * w,
+            );
             // Each row's w + 1 entries, from the second on: the array as it is, no copy.
             let first = (y0 * (w + 1)) as usize;
-            let cdf = &env.conditional_cdf[first..first + (rows * (w + 1)) as usize];
-            let layout = wgpu::TexelCopyBufferLayout {
-                offset: f32s as u64,
-                bytes_per_row: Some(f32s * (w + 1)),
-                rows_per_image: Some(rows),
-            };
-            write(&conditional, y0, rows, bytemuck::cast_slice(cdf), layout);
+            let cdf = &env.conditional_cdf[first..first + (n * (w + 1)) as usize];
+            ctx.write_texture_rows(
+                &conditional,
+                y0,
+                n,
+                bytemuck::cast_slice(cdf),
+                f32s as u64,
+                f32s * (w + 1),
+            );
         }
         EnvTextures {
             radiance,
@@ -365,16 +314,7 @@ fn check_lighting_sizes(
     layout: &TextureLayout,
 ) -> Result<(), GpuError> {
     if let Some(e) = env {
-        let side = ctx.device.limits().max_texture_dimension_2d;
-        if e.width > side || e.height > side {
-            return Err(GpuError::TextureTooLarge {
-                what: "environment map",
-                width: e.width,
-                height: e.height,
-                side,
-                fix: LIGHTING_FIX,
-            });
-        }
+        ctx.check_texture_side("environment map", e.width, e.height, LIGHTING_FIX)?;
     }
     let limit = ctx.max_binding_bytes();
     let bytes = layout.len as u64 * std::mem::size_of::<f32>() as u64;

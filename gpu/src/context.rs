@@ -762,6 +762,84 @@ impl GpuContext {
         self.device.limits().max_storage_buffer_binding_size
     }
 
+    /// `GpuError::TextureTooLarge` (naming `what`, with `fix`) if a `width` × `height`
+    /// texture has a side over this device's largest.
+    pub(crate) fn check_texture_side(
+        &self,
+        what: &'static str,
+        width: u32,
+        height: u32,
+        fix: &'static str,
+    ) -> Result<(), GpuError> {
+        let side = self.device.limits().max_texture_dimension_2d;
+        if width > side || height > side {
+            return Err(GpuError::TextureTooLarge {
+                what,
+                width,
+                height,
+                side,
+                fix,
+            });
+        }
+        Ok(())
+    }
+
+    /// A 2D texture the kernels read with `textureLoad`, filled with `write_texture_rows`.
+    pub(crate) fn load_texture(
+        &self,
+        label: &str,
+        format: wgpu::TextureFormat,
+        width: u32,
+        height: u32,
+    ) -> wgpu::Texture {
+        self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        })
+    }
+
+    /// Write `rows` whole rows of `texture` from row `y0`: `data` from byte `offset`,
+    /// `bytes_per_row` apart.
+    pub(crate) fn write_texture_rows(
+        &self,
+        texture: &wgpu::Texture,
+        y0: u32,
+        rows: u32,
+        data: &[u8],
+        offset: u64,
+        bytes_per_row: u32,
+    ) {
+        self.queue.write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d { x: 0, y: y0, z: 0 },
+                aspect: wgpu::TextureAspect::All,
+            },
+            data,
+            wgpu::TexelCopyBufferLayout {
+                offset,
+                bytes_per_row: Some(bytes_per_row),
+                rows_per_image: Some(rows),
+            },
+            wgpu::Extent3d {
+                width: texture.width(),
+                height: rows,
+                depth_or_array_layers: 1,
+            },
+        );
+    }
+
     /// The beauty schedule a render on this context takes by default.
     pub fn beauty_schedule(&self) -> BeautySchedule {
         self.beauty_schedule

@@ -350,35 +350,27 @@ fn map_extent(e: &EncodedMap) -> wgpu::Extent3d {
 
 /// Whether the map's texture fits the device's largest texture side.
 fn check_map_fits(ctx: &GpuContext, e: &EncodedMap) -> Result<(), GpuError> {
-    let side = ctx.device.limits().max_texture_dimension_2d;
     let size = map_extent(e);
-    if size.width > side || size.height > side {
-        return Err(GpuError::TextureTooLarge {
-            what: match e.encoding {
-                MapEncoding::F32 => "height map (one f32 texel a texel of its texture)",
-                _ => "height map (two 16-bit texels a texel of its texture)",
-            },
-            width: size.width,
-            height: size.height,
-            side,
-            fix: "use --device auto or cpu (the CPU renderer has no such limit), or a smaller map",
-        });
-    }
-    Ok(())
+    ctx.check_texture_side(
+        match e.encoding {
+            MapEncoding::F32 => "height map (one f32 texel a texel of its texture)",
+            _ => "height map (two 16-bit texels a texel of its texture)",
+        },
+        size.width,
+        size.height,
+        "use --device auto or cpu (the CPU renderer has no such limit), or a smaller map",
+    )
 }
 
 /// The map's r32uint texture, filled (`check_map_fits` first).
 pub fn map_texture(ctx: &GpuContext, e: &EncodedMap) -> wgpu::Texture {
-    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("height map"),
-        size: map_extent(e),
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D2,
-        format: wgpu::TextureFormat::R32Uint,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
+    let size = map_extent(e);
+    let texture = ctx.load_texture(
+        "height map",
+        wgpu::TextureFormat::R32Uint,
+        size.width,
+        size.height,
+    );
     write_map(ctx, &texture, e);
     texture
 }
@@ -389,14 +381,12 @@ fn write_map(ctx: &GpuContext, texture: &wgpu::Texture, e: &EncodedMap) {
         return;
     }
     let size = map_extent(e);
-    ctx.queue.write_texture(
-        texture.as_image_copy(),
+    ctx.write_texture_rows(
+        texture,
+        0,
+        size.height,
         bytemuck::cast_slice(&e.words),
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(4 * size.width),
-            rows_per_image: Some(size.height),
-        },
-        size,
+        0,
+        4 * size.width,
     );
 }
