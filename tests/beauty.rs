@@ -215,6 +215,94 @@ fn turntables_get_contact_sheets_of_the_frames_rendered() {
 }
 
 /// A folder with the sphere (its own sidecar) and a broken OBJ.
+/// `--turntable-mode`: what a frame's key light falls on. The sphere lit by a key light from
+/// the camera's side (no environment), 4 frames: where the asset turns, every frame sees a
+/// lit face; where the camera orbits a still scene, frame 2 looks at the side the light
+/// does not reach; where the lights turn, so does the light, away from the still camera.
+#[test]
+fn a_turntable_turns_the_asset_the_camera_or_the_lights() {
+    let dir = temp_dir("turntable-modes");
+    let sphere = example("sphere/sphere.glb");
+    let render = |mode: &str| {
+        let out = dir.join(mode);
+        run(&[
+            "render",
+            s(&sphere),
+            "--res",
+            "24x24",
+            "--spp",
+            "2",
+            "--turntable",
+            "4",
+            "--turntable-mode",
+            mode,
+            "--aov",
+            "mask,beauty",
+            "--env-intensity",
+            "0",
+            "--key-light",
+            "0,30,3",
+            "--no-cache",
+            "-o",
+            s(&out),
+        ])
+        .assert_success();
+        let frames: Vec<(f64, Vec<f32>)> = (0..4)
+            .map(|f| {
+                let rgba = read_rgba(&out.join(format!("beauty_{f:04}.exr")));
+                let light = rgba.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum();
+                let [mask] = read_channels(&out.join(format!("mask_{f:04}.exr")), ["Y"]);
+                (light, mask)
+            })
+            .collect();
+        frames
+    };
+    let (asset, camera, lights) = (render("asset"), render("camera"), render("lights"));
+    let ratio = |frames: &[(f64, Vec<f32>)]| frames[2].0 / frames[0].0;
+    let (a, c, l) = (ratio(&asset), ratio(&camera), ratio(&lights));
+    assert!(
+        (0.8..1.25).contains(&a),
+        "asset: frame 2 / frame 0 light {a}"
+    );
+    assert!(c < 0.3, "camera: frame 2 / frame 0 light {c}");
+    assert!(l < 0.3, "lights: frame 2 / frame 0 light {l}");
+    // Frame 0 is the same picture in every mode; the camera moves only where it orbits.
+    for (mode, frames) in [("camera", &camera), ("lights", &lights)] {
+        assert!(
+            (frames[0].0 - asset[0].0).abs() <= 1e-6 * asset[0].0,
+            "{mode}: frame 0 light {} against {}",
+            frames[0].0,
+            asset[0].0
+        );
+    }
+    assert_eq!(asset[1].1, camera[1].1, "the same orbit");
+    assert_eq!(lights[1].1, lights[0].1, "a still camera");
+    assert_ne!(asset[1].1, asset[0].1, "an orbit");
+    // A mode needs a turntable; an unknown one is refused.
+    let out = dir.join("none");
+    run(&[
+        "render",
+        s(&sphere),
+        "--turntable-mode",
+        "lights",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["--turntable-mode lights needs --turntable N"]);
+    assert!(!out.exists() || files_in(&out).is_empty());
+    run(&[
+        "render",
+        s(&sphere),
+        "--turntable",
+        "2",
+        "--turntable-mode",
+        "object",
+        "-o",
+        s(&out),
+    ])
+    .assert_code(2);
+}
+
 fn batch_folder() -> PathBuf {
     let dir = temp_dir("batch-in");
     std::fs::copy(example("sphere/sphere.glb"), dir.join("sphere.glb")).unwrap();

@@ -551,6 +551,56 @@ fn an_environment_larger_than_a_storage_binding_lights_the_beauty_on_the_gpu() {
     assert!(out.join("beauty.exr").is_file());
 }
 
+/// A turntable whose lights turn (`--turntable-mode lights`) turns the environment on the GPU
+/// as on the CPU: a sky bright on one side only, so a frame lit from another side differs.
+#[test]
+fn a_turntable_turns_the_environment_on_the_gpu_as_on_the_cpu() {
+    let dir = temp_dir("gpu-turned-env");
+    let (w, h) = (64usize, 32usize);
+    let ch = |name| {
+        let v = (0..w * h)
+            .map(|i| if i % w < w / 4 { 4.0 } else { 0.05 })
+            .collect();
+        (name, v)
+    };
+    let env = dir.join("half_sky.exr");
+    write_exr(&env, w, h, vec![ch("R"), ch("G"), ch("B")], false);
+    let torus = example("torus/torus.obj");
+    let render = |device: &str| {
+        let out = dir.join(device);
+        run(&[
+            "render",
+            s(&torus),
+            "--env",
+            s(&env),
+            "--device",
+            device,
+            "--aov",
+            "beauty",
+            "--res",
+            "16x16",
+            "--spp",
+            "2",
+            "--turntable",
+            "3",
+            "--turntable-mode",
+            "lights",
+            "-o",
+            s(&out),
+        ])
+        .assert_success();
+        out
+    };
+    let (gpu, cpu) = (render("gpu"), render("cpu"));
+    for f in 0..3 {
+        let name = format!("beauty_{f:04}.exr");
+        let d = relative_difference(&cpu.join(&name), &gpu.join(&name));
+        assert!(d <= 1e-3, "{name}: GPU vs CPU mean |Δ| {d:.2e}");
+    }
+    let turned = relative_difference(&gpu.join("beauty_0000.exr"), &gpu.join("beauty_0001.exr"));
+    assert!(turned > 0.1, "frames 0 and 1 differ by {turned:.2e} only");
+}
+
 /// `PRISMBAKE_GPU_LIMITS=webgpu` opens the device with WebGPU's default limits, 8 storage
 /// buffers a shader stage among them: the AOV kernel (6) and the fused beauty (8) render there,
 /// so the beauty runs on any adapter. The wavefront beauty binds 9: asked for

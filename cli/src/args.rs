@@ -73,6 +73,13 @@ pub struct RenderArgs {
     /// Render an N-frame turntable around the up axis.
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
+    /// What turns in a turntable, about the asset's up axis: `asset` (the asset turns under
+    /// lights that stay where the camera sees them, so every side passes through the key
+    /// light), `camera` (the camera orbits a still scene: the lighting stays on the same side
+    /// of the asset), `lights` (the camera and the asset stay, the environment and key light
+    /// turn). AOVs depend only on the camera. Default: asset.
+    #[arg(long, value_name = "MODE", value_parser = ["asset", "camera", "lights"])]
+    pub turntable_mode: Option<String>,
     /// Only frames A-B (inclusive) of the turntable; identical to the same frames of a full run.
     #[arg(long, value_name = "A-B", value_parser = parse_range)]
     pub frames: Option<(u32, u32)>,

@@ -11,7 +11,7 @@ use prismbake::bench::BenchConfig;
 use prismbake::render::denoise::Quality;
 use prismbake::render::job::{
     self as render_job, check_reference_density, CameraOverride, Input, Method, MethodConfig,
-    RenderJob,
+    RenderJob, TurntableMode,
 };
 use prismbake::render::lookdev::{self, CacheUse, LookdevOptions, LookdevSummary, WatchEvent};
 use prismbake::render::{Aov, RenderSettings};
@@ -407,6 +407,15 @@ fn render_job_for(
         },
         aovs,
         turntable: a.turntable,
+        turntable_mode: match (&a.turntable_mode, a.turntable) {
+            (None, _) => TurntableMode::default(),
+            (Some(m), Some(_)) => m.parse().map_err(Error::Param)?,
+            (Some(m), None) => {
+                return Err(Error::Param(format!(
+                    "--turntable-mode {m} needs --turntable N"
+                )))
+            }
+        },
         frames: a.frames,
         camera: CameraOverride {
             from: a.camera_from.map(Vec3::from),

@@ -154,9 +154,9 @@ fn replay_environments(target: &str, ext: &str, frame: prismbake::render::env::E
         loaded.set(loaded.get() + 1);
         assert!(env.total_weight.is_finite(), "{}", p.display());
         for u in [Vec2::ZERO, Vec2::splat(0.5), Vec2::new(0.123, 0.877)] {
-            let s = env_sample(&env, u);
+            let s = env_sample(&env, env.frame, u);
             assert!(s.dir.is_finite() && s.pdf.is_finite(), "{}", p.display());
-            assert!(env_pdf(&env, s.dir).is_finite());
+            assert!(env_pdf(&env, env.frame, s.dir).is_finite());
         }
     });
     loaded.get()

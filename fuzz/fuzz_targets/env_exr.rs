@@ -34,12 +34,12 @@ fuzz_target!(|data: &[u8]| {
     assert!(env.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0));
     assert!(env.total_weight.is_finite() && env.total_weight >= 0.0);
     for (x, y) in US {
-        let s = env_sample(&env, Vec2::new(x, y));
+        let s = env_sample(&env, env.frame, Vec2::new(x, y));
         assert!(s.dir.is_finite() && s.pdf.is_finite() && s.pdf >= 0.0, "{x} {y}: {s:?}");
-        assert!(env_radiance_smooth(&env, s.dir).is_finite());
+        assert!(env_radiance_smooth(&env, env.frame, s.dir).is_finite());
     }
     for d in [Vec3::X, Vec3::Y, -Vec3::Y, Vec3::new(0.3, -0.2, 0.9).normalize()] {
-        let p = env_pdf(&env, d);
+        let p = env_pdf(&env, env.frame, d);
         assert!(p.is_finite() && p >= 0.0, "{d}: {p}");
     }
 });

@@ -22,8 +22,8 @@ fuzz_target!(|data: &[u8]| {
     assert!(env.texels.iter().all(|t| t.is_finite() && t.min_element() >= 0.0));
     assert!(env.total_weight.is_finite());
     for u in [Vec2::ZERO, Vec2::splat(0.5), Vec2::new(0.999_999_9, 0.123)] {
-        let s = env_sample(&env, u);
+        let s = env_sample(&env, env.frame, u);
         assert!(s.dir.is_finite() && s.pdf.is_finite() && s.pdf >= 0.0, "{s:?}");
-        assert!(env_pdf(&env, s.dir).is_finite());
+        assert!(env_pdf(&env, env.frame, s.dir).is_finite());
     }
 });

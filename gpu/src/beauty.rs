@@ -24,7 +24,7 @@ use crate::GpuError;
 use glam::Vec3;
 use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, Guides, PixelSums};
 use prismbake::render::camera::Camera;
-use prismbake::render::env::EnvMap;
+use prismbake::render::env::{EnvFrame, EnvMap};
 use prismbake::render::RenderSettings;
 use prismbake::texture::{srgb8_table, ColorMap};
 use prismbake::trace::pdm::PdmOptions;
@@ -46,17 +46,17 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
         has_key: key.is_some() as u32,
         has_ground: ground.is_some() as u32,
         env_lights: s.env_lights as u32,
-        ..env_lighting(s.env)
+        ..env_lighting(s.env, s.env_frame)
     }
 }
 
-/// The environment's part of the lighting uniform (its size, weight and frame), the rest at
+/// The environment's part of the lighting uniform (its size, weight and `frame`), the rest at
 /// its defaults.
-pub fn env_lighting(env: &EnvMap) -> GpuLighting {
-    let (to_sin, to_cos) = (-env.frame.rotation).sin_cos();
-    let (from_sin, from_cos) = env.frame.rotation.sin_cos();
+pub fn env_lighting(env: &EnvMap, frame: EnvFrame) -> GpuLighting {
+    let (to_sin, to_cos) = (-frame.rotation).sin_cos();
+    let (from_sin, from_cos) = frame.rotation.sin_cos();
     GpuLighting {
-        env_z_up: env.frame.z_up as u32,
+        env_z_up: frame.z_up as u32,
         env_width: env.width,
         env_height: env.height,
         env_total_weight: env.total_weight,

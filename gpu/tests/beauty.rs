@@ -310,6 +310,7 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
     let (ground, eps) = ground_and_eps(&ex, Vec3::Y);
     let bscene = BeautyScene {
         env: &env,
+        env_frame: env.frame,
         env_lights: true,
         key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false)),
         materials: &[SurfaceMaterial::from(Material::default())],
@@ -392,6 +393,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
     });
     let bscene = BeautyScene {
         env: &env,
+        env_frame: env.frame,
         env_lights: true,
         key: Some(KeyLight::from_angles(-30.0, 40.0, 2.0, false)),
         materials: &materials,
@@ -450,6 +452,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
     ] {
         let bscene = BeautyScene {
             env: &env,
+            env_frame: env.frame,
             env_lights: true,
             key: None,
             materials: &[SurfaceMaterial::from(material)],
@@ -476,6 +479,7 @@ fn wavefront_path_records_are_sized_to_the_frame_and_fused_takes_none() {
     });
     let bscene = BeautyScene {
         env: &env,
+        env_frame: env.frame,
         env_lights: true,
         key: None,
         materials: &[SurfaceMaterial::from(Material::default())],

@@ -128,7 +128,7 @@ fn environment_sampling_and_lookups_read_the_cpus_texels_and_tables() {
             view(&textures.conditional),
             view(&textures.rows),
         );
-        let lighting = env_lighting(&e);
+        let lighting = env_lighting(&e, e.frame);
         let gpu = util::run_probe_with_textures(
             "environment probe",
             &src,
@@ -144,7 +144,7 @@ fn environment_sampling_and_lookups_read_the_cpus_texels_and_tables() {
         );
         let mut pdf_flips = 0;
         for ((u, d), g) in cases.iter().zip(&gpu) {
-            let want = env::env_sample(&e, *u);
+            let want = env::env_sample(&e, e.frame, *u);
             let dir = Vec3::new(g[0][0], g[0][1], g[0][2]);
             // The same texel and the same place in it, up to the GPU's sin and cos.
             assert!(
@@ -158,15 +158,19 @@ fn environment_sampling_and_lookups_read_the_cpus_texels_and_tables() {
                 pdf_flips += 1;
             }
             let radiance = Vec3::new(g[1][0], g[1][1], g[1][2]);
-            assert_eq!(radiance, env::env_radiance(&e, *d), "radiance at {d}");
-            let pdf = env::env_pdf(&e, *d);
+            assert_eq!(
+                radiance,
+                env::env_radiance(&e, e.frame, *d),
+                "radiance at {d}"
+            );
+            let pdf = env::env_pdf(&e, e.frame, *d);
             assert!(
                 (g[1][3] - pdf).abs() <= PDF_TOL * pdf.abs().max(1e-3),
                 "pdf at {d}: {} on the GPU, {pdf} on the CPU",
                 g[1][3]
             );
             let smooth = Vec3::new(g[2][0], g[2][1], g[2][2]);
-            let want_smooth = env::env_radiance_smooth(&e, *d);
+            let want_smooth = env::env_radiance_smooth(&e, e.frame, *d);
             let range = corner_range(&e, *d);
             assert!(
                 (smooth - want_smooth).abs().max_element()

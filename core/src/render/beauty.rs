@@ -18,7 +18,7 @@
 //! tonemapped and sRGB encoded, for the PNG.
 
 use super::camera::Camera;
-use super::env::{env_pdf, env_radiance, env_radiance_smooth, env_sample, EnvMap};
+use super::env::{env_pdf, env_radiance, env_radiance_smooth, env_sample, EnvFrame, EnvMap};
 use super::shading::{
     self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material,
 };
@@ -27,7 +27,7 @@ use crate::bake::Prism;
 use crate::rng::{self, Purpose};
 use crate::texture::ColorMap;
 use crate::trace::{Hit, Intersector, Ray, RayContext};
-use glam::{Vec2, Vec3};
+use glam::{Quat, Vec2, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -69,8 +69,12 @@ pub struct Ground {
 }
 
 /// Everything the beauty pass needs besides the intersector and the camera.
+#[derive(Clone, Copy)]
 pub struct BeautyScene<'a> {
     pub env: &'a EnvMap,
+    /// How world directions map into `env` for this frame: its own frame (`EnvMap::frame`),
+    /// turned by a turntable that turns the lights (`BeautyScene::turned`).
+    pub env_frame: EnvFrame,
     /// Whether the environment lights the scene (false when it is black: no env rays).
     pub env_lights: bool,
     pub key: Option<KeyLight>,
@@ -107,6 +111,25 @@ impl From<Material> for SurfaceMaterial {
 }
 
 impl BeautyScene<'_> {
+    /// The same scene with its environment and key light turned by `angle` radians about
+    /// `up` (the asset's up axis, the environment frame's up), counter-clockwise seen from
+    /// above: what a turntable whose camera orbits by `angle` does to the lights that turn
+    /// with it. The ground is a plane across `up` and does not change.
+    pub fn turned(&self, up: Vec3, angle: f32) -> Self {
+        if angle == 0.0 {
+            return *self;
+        }
+        let rot = Quat::from_axis_angle(up, angle);
+        BeautyScene {
+            env_frame: self.env_frame.turned(angle),
+            key: self.key.map(|k| KeyLight {
+                dir: (rot * k.dir).normalize(),
+                ..k
+            }),
+            ..*self
+        }
+    }
+
     /// The index into `materials` of prism `prism`'s material.
     #[inline]
     pub fn material_index(&self, prism: u32) -> usize {
@@ -320,10 +343,10 @@ fn ground_light(
         }
     }
     if s.env_lights {
-        let es = env_sample(s.env, rand2(ctx, 0, 0, Purpose::Light));
+        let es = env_sample(s.env, s.env_frame, rand2(ctx, 0, 0, Purpose::Light));
         let cos = es.dir.dot(g.up);
         if cos > 0.0 && es.pdf > 0.0 {
-            let e = shading::luminance(env_radiance(s.env, es.dir)) * cos / es.pdf;
+            let e = shading::luminance(env_radiance(s.env, s.env_frame, es.dir)) * cos / es.pdf;
             all += e;
             n.env_shadow_rays += 1;
             if !isect.occluded(&shadow_ray(origin, es.dir), ctx) {
@@ -377,7 +400,7 @@ fn surface_radiance(
             }
         }
         if s.env_lights {
-            let es = env_sample(s.env, rand2(ctx, bounce, 0, Purpose::Light));
+            let es = env_sample(s.env, s.env_frame, rand2(ctx, bounce, 0, Purpose::Light));
             if es.pdf > 0.0 && es.dir.dot(ng) > 0.0 {
                 let wi_l = shading::to_local(es.dir, t, b, ns);
                 let f = bsdf_eval(m, wo_l, wi_l);
@@ -388,7 +411,10 @@ fn surface_radiance(
                         &bctx,
                     ) {
                         let w = power_heuristic(es.pdf, bsdf_pdf(m, wo_l, wi_l));
-                        radiance += throughput * f * env_radiance(s.env, es.dir) * (w / es.pdf);
+                        radiance += throughput
+                            * f
+                            * env_radiance(s.env, s.env_frame, es.dir)
+                            * (w / es.pdf);
                     }
                 }
             }
@@ -414,7 +440,7 @@ fn surface_radiance(
             if bs.delta {
                 1.0
             } else {
-                power_heuristic(bs.pdf, env_pdf(s.env, wi))
+                power_heuristic(bs.pdf, env_pdf(s.env, s.env_frame, wi))
             }
         };
         if bounce + 1 == s.bounces {
@@ -422,7 +448,7 @@ fn surface_radiance(
             if s.env_lights {
                 n.env_shadow_rays += 1;
                 if !isect.occluded(&ray, &bctx) {
-                    radiance += throughput * env_radiance(s.env, wi) * env_weight(s);
+                    radiance += throughput * env_radiance(s.env, s.env_frame, wi) * env_weight(s);
                 }
             }
             break;
@@ -435,7 +461,7 @@ fn surface_radiance(
             }
             None => {
                 if s.env_lights {
-                    radiance += throughput * env_radiance(s.env, wi) * env_weight(s);
+                    radiance += throughput * env_radiance(s.env, s.env_frame, wi) * env_weight(s);
                 }
                 break;
             }
@@ -463,12 +489,12 @@ fn trace_sample(
             ..Default::default()
         },
         (_, Some(gt)) => SampleResult {
-            background: env_radiance_smooth(s.env, ray.dir),
+            background: env_radiance_smooth(s.env, s.env_frame, ray.dir),
             ground: Some(ground_light(isect, s, ray.at(gt), ctx, n)),
             ..Default::default()
         },
         _ => SampleResult {
-            background: env_radiance_smooth(s.env, ray.dir),
+            background: env_radiance_smooth(s.env, s.env_frame, ray.dir),
             ..Default::default()
         },
     }

@@ -68,15 +68,18 @@ impl Camera {
         cam
     }
 
-    /// Frame `frame` of an `n`-frame turntable: the camera orbits the up axis through `to`.
-    pub fn turntable(&self, frame: u32, n: u32) -> Self {
-        if n <= 1 {
+    /// The camera orbited by `angle` radians about the axis `axis` through the look-at point
+    /// (counter-clockwise seen from where `axis` points): its position and its own up turn
+    /// together, so a camera pitched towards the asset (a scene camera whose up leans off the
+    /// asset's) keeps its height and pitch all the way round.
+    pub fn orbit(&self, axis: Vec3, angle: f32) -> Self {
+        if angle == 0.0 {
             return *self;
         }
-        let angle = std::f32::consts::TAU * frame as f32 / n as f32;
-        let rot = Quat::from_axis_angle(self.up.normalize(), angle);
+        let rot = Quat::from_axis_angle(axis.normalize(), angle);
         Camera {
             from: self.to + rot * (self.from - self.to),
+            up: rot * self.up,
             ..*self
         }
     }
@@ -155,7 +158,7 @@ mod tests {
         };
         let r = c.ray(Vec2::new(50.0, 50.0), 100, 100);
         assert!((r.dir - -Vec3::Z).length() < 1e-6);
-        let q = c.turntable(1, 4);
+        let q = c.orbit(Vec3::Y, std::f32::consts::FRAC_PI_2);
         assert!(
             (q.from - Vec3::new(5.0, 0.0, 0.0)).length() < 1e-4,
             "{:?}",
@@ -163,6 +166,42 @@ mod tests {
         );
         // Top of the image looks up.
         assert!(c.ray(Vec2::new(50.0, 0.0), 100, 100).dir.y > 0.0);
+    }
+
+    /// A scene camera pitched down at the asset has an up that leans off the asset's: the
+    /// orbit is about the asset's up, so the camera keeps its height and its pitch, and its
+    /// up turns with it (an orbit about the camera's own up would wobble the asset).
+    #[test]
+    fn a_pitched_camera_orbits_the_assets_up_axis_at_its_own_height() {
+        let from = Vec3::new(0.0, 3.0, 4.0);
+        let back = from.normalize();
+        let right = Vec3::Y.cross(back).normalize();
+        let c = Camera {
+            from,
+            to: Vec3::ZERO,
+            up: back.cross(right),
+            yfov_deg: 40.0,
+        };
+        assert!(c.up.y < 0.9, "the camera's up leans: {}", c.up);
+        let centre = |c: &Camera| c.ray(Vec2::new(50.0, 50.0), 100, 100).dir;
+        for k in 1..8 {
+            let q = c.orbit(Vec3::Y, std::f32::consts::TAU * k as f32 / 8.0);
+            assert!((q.from.y - 3.0).abs() < 1e-4, "frame {k}: {}", q.from);
+            assert!(
+                (q.from.length() - 5.0).abs() < 1e-4,
+                "frame {k}: {}",
+                q.from
+            );
+            assert!(
+                (centre(&q).y - centre(&c).y).abs() < 1e-5,
+                "frame {k}: pitch"
+            );
+            assert!((q.up.y - c.up.y).abs() < 1e-5, "frame {k}: up {}", q.up);
+            assert!(
+                q.up.dot(q.from - q.to).abs() < 1e-4,
+                "frame {k}: up off the view"
+            );
+        }
     }
 
     #[test]

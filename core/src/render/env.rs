@@ -46,6 +46,19 @@ pub struct EnvFrame {
     pub rotation: f32,
 }
 
+impl EnvFrame {
+    /// The same frame turned by `angle` radians about the world's up axis (+Y, or +Z for a
+    /// Z-up frame), counter-clockwise seen from above: the radiance that arrived from `d`
+    /// arrives from the turned `d`. (In the Y-up frame a turn about the up axis is a change of
+    /// `rotation`; the Z-up swap is a proper rotation taking +Y to +Z, so the same holds there.)
+    pub fn turned(self, angle: f32) -> Self {
+        EnvFrame {
+            rotation: self.rotation + angle,
+            ..self
+        }
+    }
+}
+
 /// A direction drawn from the map and its solid-angle density.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EnvSample {
@@ -99,14 +112,14 @@ fn texel_index(env: &EnvMap, uv: Vec2) -> (usize, usize) {
 
 /// Radiance arriving from world direction `d` (nearest texel; what lighting uses).
 #[inline]
-pub fn env_radiance(env: &EnvMap, d: Vec3) -> Vec3 {
-    let (x, y) = texel_index(env, env_dir_to_uv(world_to_env(d, env.frame)));
+pub fn env_radiance(env: &EnvMap, frame: EnvFrame, d: Vec3) -> Vec3 {
+    let (x, y) = texel_index(env, env_dir_to_uv(world_to_env(d, frame)));
     env.texels[y * env.width as usize + x]
 }
 
 /// Radiance seen directly by the camera (bilinear; a smooth background).
-pub fn env_radiance_smooth(env: &EnvMap, d: Vec3) -> Vec3 {
-    let uv = env_dir_to_uv(world_to_env(d, env.frame));
+pub fn env_radiance_smooth(env: &EnvMap, frame: EnvFrame, d: Vec3) -> Vec3 {
+    let uv = env_dir_to_uv(world_to_env(d, frame));
     let p = uv * Vec2::new(env.width as f32, env.height as f32) - 0.5;
     let (x0, y0) = (p.x.floor(), p.y.floor());
     let (fx, fy) = (p.x - x0, p.y - y0);
@@ -138,7 +151,7 @@ fn find_interval(cdf: &[f32], u: f32) -> usize {
 
 /// Draw a direction with density proportional to luminance (× sin θ, the equirect Jacobian).
 #[inline]
-pub fn env_sample(env: &EnvMap, u: Vec2) -> EnvSample {
+pub fn env_sample(env: &EnvMap, frame: EnvFrame, u: Vec2) -> EnvSample {
     let (w, h) = (env.width as usize, env.height as usize);
     let y = find_interval(&env.marginal_cdf, u.y).min(h - 1);
     let (c0, c1) = (env.marginal_cdf[y], env.marginal_cdf[y + 1]);
@@ -156,13 +169,13 @@ pub fn env_sample(env: &EnvMap, u: Vec2) -> EnvSample {
         0.5
     };
     let uv = Vec2::new((x as f32 + fx) / w as f32, (y as f32 + fy) / h as f32);
-    let dir = env_to_world(env_uv_to_dir(uv), env.frame);
+    let dir = env_to_world(env_uv_to_dir(uv), frame);
     // The density of the texel `dir` maps back to, as `env_pdf` and `env_radiance` see it: on a
     // texel edge float rounding may pick the neighbour, and radiance / pdf must come from the
     // same texel there.
     EnvSample {
         dir,
-        pdf: env_pdf(env, dir),
+        pdf: env_pdf(env, frame, dir),
     }
 }
 
@@ -182,8 +195,8 @@ fn pdf_of_texel(env: &EnvMap, x: usize, y: usize, v: f32) -> f32 {
 
 /// Solid-angle density of `env_sample` producing world direction `d`.
 #[inline]
-pub fn env_pdf(env: &EnvMap, d: Vec3) -> f32 {
-    let uv = env_dir_to_uv(world_to_env(d, env.frame));
+pub fn env_pdf(env: &EnvMap, frame: EnvFrame, d: Vec3) -> f32 {
+    let uv = env_dir_to_uv(world_to_env(d, frame));
     let (x, y) = texel_index(env, uv);
     pdf_of_texel(env, x, y, uv.y)
 }
@@ -594,6 +607,32 @@ mod tests {
         assert!((env_to_world(Vec3::Y, frames()[1]) - Vec3::Z).length() < 1e-6);
     }
 
+    /// A frame turned by `a` about the up axis maps the turned direction where the frame
+    /// mapped the direction (Y-up and Z-up, counter-clockwise seen from above): a turntable's
+    /// lights turn with its camera. A turn of the wrong sign or about the wrong axis fails.
+    #[test]
+    fn a_turned_frame_maps_turned_directions_where_the_frame_mapped_them() {
+        for f in frames() {
+            let up = if f.z_up { Vec3::Z } else { Vec3::Y };
+            for a in [0.4f32, -2.0, 3.0] {
+                let rot = glam::Quat::from_axis_angle(up, a);
+                let g = f.turned(a);
+                for i in 0..50 {
+                    let d = Vec3::new(
+                        random(i, 0, 0, Purpose::Bench, 3) - 0.5,
+                        random(i, 0, 1, Purpose::Bench, 3) - 0.5,
+                        random(i, 0, 2, Purpose::Bench, 3) - 0.5,
+                    )
+                    .normalize();
+                    let (x, y) = (world_to_env(rot * d, g), world_to_env(d, f));
+                    assert!((x - y).length() < 1e-5, "{f:?} turned {a}: {x} against {y}");
+                    let (x, y) = (env_to_world(d, g), rot * env_to_world(d, f));
+                    assert!((x - y).length() < 1e-5, "{f:?} turned {a}: {x} against {y}");
+                }
+            }
+        }
+    }
+
     /// ∫ env_pdf dω = 1 (Riemann sum over the sphere), and the histogram of `env_sample`
     /// over texels matches pdf × texel solid angle. A wrong Jacobian (sin θ) or a CDF off by
     /// one shows up as a mismatch here before it shows up as noise or bias in renders.
@@ -609,7 +648,8 @@ mod tests {
                     let phi = 2.0 * PI * (j as f32 + 0.5) / np as f32;
                     let s = (1.0 - c * c).sqrt();
                     let d = Vec3::new(s * phi.cos(), s * phi.sin(), c);
-                    integral += env_pdf(&env, d) as f64 * (4.0 * PI as f64) / (nt * np) as f64;
+                    integral +=
+                        env_pdf(&env, env.frame, d) as f64 * (4.0 * PI as f64) / (nt * np) as f64;
                 }
             }
             assert!((integral - 1.0).abs() < 0.01, "∫ pdf = {integral}");
@@ -620,13 +660,14 @@ mod tests {
             for i in 0..n {
                 let s = env_sample(
                     &env,
+                    env.frame,
                     Vec2::new(
                         random(i, 0, 0, Purpose::Light, 5),
                         random(i, 0, 1, Purpose::Light, 5),
                     ),
                 );
                 assert!(
-                    (s.pdf - env_pdf(&env, s.dir)).abs() <= 1e-3 * s.pdf.max(1.0),
+                    (s.pdf - env_pdf(&env, env.frame, s.dir)).abs() <= 1e-3 * s.pdf.max(1.0),
                     "sample pdf disagrees with env_pdf"
                 );
                 let (x, y) = texel_index(&env, env_dir_to_uv(world_to_env(s.dir, f)));
@@ -658,6 +699,7 @@ mod tests {
             .map(|i| {
                 env_sample(
                     &env,
+                    env.frame,
                     Vec2::new(
                         random(i, 0, 0, Purpose::Light, 2),
                         random(i, 0, 1, Purpose::Light, 2),

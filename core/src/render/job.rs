@@ -38,9 +38,71 @@ impl std::str::FromStr for Method {
             "rmip" => Ok(Method::Rmip),
             "nonlinear" => Ok(Method::Nonlinear),
             _ => Err(format!(
-                "unknown method '{s}' (expected pdm, reference or rmip)"
+                "unknown method '{s}' (expected pdm, reference, rmip or nonlinear)"
             )),
         }
+    }
+}
+
+/// What turns in a turntable (`--turntable-mode`), about the asset's up axis.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum TurntableMode {
+    /// The asset turns in front of the camera, under lights that stay where the camera sees
+    /// them: every side of it passes through the key light (a studio turntable). Rendered as
+    /// the camera orbiting with the environment and key light turning along.
+    #[default]
+    Asset,
+    /// The camera orbits a still scene, lights included: the lighting stays on the asset's
+    /// same side.
+    Camera,
+    /// The camera and the asset stay; the environment and key light turn about the asset.
+    Lights,
+}
+
+impl TurntableMode {
+    /// Frame `frame` of an `n`-frame turntable from `cam0`: its camera, and the angle
+    /// (radians, counter-clockwise seen from above) by which the lights turn
+    /// (`BeautyScene::turned`). Turning every frame about `up` through the look-at point.
+    pub fn frame(self, cam0: &Camera, up: Vec3, frame: u32, n: u32) -> (Camera, f32) {
+        let angle = turntable_angle(frame, n);
+        match self {
+            TurntableMode::Asset => (cam0.orbit(up, angle), angle),
+            TurntableMode::Camera => (cam0.orbit(up, angle), 0.0),
+            TurntableMode::Lights => (*cam0, angle),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            TurntableMode::Asset => "asset",
+            TurntableMode::Camera => "camera",
+            TurntableMode::Lights => "lights",
+        }
+    }
+}
+
+/// The turn of frame `frame` of an `n`-frame turntable, radians: `n` equal steps of a whole
+/// turn.
+pub fn turntable_angle(frame: u32, n: u32) -> f32 {
+    if n <= 1 {
+        0.0
+    } else {
+        std::f32::consts::TAU * frame as f32 / n as f32
+    }
+}
+
+impl std::str::FromStr for TurntableMode {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        [
+            TurntableMode::Asset,
+            TurntableMode::Camera,
+            TurntableMode::Lights,
+        ]
+        .into_iter()
+        .find(|m| m.name() == s)
+        .ok_or_else(|| format!("unknown turntable mode '{s}' (expected asset, camera or lights)"))
     }
 }
 
@@ -99,6 +161,8 @@ pub struct RenderJob {
     pub aovs: Vec<Aov>,
     /// `Some(n)`: an n-frame turntable; frames `frames` of it are rendered.
     pub turntable: Option<u32>,
+    /// What turns in the turntable.
+    pub turntable_mode: TurntableMode,
     pub frames: Option<(u32, u32)>,
     pub camera: CameraOverride,
     pub out_dir: PathBuf,

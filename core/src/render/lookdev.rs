@@ -802,6 +802,7 @@ pub fn render_all(
     };
     let bscene = BeautyScene {
         env,
+        env_frame: env.frame,
         env_lights: env.total_weight > 0.0,
         key: opts
             .key_light
@@ -857,17 +858,18 @@ pub fn render_all(
             || previous.map(|f| f.write(&job.out_dir, &aov_list, sheets, denoise)),
             || {
                 next.map(|(i, frame)| {
-                    let cam = match (frame, job.turntable) {
-                        (Some(f), Some(n)) => s.cam0.turntable(*f, n),
-                        _ => s.cam0,
+                    let (cam, turn) = match (frame, job.turntable) {
+                        (Some(f), Some(n)) => job.turntable_mode.frame(&s.cam0, up, *f, n),
+                        _ => (s.cam0, 0.0),
                     };
+                    let lights = bscene.turned(up, turn);
                     trace_frame(
                         renderer,
                         &cam,
                         *frame,
                         job,
                         &aov_list,
-                        want_beauty.then_some(&bscene),
+                        want_beauty.then_some(&lights),
                         &|rows| progress(i, rows),
                     )
                 })
