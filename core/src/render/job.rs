@@ -414,3 +414,41 @@ pub fn with_intersector<R>(
 ) -> R {
     f(make_intersector(cfg, scene).as_ref())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each mode's frame: where the camera is and how far the lights turn. The camera is
+    /// pitched at the asset (its up leans off the asset's +Y), so an orbit about its own up
+    /// would change its height.
+    #[test]
+    fn turntable_modes_turn_the_camera_or_the_lights_about_the_assets_up() {
+        let from = Vec3::new(0.0, 2.0, 4.0);
+        let back = from.normalize();
+        let cam = Camera {
+            from,
+            to: Vec3::ZERO,
+            up: back.cross(Vec3::Y.cross(back).normalize()),
+            yfov_deg: 40.0,
+        };
+        let quarter = std::f32::consts::FRAC_PI_2;
+        for (mode, moves, turn) in [
+            (TurntableMode::Asset, true, quarter),
+            (TurntableMode::Camera, true, 0.0),
+            (TurntableMode::Lights, false, quarter),
+        ] {
+            let (c, t) = mode.frame(&cam, Vec3::Y, 1, 4);
+            assert_eq!(t, turn, "{mode:?}");
+            let want = if moves {
+                Vec3::new(4.0, 2.0, 0.0)
+            } else {
+                from
+            };
+            assert!((c.from - want).length() < 1e-5, "{mode:?}: {}", c.from);
+            assert_eq!(mode.frame(&cam, Vec3::Y, 0, 4), (cam, 0.0), "{mode:?}");
+            assert_eq!(mode.name().parse::<TurntableMode>(), Ok(mode));
+        }
+        assert!("object".parse::<TurntableMode>().is_err());
+    }
+}
