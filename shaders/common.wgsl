@@ -116,7 +116,7 @@ struct Lighting {
     env_to_cos: f32,
     env_from_sin: f32,   // sin, cos of +rotation (env_to_world)
     env_from_cos: f32,
-    _pad0: u32,
+    exposure: f32,       // the preview's exposure factor (tonemap.wgsl)
     _pad1: u32,
     _pad2: u32,
 }

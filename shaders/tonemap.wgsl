@@ -42,7 +42,7 @@ fn preview_word(s: BeautySums, spp: u32) -> u32 {
     let k = 1.0 / f32(spp);
     let c = s.radiance * k;
     let bg = (s.background + s.ground_background * (1.0 - sums_shadow(s))) * k;
-    let t = tonemap_filmic(c + bg);
+    let t = tonemap_filmic((c + bg) * lighting.exposure);
     return srgb_code(t.x) | (srgb_code(t.y) << 8u) | (srgb_code(t.z) << 16u);
 }
 

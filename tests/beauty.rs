@@ -303,6 +303,55 @@ fn a_turntable_turns_the_asset_the_camera_or_the_lights() {
     .assert_code(2);
 }
 
+/// `--exposure EV` brightens the previews (PNG, contact sheet) by 2^EV before the filmic
+/// curve and leaves the linear EXR as it was; a value out of range is refused.
+#[test]
+fn exposure_brightens_the_previews_and_leaves_the_exr_linear() {
+    let dir = temp_dir("exposure");
+    let torus = example("torus/torus.obj");
+    let render = |ev: &str| {
+        let out = dir.join(format!("ev{ev}"));
+        run(&[
+            "render",
+            s(&torus),
+            "--res",
+            "16x16",
+            "--aov",
+            "beauty",
+            "--exposure",
+            ev,
+            "--no-cache",
+            "-o",
+            s(&out),
+        ])
+        .assert_success();
+        let png = image::open(out.join("beauty.png")).unwrap().to_rgb8();
+        let mean = png.pixels().map(|p| p.0[1] as f64).sum::<f64>() / 256.0;
+        (read_rgba(&out.join("beauty.exr")), mean)
+    };
+    let (plain, up, down) = (render("0"), render("1.5"), render("-2"));
+    assert_eq!(
+        plain.0, up.0,
+        "the EXR is the radiance whatever the exposure"
+    );
+    assert_eq!(plain.0, down.0);
+    assert!(up.1 > plain.1 + 10.0, "{} against {}", up.1, plain.1);
+    assert!(down.1 < plain.1 - 10.0, "{} against {}", down.1, plain.1);
+    for ev in ["40", "nan"] {
+        run(&[
+            "render",
+            s(&torus),
+            "--aov",
+            "beauty",
+            "--exposure",
+            ev,
+            "-o",
+            s(&dir.join("bad")),
+        ])
+        .assert_error(&["--exposure", "stops"]);
+    }
+}
+
 fn batch_folder() -> PathBuf {
     let dir = temp_dir("batch-in");
     std::fs::copy(example("sphere/sphere.glb"), dir.join("sphere.glb")).unwrap();

@@ -183,6 +183,15 @@ pub struct LookArgs {
     /// Shadow-catcher ground plane at the asset's lowest point (its shadow in the alpha).
     #[arg(long)]
     pub ground: bool,
+    /// Exposure of the beauty's PNG previews and contact sheets, in stops: the radiance times
+    /// 2^EV before the filmic curve (like a display exposure); the linear EXR is not scaled.
+    #[arg(
+        long,
+        value_name = "EV",
+        default_value_t = 0.0,
+        allow_hyphen_values = true
+    )]
+    pub exposure: f32,
     /// Denoise the beauty (EXR, PNG, contact sheet) with Intel Open Image Denoise, guided by
     /// the first hits' albedo and normals: `high` (the default; final frames), `balanced`
     /// (~2.5x faster) or `fast` (~5x). Loaded at run time from PRISMBAKE_OIDN (the library or

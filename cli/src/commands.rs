@@ -351,6 +351,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,
+        exposure_ev: l.exposure,
         denoise: l.denoise.map(|d| match d {
             DenoiseArg::High => Quality::High,
             DenoiseArg::Balanced => Quality::Balanced,

@@ -46,6 +46,7 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
         has_key: key.is_some() as u32,
         has_ground: ground.is_some() as u32,
         env_lights: s.env_lights as u32,
+        exposure: s.exposure,
         ..env_lighting(s.env, s.env_frame)
     }
 }
@@ -541,6 +542,7 @@ pub fn render_beauty_scheduled(
         guides: vec![Guides::default(); n],
         counters: BeautyCounters::default(),
         preview: Some(vec![[0; 3]; n]),
+        exposure: lighting.uniform().exposure,
     };
     let frame = FrameJob {
         ctx,

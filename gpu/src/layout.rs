@@ -291,7 +291,8 @@ pub struct GpuLighting {
     /// `rotation.sin_cos()`, for `env_to_world`.
     pub env_from_sin: f32,
     pub env_from_cos: f32,
-    pub _pad0: u32,
+    /// The preview's exposure factor (`BeautyScene::exposure`), for `tonemap.wgsl`.
+    pub exposure: f32,
     pub _pad1: u32,
     pub _pad2: u32,
 }
@@ -477,7 +478,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_to_cos,
                 env_from_sin,
                 env_from_cos,
-                _pad0,
+                exposure,
                 _pad1,
                 _pad2
             }

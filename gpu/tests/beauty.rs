@@ -168,6 +168,10 @@ fn check(
         )
         .expect("gpu beauty");
         let label = format!("{label} {schedule:?}");
+        assert_eq!(
+            gpu.exposure, cpu.exposure,
+            "{rel} {label}: the previews' exposure"
+        );
         agreement = Some(agree(rel, &label, settings, &cpu, &gpu));
     }
     agreement.expect("two schedules")
@@ -319,6 +323,8 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
         ground: Some(ground),
         bounces: 2,
         eps,
+        // Half a stop up: the GPU's preview must take it as the host's does.
+        exposure: 1.5,
     };
     let settings = RenderSettings {
         width: 64,
@@ -402,6 +408,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         ground: None,
         bounces: 2,
         eps: ground_and_eps(&ex, Vec3::Y).1,
+        exposure: 1.0,
     };
     let settings = RenderSettings {
         width: 64,
@@ -461,6 +468,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             ground: None,
             bounces: 3,
             eps,
+            exposure: 1.0,
         };
         check(rel, &ex, &bscene, &settings, label);
     }
@@ -488,6 +496,7 @@ fn wavefront_path_records_are_sized_to_the_frame_and_fused_takes_none() {
         ground: None,
         bounces: 2,
         eps: ground_and_eps(&ex, Vec3::Y).1,
+        exposure: 1.0,
     };
     let sums = std::mem::size_of::<GpuBeautySums>() as u64;
     for schedule in [BeautySchedule::Wavefront, BeautySchedule::Fused] {

@@ -91,6 +91,9 @@ pub struct BeautyScene<'a> {
     pub bounces: u32,
     /// Ray origin offset (world units), from the scene's size.
     pub eps: f32,
+    /// The previews' exposure, a factor (2^EV of `--exposure EV`): a display setting, the
+    /// linear EXR stays the scene's radiance.
+    pub exposure: f32,
 }
 
 /// One material of a beauty scene: the BSDF's parameters and the base-colour texture that
@@ -188,6 +191,9 @@ pub struct BeautyImage {
     /// the frame tonemapped it too (the GPU's `tonemap.wgsl`); `None` on the CPU, and cleared
     /// by whatever changes the pixels after the render (the denoiser).
     pub preview: Option<Vec<[u8; 3]>>,
+    /// What the previews multiply the radiance by before the filmic curve
+    /// (`BeautyScene::exposure`); the EXR's pixels are not scaled.
+    pub exposure: f32,
 }
 
 /// One pixel's denoising guides and the parts its alpha and background are made of.
@@ -574,6 +580,7 @@ pub fn render_beauty(
         guides: sums.iter().map(|a| a.guides(spp)).collect(),
         counters,
         preview: None,
+        exposure: scene.exposure,
     }
 }
 
@@ -593,17 +600,18 @@ pub fn beauty_preview(img: &BeautyImage) -> Vec<u8> {
         )
         .for_each(|(out, (rgba, bg))| {
             for ((o, c), b) in out.chunks_exact_mut(3).zip(rgba).zip(bg) {
-                o.copy_from_slice(&preview_pixel(*c, *b));
+                o.copy_from_slice(&preview_pixel(*c, *b, img.exposure));
             }
         });
     rgb
 }
 
 /// One pixel of the preview (premultiplied RGBA over its background), as 8-bit sRGB codes:
-/// the filmic curve, then the sRGB curve rounded half away from zero. `tonemap.wgsl` mirrors it.
+/// scaled by `exposure`, the filmic curve, then the sRGB curve rounded half away from zero.
+/// `tonemap.wgsl` mirrors it.
 #[inline]
-pub fn preview_pixel(c: [f32; 4], background: Vec3) -> [u8; 3] {
-    let lin = Vec3::new(c[0], c[1], c[2]) + background;
+pub fn preview_pixel(c: [f32; 4], background: Vec3, exposure: f32) -> [u8; 3] {
+    let lin = (Vec3::new(c[0], c[1], c[2]) + background) * exposure;
     let t = shading::tonemap_filmic(lin);
     t.to_array()
         .map(|v| (shading::linear_to_srgb(v) * 255.0).round() as u8)

@@ -39,6 +39,10 @@ use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
+/// The largest `--exposure`, either way, in stops (2^±32 still keeps every f32 radiance a
+/// finite number, and no display needs more).
+pub const MAX_EXPOSURE_EV: f32 = 32.0;
+
 /// Beauty and caching settings (the part of a render the AOV job does not have).
 #[derive(Clone, Debug)]
 pub struct LookdevOptions {
@@ -57,6 +61,9 @@ pub struct LookdevOptions {
     pub specular: f32,
     pub bounces: u32,
     pub ground: bool,
+    /// The previews' exposure in stops (`--exposure`): PNGs and contact sheets show the
+    /// radiance times 2^EV before the filmic curve; the EXR is not scaled.
+    pub exposure_ev: f32,
     /// Denoise the beauty with Open Image Denoise (`denoise`) at this quality; the library is
     /// loaded when the job opens.
     pub denoise: Option<Quality>,
@@ -77,6 +84,7 @@ impl Default for LookdevOptions {
             specular: 0.04,
             bounces: 2,
             ground: false,
+            exposure_ev: 0.0,
             denoise: None,
             cache_dir: table_cache::default_dir(),
         }
@@ -111,6 +119,12 @@ impl LookdevOptions {
             return Err(Error::Param(format!(
                 "--env-intensity {}: must be a finite number >= 0",
                 self.env_intensity
+            )));
+        }
+        if !(-MAX_EXPOSURE_EV..=MAX_EXPOSURE_EV).contains(&self.exposure_ev) {
+            return Err(Error::Param(format!(
+                "--exposure {}: must be a number of stops in [-{MAX_EXPOSURE_EV}, {MAX_EXPOSURE_EV}]",
+                self.exposure_ev
             )));
         }
         if !self.env_rotate_deg.is_finite() {
@@ -816,6 +830,7 @@ pub fn render_all(
         }),
         bounces: opts.bounces,
         eps: beauty::scene_epsilon(lo, hi),
+        exposure: opts.exposure_ev.exp2(),
     };
     let mut summary = LookdevSummary {
         render: RenderSummary {

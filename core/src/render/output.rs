@@ -308,12 +308,13 @@ mod tests {
             preview: None,
             rgba,
             background,
+            exposure: 1.0,
         };
         let host: Vec<u8> = img
             .rgba
             .iter()
             .zip(&img.background)
-            .flat_map(|(c, b)| preview_pixel(*c, *b))
+            .flat_map(|(c, b)| preview_pixel(*c, *b, 1.0))
             .collect();
         assert_eq!(
             &host[..6],
@@ -329,6 +330,17 @@ mod tests {
         write_beauty(dir.as_path(), &img, Some(7)).unwrap();
         let flat: Vec<u8> = device.iter().flatten().copied().collect();
         assert_eq!(png_pixels(&dir.as_path().join("beauty_0007.png")), flat);
+        // One stop up: the preview of 0.18 grey is that of 0.36 at no exposure; the EXR's
+        // pixels are the radiance still.
+        img.preview = None;
+        img.exposure = 2.0;
+        write_beauty(dir.as_path(), &img, Some(8)).unwrap();
+        let brighter = png_pixels(&dir.as_path().join("beauty_0008.png"));
+        let grey = preview_pixel([0.36, 0.36, 0.36, 1.0], Vec3::ZERO, 1.0);
+        assert_eq!(&brighter[3..6], &grey[..]);
+        assert!(brighter[3] > host[3]);
+        let exr = |name: &str| std::fs::read(dir.as_path().join(name)).unwrap();
+        assert_eq!(exr("beauty_0008.exr"), exr("beauty.exr"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
