@@ -143,6 +143,56 @@ def test_blender_usd_renders_the_same_mask_as_its_gltf(run, blender_sphere, tmp_
     assert mismatch(ref, own) <= 0.005
 
 
+CAMERA_SCRIPT = textwrap.dedent(
+    """
+    import sys, bpy
+    from mathutils import Vector
+    out = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 64, 64
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=1.0)
+    bpy.ops.object.shade_smooth()
+    bpy.context.active_object.location = (0.5, 0.0, 0.0)
+    bpy.ops.object.camera_add(location=(2.0, -5.0, 2.5))
+    cam = bpy.context.active_object
+    # Aimed off the sphere's centre, pitched down, a longer lens than the default framing's.
+    cam.rotation_euler = (Vector((0.0, 0.0, 0.3)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    cam.data.lens = 70.0
+    scene.camera = cam
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.wm.usd_export(filepath=out + ".usdc")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb", export_cameras=True)
+    """
+)
+
+
+def test_a_blender_camera_frames_the_usd_as_it_frames_the_gltf(run, tmp_path):
+    """A camera Blender exports to USD (UsdGeomCamera: its transform, focal length and
+    aperture) renders the asset as the same camera exported to glTF (yfov) does, with no
+    camera flags; the framing from the bounds, which either would fall back to, differs."""
+    base = tmp_path / "shot"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=CAMERA_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    flags = ("--disp", MAP, "--scale", SCALE, "--aov", "mask", "--res", "64x64", "--no-jitter")
+
+    def mask(mesh, out, *extra):
+        run("render", mesh, *flags, *extra, "-o", out, check=0)
+        return read_mask(out / "mask.exr")
+
+    gltf = mask(base.with_suffix(".glb"), tmp_path / "glb")
+    assert 0.05 < gltf.mean() < 0.9, "the sphere is in the camera's view"
+    for ext in ("usda", "usdc"):
+        assert inspect(run, base.with_suffix(f".{ext}"), "--disp", MAP)["camera"] is True, ext
+        usd = mask(base.with_suffix(f".{ext}"), tmp_path / ext)
+        assert mismatch(gltf, usd) <= 0.005, ext
+    framed = mask(base.with_suffix(".glb"), tmp_path / "framed", "--camera-to", "0.5,0,0")
+    assert mismatch(gltf, framed) > 0.05, "control: the scene camera changes the picture"
+
+
 def make_usd_core_mesh(path):
     """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
     UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""

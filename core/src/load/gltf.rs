@@ -8,7 +8,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, SceneCamera, UpAxis};
+use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
 use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
@@ -68,16 +68,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         mesh.group_material.clear();
     }
     if let Some((world, yfov)) = loader.camera {
-        let camera = scene_camera(&mesh, world, yfov);
-        match camera_fault(&camera) {
-            None => mesh.camera = Some(camera),
-            // Such a camera renders a degenerate or flipped picture (a yfov of 0 sends every
-            // ray one way, a negative one turns the image over): framed from the bounds instead.
-            Some(fault) => eprintln!(
-                "warning: {}: its camera {fault}: ignored, the view is framed from the bounds (fix the camera, or set the view with --camera-from, --camera-to and --fov)",
-                path.display()
-            ),
-        }
+        super::attach_camera(&mut mesh, world, yfov);
     }
     Ok(mesh)
 }
@@ -688,43 +679,4 @@ fn count_mismatch(path: &Path, group: &str, attr: &str, got: usize, n: usize) ->
         path,
         format!("primitive '{group}': {attr} has {got} elements but POSITION has {n} (re-export)"),
     )
-}
-
-/// Why a scene camera cannot be rendered through, if it cannot: a field of view outside what
-/// `--fov` takes (0–179°, glTF requires `yfov` > 0), or a position or target that is not finite.
-fn camera_fault(c: &SceneCamera) -> Option<String> {
-    use crate::render::camera::{usable_fov, MAX_FOV_DEG};
-    if !usable_fov(c.yfov_deg) {
-        return Some(format!(
-            "has a vertical field of view of {}° (yfov {} rad), outside 0–{MAX_FOV_DEG}°",
-            c.yfov_deg,
-            c.yfov_deg.to_radians()
-        ));
-    }
-    if !(c.from.is_finite() && c.to.is_finite() && c.up.is_finite()) {
-        return Some("is placed at a position that is not finite".into());
-    }
-    None
-}
-
-/// Camera looking down its local -Z with local +Y up; the target is the mesh centre projected
-/// on the view axis, at least one unit ahead.
-fn scene_camera(mesh: &BaseMesh, world: Mat4, yfov: f32) -> SceneCamera {
-    let from = world.transform_point3(Vec3::ZERO);
-    let forward = world
-        .transform_vector3(Vec3::NEG_Z)
-        .try_normalize()
-        .unwrap_or(Vec3::NEG_Z);
-    let up = world
-        .transform_vector3(Vec3::Y)
-        .try_normalize()
-        .unwrap_or(Vec3::Y);
-    let (lo, hi) = mesh.bounds();
-    let distance = ((lo + hi) * 0.5 - from).dot(forward).max(1.0);
-    SceneCamera {
-        from,
-        to: from + forward * distance,
-        up,
-        yfov_deg: yfov.to_degrees(),
-    }
 }

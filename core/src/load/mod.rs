@@ -12,7 +12,8 @@ mod usdc_check;
 
 use crate::error::{Error, Result};
 use crate::heightmap::{HeightMap, Wrap};
-use crate::mesh::BaseMesh;
+use crate::mesh::{BaseMesh, SceneCamera};
+use glam::{Mat4, Vec3};
 use std::path::Path;
 
 /// Options for mesh loading.
@@ -28,6 +29,61 @@ pub struct MapOptions {
     /// Channel name to read from an EXR (default: Y, else R, else the first channel).
     pub channel: Option<String>,
     pub wrap: Wrap,
+}
+
+/// Why a scene camera cannot be rendered through, if it cannot: a field of view outside what
+/// `--fov` takes (0–179°; glTF requires `yfov` > 0, USD a positive focal length and aperture),
+/// or a position or target that is not finite.
+fn camera_fault(c: &SceneCamera) -> Option<String> {
+    use crate::render::camera::{usable_fov, MAX_FOV_DEG};
+    if !usable_fov(c.yfov_deg) {
+        return Some(format!(
+            "has a vertical field of view of {}° ({} rad), outside 0–{MAX_FOV_DEG}°",
+            c.yfov_deg,
+            c.yfov_deg.to_radians()
+        ));
+    }
+    if !(c.from.is_finite() && c.to.is_finite() && c.up.is_finite()) {
+        return Some("is placed at a position that is not finite".into());
+    }
+    None
+}
+
+/// Camera looking down its local -Z with local +Y up (glTF's and USD's convention); the target
+/// is the mesh centre projected on the view axis, at least one unit ahead.
+fn scene_camera(mesh: &BaseMesh, world: Mat4, yfov: f32) -> SceneCamera {
+    let from = world.transform_point3(Vec3::ZERO);
+    let forward = world
+        .transform_vector3(Vec3::NEG_Z)
+        .try_normalize()
+        .unwrap_or(Vec3::NEG_Z);
+    let up = world
+        .transform_vector3(Vec3::Y)
+        .try_normalize()
+        .unwrap_or(Vec3::Y);
+    let (lo, hi) = mesh.bounds();
+    let distance = ((lo + hi) * 0.5 - from).dot(forward).max(1.0);
+    SceneCamera {
+        from,
+        to: from + forward * distance,
+        up,
+        yfov_deg: yfov.to_degrees(),
+    }
+}
+
+/// Give `mesh` the scene camera at `world` with vertical field of view `yfov` (radians), once
+/// its geometry is loaded; one that cannot be rendered through is left out with a warning.
+pub(crate) fn attach_camera(mesh: &mut BaseMesh, world: Mat4, yfov: f32) {
+    let camera = scene_camera(mesh, world, yfov);
+    match camera_fault(&camera) {
+        None => mesh.camera = Some(camera),
+        // Such a camera renders a degenerate or flipped picture (a yfov of 0 sends every
+        // ray one way, a negative one turns the image over): framed from the bounds instead.
+        Some(fault) => eprintln!(
+            "warning: {}: its camera {fault}: ignored, the view is framed from the bounds (fix the camera, or set the view with --camera-from, --camera-to and --fov)",
+            mesh.source.display()
+        ),
+    }
 }
 
 /// A mesh file may have at most `MAX_MATERIALS` materials (a prism keeps its material's index

@@ -59,6 +59,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             },
             any_uv_missing: false,
             material_paths: vec![],
+            camera: None,
         };
         let root = stage.prim(sdf::Path::abs_root());
         for child in children(path, &root)? {
@@ -67,6 +68,9 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         let mut mesh = loader.mesh;
         mesh.missing_uvs = loader.any_uv_missing;
         mesh.face_flags = vec![0; mesh.triangles.len()];
+        if let Some((world, yfov)) = loader.camera {
+            super::attach_camera(&mut mesh, world.as_mat4(), yfov);
+        }
         Ok(mesh)
     })
 }
@@ -609,6 +613,8 @@ struct Loader<'a> {
     /// The material prim of each of `mesh.materials` (a material bound to several meshes is
     /// read once).
     material_paths: Vec<sdf::Path>,
+    /// World transform and vertical field of view (radians) of the first perspective camera.
+    camera: Option<(DMat4, f32)>,
 }
 
 /// A primvar expanded to one value per face corner.
@@ -628,12 +634,58 @@ impl Loader<'_> {
         }
         let (local, reset) = local_transform(self.path, prim)?;
         let world = if reset { local } else { parent * local };
-        if type_name(prim) == "Mesh" {
-            self.mesh_prim(prim, world)?;
+        match type_name(prim).as_str() {
+            "Mesh" => self.mesh_prim(prim, world)?,
+            "Camera" if self.camera.is_none() => self.camera_prim(prim, world)?,
+            _ => {}
         }
         for child in children(self.path, prim)? {
             self.visit(&child, world, depth + 1)?;
         }
+        Ok(())
+    }
+
+    /// A `Camera` prim (UsdGeomCamera): looking down its local −Z with +Y up, as glTF's; the
+    /// vertical field of view from `verticalAperture` and `focalLength` (both in the same
+    /// tenths of a scene unit, so their ratio is the field of view; USD's defaults 15.2908 and
+    /// 50 where not authored). An orthographic camera is left out with a warning, and so is
+    /// one whose values are not numbers; a field of view that cannot be rendered through is
+    /// left out by `attach_camera`.
+    fn camera_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
+        let projection = value(self.path, prim, "projection")?;
+        let projection = projection.as_ref().and_then(|v| v.as_str());
+        if projection.is_some_and(|p| p != "perspective") {
+            warn(
+                self.path,
+                &format!(
+                    "camera {} is {}: only perspective cameras are read, the view is framed from the bounds",
+                    prim.path(),
+                    projection.unwrap_or_default()
+                ),
+            );
+            return Ok(());
+        }
+        let read = |name: &str, default: f64| -> Result<Option<f64>> {
+            Ok(match value(self.path, prim, name)? {
+                None => Some(default),
+                Some(v) => scalar(&v),
+            })
+        };
+        let (Some(focal), Some(aperture)) = (
+            read("focalLength", 50.0)?,
+            read("verticalAperture", 15.2908)?,
+        ) else {
+            warn(
+                self.path,
+                &format!(
+                    "camera {}: focalLength or verticalAperture is not a number; the view is framed from the bounds (re-export)",
+                    prim.path()
+                ),
+            );
+            return Ok(());
+        };
+        let yfov = 2.0 * (aperture / (2.0 * focal)).atan();
+        self.camera = Some((world, yfov as f32));
         Ok(())
     }
 

@@ -1080,3 +1080,98 @@ fn a_prim_name_that_is_not_an_identifier_is_an_error() {
         }
     }
 }
+
+/// A quad in the z = 0 plane and the given camera prims after it.
+fn quad_with_cameras(up: &str, cameras: &str) -> String {
+    layer(
+        up,
+        &format!(
+            r#"def Mesh "M"
+{{
+    int[] faceVertexCounts = [4]
+    int[] faceVertexIndices = [0, 1, 2, 3]
+    point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+}}
+{cameras}"#
+        ),
+    )
+}
+
+/// A UsdGeomCamera becomes the scene camera: its transform places it (looking down its
+/// local −Z, +Y up), `verticalAperture` over `focalLength` is its field of view, and the
+/// first of two is the one taken.
+#[test]
+fn a_usd_perspective_camera_becomes_the_scene_camera() {
+    let d = dir("camera");
+    let cameras = r#"def Xform "Rig"
+{
+    double3 xformOp:translate = (0, 0, 5)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+    def Camera "Shot"
+    {
+        float focalLength = 35
+        float verticalAperture = 24
+        float xformOp:rotateY = 90
+        uniform token[] xformOpOrder = ["xformOp:rotateY"]
+    }
+}
+def Camera "Second"
+{
+    double3 xformOp:translate = (0, 0, 9)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}"#;
+    let p = write(&d, "shot.usda", &quad_with_cameras("Y", cameras));
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    let cam = m.camera.expect("the first camera");
+    assert!(
+        (cam.from - Vec3::new(0.0, 0.0, 5.0)).length() < 1e-5,
+        "{}",
+        cam.from
+    );
+    // Turned 90° about +Y, its −Z looks along −X.
+    let dir = (cam.to - cam.from).normalize();
+    assert!((dir - Vec3::NEG_X).length() < 1e-5, "{dir}");
+    assert!((cam.up - Vec3::Y).length() < 1e-5, "{}", cam.up);
+    let want = 2.0 * (12.0f32 / 35.0).atan().to_degrees();
+    assert!(
+        (cam.yfov_deg - want).abs() < 1e-3,
+        "{} against {want}",
+        cam.yfov_deg
+    );
+
+    // Not authored: USD's defaults (15.2908 over 50, 17.4°).
+    let p = write(
+        &d,
+        "default.usda",
+        &quad_with_cameras("Z", "def Camera \"C\"\n{\n}"),
+    );
+    let cam = load_mesh(&p, &MeshOptions::default())
+        .unwrap()
+        .camera
+        .unwrap();
+    let want = 2.0 * (15.2908f32 / 100.0).atan().to_degrees();
+    assert!((cam.yfov_deg - want).abs() < 1e-3, "{}", cam.yfov_deg);
+}
+
+/// A camera that cannot be rendered through is left out, the mesh still loads: an
+/// orthographic one, one with a focal length of 0 (a field of view of 180°) or a negative
+/// one (an image turned over), and one whose focal length is not a number.
+#[test]
+fn a_usd_camera_that_cannot_be_rendered_through_is_left_out() {
+    let d = dir("bad-camera");
+    for (i, body) in [
+        "token projection = \"orthographic\"",
+        "float focalLength = 0",
+        "float focalLength = -35",
+        "string focalLength = \"wide\"",
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let cameras = format!("def Camera \"C\"\n{{\n    {body}\n}}");
+        let p = write(&d, &format!("c{i}.usda"), &quad_with_cameras("Y", &cameras));
+        let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+        assert!(m.camera.is_none(), "{body}: {:?}", m.camera);
+        assert_eq!(m.triangle_count(), 2, "{body}");
+    }
+}
