@@ -33,6 +33,8 @@
 
 // beauty::DIMS: random dimensions per bounce.
 const DIMS: u32 = 8u;
+// beauty::KEY_DIM: the key light's direction's dimension (purpose Light).
+const KEY_DIM: u32 = 2u;
 
 // The path's next step.
 const STEP_CAMERA: u32 = 0u;
@@ -123,6 +125,21 @@ fn rand2(ctx: RayContext, bounce: u32, k: u32, purpose: u32) -> vec2f {
         random(ctx.pixel, ctx.sample, d, purpose, ctx.seed),
         random(ctx.pixel, ctx.sample, d + 1u, purpose, ctx.seed),
     );
+}
+
+// KeyLight::sample_dir: the key light's direction for random numbers `u`, uniform over its
+// disc's cone (the direction itself for a point-like light).
+fn key_sample_dir(u: vec2f) -> vec3f {
+    let d = lighting.key_dir;
+    let cos_r = lighting.key_cos_radius;
+    if (cos_r >= 1.0) {
+        return d;
+    }
+    let c = 1.0 - u.x * (1.0 - cos_r);
+    let s = sqrt(max(1.0 - c * c, 0.0));
+    let phi = 2.0 * PI * u.y;
+    let basis = onb(d);
+    return normalize(basis.t * (s * cos(phi)) + basis.b * (s * sin(phi)) + d * c);
 }
 
 // beauty::shadow_ray (t_max = +∞).
@@ -249,12 +266,13 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let up = lighting.ground_up;
         let origin = (*s).ground_p + up * eps;
         if (lighting.has_key != 0u) {
-            let cos_k = dot(lighting.key_dir, up);
+            let kd = key_sample_dir(rand2(ctx, 0u, KEY_DIM, PURPOSE_LIGHT));
+            let cos_k = dot(kd, up);
             if (cos_k > 0.0) {
                 (*s).key_e = lighting.key_irradiance * cos_k;
                 (*s).ground_all += (*s).key_e;
                 (*s).key_shadow_rays += 1u;
-                q0 = query(shadow_ray(origin, lighting.key_dir), 0u, true);
+                q0 = query(shadow_ray(origin, kd), 0u, true);
             }
         }
         if (env_lights) {
@@ -280,7 +298,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let wo_l = to_local(wo, basis.t, basis.b, ns);
         let p = hit.position;
         if (lighting.has_key != 0u) {
-            let kd = lighting.key_dir;
+            let kd = key_sample_dir(rand2(ctx, bounce, KEY_DIM, PURPOSE_LIGHT));
             let wi_l = to_local(kd, basis.t, basis.b, ns);
             var f = vec3f(0.0);
             if (dot(kd, ng) > 0.0) {

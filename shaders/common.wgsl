@@ -117,7 +117,7 @@ struct Lighting {
     env_from_sin: f32,   // sin, cos of +rotation (env_to_world)
     env_from_cos: f32,
     exposure: f32,       // the preview's exposure factor (tonemap.wgsl)
-    _pad1: u32,
+    key_cos_radius: f32, // cos of the key light's angular radius (1: point-like)
     _pad2: u32,
 }
 

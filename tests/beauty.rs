@@ -352,6 +352,74 @@ fn exposure_brightens_the_previews_and_leaves_the_exr_linear() {
     }
 }
 
+/// `--key-angle`: a key light with a size softens the shadows it casts (on the ground
+/// catcher: more pixels partly shadowed; measured 110 against 47) and lights the asset with the same irradiance (the
+/// lit sphere as bright within a few percent); it needs a key light and a sane angle.
+#[test]
+fn a_key_light_with_an_angle_casts_soft_shadows_at_the_same_irradiance() {
+    let dir = temp_dir("key-angle");
+    let sphere = example("sphere/sphere.glb");
+    let render = |angle: &str| {
+        let out = dir.join(format!("angle{angle}"));
+        run(&[
+            "render",
+            s(&sphere),
+            "--res",
+            "40x40",
+            "--spp",
+            "16",
+            "--aov",
+            "mask,beauty",
+            "--env-intensity",
+            "0",
+            "--key-light",
+            "100,25,3",
+            "--key-angle",
+            angle,
+            "--ground",
+            "--no-cache",
+            "-o",
+            s(&out),
+        ])
+        .assert_success();
+        let rgba = read_rgba(&out.join("beauty.exr"));
+        let [mask] = read_channels(&out.join("mask.exr"), ["Y"]);
+        let lit: Vec<f64> = (rgba.iter().zip(&mask))
+            .filter(|(_, m)| **m > 0.5)
+            .map(|(p, _)| (p[0] + p[1] + p[2]) as f64)
+            .collect();
+        let penumbra = (rgba.iter().zip(&mask))
+            .filter(|(p, m)| **m < 0.5 && p[3] > 0.1 && p[3] < 0.9)
+            .count();
+        (lit.iter().sum::<f64>() / lit.len() as f64, penumbra)
+    };
+    let (hard, soft) = (render("0"), render("30"));
+    assert!(
+        (soft.0 / hard.0 - 1.0).abs() < 0.05,
+        "the asset's light: {} soft against {} hard",
+        soft.0,
+        hard.0
+    );
+    assert!(
+        soft.1 * 5 > hard.1 * 8,
+        "partly shadowed ground pixels: {} soft against {} hard",
+        soft.1,
+        hard.1
+    );
+    for (args, needle) in [
+        (vec!["--key-angle", "5"], "--key-angle needs --key-light"),
+        (
+            vec!["--key-light", "0,30,1", "--key-angle", "120"],
+            "--key-angle 120",
+        ),
+    ] {
+        let mut all = vec!["render", s(&sphere), "--aov", "beauty"];
+        all.extend(args);
+        all.extend(["-o", s(&dir)]);
+        run(&all).assert_error(&[needle]);
+    }
+}
+
 fn batch_folder() -> PathBuf {
     let dir = temp_dir("batch-in");
     std::fs::copy(example("sphere/sphere.glb"), dir.join("sphere.glb")).unwrap();

@@ -163,6 +163,10 @@ pub struct LookArgs {
     /// camera's side, 90 = +X), and its irradiance.
     #[arg(long, value_name = "AZ,EL,INTENSITY", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub key_light: Option<[f32; 3]>,
+    /// The key light's angular diameter in degrees (0 = point-like, hard shadows; the sun is
+    /// about 0.5; a few degrees soften the displacement's self-shadowing as an overcast sun).
+    #[arg(long, value_name = "DEG", default_value_t = 0.0)]
+    pub key_angle: f32,
     /// Base colour (linear R,G,B in [0, 1]), in place of the glTF material's colour and
     /// base-colour texture; default: the material's, else 0.8 grey.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]

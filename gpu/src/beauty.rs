@@ -39,6 +39,7 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
     GpuLighting {
         key_dir: key.map_or([0.0; 3], |k| k.dir.to_array()),
         key_irradiance: key.map_or(0.0, |k| k.irradiance),
+        key_cos_radius: key.map_or(1.0, |k| k.cos_radius),
         ground_up: ground.map_or([0.0, 1.0, 0.0], |g| g.up.to_array()),
         ground_height: ground.map_or(0.0, |g| g.height),
         eps: s.eps,

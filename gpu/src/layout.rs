@@ -293,7 +293,8 @@ pub struct GpuLighting {
     pub env_from_cos: f32,
     /// The preview's exposure factor (`BeautyScene::exposure`), for `tonemap.wgsl`.
     pub exposure: f32,
-    pub _pad1: u32,
+    /// Cosine of the key light's angular radius (`KeyLight::cos_radius`; 1: point-like).
+    pub key_cos_radius: f32,
     pub _pad2: u32,
 }
 
@@ -479,7 +480,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_from_sin,
                 env_from_cos,
                 exposure,
-                _pad1,
+                key_cos_radius,
                 _pad2
             }
         ),

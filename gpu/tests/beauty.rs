@@ -299,8 +299,8 @@ fn preview_agrees(rel: &str, label: &str, gpu: &BeautyImage) {
 
 #[test]
 fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
-    // The lookdev default: built-in sky, a key light with shadow rays, the shadow catcher,
-    // Lambert + GGX (roughness 0.5), two bounces.
+    // The lookdev default: built-in sky, a soft key light with shadow rays, the shadow
+    // catcher, Lambert + GGX (roughness 0.5), two bounces.
     let rel = "sphere/sphere.glb";
     let ex = example_scene(rel);
     assert_eq!(ex.up_axis, UpAxis::Y);
@@ -316,7 +316,8 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
         env: &env,
         env_frame: env.frame,
         env_lights: true,
-        key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false)),
+        // A disc 6° across: its shadow rays draw their directions (KeyLight::sample_dir).
+        key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false).with_angle(6.0)),
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
         prisms: &ex.scene.table.prisms,

@@ -123,6 +123,7 @@ fn beauty_constants_are_mirrored() {
         );
     }
     assert_eq!(constant(&m, "DIMS"), naga::Literal::U32(beauty::DIMS));
+    assert_eq!(constant(&m, "KEY_DIM"), naga::Literal::U32(beauty::KEY_DIM));
     assert_eq!(
         constant(&m, "TEX_PACKED"),
         naga::Literal::U32(prismbake_gpu::beauty::TEX_PACKED)

@@ -41,6 +41,10 @@ pub const DIMS: u32 = 8;
 pub struct KeyLight {
     pub dir: Vec3,
     pub irradiance: f32,
+    /// Cosine of the light's angular radius: 1 for a point-like sun (one direction, hard
+    /// shadows), below 1 for a disc whose directions each shadow ray draws from (soft
+    /// shadows; `--key-angle`, Cycles' sun angle). The irradiance is the disc's whole.
+    pub cos_radius: f32,
 }
 
 impl KeyLight {
@@ -57,9 +61,36 @@ impl KeyLight {
         KeyLight {
             dir: dir.normalize(),
             irradiance,
+            cos_radius: 1.0,
         }
     }
+
+    /// The same light as a disc `diameter_deg` degrees across (0: point-like).
+    pub fn with_angle(self, diameter_deg: f32) -> Self {
+        KeyLight {
+            cos_radius: (0.5 * diameter_deg).to_radians().cos(),
+            ..self
+        }
+    }
+
+    /// The direction a shadow ray towards the light takes for random numbers `u`: `dir`
+    /// itself for a point-like light, else uniform in solid angle over the disc's cone.
+    #[inline]
+    pub fn sample_dir(&self, u: Vec2) -> Vec3 {
+        if self.cos_radius >= 1.0 {
+            return self.dir;
+        }
+        let cos = 1.0 - u.x * (1.0 - self.cos_radius);
+        let sin = (1.0 - cos * cos).max(0.0).sqrt();
+        let phi = 2.0 * std::f32::consts::PI * u.y;
+        let (t, b) = shading::onb(self.dir);
+        (t * (sin * phi.cos()) + b * (sin * phi.sin()) + self.dir * cos).normalize()
+    }
 }
+
+/// Random dimension (`rand2`'s `k`, purpose `Light`) of the key light's direction; the
+/// environment's sample takes 0 and 1.
+pub const KEY_DIM: u32 = 2;
 
 /// Shadow-catcher ground: the plane `p·up = height`, seen only by camera rays.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -339,11 +370,12 @@ fn ground_light(
     let origin = p + g.up * s.eps;
     let (mut lit, mut all) = (0.0, 0.0);
     if let Some(k) = s.key {
-        let cos = k.dir.dot(g.up);
+        let kd = k.sample_dir(rand2(ctx, 0, KEY_DIM, Purpose::Light));
+        let cos = kd.dot(g.up);
         if cos > 0.0 {
             all += k.irradiance * cos;
             n.key_shadow_rays += 1;
-            if !isect.occluded(&shadow_ray(origin, k.dir), ctx) {
+            if !isect.occluded(&shadow_ray(origin, kd), ctx) {
                 lit += k.irradiance * cos;
             }
         }
@@ -389,18 +421,16 @@ fn surface_radiance(
         };
 
         if let Some(k) = s.key {
-            let wi_l = shading::to_local(k.dir, t, b, ns);
-            let f = if k.dir.dot(ng) > 0.0 {
+            let kd = k.sample_dir(rand2(ctx, bounce, KEY_DIM, Purpose::Light));
+            let wi_l = shading::to_local(kd, t, b, ns);
+            let f = if kd.dot(ng) > 0.0 {
                 bsdf_eval(m, wo_l, wi_l)
             } else {
                 Vec3::ZERO
             };
             if f.max_element() > 0.0 {
                 n.key_shadow_rays += 1;
-                if !isect.occluded(
-                    &shadow_ray(offset_origin(p, ng, k.dir, s.eps), k.dir),
-                    &bctx,
-                ) {
+                if !isect.occluded(&shadow_ray(offset_origin(p, ng, kd, s.eps), kd), &bctx) {
                     radiance += throughput * f * k.irradiance;
                 }
             }

@@ -43,6 +43,9 @@ use std::time::{Duration, Instant, SystemTime};
 /// finite number, and no display needs more).
 pub const MAX_EXPOSURE_EV: f32 = 32.0;
 
+/// The widest `--key-angle`, degrees: a disc a quarter of the sky across.
+pub const MAX_KEY_ANGLE_DEG: f32 = 90.0;
+
 /// Beauty and caching settings (the part of a render the AOV job does not have).
 #[derive(Clone, Debug)]
 pub struct LookdevOptions {
@@ -52,6 +55,9 @@ pub struct LookdevOptions {
     pub env_intensity: f32,
     /// (azimuth°, elevation°, irradiance).
     pub key_light: Option<[f32; 3]>,
+    /// The key light's angular diameter in degrees (`--key-angle`): 0 is a point-like sun
+    /// with hard shadows, more a disc with soft ones.
+    pub key_angle_deg: f32,
     /// Overrides the mesh's material colour and texture (linear RGB).
     pub base_color: Option<Vec3>,
     /// Override the mesh's material's factors (default: its own, else `DEFAULT_ROUGHNESS`,
@@ -78,6 +84,7 @@ impl Default for LookdevOptions {
             env_rotate_deg: 0.0,
             env_intensity: 1.0,
             key_light: None,
+            key_angle_deg: 0.0,
             base_color: None,
             roughness: None,
             metallic: None,
@@ -136,6 +143,17 @@ impl LookdevOptions {
                     "--key-light {az},{el},{i}: expected AZIMUTH,ELEVATION,INTENSITY with elevation in [-90, 90] and intensity >= 0"
                 )));
             }
+        }
+        if !(0.0..=MAX_KEY_ANGLE_DEG).contains(&self.key_angle_deg) {
+            return Err(Error::Param(format!(
+                "--key-angle {}: must be an angular diameter in [0, {MAX_KEY_ANGLE_DEG}] degrees",
+                self.key_angle_deg
+            )));
+        }
+        if self.key_angle_deg > 0.0 && self.key_light.is_none() {
+            return Err(Error::Param(
+                "--key-angle needs --key-light AZ,EL,INTENSITY (the light it widens)".into(),
+            ));
         }
         if let Some(c) = self.base_color {
             if !(c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0) {
@@ -818,9 +836,9 @@ pub fn render_all(
         env,
         env_frame: env.frame,
         env_lights: env.total_weight > 0.0,
-        key: opts
-            .key_light
-            .map(|[az, el, i]| KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z)),
+        key: opts.key_light.map(|[az, el, i]| {
+            KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z).with_angle(opts.key_angle_deg)
+        }),
         materials: &materials,
         textures: &s.materials.textures,
         prisms: &s.scene.table.prisms,
