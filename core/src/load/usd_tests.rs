@@ -645,6 +645,42 @@ fn deep_nesting_is_an_error_and_the_limit_loads_on_a_small_stack() {
     assert!(check_nesting(&quoted).is_ok());
 }
 
+/// Square brackets nested inside square brackets, which openusd parses in time and memory
+/// that double with every level (the fuzzed `dices = [0a [[[…` of 174 bytes held 24 GB), are
+/// refused past `MAX_USDA_ARRAY_NESTING` wherever they are; list ops, arrays of tuples and
+/// brackets closed before the next opens are not nesting.
+#[test]
+fn square_brackets_nested_in_square_brackets_are_an_error() {
+    let d = dir("arrays");
+    let nested = |k: usize| "[".repeat(k) + "1" + &"]".repeat(k);
+    for (name, text) in [
+        (
+            "meta.usda",
+            format!("#usda 1.0\n(\n    dices = {}\n)\n", nested(40)),
+        ),
+        (
+            "attr.usda",
+            layer("Y", &format!("def Mesh \"M\"\n{{\n    int[] x = {}\n}}", nested(9))),
+        ),
+    ] {
+        let e = check_nesting(&write(&d, name, &text)).unwrap_err().to_string();
+        assert!(
+            e.contains(name) && e.contains("square brackets nested more than 8"),
+            "{e}"
+        );
+    }
+    let fine = layer(
+        "Y",
+        &format!(
+            "def Mesh \"M\" (\n    prepend apiSchemas = [\"A\", \"B\"]\n)\n{{\n    \
+             point3f[] points = [(0, 0, 0), (1, 0, 0)]\n    int[] y = {}\n    int[] z = {}\n}}",
+            nested(MAX_USDA_ARRAY_NESTING),
+            "[1] ".repeat(50)
+        ),
+    );
+    assert!(check_nesting(&write(&d, "fine.usda", &fine)).is_ok());
+}
+
 /// Fuzzed binary layers that made the reader's allocation fail, which aborts the process: a
 /// PATHS section stating a 4.4 TB compressed block, an array value of 1.5 × 10¹¹ elements, a
 /// token vector of 4.5 × 10¹⁵ entries, a list op of 6.5 × 10¹⁷ items, an inlined token array,
