@@ -163,12 +163,21 @@ fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Res
     if *i >= bytes.len() || bytes[*i] != b'"' {
         return Ok(());
     }
-    let Some(len) = bytes[*i + 1..]
+    // A quoted name ends on its line: openusd reads one that runs on (with `/` or `}` in
+    // it) as path syntax and recursed without end, or looped for minutes.
+    let len = bytes[*i + 1..]
         .iter()
         .position(|&b| b == b'"' || b == b'\n')
-    else {
-        return Ok(());
-    };
+        .filter(|&len| bytes[*i + 1 + len] == b'"')
+        .ok_or_else(|| {
+            Error::invalid(
+                path,
+                format!(
+                    "line {line}: a prim name's quotes are not closed on its line; the file is \
+                     corrupt (re-export it)"
+                ),
+            )
+        })?;
     let name = String::from_utf8_lossy(&bytes[*i + 1..*i + 1 + len]);
     if !is_identifier(&name) {
         return Err(Error::invalid(

@@ -660,10 +660,15 @@ fn square_brackets_nested_in_square_brackets_are_an_error() {
         ),
         (
             "attr.usda",
-            layer("Y", &format!("def Mesh \"M\"\n{{\n    int[] x = {}\n}}", nested(9))),
+            layer(
+                "Y",
+                &format!("def Mesh \"M\"\n{{\n    int[] x = {}\n}}", nested(9)),
+            ),
         ),
     ] {
-        let e = check_nesting(&write(&d, name, &text)).unwrap_err().to_string();
+        let e = check_nesting(&write(&d, name, &text))
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains(name) && e.contains("square brackets nested more than 8"),
             "{e}"
@@ -1115,6 +1120,37 @@ fn a_prim_name_that_is_not_an_identifier_is_an_error() {
             assert!(!e.contains("identifier"), "{name}: {e}");
         }
     }
+}
+
+/// A quoted prim name that runs past its line (the fuzzed `def Mh "qq⏎#…⏎}⏎…/icuad"`, whose
+/// first line alone is an identifier) sent openusd into endless recursion (a stack overflow
+/// with `/` in the rest) or a loop of minutes: it is refused, naming the line, before the
+/// reader sees it. The name closed on its line still loads.
+#[test]
+fn a_prim_name_whose_quotes_run_past_its_line_is_an_error() {
+    let d = dir("primname-lines");
+    for (name, text) in [
+        (
+            "runs-on.usda",
+            "#usda 1.0\n\ndef Mh \"qq\n#x\n}\n\nz/icuad\"  {\n}\n",
+        ),
+        ("unclosed.usda", "#usda 1.0\n\ndef Mesh \"quad"),
+    ] {
+        let e = load_mesh(&write(&d, name, text), &MeshOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(name) && e.contains("line 3") && e.contains("not closed on its line"),
+            "{e}"
+        );
+    }
+    let fine = write(&d, "fine.usda", &quad_with_cameras("Y", ""));
+    assert_eq!(
+        load_mesh(&fine, &MeshOptions::default())
+            .unwrap()
+            .triangle_count(),
+        2
+    );
 }
 
 /// A quad in the z = 0 plane and the given camera prims after it.
