@@ -353,8 +353,9 @@ fn exposure_brightens_the_previews_and_leaves_the_exr_linear() {
 }
 
 /// `--key-angle`: a key light with a size softens the shadows it casts (on the ground
-/// catcher: more pixels partly shadowed; measured 110 against 47) and lights the asset with the same irradiance (the
-/// lit sphere as bright within a few percent); it needs a key light and a sane angle.
+/// catcher: more pixels partly shadowed; measured 110 against 47) and lights the asset with
+/// the same irradiance (the lit sphere as bright within a few percent); it needs a key light
+/// and a sane angle.
 #[test]
 fn a_key_light_with_an_angle_casts_soft_shadows_at_the_same_irradiance() {
     let dir = temp_dir("key-angle");

@@ -192,16 +192,17 @@ fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Res
 }
 
 /// Refuse a text layer nested deeper than `MAX_USDA_NESTING` (strings and comments skipped),
-/// or with a prim whose name is not an identifier.
+/// with square brackets nested deeper than `MAX_USDA_ARRAY_NESTING`, or with a prim whose
+/// name is not an identifier or whose quotes do not close on its line.
 /// Binary layers (`PXR-USDC`) are not scanned.
 fn check_nesting(path: &Path) -> Result<()> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if bytes.starts_with(b"PXR-USDC") {
         return super::usdc_check::check(path, &bytes);
     }
-    let (mut depth, mut deepest, mut line, mut deepest_line) = (0usize, 0usize, 1usize, 1usize);
-    // Open brackets, innermost last: what a closing bracket closes, and so how many `[` are
-    // open inside one another.
+    let (mut deepest, mut line, mut deepest_line) = (0usize, 1usize, 1usize);
+    // Open brackets, innermost last: how deep the text is nested, what a closing bracket
+    // closes, and so how many `[` are open inside one another.
     let mut open: Vec<u8> = Vec::new();
     let mut squares = 0usize;
     let mut i = 0;
@@ -245,11 +246,10 @@ fn check_nesting(path: &Path) -> Result<()> {
                 continue;
             }
             b @ (b'{' | b'(' | b'[') => {
-                depth += 1;
-                if depth > deepest {
-                    (deepest, deepest_line) = (depth, line);
-                }
                 open.push(b);
+                if open.len() > deepest {
+                    (deepest, deepest_line) = (open.len(), line);
+                }
                 if b == b'[' {
                     squares += 1;
                     if squares > MAX_USDA_ARRAY_NESTING {
@@ -264,12 +264,7 @@ fn check_nesting(path: &Path) -> Result<()> {
                     }
                 }
             }
-            b'}' | b')' | b']' => {
-                if open.pop() == Some(b'[') {
-                    squares -= 1;
-                }
-                depth = depth.saturating_sub(1);
-            }
+            b'}' | b')' | b']' => squares -= (open.pop() == Some(b'[')) as usize,
             _ => {}
         }
         i += 1;
