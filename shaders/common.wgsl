@@ -121,19 +121,27 @@ struct Lighting {
     _pad2: u32,
 }
 
-// GpuMaterial, 48 bytes: beauty::SurfaceMaterial, its base-colour texture in texture_texels
-// (texture.wgsl; 0 x 0: none).
+// GpuMaterialTexture, 24 bytes: one texture of a material in texture_texels (texture.wgsl;
+// 0 x 0: none).
+struct MaterialTexture {
+    width: u32,
+    height: u32,
+    offset: u32,    // its first float in texture_texels
+    sampler: u32,   // gpu::layout::texture_sampler_code; bit 5: packed (beauty::TEX_PACKED)
+    table: u32,     // a packed texture's 8-bit code table, its first float in texture_texels
+    channel: u32,   // the channel a roughness or metallic texture is read from
+}
+
+// GpuMaterial, 96 bytes: beauty::SurfaceMaterial, its base-colour, roughness and metallic
+// textures.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
     metallic: f32,
     specular: f32,
-    tex_width: u32,
-    tex_height: u32,
-    tex_offset: u32,     // its first float in texture_texels
-    tex_sampler: u32,    // gpu::layout::texture_sampler_code; bit 5: packed (beauty::TEX_PACKED)
-    tex_table: u32,      // a packed texture's 8-bit sRGB table, its first float in texture_texels
-    _pad: u32,
+    color_tex: MaterialTexture,
+    roughness_tex: MaterialTexture,
+    metallic_tex: MaterialTexture,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -491,9 +491,13 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
     for m in &summary.materials {
         let what = prismbake::render::lookdev::describe_material(
             m.base_color,
-            m.texture.as_deref(),
             m.roughness,
             m.metallic,
+            [
+                m.texture.as_deref(),
+                m.roughness_texture.as_deref(),
+                m.metallic_texture.as_deref(),
+            ],
         );
         eprintln!(
             "beauty material '{}' ({} prisms): {what}, specular {}",

@@ -65,6 +65,61 @@ pub struct MeshMaterial {
     /// The base-colour texture, multiplied into `base_color` (decoded when a beauty render
     /// needs it, `texture::ColorMap::load`).
     pub base_color_texture: Option<crate::texture::TextureRef>,
+    /// A texture channel multiplied into `roughness` (glTF's metallic-roughness texture's
+    /// green).
+    pub roughness_texture: Option<crate::texture::ChannelRef>,
+    /// A texture channel multiplied into `metallic` (the metallic-roughness texture's blue).
+    pub metallic_texture: Option<crate::texture::ChannelRef>,
+}
+
+impl MeshMaterial {
+    /// A material of these factors without textures.
+    pub fn plain(name: String, base_color: [f32; 4], roughness: f32, metallic: f32) -> Self {
+        MeshMaterial {
+            name,
+            base_color,
+            roughness,
+            metallic,
+            base_color_texture: None,
+            roughness_texture: None,
+            metallic_texture: None,
+        }
+    }
+
+    /// Its textures, each with the input it feeds, in the order base colour, roughness,
+    /// metallic (one image may feed two).
+    pub fn textures(&self) -> Vec<(crate::texture::TextureSlot, &crate::texture::TextureRef)> {
+        use crate::texture::TextureSlot;
+        let mut out = vec![];
+        if let Some(t) = &self.base_color_texture {
+            out.push((TextureSlot::BaseColor, t));
+        }
+        if let Some(c) = &self.roughness_texture {
+            out.push((TextureSlot::Roughness, &c.texture));
+        }
+        if let Some(c) = &self.metallic_texture {
+            out.push((TextureSlot::Metallic, &c.texture));
+        }
+        out
+    }
+
+    /// Its distinct textures, each with the inputs it feeds (`textures`, an image that feeds
+    /// two once).
+    pub fn texture_uses(
+        &self,
+    ) -> Vec<(
+        Vec<crate::texture::TextureSlot>,
+        &crate::texture::TextureRef,
+    )> {
+        let mut out: Vec<(Vec<_>, &crate::texture::TextureRef)> = vec![];
+        for (slot, t) in self.textures() {
+            match out.iter_mut().find(|(_, u)| *u == t) {
+                Some((slots, _)) => slots.push(slot),
+                None => out.push((vec![slot], t)),
+            }
+        }
+        out
+    }
 }
 
 /// Most materials a mesh may have: a prism keeps its material's index in the upper 24 bits of

@@ -1,9 +1,12 @@
-//! Colour textures: the glTF material's base-colour texture, which the beauty multiplies into
-//! its base colour at each hit's UV.
+//! Material textures: the base-colour texture, which the beauty multiplies into its base colour
+//! at each hit's UV, and the roughness and metallic textures, one channel of which multiplies
+//! the material's factor (glTF's `metallicRoughnessTexture`: roughness in green, metallic in
+//! blue).
 //!
 //! A loader records where the texture is (`TextureRef`, cheap); `ColorMap::load` decodes it
-//! (PNG or JPEG) only when a beauty render needs it. Texels are stored linear (glTF base-colour
-//! textures are sRGB-encoded), row 0 at the top of the image, and sampled with the height
+//! (PNG or JPEG) only when a beauty render needs it. Texels are stored linear (a colour
+//! texture's sRGB codes decoded, a data texture's codes as they are: `ColorSpace`), row 0 at
+//! the top of the image, and sampled with the height
 //! map's conventions (`HeightMap::texel_coords`: texel centres at `(i + 0.5) / N`, `v` up), with
 //! the glTF sampler's wrap modes per axis and its magnification filter (bilinear unless it
 //! asks for nearest). There is no mip chain: a minified texture aliases per sample, and the
@@ -72,6 +75,47 @@ pub struct Sampler {
     pub nearest: bool,
 }
 
+/// How a texture's stored codes become linear values.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ColorSpace {
+    /// sRGB-encoded colour (glTF's base-colour texture, an `.mtl`'s `map_Kd`).
+    #[default]
+    Srgb,
+    /// Data, read as stored (glTF's metallic-roughness texture, USD's `raw`).
+    Raw,
+    /// USD's `auto`: sRGB for an 8-bit image of 3 or 4 channels, else raw (UsdUVTexture's
+    /// rule where the file carries no colour-space metadata).
+    Auto,
+}
+
+/// Which material input a texture feeds: names it in messages and the flag that overrides it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TextureSlot {
+    BaseColor,
+    Roughness,
+    Metallic,
+}
+
+impl TextureSlot {
+    /// "base-colour", "roughness", "metallic".
+    pub fn name(self) -> &'static str {
+        match self {
+            TextureSlot::BaseColor => "base-colour",
+            TextureSlot::Roughness => "roughness",
+            TextureSlot::Metallic => "metallic",
+        }
+    }
+
+    /// The command-line setting that replaces the input, texture and all.
+    pub fn flag(self) -> &'static str {
+        match self {
+            TextureSlot::BaseColor => "--base-color R,G,B",
+            TextureSlot::Roughness => "--roughness R",
+            TextureSlot::Metallic => "--metallic M",
+        }
+    }
+}
+
 /// Where a texture's encoded image is.
 #[derive(Clone, Debug, PartialEq)]
 pub enum TextureData {
@@ -92,9 +136,24 @@ pub struct TextureRef {
     pub tex_coord: u32,
     /// The file transforms its UVs (`KHR_texture_transform`), which is not applied.
     pub transformed: bool,
+    pub color_space: ColorSpace,
 }
 
-/// A decoded colour texture: linear RGB texels, row-major, row 0 at the top of the image.
+/// A scalar material input read from one channel of a texture (0 red, 1 green, 2 blue).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChannelRef {
+    pub texture: TextureRef,
+    pub channel: u8,
+}
+
+impl ChannelRef {
+    /// "r", "g" or "b".
+    pub fn channel_name(&self) -> &'static str {
+        ["r", "g", "b"][self.channel.min(2) as usize]
+    }
+}
+
+/// A decoded texture: linear RGB texels, row-major, row 0 at the top of the image.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ColorMap {
     pub width: u32,
@@ -104,10 +163,15 @@ pub struct ColorMap {
     pub name: String,
 }
 
-/// The linear value of each 8-bit sRGB code: what an 8-bit texture's texels are made of (the
-/// GPU keeps such a texture as its codes and this table, `gpu::beauty::TextureLayout`).
+/// The linear value of each 8-bit sRGB code: what an 8-bit colour texture's texels are made of
+/// (the GPU keeps such a texture as its codes and this table, `gpu::beauty::TextureLayout`).
 pub fn srgb8_table() -> [f32; 256] {
     std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0))
+}
+
+/// The value of each 8-bit code of a data texture, `code / 255` (`ColorSpace::Raw`).
+pub fn raw8_table() -> [f32; 256] {
+    std::array::from_fn(|i| i as f32 / 255.0)
 }
 
 /// sRGB transfer function, decoded: an encoded value in [0, 1] to linear.
@@ -121,17 +185,20 @@ pub fn srgb_to_linear(x: f32) -> f32 {
 }
 
 impl ColorMap {
-    /// Decode `texture` of the asset `asset` (PNG or JPEG, any bit depth; alpha is dropped)
-    /// from sRGB into linear texels.
-    pub fn load(asset: &Path, texture: &TextureRef) -> Result<ColorMap> {
+    /// Decode `texture` of the asset `asset`, which feeds `slot` (for messages): PNG or JPEG,
+    /// any bit depth, grey or colour; alpha is dropped, grey becomes three equal channels, and
+    /// the codes become linear values by the texture's `ColorSpace`.
+    pub fn load(asset: &Path, texture: &TextureRef, slot: TextureSlot) -> Result<ColorMap> {
         use ::image::{ImageReader, Limits};
         let name = &texture.name;
         let bad = |what: String| {
             Error::invalid(
                 asset,
                 format!(
-                    "base-colour texture '{name}': {what} (fix or re-export the texture, or pass \
-                     --base-color R,G,B to shade without it)"
+                    "{} texture '{name}': {what} (fix or re-export the texture, or pass {} to \
+                     shade without it)",
+                    slot.name(),
+                    slot.flag()
                 ),
             )
         };
@@ -150,7 +217,7 @@ impl ColorMap {
                 Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) => {}
                 Some(f) => {
                     return Err(bad(format!(
-                        "is {f:?}; glTF base-colour textures are PNG or JPEG"
+                        "is {f:?}; material textures are read from PNG or JPEG"
                     )))
                 }
                 None => return Err(bad("is neither PNG nor JPEG".into())),
@@ -197,19 +264,35 @@ impl ColorMap {
         if (image.width(), image.height()) != (width, height) {
             return Err(bad("decodes to another size than its header says".into()));
         }
-        // Straight to linear texels: 8-bit images through a table, others through f32.
-        let texels: Vec<Vec3> = match &image {
-            ::image::DynamicImage::ImageRgb8(b) => {
-                let lut = srgb8_table();
-                b.pixels()
-                    .map(|p| Vec3::from_array(p.0.map(|c| lut[c as usize])))
-                    .collect()
-            }
-            other => other
+        // Straight to linear texels: 8-bit images (grey or colour, with or without alpha)
+        // through a table, others through f32.
+        let kind = image.color();
+        let eight_bit = kind.bits_per_pixel() == 8 * u16::from(kind.channel_count());
+        let srgb = match texture.color_space {
+            ColorSpace::Srgb => true,
+            ColorSpace::Raw => false,
+            ColorSpace::Auto => eight_bit && kind.channel_count() >= 3,
+        };
+        let texels: Vec<Vec3> = if eight_bit {
+            let lut = if srgb { srgb8_table() } else { raw8_table() };
+            let converted;
+            let rgb8 = match &image {
+                ::image::DynamicImage::ImageRgb8(b) => b,
+                other => {
+                    converted = other.to_rgb8();
+                    &converted
+                }
+            };
+            rgb8.pixels()
+                .map(|p| Vec3::from_array(p.0.map(|c| lut[c as usize])))
+                .collect()
+        } else {
+            let decode: fn(f32) -> f32 = if srgb { srgb_to_linear } else { |x| x };
+            image
                 .to_rgb32f()
                 .pixels()
-                .map(|p| Vec3::from_array(p.0.map(srgb_to_linear)))
-                .collect(),
+                .map(|p| Vec3::from_array(p.0.map(decode)))
+                .collect()
         };
         Ok(ColorMap {
             width,
@@ -370,8 +453,9 @@ mod tests {
             sampler: Sampler::default(),
             tex_coord: 0,
             transformed: false,
+            color_space: ColorSpace::Srgb,
         };
-        let m = ColorMap::load(Path::new("a.gltf"), &t).unwrap();
+        let m = ColorMap::load(Path::new("a.gltf"), &t, TextureSlot::BaseColor).unwrap();
         assert_eq!((m.width, m.height), (2, 2));
         assert_eq!(m.texels[0], Vec3::new(1.0, 0.0, 0.0));
         assert!((m.texels[1].y - 0.2158605).abs() < 1e-6, "{}", m.texels[1]);
@@ -380,7 +464,64 @@ mod tests {
             data: TextureData::Embedded(std::fs::read(&path).unwrap()),
             ..t.clone()
         };
-        assert_eq!(ColorMap::load(Path::new("a.glb"), &e).unwrap(), m);
+        assert_eq!(
+            ColorMap::load(Path::new("a.glb"), &e, TextureSlot::BaseColor).unwrap(),
+            m
+        );
+    }
+
+    #[test]
+    fn data_textures_keep_their_codes_and_grey_fills_every_channel() {
+        let encode = |img: ::image::DynamicImage| {
+            let mut png = Vec::new();
+            img.write_to(
+                &mut std::io::Cursor::new(&mut png),
+                ::image::ImageFormat::Png,
+            )
+            .unwrap();
+            png
+        };
+        let rgb8 = encode(::image::DynamicImage::ImageRgb8(
+            ::image::RgbImage::from_pixel(1, 1, ::image::Rgb([0, 128, 255])),
+        ));
+        let grey8 = encode(::image::DynamicImage::ImageLuma8(
+            ::image::GrayImage::from_pixel(1, 1, ::image::Luma([51])),
+        ));
+        let rgb16 = encode(::image::DynamicImage::ImageRgb16(
+            ::image::ImageBuffer::from_pixel(1, 1, ::image::Rgb([0u16, 32768, 65535])),
+        ));
+        let load = |png: &Vec<u8>, color_space| {
+            let t = TextureRef {
+                name: "orm".into(),
+                data: TextureData::Embedded(png.clone()),
+                sampler: Sampler::default(),
+                tex_coord: 0,
+                transformed: false,
+                color_space,
+            };
+            ColorMap::load(Path::new("a.glb"), &t, TextureSlot::Roughness)
+                .unwrap()
+                .texels[0]
+        };
+        let raw = Vec3::new(0.0, 128.0 / 255.0, 1.0);
+        assert_eq!(load(&rgb8, ColorSpace::Raw), raw);
+        assert_eq!(load(&grey8, ColorSpace::Raw), Vec3::splat(0.2));
+        assert_eq!(
+            load(&grey8, ColorSpace::Srgb),
+            Vec3::splat(srgb8_table()[51])
+        );
+        // USD's auto: an 8-bit colour image is sRGB, a grey or 16-bit one raw.
+        assert_eq!(load(&rgb8, ColorSpace::Auto), load(&rgb8, ColorSpace::Srgb));
+        assert_eq!(load(&grey8, ColorSpace::Auto), Vec3::splat(0.2));
+        let wide = load(&rgb16, ColorSpace::Auto);
+        assert!(
+            (wide - Vec3::new(0.0, 32768.0 / 65535.0, 1.0))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        // The raw table is the codes over 255, as the GPU's packed data textures read them.
+        assert_eq!(raw8_table()[128], 128.0 / 255.0);
     }
 
     #[test]
@@ -400,8 +541,9 @@ mod tests {
             sampler: Sampler::default(),
             tex_coord: 0,
             transformed: false,
+            color_space: ColorSpace::Srgb,
         };
-        let m = ColorMap::load(Path::new("a.glb"), &t).unwrap();
+        let m = ColorMap::load(Path::new("a.glb"), &t, TextureSlot::BaseColor).unwrap();
         assert_eq!((m.width, m.height), (16, 8));
         let want = Vec3::new(200.0, 100.0, 50.0).map(|c| srgb_to_linear(c / 255.0));
         let worst = m
@@ -420,6 +562,7 @@ mod tests {
             sampler: Sampler::default(),
             tex_coord: 0,
             transformed: false,
+            color_space: ColorSpace::Srgb,
         };
         let cases = [
             t(TextureData::Embedded(b"not an image".to_vec())),
@@ -429,13 +572,23 @@ mod tests {
             t(TextureData::File("/dev/zero".into())),
         ];
         for case in &cases {
-            let e = ColorMap::load(Path::new("asset.glb"), case)
+            let e = ColorMap::load(Path::new("asset.glb"), case, TextureSlot::BaseColor)
                 .unwrap_err()
                 .to_string();
             assert!(
-                e.contains("asset.glb") && e.contains("'albedo'") && e.contains("--base-color"),
+                e.contains("asset.glb")
+                    && e.contains("base-colour texture 'albedo'")
+                    && e.contains("--base-color"),
                 "{e}"
             );
         }
+        // A data texture's message names its input and the flag that replaces it.
+        let e = ColorMap::load(Path::new("asset.glb"), &cases[0], TextureSlot::Metallic)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("metallic texture 'albedo'") && e.contains("--metallic M"),
+            "{e}"
+        );
     }
 }

@@ -15,7 +15,7 @@ use crate::load;
 use crate::mesh::BaseMesh;
 use crate::prism_file;
 use crate::render::lookdev::{
-    check_material_values, texture_note, texture_readable, LookdevOptions,
+    check_material_values, texture_notes, texture_readable, LookdevOptions,
 };
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
@@ -121,9 +121,9 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
 }
 
 /// The materials the beauty shades with: their values must be numbers (a NaN or infinite base
-/// colour, roughness or metallic fails), and each base-colour texture the beauty reads must
-/// decode (a missing file, a corrupt or unsupported image fails); one it does not read (another
-/// UV set, a texture transform) is a warning.
+/// colour, roughness or metallic fails), and each texture the beauty reads must decode (a
+/// missing file, a corrupt or unsupported image fails); one it does not read (another UV set,
+/// a texture transform) is a warning.
 fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
     let mut read = vec![];
     let mut failures = vec![];
@@ -132,16 +132,24 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
         if let Err(e) = check_material_values(mesh, m, &LookdevOptions::default()) {
             failures.push(e.to_string());
         }
-        let Some(t) = &m.base_color_texture else {
-            continue;
-        };
-        warnings.extend(texture_note(m, uv_set));
-        if !texture_readable(t, uv_set) {
-            continue;
-        }
-        match ColorMap::load(&mesh.source, t) {
-            Ok(c) => read.push(format!("'{}' {}x{}", c.name, c.width, c.height)),
-            Err(e) => failures.push(format!("material '{}': {e}", m.name)),
+        warnings.extend(texture_notes(m, uv_set));
+        for (slots, t) in m.texture_uses() {
+            if !texture_readable(t, uv_set) {
+                continue;
+            }
+            match ColorMap::load(&mesh.source, t, slots[0]) {
+                Ok(c) => {
+                    let uses: Vec<&str> = slots.iter().map(|s| s.name()).collect();
+                    read.push(format!(
+                        "'{}' {}x{} ({})",
+                        c.name,
+                        c.width,
+                        c.height,
+                        uses.join(", ")
+                    ))
+                }
+                Err(e) => failures.push(format!("material '{}': {e}", m.name)),
+            }
         }
     }
     if !failures.is_empty() {
@@ -151,10 +159,10 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
         return Check::warn("textures", warnings.join("; "));
     }
     match read.len() {
-        0 => Check::pass("textures", "no base-colour textures"),
+        0 => Check::pass("textures", "no material textures"),
         n => Check::pass(
             "textures",
-            format!("{n} base-colour texture(s) decode: {}", read.join(", ")),
+            format!("{n} material texture(s) decode: {}", read.join(", ")),
         ),
     }
 }
@@ -450,6 +458,17 @@ pub struct MaterialInfo {
     /// The base-colour texture's name (not decoded here: `validate`'s `textures` check does).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
+    /// "name, channel g": the texture channel that multiplies `roughness`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roughness_texture: Option<String>,
+    /// The same for `metallic`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metallic_texture: Option<String>,
+}
+
+/// "orm.png, channel g".
+fn describe_channel_ref(c: &crate::texture::ChannelRef) -> String {
+    format!("{}, channel {}", c.texture.name, c.channel_name())
 }
 
 /// The materials of `mesh` with their triangle counts, then `default` if some triangle has none.
@@ -469,6 +488,8 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             roughness: m.roughness,
             metallic: m.metallic,
             texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
+            roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
+            metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
         })
         .collect();
     let none = count[mesh.materials.len()];
@@ -480,6 +501,8 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             roughness: crate::render::lookdev::DEFAULT_ROUGHNESS,
             metallic: crate::render::lookdev::DEFAULT_METALLIC,
             texture: None,
+            roughness_texture: None,
+            metallic_texture: None,
         });
     }
     out
@@ -514,9 +537,13 @@ impl InspectInfo {
         for m in &self.materials {
             let what = crate::render::lookdev::describe_material(
                 m.base_color,
-                m.texture.as_deref(),
                 m.roughness,
                 m.metallic,
+                [
+                    m.texture.as_deref(),
+                    m.roughness_texture.as_deref(),
+                    m.metallic_texture.as_deref(),
+                ],
             );
             s.push_str(&format!(
                 "material  '{}': {} triangles, {what}\n",

@@ -208,7 +208,7 @@ fn usdc_corpus_loads_or_fails_cleanly() {
 }
 
 fn load_texture(bytes: &[u8]) -> prismbake::Result<prismbake::texture::ColorMap> {
-    use prismbake::texture::{ColorMap, Sampler, TextureData, TextureRef};
+    use prismbake::texture::{ColorMap, ColorSpace, Sampler, TextureData, TextureRef, TextureSlot};
     ColorMap::load(
         Path::new("fuzz.glb"),
         &TextureRef {
@@ -217,7 +217,9 @@ fn load_texture(bytes: &[u8]) -> prismbake::Result<prismbake::texture::ColorMap>
             sampler: Sampler::default(),
             tex_coord: 0,
             transformed: false,
+            color_space: ColorSpace::Auto,
         },
+        TextureSlot::BaseColor,
     )
 }
 

@@ -1,4 +1,4 @@
-//! bytes → an embedded base-colour texture → `texture::ColorMap::load` (PNG or JPEG through
+//! bytes → an embedded material texture (USD's `auto` colour space) → `texture::ColorMap::load` (PNG or JPEG through
 //! the `image` crate, with the dimension and allocation limits): any input is a clean `Err` or
 //! a map that keeps its invariants (one texel per pixel, each finite and in [0, 1], and a
 //! finite sample at any UV); a panic, abort or runaway allocation is a bug.
@@ -6,7 +6,9 @@
 
 use glam::Vec2;
 use libfuzzer_sys::fuzz_target;
-use prismbake::texture::{ColorMap, Sampler, TexWrap, TextureData, TextureRef};
+use prismbake::texture::{
+    ColorMap, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, TextureSlot,
+};
 use std::path::Path;
 
 /// Inside the image, on its edges, outside it, far off and not finite.
@@ -29,8 +31,10 @@ fuzz_target!(|data: &[u8]| {
         sampler: Sampler::default(),
         tex_coord: 0,
         transformed: false,
+        // sRGB for an 8-bit colour image, raw for grey or 16-bit ones: both decoders' paths.
+        color_space: ColorSpace::Auto,
     };
-    let Ok(mut map) = ColorMap::load(Path::new("fuzz.glb"), &tref) else {
+    let Ok(mut map) = ColorMap::load(Path::new("fuzz.glb"), &tref, TextureSlot::BaseColor) else {
         return;
     };
     assert!(map.width > 0 && map.height > 0);

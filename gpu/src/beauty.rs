@@ -5,7 +5,7 @@
 //!   `BeautyScene`) and the environment: its texels and the CPU's own sampling tables, value
 //!   for value, so importance sampling picks the texels the CPU picks. They go up as three
 //!   textures (`EnvTextures`: bounded by the device's largest texture side, not by a storage
-//!   binding); the base-colour textures' linear texels in a buffer of their own
+//!   binding); the material textures' linear texels in a buffer of their own
 //!   (`TextureLayout`), which the materials (`GpuMaterial`) locate.
 //! * `render_beauty` — per tile: clear the running sums, one submission per sample (each
 //!   pixel's sample is added to its sums when its path ends, the CPU's order of
@@ -17,16 +17,20 @@
 //! far below lavapipe's 65535 per invocation (docs/gpu.md) at any `--spp`.
 
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
-use crate::layout::{texture_sampler_code, GpuBeautySums, GpuLighting, GpuMaterial};
+use crate::layout::{
+    texture_sampler_code, GpuBeautySums, GpuLighting, GpuMaterial, GpuMaterialTexture,
+};
 use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
-use prismbake::render::beauty::{BeautyCounters, BeautyImage, BeautyScene, Guides, PixelSums};
+use prismbake::render::beauty::{
+    BeautyCounters, BeautyImage, BeautyScene, Guides, PixelSums, TexChannel,
+};
 use prismbake::render::camera::Camera;
 use prismbake::render::env::{EnvFrame, EnvMap};
 use prismbake::render::RenderSettings;
-use prismbake::texture::{srgb8_table, ColorMap};
+use prismbake::texture::{raw8_table, srgb8_table, ColorMap};
 use prismbake::trace::pdm::PdmOptions;
 use std::sync::Mutex;
 use wgpu::util::DeviceExt;
@@ -70,22 +74,22 @@ pub fn env_lighting(env: &EnvMap, frame: EnvFrame) -> GpuLighting {
     }
 }
 
-/// Where the base-colour textures lie in `texture_texels`, in order. A texture whose every
-/// channel is a value of the 8-bit sRGB table
-/// (`texture::srgb8_table`: every 8-bit PNG and JPEG) is kept as its codes, one word a texel
-/// (`pack_srgb8`), with the table once before the textures: a third of its 3 floats a texel,
-/// and the same texels (texture.wgsl's `tex_texel` looks them up in the CPU's own table).
+/// Where the material textures lie in `texture_texels`, in order. A texture whose every channel
+/// is a value of an 8-bit code table (`texture::srgb8_table`: every 8-bit colour PNG and JPEG;
+/// `texture::raw8_table`: every 8-bit data texture) is kept as its codes, one word a texel
+/// (`pack8`), with its table once before the textures: a third of its 3 floats a texel, and
+/// the same texels (texture.wgsl's `tex_texel` looks them up in the CPU's own table).
 #[derive(Clone, Debug, PartialEq)]
 pub struct TextureLayout {
-    /// First float of the sRGB table (unused without a packed texture).
-    pub table: u32,
-    /// Per texture: its first float, and whether it is packed.
-    pub textures: Vec<(u32, bool)>,
+    /// First float of each code table, sRGB then raw (unused without a texture it packs).
+    pub tables: [u32; 2],
+    /// Per texture: its first float, and the table it is packed with, if any.
+    pub textures: Vec<(u32, Option<usize>)>,
     /// Floats of the whole buffer.
     pub len: usize,
 }
 
-/// Bit 5 of `GpuMaterial::tex_sampler`: the texture is packed (`TextureLayout`).
+/// Bit 5 of `GpuMaterialTexture::sampler`: the texture is packed (`TextureLayout`).
 pub const TEX_PACKED: u32 = 1 << 5;
 
 /// A packed texel's word as the float `texture_texels` holds: codes r, g, b in bits 0–23 and 0x40
@@ -118,86 +122,123 @@ fn srgb8_code(v: f32, table: &[f32; 256]) -> Option<u32> {
         .map(|k| k as u32)
 }
 
-/// Texel `c`'s packed word as a float, if all three channels are table values.
-fn pack_srgb8(c: Vec3, table: &[f32; 256]) -> Option<f32> {
-    let [r, g, b] = c.to_array().map(|v| srgb8_code(v, table));
+/// The 8-bit code whose raw table value (`code / 255`) is exactly `v`, if any.
+fn raw8_code(v: f32, table: &[f32; 256]) -> Option<u32> {
+    let c = (v * 255.0).round();
+    (0.0..=255.0)
+        .contains(&c)
+        .then_some(c as usize)
+        .filter(|&c| table[c].to_bits() == v.to_bits())
+        .map(|c| c as u32)
+}
+
+/// The code tables a texture may be packed with, in `TextureLayout::tables`' order, and how a
+/// value finds its code in each.
+type CodeOf = fn(f32, &[f32; 256]) -> Option<u32>;
+fn code_tables() -> [([f32; 256], CodeOf); 2] {
+    [(srgb8_table(), srgb8_code), (raw8_table(), raw8_code)]
+}
+
+/// Texel `c`'s packed word as a float, if all three channels are values of `table`.
+fn pack8(c: Vec3, (table, code): &([f32; 256], CodeOf)) -> Option<f32> {
+    let [r, g, b] = c.to_array().map(|v| code(v, table));
     Some(f32::from_bits(PACKED_TAG | r? | (g? << 8) | (b? << 16)))
 }
 
 /// The layout of `textures` in `texture_texels`.
 pub fn texture_layout(textures: &[ColorMap]) -> TextureLayout {
-    let table = srgb8_table();
-    let packed: Vec<bool> = textures
+    let tables = code_tables();
+    let packed: Vec<Option<usize>> = textures
         .iter()
-        .map(|t| t.texels.iter().all(|&c| pack_srgb8(c, &table).is_some()))
+        .map(|t| {
+            (0..tables.len()).find(|&k| t.texels.iter().all(|&c| pack8(c, &tables[k]).is_some()))
+        })
         .collect();
     let mut next = 0;
-    let table_at = next;
-    if packed.contains(&true) {
-        next += table.len();
+    let mut table_at = [0u32; 2];
+    for (k, at) in table_at.iter_mut().enumerate() {
+        if packed.contains(&Some(k)) {
+            *at = next as u32;
+            next += 256;
+        }
     }
     let textures = textures
         .iter()
         .zip(packed)
         .map(|(t, packed)| {
             let at = next;
-            next += t.texels.len() * if packed { 1 } else { 3 };
+            next += t.texels.len() * if packed.is_some() { 1 } else { 3 };
             (at as u32, packed)
         })
         .collect();
     TextureLayout {
-        table: table_at as u32,
+        tables: table_at,
         textures,
         len: next,
     }
 }
 
-/// `texture_texels` as `layout` lays it out: the table if a texture is packed, then each
+/// `texture_texels` as `layout` lays it out: the tables a texture is packed with, then each
 /// texture, packed or 3 floats a texel.
 pub fn texel_buffer(textures: &[ColorMap], layout: &TextureLayout) -> Vec<f32> {
-    let table = srgb8_table();
+    let tables = code_tables();
     let mut out = Vec::with_capacity(layout.len);
-    if layout.textures.iter().any(|&(_, packed)| packed) {
-        out.extend_from_slice(&table);
+    for (k, (table, _)) in tables.iter().enumerate() {
+        if layout.textures.iter().any(|&(_, p)| p == Some(k)) {
+            debug_assert_eq!(out.len(), layout.tables[k] as usize);
+            out.extend_from_slice(table);
+        }
     }
     for (t, &(at, packed)) in textures.iter().zip(&layout.textures) {
         debug_assert_eq!(out.len(), at as usize);
         match packed {
-            true => out.extend(
+            Some(k) => out.extend(
                 t.texels
                     .iter()
-                    .map(|&c| pack_srgb8(c, &table).expect("texture_layout checked every texel")),
+                    .map(|&c| pack8(c, &tables[k]).expect("texture_layout checked every texel")),
             ),
-            false => out.extend(t.texels.iter().flat_map(|c| c.to_array())),
+            None => out.extend(t.texels.iter().flat_map(|c| c.to_array())),
         }
     }
     debug_assert_eq!(out.len(), layout.len);
     out
 }
 
+/// Texture `i` of `textures` as a material reads it, where `layout` puts it, reading `channel`.
+pub fn material_texture(
+    textures: &[ColorMap],
+    layout: &TextureLayout,
+    i: u32,
+    channel: u8,
+) -> GpuMaterialTexture {
+    let t = &textures[i as usize];
+    let (offset, packed) = layout.textures[i as usize];
+    GpuMaterialTexture {
+        width: t.width,
+        height: t.height,
+        offset,
+        sampler: texture_sampler_code(&t.sampler) | if packed.is_some() { TEX_PACKED } else { 0 },
+        table: packed.map_or(0, |k| layout.tables[k]),
+        channel: channel as u32,
+    }
+}
+
 /// The materials of a beauty scene as the kernel reads them (`shaders/texture.wgsl`), their
 /// textures where `layout` puts them.
 pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMaterial> {
+    let tex = |i, channel| material_texture(s.textures, layout, i, channel);
+    let channel =
+        |c: Option<TexChannel>| c.map_or(Default::default(), |c| tex(c.texture, c.channel));
     s.materials
         .iter()
-        .map(|m| {
-            let mut g = GpuMaterial {
-                base_color: m.material.base_color.to_array(),
-                roughness: m.material.roughness,
-                metallic: m.material.metallic,
-                specular: m.material.specular,
-                ..Default::default()
-            };
-            if let Some(i) = m.texture {
-                let t = &s.textures[i as usize];
-                let (at, packed) = layout.textures[i as usize];
-                (g.tex_width, g.tex_height) = (t.width, t.height);
-                g.tex_offset = at;
-                g.tex_sampler =
-                    texture_sampler_code(&t.sampler) | if packed { TEX_PACKED } else { 0 };
-                g.tex_table = layout.table;
-            }
-            g
+        .map(|m| GpuMaterial {
+            base_color: m.material.base_color.to_array(),
+            roughness: m.material.roughness,
+            metallic: m.material.metallic,
+            specular: m.material.specular,
+            color_tex: m.texture.map_or(Default::default(), |i| tex(i, 0)),
+            roughness_tex: channel(m.roughness_texture),
+            metallic_tex: channel(m.metallic_texture),
         })
         .collect()
 }
@@ -292,10 +333,10 @@ impl EnvTextures {
 
 /// What to do when the lighting does not fit the device.
 const LIGHTING_FIX: &str =
-    "use a smaller --env map or base-colour textures, or --device auto or cpu (the CPU renderer has no such limit)";
+    "use a smaller --env map or material textures, or --device auto or cpu (the CPU renderer has no such limit)";
 
 /// Whether an environment (`None`: the one-texel black a render without `--env` lights with)
-/// and the base-colour textures fit `ctx` as `GpuBeautyScene::upload` lays them out: the
+/// and the material textures fit `ctx` as `GpuBeautyScene::upload` lays them out: the
 /// environment's sides within the device's largest texture side, the textures' texels within a
 /// storage binding; counted without building them. The check a job makes before its first
 /// frame, and `upload`'s own.
@@ -322,7 +363,7 @@ fn check_lighting_sizes(
     let bytes = layout.len as u64 * std::mem::size_of::<f32>() as u64;
     if bytes > limit {
         return Err(GpuError::TooLarge {
-            what: "base-colour texture texels",
+            what: "material texture texels",
             bytes,
             limit,
             fix: LIGHTING_FIX,
@@ -349,7 +390,7 @@ pub struct GpuBeautyScene {
 }
 
 impl GpuBeautyScene {
-    /// Upload the lighting, the environment, the materials and their base-colour textures.
+    /// Upload the lighting, the environment, the materials and their textures.
     /// Fails with `GpuError::TooLarge` if the environment's and the textures' texels together,
     /// or the
     /// environment's tables, exceed one storage binding (128 MiB on WebGPU defaults: about
@@ -372,7 +413,7 @@ impl GpuBeautyScene {
         if texels.is_empty() {
             texels.push(0.0); // a binding is never empty
         }
-        let texels = storage("base-colour texture texels", &texels);
+        let texels = storage("material texture texels", &texels);
         let env = EnvTextures::upload(ctx, s.env);
         let view = |t: &wgpu::Texture| t.create_view(&wgpu::TextureViewDescriptor::default());
         let (radiance, conditional, rows) =
@@ -661,10 +702,56 @@ mod tests {
             assert_eq!(srgb8_code(v, &table), None, "{v}");
         }
         // A colour of codes packs and unpacks to them; one other channel keeps it in floats.
+        let tables = code_tables();
         let c = Vec3::new(table[3], table[200], table[255]);
-        let word = pack_srgb8(c, &table).unwrap().to_bits();
+        let word = pack8(c, &tables[0]).unwrap().to_bits();
         assert_eq!(word & 0xff_ffff, 3 | (200 << 8) | (255 << 16));
         assert!(f32::from_bits(word).is_normal());
-        assert_eq!(pack_srgb8(Vec3::new(table[3], 0.3, table[1]), &table), None);
+        assert_eq!(pack8(Vec3::new(table[3], 0.3, table[1]), &tables[0]), None);
+    }
+
+    #[test]
+    fn raw_codes_are_found_exactly() {
+        let table = raw8_table();
+        for (code, &v) in table.iter().enumerate() {
+            assert_eq!(raw8_code(v, &table), Some(code as u32), "{v}");
+            let near = f32::from_bits(v.to_bits() + 1);
+            assert_eq!(raw8_code(near, &table), None, "{near} next to code {code}");
+        }
+        for v in [
+            -0.5,
+            1.5,
+            0.123_456,
+            f32::NAN,
+            f32::INFINITY,
+            -0.0,
+            -1.0 / 255.0,
+        ] {
+            assert_eq!(raw8_code(v, &table), None, "{v}");
+        }
+        let tables = code_tables();
+        let word = pack8(Vec3::new(table[0], table[128], table[255]), &tables[1]).unwrap();
+        assert_eq!(word.to_bits() & 0xff_ffff, (128 << 8) | (255 << 16));
+        // A texture of raw codes goes up with the raw table alone; one of sRGB codes and one of
+        // other floats beside it lay out as before.
+        let map = |texels: Vec<Vec3>| ColorMap {
+            width: texels.len() as u32,
+            height: 1,
+            texels,
+            sampler: Default::default(),
+            name: "t".into(),
+        };
+        let srgb = srgb8_table();
+        let layout = texture_layout(&[
+            map(vec![Vec3::new(table[1], table[2], table[3])]),
+            map(vec![Vec3::splat(0.3); 2]),
+            map(vec![Vec3::new(srgb[9], srgb[10], srgb[11])]),
+        ]);
+        assert_eq!(layout.tables, [0, 256]);
+        assert_eq!(
+            layout.textures,
+            [(512, Some(1)), (513, None), (519, Some(0))]
+        );
+        assert_eq!(layout.len, 520);
     }
 }

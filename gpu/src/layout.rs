@@ -298,9 +298,23 @@ pub struct GpuLighting {
     pub _pad2: u32,
 }
 
-/// One material of a beauty scene, 48 bytes: `prismbake::render::beauty::SurfaceMaterial`,
-/// its texture (if any) located in the environment's texel buffer: its size (0 × 0: none),
-/// its first float there and its sampler (`texture_sampler_code`).
+/// One texture of a material as the kernel reads it, 24 bytes: its size (0 × 0: none), its
+/// first float in `texture_texels`, its sampler (`texture_sampler_code`; bit 5 packed), the
+/// first float of the code table a packed texture's texels index (`beauty::TextureLayout`), and
+/// the channel a roughness or metallic texture is read from.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterialTexture {
+    pub width: u32,
+    pub height: u32,
+    pub offset: u32,
+    pub sampler: u32,
+    pub table: u32,
+    pub channel: u32,
+}
+
+/// One material of a beauty scene, 96 bytes: `prismbake::render::beauty::SurfaceMaterial`, its
+/// base-colour, roughness and metallic textures (if any) located in the texel buffer.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -308,17 +322,12 @@ pub struct GpuMaterial {
     pub roughness: f32,
     pub metallic: f32,
     pub specular: f32,
-    pub tex_width: u32,
-    pub tex_height: u32,
-    pub tex_offset: u32,
-    pub tex_sampler: u32,
-    /// First float of the 8-bit sRGB table in `env_texels`, for a packed texture
-    /// (`beauty::TextureLayout`; `tex_sampler`'s bit 5).
-    pub tex_table: u32,
-    pub _pad: u32,
+    pub color_tex: GpuMaterialTexture,
+    pub roughness_tex: GpuMaterialTexture,
+    pub metallic_tex: GpuMaterialTexture,
 }
 
-/// A texture sampler as the lighting uniform's `tex_sampler` holds it: `wrapS`'s code in bits
+/// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
 /// 0–1, `wrapT`'s in bits 2–3 (`TexWrap::code`), nearest filtering in bit 4
 /// (`shaders/texture.wgsl`; bit 5, a packed texture, is `beauty::TEX_PACKED`).
 pub fn texture_sampler_code(s: &prismbake::texture::Sampler) -> u32 {
@@ -357,7 +366,8 @@ const _: () = {
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
     assert!(std::mem::size_of::<GpuLighting>() == 96);
-    assert!(std::mem::size_of::<GpuMaterial>() == 48);
+    assert!(std::mem::size_of::<GpuMaterialTexture>() == 24);
+    assert!(std::mem::size_of::<GpuMaterial>() == 96);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
 };
 
@@ -485,18 +495,26 @@ pub fn shared_layouts() -> Vec<StructLayout> {
             }
         ),
         layout!(
+            "MaterialTexture",
+            GpuMaterialTexture {
+                width,
+                height,
+                offset,
+                sampler,
+                table,
+                channel
+            }
+        ),
+        layout!(
             "SurfaceMaterial",
             GpuMaterial {
                 base_color,
                 roughness,
                 metallic,
                 specular,
-                tex_width,
-                tex_height,
-                tex_offset,
-                tex_sampler,
-                tex_table,
-                _pad
+                color_tex,
+                roughness_tex,
+                metallic_tex
             }
         ),
         layout!(
@@ -544,7 +562,8 @@ mod tests {
         assert_eq!(offset_of!(GpuPrismStitch, band), 72);
         assert_eq!(offset_of!(GpuLighting, ground_up), 16);
         assert_eq!(offset_of!(GpuLighting, eps), 32);
-        assert_eq!(offset_of!(GpuMaterial, tex_width), 24);
+        assert_eq!(offset_of!(GpuMaterial, color_tex), 24);
+        assert_eq!(offset_of!(GpuMaterial, metallic_tex), 72);
         assert_eq!(offset_of!(GpuBeautySums, background), 16);
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);

@@ -339,16 +339,18 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
 #[test]
 fn materials_and_textures_per_prism_match_the_cpu() {
     // The rock's own base-colour texture (embedded in rock.glb: fish scales, a colour each)
-    // with the file's sampler (repeat, bilinear) times a tinted factor, a red rough metal, and
-    // the texture again mirrored/clamped nearest, assigned to the prisms in turn (the fourth
-    // index is past the end: the last material), read at every hit on the first and the
-    // second bounce.
+    // with the file's sampler (repeat, bilinear) times a tinted factor, a red rough metal, the
+    // texture again mirrored/clamped nearest with its red channel as the metallic, and a grey
+    // metal whose roughness and metallic are the green and blue of one 8-bit data texture
+    // (glTF's metallic-roughness), assigned to the prisms in turn (the fifth index is past the
+    // end: the last material), read at every hit on the first and the second bounce.
     use prismbake::bake::PRISM_MATERIAL_SHIFT;
-    use prismbake::texture::{ColorMap, Sampler, TexWrap};
+    use prismbake::render::beauty::TexChannel;
+    use prismbake::texture::{raw8_table, ColorMap, Sampler, TexWrap, TextureSlot};
     let rel = "rock/rock.glb";
     let mut ex = example_scene(rel);
     for (i, p) in ex.scene.table.prisms.iter_mut().enumerate() {
-        p.flags |= (i as u32 % 4) << PRISM_MATERIAL_SHIFT;
+        p.flags |= (i as u32 % 5) << PRISM_MATERIAL_SHIFT;
     }
     let path = crate::util::example(rel);
     let mesh = prismbake::load::load_mesh(&path, &Default::default()).expect("load");
@@ -361,7 +363,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         Sampler::default(),
         "rock.glb: repeat, bilinear"
     );
-    let texture = ColorMap::load(&path, &tref).expect("decode");
+    let texture = ColorMap::load(&path, &tref, TextureSlot::BaseColor).expect("decode");
     let other = ColorMap {
         sampler: Sampler {
             wrap: [TexWrap::Mirror, TexWrap::Clamp],
@@ -369,12 +371,34 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         },
         ..texture.clone()
     };
-    let textures = [texture, other];
-    // An 8-bit PNG: both go up packed (their sRGB codes and the table, `TextureLayout`).
+    // 8 x 8 texels of raw 8-bit codes: roughness (green) and metallic (blue) in stripes across
+    // u and v, red unused.
+    let raw = raw8_table();
+    let orm = ColorMap {
+        width: 8,
+        height: 8,
+        texels: (0..64)
+            .map(|i| Vec3::new(raw[7], raw[20 + 29 * (i % 8)], raw[255 - 30 * (i / 8)]))
+            .collect(),
+        sampler: Sampler::default(),
+        name: "orm".into(),
+    };
+    let textures = [texture, other, orm];
+    // 8-bit PNGs go up packed with the sRGB table, the data texture with the raw one
+    // (`TextureLayout`).
+    let layout = prismbake_gpu::beauty::texture_layout(&textures);
     assert_eq!(
-        prismbake_gpu::beauty::texture_layout(&textures).textures,
-        [(256, true), (256 + 256 * 256, true)]
+        (layout.tables, layout.textures),
+        (
+            [0, 256],
+            vec![
+                (512, Some(0)),
+                (512 + 256 * 256, Some(0)),
+                (512 + 2 * 256 * 256, Some(1))
+            ]
+        )
     );
+    let channel = |texture, channel| Some(TexChannel { texture, channel });
     let materials = [
         SurfaceMaterial {
             material: Material {
@@ -382,6 +406,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 ..Material::default()
             },
             texture: Some(0),
+            ..Default::default()
         },
         SurfaceMaterial::from(Material {
             base_color: Vec3::new(0.9, 0.2, 0.1),
@@ -390,8 +415,24 @@ fn materials_and_textures_per_prism_match_the_cpu() {
             specular: 0.04,
         }),
         SurfaceMaterial {
-            material: Material::default(),
+            material: Material {
+                metallic: 1.0,
+                ..Material::default()
+            },
             texture: Some(1),
+            metallic_texture: channel(0, 0),
+            ..Default::default()
+        },
+        SurfaceMaterial {
+            material: Material {
+                base_color: Vec3::splat(0.9),
+                roughness: 1.0,
+                metallic: 1.0,
+                specular: 0.04,
+            },
+            roughness_texture: channel(2, 1),
+            metallic_texture: channel(2, 2),
+            ..Default::default()
         },
     ];
     let env = sun_env(EnvFrame {
@@ -417,7 +458,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         spp: 3,
         seed: 5,
     };
-    check(rel, &ex, &bscene, &settings, "3 materials, 2 textures");
+    check(rel, &ex, &bscene, &settings, "4 materials, 3 textures");
 }
 
 #[test]

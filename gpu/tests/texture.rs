@@ -8,8 +8,8 @@
 use crate::util;
 use glam::{Vec2, Vec3};
 use prismbake::rng;
-use prismbake::texture::{srgb8_table, ColorMap, Sampler, TexWrap};
-use prismbake_gpu::beauty::{texel_buffer, texture_layout, TEX_PACKED};
+use prismbake::texture::{raw8_table, srgb8_table, ColorMap, Sampler, TexWrap};
+use prismbake_gpu::beauty::{material_texture, texel_buffer, texture_layout, TEX_PACKED};
 use prismbake_gpu::layout::{texture_sampler_code, GpuMaterial};
 use prismbake_gpu::shaders;
 
@@ -22,7 +22,7 @@ fn probe(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= arrayLength(&io)) {
         return;
     }
-    io[gid.x] = vec4f(texture_sample(materials[0], io[gid.x].xy), 0.0);
+    io[gid.x] = vec4f(texture_sample(materials[0].color_tex, io[gid.x].xy), 0.0);
 }
 "#;
 
@@ -61,19 +61,23 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             rng::pcg_hash(3 * i + 3) as f32 / u32::MAX as f32,
         )
     };
-    // Laid out as `GpuBeautyScene::upload` does: an f32 texture (any colours), and one of 8-bit
-    // sRGB colours, which goes up packed (its codes and the table), in the same buffer.
-    let table = srgb8_table();
+    // Laid out as `GpuBeautyScene::upload` does: an f32 texture (any colours), one of 8-bit
+    // sRGB colours and one of 8-bit data, which go up packed (their codes and the tables), in
+    // the same buffer.
+    let codes = |table: [f32; 256], salt: u32| -> Vec<Vec3> {
+        (0..w * h)
+            .map(|i| {
+                Vec3::from_array(std::array::from_fn(|k| {
+                    table[(rng::pcg_hash(7 * i + k as u32 + salt) & 0xff) as usize]
+                }))
+            })
+            .collect()
+    };
     let tex: Vec<Vec3> = (0..w * h).map(colour).collect();
-    let tex8: Vec<Vec3> = (0..w * h)
-        .map(|i| {
-            Vec3::from_array(std::array::from_fn(|k| {
-                table[(rng::pcg_hash(7 * i + k as u32) & 0xff) as usize]
-            }))
-        })
-        .collect();
+    let tex8 = codes(srgb8_table(), 0);
+    let raw8 = codes(raw8_table(), 1000);
     let maps = |sampler: Sampler| {
-        [&tex, &tex8].map(|texels| ColorMap {
+        [&tex, &tex8, &raw8].map(|texels| ColorMap {
             width: w,
             height: h,
             texels: texels.clone(),
@@ -84,9 +88,9 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
     let layout = texture_layout(&maps(Sampler::default()));
     assert_eq!(
         layout.textures.iter().map(|t| t.1).collect::<Vec<_>>(),
-        [false, true]
+        [None, Some(0), Some(1)]
     );
-    assert_eq!(layout.len, 256 + 3 * 15 + 15);
+    assert_eq!(layout.len, 2 * 256 + 3 * 15 + 15 + 15);
     let texels = texel_buffer(&maps(Sampler::default()), &layout);
     let wraps = [TexWrap::Repeat, TexWrap::Clamp, TexWrap::Mirror];
     let uvs = probe_uvs(w, h);
@@ -101,14 +105,15 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
                     wrap: [wu, wv],
                     nearest,
                 };
-                for (map, &(tex_offset, packed)) in maps(sampler).iter().zip(&layout.textures) {
+                for (i, map) in maps(sampler).iter().enumerate() {
+                    let tex = material_texture(&maps(sampler), &layout, i as u32, 0);
+                    let packed = layout.textures[i].1.is_some();
+                    assert_eq!(
+                        tex.sampler,
+                        texture_sampler_code(&sampler) | if packed { TEX_PACKED } else { 0 }
+                    );
                     let material = GpuMaterial {
-                        tex_width: w,
-                        tex_height: h,
-                        tex_offset,
-                        tex_sampler: texture_sampler_code(&sampler)
-                            | if packed { TEX_PACKED } else { 0 },
-                        tex_table: layout.table,
+                        color_tex: tex,
                         ..Default::default()
                     };
                     let gpu = util::run_probe(
@@ -147,5 +152,5 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             }
         }
     }
-    eprintln!("texture probe: {cases} lookups agree (18 samplers, f32 and packed)");
+    eprintln!("texture probe: {cases} lookups agree (18 samplers, f32, sRGB and raw packed)");
 }

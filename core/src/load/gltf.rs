@@ -9,7 +9,7 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
-use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
+use crate::texture::{ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use glam::{Mat3, Mat4, Vec2, Vec3};
@@ -49,6 +49,16 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         .materials()
         .map(|m| {
             let pbr = m.pbr_metallic_roughness();
+            // Roughness in its green channel, metallic in its blue, both linear.
+            let metallic_roughness = pbr
+                .metallic_roughness_texture()
+                .map(|t| texture_ref(path, &doc, &loader_buffers, &t, ColorSpace::Raw))
+                .transpose()?;
+            let channel = |channel| {
+                metallic_roughness
+                    .clone()
+                    .map(|texture| ChannelRef { texture, channel })
+            };
             Ok(MeshMaterial {
                 name: m.name().map_or_else(
                     || format!("material {}", m.index().unwrap_or(0)),
@@ -59,8 +69,10 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                 metallic: pbr.metallic_factor(),
                 base_color_texture: pbr
                     .base_color_texture()
-                    .map(|t| texture_ref(path, &doc, &loader_buffers, &t))
+                    .map(|t| texture_ref(path, &doc, &loader_buffers, &t, ColorSpace::Srgb))
                     .transpose()?,
+                roughness_texture: channel(1),
+                metallic_texture: channel(2),
             })
         })
         .collect::<Result<_>>()?;
@@ -81,6 +93,7 @@ fn texture_ref(
     doc: &::gltf::Document,
     buffers: &[Vec<u8>],
     info: &::gltf::texture::Info,
+    color_space: ColorSpace,
 ) -> Result<TextureRef> {
     use ::gltf::texture::{MagFilter, WrappingMode};
     let texture = info.texture();
@@ -137,6 +150,7 @@ fn texture_ref(
         },
         tex_coord: info.tex_coord(),
         transformed: doc.extensions_used().any(|e| e == "KHR_texture_transform"),
+        color_space,
     })
 }
 

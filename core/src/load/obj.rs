@@ -5,7 +5,8 @@
 //! Materials: the `mtllib` files' `newmtl` entries, in order, with `Kd` (the base colour),
 //! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
 //! importer does; `-clamp on` clamps it, `-o`/`-s` are noted as a texture transform) and the
-//! PBR extension's `Pr`/`Pm` (roughness, metallic). A missing .mtl or an undefined `usemtl`
+//! PBR extension's `Pr`/`Pm` (roughness, metallic) and their maps `map_Pr`/`map_Pm` (data
+//! textures, one channel: `-imfchan`, else red). A missing .mtl or an undefined `usemtl`
 //! name is a warning (those faces get the default material), not an error.
 //!
 //! A small parser of our own rather than `tobj`: with `single_index`, tobj 4.0.5 panics
@@ -18,7 +19,7 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
-use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
+use crate::texture::{ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::Path;
@@ -107,6 +108,44 @@ fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Ve
 }
 
 /// One .mtl file's `newmtl` entries (`Kd`, `map_Kd`, `Pr`, `Pm`; the rest is ignored).
+/// A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the channel
+/// its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey image's
+/// one channel); `-clamp on` clamps its UVs, `-o`/`-s` transform them (not applied).
+fn mtl_map<'a>(
+    keyword: &str,
+    words: &mut impl Iterator<Item = &'a str>,
+    dir: &Path,
+    color_space: ColorSpace,
+) -> std::result::Result<(TextureRef, u8), String> {
+    let words: Vec<&str> = words.collect();
+    let Some((name, options)) = words.split_last() else {
+        return Err(format!("{keyword} names no file (fix the line)"));
+    };
+    let clamp = options.windows(2).any(|w| w == ["-clamp", "on"]);
+    let wrap = if clamp {
+        TexWrap::Clamp
+    } else {
+        TexWrap::Repeat
+    };
+    let channel = match options.windows(2).find(|w| w[0] == "-imfchan") {
+        Some([_, "g"]) => 1,
+        Some([_, "b"]) => 2,
+        _ => 0,
+    };
+    let texture = TextureRef {
+        name: name.to_string(),
+        data: TextureData::File(dir.join(name)),
+        sampler: Sampler {
+            wrap: [wrap; 2],
+            nearest: false,
+        },
+        tex_coord: 0,
+        transformed: options.iter().any(|o| *o == "-o" || *o == "-s"),
+        color_space,
+    };
+    Ok((texture, channel))
+}
+
 fn parse_mtl(
     file: &Path,
     text: &str,
@@ -124,13 +163,12 @@ fn parse_mtl(
         if keyword == "newmtl" {
             let name = words.collect::<Vec<_>>().join(" ");
             names.push(name.clone());
-            materials.push(MeshMaterial {
+            materials.push(MeshMaterial::plain(
                 name,
-                base_color: [0.8, 0.8, 0.8, 1.0],
-                roughness: crate::render::lookdev::DEFAULT_ROUGHNESS,
-                metallic: crate::render::lookdev::DEFAULT_METALLIC,
-                base_color_texture: None,
-            });
+                [0.8, 0.8, 0.8, 1.0],
+                crate::render::lookdev::DEFAULT_ROUGHNESS,
+                crate::render::lookdev::DEFAULT_METALLIC,
+            ));
             continue;
         }
         let Some(m) = materials.last_mut() else {
@@ -143,28 +181,21 @@ fn parse_mtl(
             }
             "Pr" => m.roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
             "Pm" => m.metallic = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
+            // A map replaces its value (the factor becomes 1), as Kd's does.
             "map_Kd" => {
-                let words: Vec<&str> = words.collect();
-                let Some((name, options)) = words.split_last() else {
-                    return Err(at("map_Kd names no file (fix the line)".into()));
-                };
-                let clamp = options.windows(2).any(|w| w == ["-clamp", "on"]);
-                let wrap = if clamp {
-                    TexWrap::Clamp
-                } else {
-                    TexWrap::Repeat
-                };
+                let (t, _) = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
                 m.base_color = [1.0; 4];
-                m.base_color_texture = Some(TextureRef {
-                    name: name.to_string(),
-                    data: TextureData::File(dir.join(name)),
-                    sampler: Sampler {
-                        wrap: [wrap; 2],
-                        nearest: false,
-                    },
-                    tex_coord: 0,
-                    transformed: options.iter().any(|o| *o == "-o" || *o == "-s"),
-                });
+                m.base_color_texture = Some(t);
+            }
+            "map_Pr" | "map_Pm" => {
+                let (texture, channel) =
+                    mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;
+                let c = Some(ChannelRef { texture, channel });
+                if keyword == "map_Pr" {
+                    (m.roughness, m.roughness_texture) = (1.0, c);
+                } else {
+                    (m.metallic, m.metallic_texture) = (1.0, c);
+                }
             }
             _ => {}
         }

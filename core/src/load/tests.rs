@@ -441,7 +441,8 @@ fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_flagged() {
     assert_eq!(t.data, TextureData::Embedded(png));
     assert_eq!(t.sampler, Sampler::default());
     assert!(t.transformed);
-    let c = crate::texture::ColorMap::load(&m.source, &t).unwrap();
+    let c = crate::texture::ColorMap::load(&m.source, &t, crate::texture::TextureSlot::BaseColor)
+        .unwrap();
     assert_eq!(c.texels, vec![glam::Vec3::new(1.0, 1.0, 0.0); 2]);
     let w = crate::render::lookdev::material_warning(&m, 0).unwrap();
     assert!(

@@ -21,7 +21,7 @@ use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
-use crate::texture::{Sampler, TexWrap, TextureData, TextureRef};
+use crate::texture::{ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef};
 use glam::{DMat4, DQuat, DVec3, Mat3, Vec2, Vec3};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, Stage};
@@ -999,6 +999,15 @@ impl Loader<'_> {
         if let Some(t) = &mut material.base_color_texture {
             t.tex_coord = self.opts.uv_set;
         }
+        for c in [
+            &mut material.roughness_texture,
+            &mut material.metallic_texture,
+        ]
+        .into_iter()
+        .flatten()
+        {
+            c.texture.tex_coord = self.opts.uv_set;
+        }
         if let Some(i) = self.material_paths.iter().position(|p| *p == at) {
             return Ok(i as u32);
         }
@@ -1338,8 +1347,8 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
 
 /// The material bound to a mesh prim as the beauty reads it, if it is a `UsdPreviewSurface`:
 /// `diffuseColor` (a value, or a `UsdUVTexture`'s `rgb` read through the mesh's UV primvar
-/// `uv_name`), `roughness` and `metallic` (values; UsdPreviewSurface's defaults where
-/// unauthored). Returns the material prim too.
+/// `uv_name`), `roughness` and `metallic` (values, UsdPreviewSurface's defaults where
+/// unauthored, or one channel of a `UsdUVTexture`). Returns the material prim too.
 fn mesh_material(
     path: &Path,
     stage: &Stage,
@@ -1362,19 +1371,18 @@ fn mesh_material(
             None => default,
         })
     };
-    let mut m = MeshMaterial {
-        name: material.to_string(),
-        // UsdPreviewSurface's default diffuseColor.
-        base_color: [0.18, 0.18, 0.18, 1.0],
-        roughness: float("roughness", 0.5)?,
-        metallic: float("metallic", 0.0)?,
-        base_color_texture: None,
-    };
+    // UsdPreviewSurface's default diffuseColor.
+    let mut m = MeshMaterial::plain(
+        material.to_string(),
+        [0.18, 0.18, 0.18, 1.0],
+        float("roughness", 0.5)?,
+        float("metallic", 0.0)?,
+    );
     let diffuse = property_path(path, &surface, "inputs:diffuseColor")?;
     match connected_output(path, stage, &diffuse)? {
         Some((tex, _)) if info_id(path, stage, &tex)?.as_deref() == Some("UsdUVTexture") => {
             m.base_color = [1.0; 4];
-            m.base_color_texture = diffuse_texture(path, stage, &tex, uv_name)?;
+            m.base_color_texture = uv_texture(path, stage, &tex, uv_name, "diffuse")?;
         }
         Some((shader, _)) => warn(
             path,
@@ -1392,21 +1400,61 @@ fn mesh_material(
             }
         }
     }
+    // A texture replaces the input's value (the factor becomes 1), one channel of it.
+    for name in ["roughness", "metallic"] {
+        let input = property_path(path, &surface, &format!("inputs:{name}"))?;
+        let Some((tex, output)) = connected_output(path, stage, &input)? else {
+            continue;
+        };
+        if info_id(path, stage, &tex)?.as_deref() != Some("UsdUVTexture") {
+            warn(
+                path,
+                &format!("{material}: {name} comes from {tex}, not a UsdUVTexture: not read"),
+            );
+            continue;
+        }
+        let channel = match output.as_str() {
+            "r" => 0,
+            "g" => 1,
+            "b" => 2,
+            other => {
+                warn(
+                    path,
+                    &format!(
+                        "{material}: {name} reads output '{other}' of {tex}, not r, g or b: \
+                         not read"
+                    ),
+                );
+                continue;
+            }
+        };
+        let Some(texture) = uv_texture(path, stage, &tex, uv_name, name)? else {
+            continue;
+        };
+        let c = Some(ChannelRef { texture, channel });
+        if name == "roughness" {
+            (m.roughness, m.roughness_texture) = (1.0, c);
+        } else {
+            (m.metallic, m.metallic_texture) = (1.0, c);
+        }
+    }
     Ok(Some((material, m)))
 }
 
-/// A `UsdUVTexture` feeding a diffuse colour: its file, wrap modes and colour space; `None`
+/// A `UsdUVTexture` feeding a material's `what` input ("diffuse", "roughness", "metallic"): its
+/// file, wrap modes and colour space (`sourceColorSpace`: `raw`, `sRGB`, else `auto`); `None`
 /// (with a warning) when it reads another UV primvar than the mesh's `uv_name` or has no file.
-fn diffuse_texture(
+fn uv_texture(
     path: &Path,
     stage: &Stage,
     tex: &sdf::Path,
     uv_name: Option<&str>,
+    what: &str,
 ) -> Result<Option<TextureRef>> {
     let Some(file) = texture_file(path, stage, tex)? else {
         warn(
             path,
-            &format!("{tex}: the diffuse texture has no inputs:file: not read"),
+            &format!("{tex}: the {what} texture has no inputs:file: not read"),
         );
         return Ok(None);
     };
@@ -1420,7 +1468,7 @@ fn diffuse_texture(
             warn(
                 path,
                 &format!(
-                    "{tex}: the diffuse texture reads primvar '{p}', the mesh is loaded with \
+                    "{tex}: the {what} texture reads primvar '{p}', the mesh is loaded with \
                      '{uv}': not read (choose its UV set with --uv-set)"
                 ),
             );
@@ -1442,7 +1490,7 @@ fn diffuse_texture(
         {
             warn(
                 path,
-                &format!("{tex}: the diffuse texture's inputs:{name} is not applied"),
+                &format!("{tex}: the {what} texture's inputs:{name} is not applied"),
             );
         }
     }
@@ -1459,6 +1507,11 @@ fn diffuse_texture(
         // The mesh's own UV set (checked above): `Loader::material_index` sets it.
         tex_coord: 0,
         transformed: false,
+        color_space: match token_input(path, stage, tex, "sourceColorSpace")?.as_deref() {
+            Some("raw") => ColorSpace::Raw,
+            Some("sRGB") => ColorSpace::Srgb,
+            _ => ColorSpace::Auto,
+        },
     }))
 }
 

@@ -127,19 +127,29 @@ pub struct BeautyScene<'a> {
     pub exposure: f32,
 }
 
-/// One material of a beauty scene: the BSDF's parameters and the base-colour texture that
-/// multiplies its base colour, if any (an index into `BeautyScene::textures`).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// One material of a beauty scene: the BSDF's parameters, the base-colour texture that
+/// multiplies its base colour, if any (an index into `BeautyScene::textures`), and the texture
+/// channels that multiply its roughness and metallic.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SurfaceMaterial {
     pub material: Material,
     pub texture: Option<u32>,
+    pub roughness_texture: Option<TexChannel>,
+    pub metallic_texture: Option<TexChannel>,
+}
+
+/// One channel (0 red, 1 green, 2 blue) of one of `BeautyScene::textures`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TexChannel {
+    pub texture: u32,
+    pub channel: u8,
 }
 
 impl From<Material> for SurfaceMaterial {
     fn from(material: Material) -> Self {
         SurfaceMaterial {
             material,
-            texture: None,
+            ..Default::default()
         }
     }
 }
@@ -173,13 +183,27 @@ impl BeautyScene<'_> {
             .map_or(last, |p| (p.material() as usize).min(last))
     }
 
-    /// The material at a hit: its prism's, the base colour times the texture at its UV.
+    /// The material at a hit: its prism's, the base colour times the texture at its UV, the
+    /// roughness and metallic times their texture channels there (one lookup where both read
+    /// the same texture, as glTF's metallic-roughness texture does).
     #[inline]
     pub fn material_at(&self, hit: &Hit) -> Material {
         let s = &self.materials[self.material_index(hit.prism)];
         let mut m = s.material;
+        let sample = |t: u32| self.textures[t as usize].sample(hit.uv);
         if let Some(t) = s.texture {
-            m.base_color *= self.textures[t as usize].sample(hit.uv);
+            m.base_color *= sample(t);
+        }
+        let rough = s.roughness_texture.map(|c| (c, sample(c.texture)));
+        if let Some((c, v)) = rough {
+            m.roughness *= v[c.channel as usize];
+        }
+        if let Some(c) = s.metallic_texture {
+            let v = match rough {
+                Some((r, v)) if r.texture == c.texture => v,
+                _ => sample(c.texture),
+            };
+            m.metallic *= v[c.channel as usize];
         }
         m
     }

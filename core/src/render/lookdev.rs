@@ -12,7 +12,7 @@
 //! table made from the same inputs (`table_cache`, keyed by `asset::input_hash`).
 
 use super::beauty::{
-    self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight, SurfaceMaterial,
+    self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight, SurfaceMaterial, TexChannel,
 };
 use super::camera::Camera;
 use super::denoise::{Denoiser, Quality};
@@ -32,7 +32,7 @@ use crate::load::{self, MapOptions};
 use crate::mesh::{MeshMaterial, UpAxis};
 use crate::repair;
 use crate::table_cache;
-use crate::texture::{ColorMap, TextureRef};
+use crate::texture::{ChannelRef, ColorMap, TextureRef, TextureSlot};
 use crate::trace::Intersector;
 use glam::Vec3;
 use serde::Serialize;
@@ -211,19 +211,36 @@ pub struct MaterialSummary {
     /// `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
+    /// "rock_orm, 256x256, repeat/repeat, bilinear, channel g": the texture channel multiplied
+    /// into `roughness`; absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub roughness_texture: Option<String>,
+    /// The same for `metallic`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub metallic_texture: Option<String>,
 }
 
-/// A material for people: "base colour (r, g, b) x texture T, roughness R, metallic M" (the
-/// render's summary lines, `inspect`).
+/// A material for people: "base colour (r, g, b) x texture T, roughness R x texture U,
+/// metallic M" (the render's summary lines, `inspect`): each factor with the texture that
+/// multiplies it, if any.
 pub fn describe_material(
     base_color: [f32; 3],
-    texture: Option<&str>,
     roughness: f32,
     metallic: f32,
+    textures: [Option<&str>; 3],
 ) -> String {
     let [r, g, b] = base_color;
-    let texture = texture.map_or(String::new(), |t| format!(" x texture {t}"));
-    format!("base colour ({r}, {g}, {b}){texture}, roughness {roughness}, metallic {metallic}")
+    let [tc, tr, tm] = textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
+    format!("base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}")
+}
+
+/// "name, W x H, wrapS/wrapT, filter, channel g" of a texture channel of `scene`.
+fn describe_channel(scene: &BeautyScene, c: TexChannel) -> String {
+    let name = ["r", "g", "b"][c.channel.min(2) as usize];
+    format!(
+        "{}, channel {name}",
+        scene.textures[c.texture as usize].describe()
+    )
 }
 
 /// The summaries of the materials of `scene` some prism has, in their order.
@@ -246,6 +263,8 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
             metallic: m.material.metallic,
             specular: m.material.specular,
             texture: m.texture.map(|t| scene.textures[t as usize].describe()),
+            roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
+            metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
         })
         .collect()
 }
@@ -324,44 +343,66 @@ pub struct Session {
     cache: CacheUse,
 }
 
-/// Whether the beauty reads a material's base-colour texture: only through the UV set the
-/// asset is loaded with (`uv_set`), the one every hit carries.
+/// Whether the beauty reads a material's texture: only through the UV set the asset is loaded
+/// with (`uv_set`), the one every hit carries.
 pub fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
     texture.tex_coord == uv_set
 }
 
-/// What the beauty does not take from material `m`'s base-colour texture, if anything: the
-/// texture itself where it reads another UV set than the asset's (`uv_set`), its transform
-/// (`render`'s warning, `validate`'s `textures` check).
-pub fn texture_note(m: &MeshMaterial, uv_set: u32) -> Option<String> {
-    let t = m.base_color_texture.as_ref()?;
-    let c = m.base_color;
-    if !texture_readable(t, uv_set) {
-        Some(format!(
-            "material '{}': its base-colour texture ({}) reads TEXCOORD_{} but the asset is \
-             loaded with UV set {uv_set}: it is not read, the beauty shades with its colour \
-             factor ({}, {}, {}) (the sidecar's uv_set = {} reads it)",
-            m.name, t.name, t.tex_coord, c[0], c[1], c[2], t.tex_coord
-        ))
-    } else if t.transformed {
-        Some(format!(
-            "material '{}': the file uses KHR_texture_transform, which is not applied to its \
-             base-colour texture ({})",
-            m.name, t.name
-        ))
-    } else {
-        None
+/// What the beauty does not take from material `m`'s textures: each texture that reads another
+/// UV set than the asset's (`uv_set`), each texture's transform (`render`'s warning,
+/// `validate`'s `textures` check).
+pub fn texture_notes(m: &MeshMaterial, uv_set: u32) -> Vec<String> {
+    let mut notes = vec![];
+    for (slots, t) in m.texture_uses() {
+        let what = slots
+            .iter()
+            .map(|s| s.name())
+            .collect::<Vec<_>>()
+            .join(" and ");
+        if !texture_readable(t, uv_set) {
+            let factors = slots
+                .iter()
+                .map(|slot| match slot {
+                    TextureSlot::BaseColor => {
+                        let c = m.base_color;
+                        format!("colour factor ({}, {}, {})", c[0], c[1], c[2])
+                    }
+                    TextureSlot::Roughness => format!("roughness factor {}", m.roughness),
+                    TextureSlot::Metallic => format!("metallic factor {}", m.metallic),
+                })
+                .collect::<Vec<_>>()
+                .join(" and ");
+            let flags = slots
+                .iter()
+                .map(|s| s.flag())
+                .collect::<Vec<_>>()
+                .join(", ");
+            notes.push(format!(
+                "material '{}': its {what} texture ({}) reads TEXCOORD_{} but the asset is \
+                 loaded with UV set {uv_set}: it is not read, the beauty shades with its \
+                 {factors} (the sidecar's uv_set = {} reads it; {flags} sets one value)",
+                m.name, t.name, t.tex_coord, t.tex_coord
+            ));
+        } else if t.transformed {
+            notes.push(format!(
+                "material '{}': the file uses KHR_texture_transform, which is not applied to its \
+                 {what} texture ({})",
+                m.name, t.name
+            ));
+        }
     }
+    notes
 }
 
-/// What the beauty does not take from the asset's materials, if anything (`texture_note`).
+/// What the beauty does not take from the asset's materials, if anything (`texture_notes`).
 pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<String> {
     let notes: Vec<String> = mesh
         .materials
         .iter()
-        .filter_map(|m| texture_note(m, uv_set))
+        .flat_map(|m| texture_notes(m, uv_set))
         .collect();
-    (!notes.is_empty()).then(|| notes.join("; ") + " (--base-color R,G,B sets one colour)")
+    (!notes.is_empty()).then(|| notes.join("; "))
 }
 
 /// Roughness of a surface whose asset has no material and no `--roughness`.
@@ -379,6 +420,8 @@ struct AssetMaterial {
     metallic: f32,
     /// Index into `AssetMaterials::textures`.
     texture: Option<u32>,
+    roughness_texture: Option<TexChannel>,
+    metallic_texture: Option<TexChannel>,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -397,6 +440,8 @@ impl AssetMaterial {
             roughness: DEFAULT_ROUGHNESS,
             metallic: DEFAULT_METALLIC,
             texture: None,
+            roughness_texture: None,
+            metallic_texture: None,
         }
     }
 }
@@ -455,8 +500,8 @@ pub fn check_material_values(
 }
 
 /// The asset's materials for `job`: the default alone unless it renders the beauty; no
-/// texture is decoded with `--base-color`, and each image once. A texture that cannot be
-/// decoded is an error.
+/// texture is decoded for an input the command line sets (`--base-color`, `--roughness`,
+/// `--metallic`), and each image once. A texture that cannot be decoded is an error.
 fn asset_materials(
     mesh: &crate::mesh::BaseMesh,
     spec: &AssetSpec,
@@ -470,38 +515,84 @@ fn asset_materials(
         list: vec![],
         textures: vec![],
     };
-    let read_textures = opts.base_color.is_none();
-    if read_textures {
-        if let Some(w) = material_warning(mesh, spec.uv_set) {
-            eprintln!("warning: {}: {w}", mesh.source.display());
-        }
+    let reads = |slot: TextureSlot| match slot {
+        TextureSlot::BaseColor => opts.base_color.is_none(),
+        TextureSlot::Roughness => opts.roughness.is_none(),
+        TextureSlot::Metallic => opts.metallic.is_none(),
+    };
+    let unread: Vec<String> = mesh
+        .materials
+        .iter()
+        .flat_map(|m| {
+            texture_notes(
+                &MeshMaterial {
+                    base_color_texture: m
+                        .base_color_texture
+                        .clone()
+                        .filter(|_| reads(TextureSlot::BaseColor)),
+                    roughness_texture: m
+                        .roughness_texture
+                        .clone()
+                        .filter(|_| reads(TextureSlot::Roughness)),
+                    metallic_texture: m
+                        .metallic_texture
+                        .clone()
+                        .filter(|_| reads(TextureSlot::Metallic)),
+                    ..m.clone()
+                },
+                spec.uv_set,
+            )
+        })
+        .collect();
+    if !unread.is_empty() {
+        eprintln!("warning: {}: {}", mesh.source.display(), unread.join("; "));
     }
-    let mut decoded: Vec<&TextureRef> = vec![];
+    // The images decoded so far (an embedded one's bytes cloned: small beside its texels).
+    let mut decoded: Vec<TextureRef> = vec![];
+    let mut decode = |t: &TextureRef, slot: TextureSlot| -> Result<Option<u32>> {
+        if !reads(slot) || !texture_readable(t, spec.uv_set) {
+            return Ok(None);
+        }
+        Ok(Some(match decoded.iter().position(|d| d == t) {
+            Some(i) => i as u32,
+            None => {
+                out.textures.push(ColorMap::load(&mesh.source, t, slot)?);
+                decoded.push(t.clone());
+                (decoded.len() - 1) as u32
+            }
+        }))
+    };
+    let mut list = vec![];
     for m in &mesh.materials {
         check_material_values(mesh, m, opts)?;
         let texture = match &m.base_color_texture {
-            Some(t) if read_textures && texture_readable(t, spec.uv_set) => {
-                Some(match decoded.iter().position(|d| *d == t) {
-                    Some(i) => i as u32,
-                    None => {
-                        out.textures.push(ColorMap::load(&mesh.source, t)?);
-                        decoded.push(t);
-                        (decoded.len() - 1) as u32
-                    }
-                })
-            }
-            _ => None,
+            Some(t) => decode(t, TextureSlot::BaseColor)?,
+            None => None,
         };
+        let mut channel = |c: &Option<ChannelRef>, slot| -> Result<Option<TexChannel>> {
+            Ok(match c {
+                Some(c) => decode(&c.texture, slot)?.map(|texture| TexChannel {
+                    texture,
+                    channel: c.channel,
+                }),
+                None => None,
+            })
+        };
+        let roughness_texture = channel(&m.roughness_texture, TextureSlot::Roughness)?;
+        let metallic_texture = channel(&m.metallic_texture, TextureSlot::Metallic)?;
         let c = m.base_color;
-        out.list.push(AssetMaterial {
+        list.push(AssetMaterial {
             name: m.name.clone(),
             base_color: Vec3::new(c[0], c[1], c[2]),
             roughness: m.roughness,
             metallic: m.metallic,
             texture,
+            roughness_texture,
+            metallic_texture,
         });
     }
-    out.list.push(AssetMaterial::default_grey());
+    list.push(AssetMaterial::default_grey());
+    out.list = list;
     Ok(out)
 }
 
@@ -816,6 +907,8 @@ pub fn render_all(
                 specular: opts.specular,
             },
             texture: m.texture.filter(|_| opts.base_color.is_none()),
+            roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),
+            metallic_texture: m.metallic_texture.filter(|_| opts.metallic.is_none()),
         })
         .collect();
     let env_fallback;
