@@ -1049,3 +1049,172 @@ fn a_material_with_nan_values_fails_the_beauty_naming_the_override() {
         report.stdout
     );
 }
+
+/// A square facing +Z (UVs over it, one material) whose roughness and metallic come from a
+/// metallic-roughness texture `orm.png` (glTF's: roughness in green, metallic in blue, factors
+/// left out: 1), clamped: its left half a rough dielectric, its right half a smooth metal.
+/// Red, which glTF leaves to occlusion, is the opposite of blue, so that reading the wrong
+/// channel shows.
+fn metallic_roughness_square(dir: &Path) -> PathBuf {
+    let positions: [f32; 12] = [-1., -1., 0., 1., -1., 0., 1., 1., 0., -1., 1., 0.];
+    let normals: [f32; 12] = [0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.];
+    let uvs: [f32; 8] = [0., 1., 1., 1., 1., 0., 0., 0.];
+    let indices: [u16; 6] = [0, 1, 2, 0, 2, 3];
+    let mut bin: Vec<u8> = positions
+        .iter()
+        .chain(&normals)
+        .chain(&uvs)
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
+    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
+    std::fs::write(dir.join("square.bin"), &bin).unwrap();
+    image::RgbImage::from_fn(4, 4, |x, _| {
+        if x < 2 {
+            image::Rgb([255, 255, 0])
+        } else {
+            image::Rgb([0, 20, 255])
+        }
+    })
+    .save(dir.join("orm.png"))
+    .unwrap();
+    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
+      "meshes":[{"primitives":[
+        {"attributes":{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2},"indices":3,"material":0}]}],
+      "materials":[{"name":"half metal","pbrMetallicRoughness":{"baseColorFactor":[0.9,0.9,0.9,1],
+        "metallicRoughnessTexture":{"index":0}}}],
+      "textures":[{"source":0,"sampler":0}],
+      "samplers":[{"wrapS":33071,"wrapT":33071}],
+      "images":[{"uri":"orm.png"}],
+      "accessors":[
+        {"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]},
+        {"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"},
+        {"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"},
+        {"bufferView":3,"componentType":5123,"count":6,"type":"SCALAR"}],
+      "bufferViews":[
+        {"buffer":0,"byteOffset":0,"byteLength":48},
+        {"buffer":0,"byteOffset":48,"byteLength":48},
+        {"buffer":0,"byteOffset":96,"byteLength":32},
+        {"buffer":0,"byteOffset":128,"byteLength":12}],
+      "buffers":[{"byteLength":140,"uri":"square.bin"}]}"#;
+    let path = dir.join("square.gltf");
+    std::fs::write(&path, json).unwrap();
+    path
+}
+
+/// Mean luminance of the square's left and right thirds (away from the texture's seam) in a
+/// 32² beauty EXR.
+fn left_right_luminance(path: &Path) -> (f32, f32) {
+    let px = read_rgba(path);
+    let mean = |xs: std::ops::Range<usize>| {
+        let mut sum = 0.0;
+        let mut n = 0;
+        for y in 10..22 {
+            for x in xs.clone() {
+                let p = px[y * 32 + x];
+                assert!(p[3] > 0.99, "pixel ({x}, {y}) is not on the square");
+                sum += 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+                n += 1;
+            }
+        }
+        sum / n as f32
+    };
+    (mean(7..12), mean(20..25))
+}
+
+/// The metallic-roughness texture shades: under a key light off the mirror direction, its
+/// rough dielectric half is lit and its smooth metal half dark, on the CPU and the GPU alike;
+/// the summary names the texture and its channels; `--roughness`/`--metallic` replace it; and
+/// one that cannot be decoded fails the beauty naming it and the flags.
+#[test]
+fn a_metallic_roughness_texture_sets_roughness_and_metallic_per_texel() {
+    let dir = temp_dir("metallic-roughness");
+    let square = metallic_roughness_square(&dir);
+    let map = example("maps/scales_256.png");
+    let render = |name: &str, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            s(&square),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0.002",
+            "--res",
+            "32x32",
+            "--spp",
+            "4",
+            "--aov",
+            "beauty",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "30",
+            "--env-intensity",
+            "0",
+            "--key-light",
+            "30,40,3",
+            "--json",
+            "-o",
+        ];
+        let out = dir.join(name);
+        args.push(s(&out));
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        (o, out.join("beauty.exr"))
+    };
+    let mut lit = vec![];
+    for device in ["cpu", "gpu"] {
+        let (o, exr) = render(device, &["--device", device]);
+        o.assert_success();
+        let m = &o.json()["materials"][0];
+        assert_eq!(
+            (m["roughness"].as_f64(), m["metallic"].as_f64()),
+            (Some(1.0), Some(1.0))
+        );
+        for (key, channel) in [
+            ("roughness_texture", "channel g"),
+            ("metallic_texture", "channel b"),
+        ] {
+            let t = m[key].as_str().unwrap_or_default();
+            assert!(
+                t.starts_with("orm.png, 4x4, clamp/clamp") && t.ends_with(channel),
+                "{key}: {t}"
+            );
+        }
+        let (left, right) = left_right_luminance(&exr);
+        eprintln!("{device}: rough dielectric {left:.4}, smooth metal {right:.4}");
+        assert!(
+            left > 0.05 && left > 10.0 * right,
+            "{device}: left {left}, right {right}"
+        );
+        lit.push((left, right));
+    }
+    let (cpu, gpu) = (lit[0], lit[1]);
+    assert!(
+        (cpu.0 - gpu.0).abs() < 0.05 * cpu.0,
+        "CPU {cpu:?}, GPU {gpu:?}"
+    );
+    // The command line's values replace the texture: both halves the same dielectric.
+    let (o, exr) = render("override", &["--roughness", "1", "--metallic", "0"]);
+    o.assert_success();
+    let m = &o.json()["materials"][0];
+    assert!(
+        m.get("roughness_texture").is_none() && m.get("metallic_texture").is_none(),
+        "{m}"
+    );
+    let (left, right) = left_right_luminance(&exr);
+    assert!(
+        (left - right).abs() < 0.1 * left,
+        "left {left}, right {right}"
+    );
+    // A texture that does not decode fails the beauty before any file is written.
+    std::fs::write(dir.join("orm.png"), b"\x89PNG\r\n\x1a\n truncated").unwrap();
+    let (o, exr) = render("broken", &[]);
+    o.assert_error(&[
+        "square.gltf",
+        "roughness texture 'orm.png'",
+        "--roughness R",
+    ]);
+    assert!(!exr.exists());
+}

@@ -360,11 +360,12 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
             {"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0],
                                       "baseColorTexture": {"index": 0}}},
             {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0],
-                                      "roughnessFactor": 0.25, "metallicFactor": 0.5}},
+                                      "roughnessFactor": 0.25, "metallicFactor": 0.5,
+                                      "metallicRoughnessTexture": {"index": 1}}},
         ],
-        "textures": [{"source": 0, "sampler": 0}],
+        "textures": [{"source": 0, "sampler": 0}, {"source": 1}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
-        "images": [{"uri": "my%20albedo.png"}],
+        "images": [{"uri": "my%20albedo.png"}, {"uri": "orm.png"}],
     });
     let m = load_gltf_doc(&dir, "textured.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
     // One group per primitive, each with its material (2: none, the slot after the file's).
@@ -394,6 +395,26 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         }
     );
     assert_eq!((t.tex_coord, t.transformed), (0, false));
+    // A colour texture is sRGB; the metallic-roughness texture is data, its green the
+    // roughness and its blue the metallic, each times its factor.
+    assert_eq!(t.color_space, crate::texture::ColorSpace::Srgb);
+    assert_eq!(
+        (
+            paint.roughness_texture.clone(),
+            paint.metallic_texture.clone()
+        ),
+        (None, None)
+    );
+    let (r, mt) = (
+        other.roughness_texture.clone().unwrap(),
+        other.metallic_texture.clone().unwrap(),
+    );
+    assert_eq!((r.channel, mt.channel), (1, 2));
+    assert_eq!(r.texture, mt.texture);
+    assert_eq!(r.texture.name, "orm.png");
+    assert_eq!(r.texture.data, TextureData::File(dir.join("orm.png")));
+    assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
+    assert_eq!(other.texture_uses().len(), 1, "one image, two inputs");
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
     assert_eq!(material_warning(&m, 0), None);
@@ -406,6 +427,10 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         "(0.9, 0.8, 0.7)",
         "uv_set = 0",
         "--base-color",
+        // The metallic-roughness texture: one note for both inputs, both factors, both flags.
+        "material 'material 1': its roughness and metallic texture (orm.png) reads TEXCOORD_0",
+        "roughness factor 0.25 and metallic factor 0.5",
+        "--roughness R, --metallic M",
     ] {
         assert!(w.contains(part), "no '{part}' in: {w}");
     }
@@ -689,7 +714,8 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         usemtl paint\nf 2 3 4\n";
     let mtl = "# two materials\n\
         newmtl paint\nKd 0.5 0.25 0.125\nNs 250\nPr 0.3\n\
-        newmtl rust metal\nKd 0.2 0.2 0.2\nPm 1\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n";
+        newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
+        map_Pr rough.png\nmap_Pm -imfchan b orm.png\n";
     std::fs::write(&path, obj).unwrap();
     std::fs::write(dir.join("m.mtl"), mtl).unwrap();
     let m = load_mesh(&path, &MeshOptions::default()).unwrap();
@@ -707,12 +733,26 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!(paint.base_color_texture, None);
     assert_eq!(rust.name, "rust metal");
     // map_Kd replaces Kd (as Blender's importer does); -clamp on clamps; -s is a transform.
-    assert_eq!((rust.base_color, rust.metallic), ([1.0; 4], 1.0));
+    // So do map_Pr and map_Pm their values (data textures: red unless -imfchan says).
+    assert_eq!(
+        (rust.base_color, rust.roughness, rust.metallic),
+        ([1.0; 4], 1.0, 1.0)
+    );
     let t = rust.base_color_texture.as_ref().unwrap();
     assert_eq!(t.name, "tex/rust.png");
     assert_eq!(t.data, TextureData::File(dir.join("tex/rust.png")));
     assert_eq!(t.sampler.wrap, [TexWrap::Clamp; 2]);
     assert!(t.transformed);
+    assert_eq!(t.color_space, crate::texture::ColorSpace::Srgb);
+    let (r, mt) = (
+        rust.roughness_texture.as_ref().unwrap(),
+        rust.metallic_texture.as_ref().unwrap(),
+    );
+    assert_eq!((r.texture.name.as_str(), r.channel), ("rough.png", 0));
+    assert_eq!((mt.texture.name.as_str(), mt.channel), ("orm.png", 2));
+    assert_eq!(r.texture.data, TextureData::File(dir.join("rough.png")));
+    assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
+    assert!(!r.texture.transformed);
     // Without any mtllib: no materials, every face the default.
     let bare = dir.join("bare.obj");
     std::fs::write(

@@ -446,7 +446,17 @@ fn preview_surface_materials_are_read_per_mesh() {
             {{
                 uniform token info:id = "UsdPreviewSurface"
                 color3f inputs:diffuseColor.connect = </A/Looks/Stone/Albedo.outputs:rgb>
+                float inputs:roughness.connect = </A/Looks/Stone/Rough.outputs:g>
+                float inputs:metallic.connect = </A/Looks/Stone/Albedo.outputs:r>
                 token outputs:surface
+            }}
+            def Shader "Rough"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                asset inputs:file = @./tex/orm.png@
+                token inputs:sourceColorSpace = "raw"
+                float2 inputs:st.connect = </A/Looks/Stone/Reader.outputs:result>
+                float outputs:g
             }}
             def Shader "Albedo"
             {{
@@ -456,6 +466,7 @@ fn preview_surface_materials_are_read_per_mesh() {
                 token inputs:wrapT = "clamp"
                 float2 inputs:st.connect = </A/Looks/Stone/Reader.outputs:result>
                 float3 outputs:rgb
+                float outputs:r
             }}
             def Shader "Reader"
             {{
@@ -494,13 +505,22 @@ fn preview_surface_materials_are_read_per_mesh() {
     assert_eq!(stone.base_color, [1.0; 4], "the texture alone");
     assert_eq!(
         (stone.roughness, stone.metallic),
-        (0.5, 0.0),
-        "the defaults"
+        (1.0, 1.0),
+        "the textures alone"
     );
     let t = stone.base_color_texture.as_ref().unwrap();
     assert_eq!(t.data, TextureData::File(d.join("./tex/stone.png")));
     assert_eq!(t.sampler.wrap, [TexWrap::Mirror, TexWrap::Clamp]);
     assert_eq!((t.name.as_str(), t.tex_coord), ("stone.png", 0));
+    // No sourceColorSpace: USD's auto (decided by the image when it is decoded).
+    assert_eq!(t.color_space, crate::texture::ColorSpace::Auto);
+    // Roughness: the green of a raw texture; metallic: the red of the diffuse texture.
+    let r = stone.roughness_texture.as_ref().unwrap();
+    assert_eq!((r.texture.name.as_str(), r.channel), ("orm.png", 1));
+    assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
+    let mt = stone.metallic_texture.as_ref().unwrap();
+    assert_eq!((&mt.texture, mt.channel), (t, 0));
+    assert_eq!(stone.texture_uses().len(), 2);
     assert_eq!(gold.base_color, [1.0, 0.75, 0.25, 1.0]);
     assert_eq!((gold.roughness, gold.metallic), (0.2, 1.0));
     assert_eq!(gold.base_color_texture, None);
