@@ -193,6 +193,75 @@ def test_a_blender_camera_frames_the_usd_as_it_frames_the_gltf(run, tmp_path):
     assert mismatch(gltf, framed) > 0.05, "control: the scene camera changes the picture"
 
 
+MR_SCRIPT = textwrap.dedent(
+    """
+    import sys, bpy
+    out = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    ob = bpy.context.active_object
+    # 8 x 8 texels: red unused (glTF's occlusion), green the roughness, blue the metallic;
+    # the left half a rough dielectric, the right half a smooth metal.
+    img = bpy.data.images.new("orm", 8, 8, alpha=False)
+    px = []
+    for y in range(8):
+        for x in range(8):
+            px += [1.0, 1.0, 0.0, 1.0] if x < 4 else [0.0, 0.08, 1.0, 1.0]
+    img.pixels[:] = px
+    img.filepath_raw = out + "_orm.png"
+    img.file_format = "PNG"
+    img.save()
+    img.colorspace_settings.name = "Non-Color"
+    mat = bpy.data.materials.new("HalfMetal")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    sep = nt.nodes.new("ShaderNodeSeparateColor")
+    nt.links.new(tex.outputs["Color"], sep.inputs["Color"])
+    nt.links.new(sep.outputs["Green"], bsdf.inputs["Roughness"])
+    nt.links.new(sep.outputs["Blue"], bsdf.inputs["Metallic"])
+    ob.data.materials.append(mat)
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb")
+    """
+)
+
+
+def test_blender_roughness_and_metallic_textures_shade_from_gltf_and_usd_alike(run, tmp_path):
+    """A Blender material whose roughness and metallic come from one image's green and blue
+    (glTF: a metallicRoughnessTexture; USD: a raw UsdUVTexture's `g` and `b` outputs) renders
+    its rough dielectric half lit and its smooth metal half dark under a key light, and the
+    same beauty from either file."""
+    base = tmp_path / "plane"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=MR_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    images = {}
+    # The same view of the plane in either frame (Blender's Z-up, glTF's Y-up).
+    for ext, camera in (("glb", "0,5,0.5"), ("usda", "0,-0.5,5")):
+        out = tmp_path / ext
+        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0.001",
+                   "--aov", "beauty", "--res", "32x32", "--spp", "4", "--camera-from", camera,
+                   "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0",
+                   "--key-light", "30,40,3", "--json", "-o", out, check=0)
+        (m,) = json.loads(proc.stdout)["materials"]
+        assert (m["roughness"], m["metallic"]) == (1.0, 1.0), m
+        assert m["roughness_texture"].endswith("8x8, repeat/repeat, bilinear, channel g"), m
+        assert m["metallic_texture"].endswith("8x8, repeat/repeat, bilinear, channel b"), m
+        with OpenEXR.File(str(out / "beauty.exr")) as f:
+            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+        lum = rgba[..., :3] @ [0.2126, 0.7152, 0.0722]
+        left, right = lum[10:22, 6:12].mean(), lum[10:22, 20:26].mean()
+        assert left > 0.1 and left > 10 * right, (ext, left, right)
+        images[ext] = rgba
+    assert np.abs(images["glb"] - images["usda"]).mean() < 1e-4
+
+
 def make_usd_core_mesh(path):
     """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
     UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""
