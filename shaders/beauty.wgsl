@@ -142,6 +142,44 @@ fn key_sample_dir(u: vec2f) -> vec3f {
     return normalize(basis.t * (s * cos(phi)) + basis.b * (s * sin(phi)) + d * c);
 }
 
+// KeyLight::pdf: the density in solid angle of key_sample_dir's directions over a disc; 0 for
+// a point-like light (a delta no sampled direction meets).
+fn key_pdf() -> f32 {
+    let cos_r = lighting.key_cos_radius;
+    if (lighting.has_key == 0u || cos_r >= 1.0) {
+        return 0.0;
+    }
+    return 1.0 / (2.0 * PI * (1.0 - cos_r));
+}
+
+// Whether KeyLight::radiance_along finds direction `d` within the key light's disc.
+fn key_disc_contains(d: vec3f) -> bool {
+    return key_pdf() > 0.0 && dot(d, lighting.key_dir) >= lighting.key_cos_radius;
+}
+
+// beauty::escape_radiance: light a BSDF sample (direction `wi`, density `pdf`, a delta lobe
+// or not) meets when it leaves the scene, the environment and the key's disc, each weighted by
+// MIS against its own light samples.
+fn escape_radiance(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
+    var l = vec3f(0.0);
+    if (lighting.env_lights != 0u) {
+        var w = 1.0;
+        if (!delta) {
+            w = power_heuristic(pdf, env_pdf(wi));
+        }
+        l += env_radiance(wi) * w;
+    }
+    if (key_disc_contains(wi)) {
+        let kp = key_pdf();
+        var w = 1.0;
+        if (!delta) {
+            w = power_heuristic(pdf, kp);
+        }
+        l += vec3f(lighting.key_irradiance * kp * w);
+    }
+    return l;
+}
+
 // beauty::shadow_ray (t_max = +∞).
 fn shadow_ray(origin: vec3f, dir: vec3f) -> Ray {
     return Ray(origin, dir, 0.0, T_FAR);
@@ -307,7 +345,13 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
             if (max_element(f) > 0.0) {
                 (*s).key_shadow_rays += 1u;
                 q0 = query(shadow_ray(offset_origin(p, ng, kd, eps), kd), bounce + 1u, true);
-                (*s).key_term = throughput * f * lighting.key_irradiance;
+                // A disc is also met by BSDF samples: the two share it by MIS.
+                let kp = key_pdf();
+                var w = 1.0;
+                if (kp > 0.0) {
+                    w = power_heuristic(kp, bsdf_pdf(m, wo_l, wi_l));
+                }
+                (*s).key_term = throughput * f * (lighting.key_irradiance * w);
             }
         }
         if (env_lights) {
@@ -346,6 +390,9 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
                 if (env_lights) {
                     (*s).env_shadow_rays += 1u;
                     q2 = query(ray, bounce + 1u, true);
+                } else if (key_disc_contains(wi)) {
+                    (*s).key_shadow_rays += 1u;
+                    q2 = query(ray, bounce + 1u, true);
                 }
             } else {
                 (*s).rays += 1u;
@@ -359,7 +406,6 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
 // Step 3 of trace_sample's loop: the answers to the step's rays `qs` (the continuation's
 // `next`, whether each shadow ray was occluded), used as the CPU does; sets the next step.
 fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Answer, occluded_key: bool, occluded_env: bool) {
-    let env_lights = lighting.env_lights != 0u;
     let live_key = qs.key.live != 0u;
     let live_env = qs.env.live != 0u;
     let live_next = qs.next.live != 0u;
@@ -413,20 +459,17 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
             let wi = (*s).wi;
             (*s).throughput *= (*s).bs_weight;
             let throughput = (*s).throughput;
-            var env_weight = 1.0;
-            if (!has(*s, PATH_BSDF_DELTA) && env_lights) {
-                env_weight = power_heuristic((*s).bs_pdf, env_pdf(wi));
-            }
+            let delta = has(*s, PATH_BSDF_DELTA);
             if (has(*s, PATH_LAST)) {
                 if (live_next && next_prism == NO_PRISM) {
-                    (*s).radiance += throughput * env_radiance(wi) * env_weight;
+                    (*s).radiance += throughput * escape_radiance(wi, (*s).bs_pdf, delta);
                 }
             } else if (next_prism != NO_PRISM) {
                 (*s).dir = wi;
                 (*s).bounce += 1u;
                 (*s).step = STEP_SURFACE;
-            } else if (env_lights) {
-                (*s).radiance += throughput * env_radiance(wi) * env_weight;
+            } else {
+                (*s).radiance += throughput * escape_radiance(wi, (*s).bs_pdf, delta);
             }
         }
     }

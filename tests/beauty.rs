@@ -1218,3 +1218,94 @@ fn a_metallic_roughness_texture_sets_roughness_and_metallic_per_texel() {
     ]);
     assert!(!exr.exists());
 }
+
+/// A key light with an angle is a disc of even radiance (its irradiance over its solid angle)
+/// that BSDF samples meet as well as shadow rays, the two shared by MIS: a mirror square facing
+/// it shows the disc at exactly that radiance (it showed nothing when only shadow rays found
+/// the key), and a white Lambertian square facing a 90° disc converges to its analytic
+/// radiance, the disc counted once, on the CPU and the GPU.
+#[test]
+fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
+    let dir = temp_dir("key-disc");
+    let square = two_material_square(&dir);
+    let map = example("maps/scales_256.png");
+    let render = |name: &str, device: &str, material: &[&str], angle: &str| {
+        let out = dir.join(format!("{name}-{device}"));
+        let mut args = vec![
+            "render",
+            s(&square),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0",
+            "--res",
+            "24x24",
+            "--spp",
+            "16",
+            "--aov",
+            "beauty",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "20",
+            "--env-intensity",
+            "0",
+            "--key-light",
+            "0,0,2",
+            "--key-angle",
+            angle,
+            "--bounces",
+            "1",
+            "--device",
+            device,
+            "-o",
+            s(&out),
+        ];
+        args.extend_from_slice(material);
+        run(&args).assert_success();
+        let px: Vec<[f32; 4]> = read_rgba(&out.join("beauty.exr"))
+            .into_iter()
+            .filter(|p| p[3] >= 0.999)
+            .collect();
+        assert!(px.len() > 200, "{name}: the square fills the view");
+        px
+    };
+    let mirror = [
+        "--base-color",
+        "1,1,1",
+        "--metallic",
+        "1",
+        "--roughness",
+        "0",
+    ];
+    let lambert = [
+        "--base-color",
+        "1,1,1",
+        "--specular",
+        "0",
+        "--roughness",
+        "1",
+    ];
+    for device in ["cpu", "gpu"] {
+        // Every reflected direction lies within 10° of the key's, inside its 30° radius.
+        let want = 2.0 / (2.0 * std::f32::consts::PI * (1.0 - 30f32.to_radians().cos()));
+        for p in render("mirror", device, &mirror, "60") {
+            assert!(
+                (p[0] - want).abs() < 1e-3 * want,
+                "{device}: mirror pixel {p:?}, the disc's radiance {want}"
+            );
+        }
+        // E = L π sin²r over the disc facing the square, of radiance L = E₀ / (2π(1 − cos r)):
+        // E₀ (1 + cos r) / 2; a white Lambertian surface's radiance is E / π.
+        let px = render("lambert", device, &lambert, "90");
+        let want = 2.0 * (1.0 + 45f32.to_radians().cos()) / 2.0 / std::f32::consts::PI;
+        let mean = px.iter().map(|p| p[1] as f64).sum::<f64>() / px.len() as f64;
+        eprintln!("{device}: Lambertian square under a 90° disc {mean:.4}, analytic {want:.4}");
+        assert!(
+            (mean - want as f64).abs() < 0.02 * want as f64,
+            "{device}: mean {mean}, analytic {want}"
+        );
+    }
+}

@@ -513,6 +513,25 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             exposure: 1.0,
         };
         check(rel, &ex, &bscene, &settings, label);
+        // The same surface lit by a wide key disc alone: its BSDF samples meet the disc (a
+        // mirror's only way to see it), weighted against the shadow rays by MIS, and a last
+        // bounce tests its escape towards the disc with a key shadow ray.
+        // (A grey backdrop the camera sees, which lights nothing: `env_lights` false.)
+        let backdrop = EnvMap::constant(Vec3::splat(0.6), env.frame);
+        let keyed = BeautyScene {
+            env: &backdrop,
+            env_lights: false,
+            key: Some(KeyLight::from_angles(20.0, 35.0, 12.0, false).with_angle(40.0)),
+            bounces: 2,
+            ..bscene
+        };
+        check(
+            rel,
+            &ex,
+            &keyed,
+            &settings,
+            &format!("{label}, key disc alone"),
+        );
     }
 }
 

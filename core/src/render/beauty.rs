@@ -43,7 +43,8 @@ pub struct KeyLight {
     pub irradiance: f32,
     /// Cosine of the light's angular radius: 1 for a point-like sun (one direction, hard
     /// shadows), below 1 for a disc whose directions each shadow ray draws from (soft
-    /// shadows; `--key-angle`, Cycles' sun angle). The irradiance is the disc's whole.
+    /// shadows; `--key-angle`, Cycles' sun angle). The irradiance is the disc's whole; a disc
+    /// is also found by BSDF samples (`radiance_along`, `escape_radiance`), MIS-weighted.
     pub cos_radius: f32,
 }
 
@@ -85,6 +86,23 @@ impl KeyLight {
         let phi = 2.0 * std::f32::consts::PI * u.y;
         let (t, b) = shading::onb(self.dir);
         (t * (sin * phi.cos()) + b * (sin * phi.sin()) + self.dir * cos).normalize()
+    }
+
+    /// Density in solid angle of `sample_dir`'s directions, `1 / (2π(1 − cos_radius))`, for a
+    /// disc; `None` for a point-like light (a delta no sampled direction meets).
+    #[inline]
+    pub fn pdf(&self) -> Option<f32> {
+        (self.cos_radius < 1.0)
+            .then(|| 1.0 / (2.0 * std::f32::consts::PI * (1.0 - self.cos_radius)))
+    }
+
+    /// The disc's radiance along a direction `d` from a surface, if `d` lies within its cone:
+    /// the irradiance spread evenly over the cone's solid angle (`irradiance × pdf`), so that
+    /// a BSDF sample that meets the disc sees what its shadow rays sample.
+    #[inline]
+    pub fn radiance_along(&self, d: Vec3) -> Option<f32> {
+        let pdf = self.pdf()?;
+        (d.dot(self.dir) >= self.cos_radius).then_some(self.irradiance * pdf)
     }
 }
 
@@ -419,6 +437,29 @@ fn ground_light(
     (lit, all)
 }
 
+/// Light a BSDF sample `bs` (direction `wi`) meets when it leaves the scene: the environment
+/// and the key light's disc if `wi` lies within it, each weighted by MIS against its own
+/// light samples (weight 1 for a delta lobe, which light samples never find).
+fn escape_radiance(s: &BeautyScene, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 {
+    let mut l = Vec3::ZERO;
+    if s.env_lights {
+        let w = if bs.delta {
+            1.0
+        } else {
+            power_heuristic(bs.pdf, env_pdf(s.env, s.env_frame, wi))
+        };
+        l += env_radiance(s.env, s.env_frame, wi) * w;
+    }
+    if let Some((k, radiance)) = s.key.and_then(|k| Some((k, k.radiance_along(wi)?))) {
+        let w = match (bs.delta, k.pdf()) {
+            (false, Some(pdf)) => power_heuristic(bs.pdf, pdf),
+            _ => 1.0,
+        };
+        l += Vec3::splat(radiance * w);
+    }
+    l
+}
+
 /// Radiance leaving a camera hit towards the camera: the path tracer proper.
 fn surface_radiance(
     isect: &dyn Intersector,
@@ -455,7 +496,11 @@ fn surface_radiance(
             if f.max_element() > 0.0 {
                 n.key_shadow_rays += 1;
                 if !isect.occluded(&shadow_ray(offset_origin(p, ng, kd, s.eps), kd), &bctx) {
-                    radiance += throughput * f * k.irradiance;
+                    // A disc is also met by BSDF samples (below): the two share it by MIS.
+                    let w = k
+                        .pdf()
+                        .map_or(1.0, |pdf| power_heuristic(pdf, bsdf_pdf(m, wo_l, wi_l)));
+                    radiance += throughput * f * (k.irradiance * w);
                 }
             }
         }
@@ -496,19 +541,17 @@ fn surface_radiance(
         }
         throughput *= bs.weight;
         let ray = shadow_ray(offset_origin(p, ng, wi, s.eps), wi);
-        let env_weight = |s: &BeautyScene| {
-            if bs.delta {
-                1.0
-            } else {
-                power_heuristic(bs.pdf, env_pdf(s.env, s.env_frame, wi))
-            }
-        };
+        let key_seen = s.key.and_then(|k| k.radiance_along(wi));
         if bounce + 1 == s.bounces {
             // Last event: only whether the ray escapes matters.
-            if s.env_lights {
-                n.env_shadow_rays += 1;
+            if s.env_lights || key_seen.is_some() {
+                if s.env_lights {
+                    n.env_shadow_rays += 1;
+                } else {
+                    n.key_shadow_rays += 1;
+                }
                 if !isect.occluded(&ray, &bctx) {
-                    radiance += throughput * env_radiance(s.env, s.env_frame, wi) * env_weight(s);
+                    radiance += throughput * escape_radiance(s, wi, &bs);
                 }
             }
             break;
@@ -520,9 +563,7 @@ fn surface_radiance(
                 dir = wi;
             }
             None => {
-                if s.env_lights {
-                    radiance += throughput * env_radiance(s.env, s.env_frame, wi) * env_weight(s);
-                }
+                radiance += throughput * escape_radiance(s, wi, &bs);
                 break;
             }
         }
