@@ -121,7 +121,7 @@ struct Lighting {
     _pad2: u32,
 }
 
-// GpuMaterialTexture, 24 bytes: one texture of a material in texture_texels (texture.wgsl;
+// GpuMaterialTexture, 48 bytes: one texture of a material in texture_texels (texture.wgsl;
 // 0 x 0: none).
 struct MaterialTexture {
     width: u32,
@@ -130,9 +130,12 @@ struct MaterialTexture {
     sampler: u32,   // gpu::layout::texture_sampler_code; bit 5: packed (beauty::TEX_PACKED)
     table: u32,     // a packed texture's 8-bit code table, its first float in texture_texels
     channel: u32,   // the channel a roughness or metallic texture is read from
+    uv_u: vec2f,    // texture::UvTransform: u' = dot(uv_u, uv) + uv_offset.x
+    uv_v: vec2f,    //                       v' = dot(uv_v, uv) + uv_offset.y
+    uv_offset: vec2f,
 }
 
-// GpuMaterial, 96 bytes: beauty::SurfaceMaterial, its base-colour, roughness and metallic
+// GpuMaterial, 176 bytes: beauty::SurfaceMaterial, its base-colour, roughness and metallic
 // textures.
 struct SurfaceMaterial {
     base_color: vec3f,
@@ -142,6 +145,7 @@ struct SurfaceMaterial {
     color_tex: MaterialTexture,
     roughness_tex: MaterialTexture,
     metallic_tex: MaterialTexture,
+    _pad: vec2<u32>,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -56,9 +56,13 @@ fn tex_texel(m: MaterialTexture, x: i32, y: i32) -> vec3f {
     return vec3f(texture_texels[k], texture_texels[k + 1u], texture_texels[k + 2u]);
 }
 
-// ColorMap::sample of texture `m`: bilinear over the four nearest texel centres, or the
-// nearest texel.
-fn texture_sample(m: MaterialTexture, uv: vec2f) -> vec3f {
+// ColorMap::sample of texture `m` (its UV transform applied, UvTransform::apply): bilinear
+// over the four nearest texel centres, or the nearest texel.
+fn texture_sample(m: MaterialTexture, uv_in: vec2f) -> vec3f {
+    let uv = vec2f(
+        m.uv_u.x * uv_in.x + m.uv_u.y * uv_in.y + m.uv_offset.x,
+        m.uv_v.x * uv_in.x + m.uv_v.y * uv_in.y + m.uv_offset.y,
+    );
     // Non-finite coordinates become 0 and huge ones are bounded before they become integers
     // (`texel_safe`, heightmap.wgsl).
     let p = vec2f(

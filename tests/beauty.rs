@@ -1208,6 +1208,26 @@ fn a_metallic_roughness_texture_sets_roughness_and_metallic_per_texel() {
         (left - right).abs() < 0.1 * left,
         "left {left}, right {right}"
     );
+    // KHR_texture_transform mirroring u (offset 1, scale −1) swaps the halves.
+    let gltf = std::fs::read_to_string(&square).unwrap();
+    let mirrored = gltf.replace(
+        r#""metallicRoughnessTexture":{"index":0}"#,
+        r#""metallicRoughnessTexture":{"index":0,"extensions":{"KHR_texture_transform":{"offset":[1,0],"scale":[-1,1]}}}"#,
+    );
+    assert_ne!(mirrored, gltf);
+    std::fs::write(
+        &square,
+        mirrored.replacen('{', r#"{"extensionsUsed":["KHR_texture_transform"],"#, 1),
+    )
+    .unwrap();
+    let (o, exr) = render("mirrored", &[]);
+    o.assert_success();
+    assert!(!o.stderr.contains("warning"), "{}", o.stderr);
+    let (left, right) = left_right_luminance(&exr);
+    assert!(
+        right > 0.05 && right > 10.0 * left,
+        "mirrored: left {left}, right {right}"
+    );
     // A texture that does not decode fails the beauty before any file is written.
     std::fs::write(dir.join("orm.png"), b"\x89PNG\r\n\x1a\n truncated").unwrap();
     let (o, exr) = render("broken", &[]);

@@ -116,6 +116,51 @@ impl TextureSlot {
     }
 }
 
+/// An affine map of texture coordinates (the project's, v up) applied before a texture is
+/// sampled: `u' = m[0]·u + m[1]·v + m[2]`, `v' = m[3]·u + m[4]·v + m[5]` (glTF's
+/// `KHR_texture_transform`, an `.mtl` map's `-o`/`-s`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform(pub [f32; 6]);
+
+impl Default for UvTransform {
+    fn default() -> Self {
+        UvTransform::IDENTITY
+    }
+}
+
+impl UvTransform {
+    pub const IDENTITY: UvTransform = UvTransform([1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+
+    /// `KHR_texture_transform`'s `offset`, `rotation` (radians) and `scale`, which act on
+    /// glTF's coordinates (v down: `(u, 1 − v)` of ours) as translation · rotation · scale,
+    /// the rotation's rows `(cos, sin)` and `(−sin, cos)`; rewritten for ours.
+    pub fn gltf(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> Self {
+        let (sin, cos) = rotation.sin_cos();
+        let (a, b) = (cos * scale[0], sin * scale[1]);
+        let (c, d) = (-sin * scale[0], cos * scale[1]);
+        // u' = a u + b (1 − v) + ox; 1 − v' = c u + d (1 − v) + oy.
+        UvTransform([a, -b, b + offset[0], -c, d, 1.0 - d - offset[1]])
+    }
+
+    /// Scale, then offset, per axis (an `.mtl` map's `-s` and `-o`; OBJ's v is already up).
+    pub fn scale_offset(scale: [f32; 2], offset: [f32; 2]) -> Self {
+        UvTransform([scale[0], 0.0, offset[0], 0.0, scale[1], offset[1]])
+    }
+
+    #[inline]
+    pub fn apply(&self, uv: Vec2) -> Vec2 {
+        let m = &self.0;
+        Vec2::new(
+            m[0] * uv.x + m[1] * uv.y + m[2],
+            m[3] * uv.x + m[4] * uv.y + m[5],
+        )
+    }
+
+    pub fn is_identity(&self) -> bool {
+        *self == UvTransform::IDENTITY
+    }
+}
+
 /// Where a texture's encoded image is.
 #[derive(Clone, Debug, PartialEq)]
 pub enum TextureData {
@@ -134,8 +179,8 @@ pub struct TextureRef {
     pub sampler: Sampler,
     /// The UV set it is read with (glTF `texCoord`).
     pub tex_coord: u32,
-    /// The file transforms its UVs (`KHR_texture_transform`), which is not applied.
-    pub transformed: bool,
+    /// How the file transforms its UVs for this texture (`KHR_texture_transform`, `-o`/`-s`).
+    pub transform: UvTransform,
     pub color_space: ColorSpace,
 }
 
@@ -160,6 +205,8 @@ pub struct ColorMap {
     pub height: u32,
     pub texels: Vec<Vec3>,
     pub sampler: Sampler,
+    /// Applied to a UV before it is sampled (`TextureRef::transform`).
+    pub transform: UvTransform,
     pub name: String,
 }
 
@@ -299,6 +346,7 @@ impl ColorMap {
             height,
             texels,
             sampler: texture.sampler,
+            transform: texture.transform,
             name: name.clone(),
         })
     }
@@ -311,9 +359,10 @@ impl ColorMap {
         self.texels[(wv.index(y, h) * w + wu.index(x, w)) as usize]
     }
 
-    /// The texture's colour at `uv`: bilinear over the four nearest texel centres, or the
-    /// nearest texel (`Sampler::nearest`).
+    /// The texture's colour at `uv` (its `transform` applied): bilinear over the four nearest
+    /// texel centres, or the nearest texel (`Sampler::nearest`).
     pub fn sample(&self, uv: Vec2) -> Vec3 {
+        let uv = self.transform.apply(uv);
         // HeightMap::texel_coords, bounded so that the integer texel index cannot overflow;
         // non-finite coordinates become 0 (as the GPU's `texel_safe`).
         let safe = |x: f32| {
@@ -373,6 +422,7 @@ mod tests {
             height: h,
             texels,
             sampler,
+            transform: UvTransform::IDENTITY,
             name: "t".into(),
         }
     }
@@ -452,7 +502,7 @@ mod tests {
             data: TextureData::File(path.clone()),
             sampler: Sampler::default(),
             tex_coord: 0,
-            transformed: false,
+            transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Srgb,
         };
         let m = ColorMap::load(Path::new("a.gltf"), &t, TextureSlot::BaseColor).unwrap();
@@ -468,6 +518,54 @@ mod tests {
             ColorMap::load(Path::new("a.glb"), &e, TextureSlot::BaseColor).unwrap(),
             m
         );
+    }
+
+    #[test]
+    fn gltf_texture_transforms_act_in_gltfs_coordinates() {
+        let close = |a: Vec2, b: Vec2| (a - b).abs().max_element() < 1e-6;
+        // KHR_texture_transform's example: offset (0, 1), 90°, scale 0.5 reads the lower-left
+        // quadrant of the image (glTF's u < 0.5, v > 0.5: ours u < 0.5, v < 0.5), turned.
+        let t = UvTransform::gltf([0.0, 1.0], std::f32::consts::FRAC_PI_2, [0.5, 0.5]);
+        for (uv, want) in [
+            // Ours (0, 1) is glTF's (0, 0), which goes to glTF (0, 1): ours (0, 0).
+            ((0.0, 1.0), (0.0, 0.0)),
+            // Ours (1, 1) is glTF's (1, 0), which goes to glTF (0, 0.5): ours (0, 0.5).
+            ((1.0, 1.0), (0.0, 0.5)),
+            // glTF (0, 1) → glTF (0.5, 1): ours (0.5, 0).
+            ((0.0, 0.0), (0.5, 0.0)),
+        ] {
+            let got = t.apply(Vec2::new(uv.0, uv.1));
+            assert!(
+                close(got, Vec2::new(want.0, want.1)),
+                "{uv:?} → {got}, want {want:?}"
+            );
+        }
+        // Its second example, offset (0, 1) and scale (1, −1), flips glTF's v: ours too.
+        let flip = UvTransform::gltf([0.0, 1.0], 0.0, [1.0, -1.0]);
+        assert!(close(
+            flip.apply(Vec2::new(0.25, 0.2)),
+            Vec2::new(0.25, 0.8)
+        ));
+        // A scale alone stretches about glTF's origin, ours (0, 1).
+        let s = UvTransform::gltf([0.0, 0.0], 0.0, [2.0, 2.0]);
+        assert!(close(s.apply(Vec2::new(0.5, 1.0)), Vec2::new(1.0, 1.0)));
+        assert!(close(s.apply(Vec2::new(0.5, 0.5)), Vec2::new(1.0, 0.0)));
+        assert!(UvTransform::gltf([0.0; 2], 0.0, [1.0; 2]).is_identity());
+        // Sampling applies it: a 2 x 1 texture read through a half-width offset.
+        let m = ColorMap {
+            transform: UvTransform::scale_offset([1.0, 1.0], [0.5, 0.0]),
+            ..map(
+                2,
+                1,
+                vec![Vec3::X, Vec3::Y],
+                Sampler {
+                    nearest: true,
+                    ..Sampler::default()
+                },
+            )
+        };
+        assert_eq!(m.sample(Vec2::new(0.25, 0.5)), Vec3::Y);
+        assert_eq!(m.sample(Vec2::new(0.75, 0.5)), Vec3::X);
     }
 
     #[test]
@@ -496,7 +594,7 @@ mod tests {
                 data: TextureData::Embedded(png.clone()),
                 sampler: Sampler::default(),
                 tex_coord: 0,
-                transformed: false,
+                transform: UvTransform::IDENTITY,
                 color_space,
             };
             ColorMap::load(Path::new("a.glb"), &t, TextureSlot::Roughness)
@@ -540,7 +638,7 @@ mod tests {
             data: TextureData::Embedded(jpeg),
             sampler: Sampler::default(),
             tex_coord: 0,
-            transformed: false,
+            transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Srgb,
         };
         let m = ColorMap::load(Path::new("a.glb"), &t, TextureSlot::BaseColor).unwrap();
@@ -561,7 +659,7 @@ mod tests {
             data,
             sampler: Sampler::default(),
             tex_coord: 0,
-            transformed: false,
+            transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Srgb,
         };
         let cases = [

@@ -216,7 +216,7 @@ fn load_texture(bytes: &[u8]) -> prismbake::Result<prismbake::texture::ColorMap>
             data: TextureData::Embedded(bytes.to_vec()),
             sampler: Sampler::default(),
             tex_coord: 0,
-            transformed: false,
+            transform: Default::default(),
             color_space: ColorSpace::Auto,
         },
         TextureSlot::BaseColor,

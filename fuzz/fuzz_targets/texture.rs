@@ -30,7 +30,7 @@ fuzz_target!(|data: &[u8]| {
         data: TextureData::Embedded(data.to_vec()),
         sampler: Sampler::default(),
         tex_coord: 0,
-        transformed: false,
+        transform: Default::default(),
         // sRGB for an 8-bit colour image, raw for grey or 16-bit ones: both decoders' paths.
         color_space: ColorSpace::Auto,
     };

@@ -220,6 +220,9 @@ pub fn material_texture(
         sampler: texture_sampler_code(&t.sampler) | if packed.is_some() { TEX_PACKED } else { 0 },
         table: packed.map_or(0, |k| layout.tables[k]),
         channel: channel as u32,
+        uv_u: [t.transform.0[0], t.transform.0[1]],
+        uv_v: [t.transform.0[3], t.transform.0[4]],
+        uv_offset: [t.transform.0[2], t.transform.0[5]],
     }
 }
 
@@ -239,6 +242,7 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             color_tex: m.texture.map_or(Default::default(), |i| tex(i, 0)),
             roughness_tex: channel(m.roughness_texture),
             metallic_tex: channel(m.metallic_texture),
+            _pad: [0; 2],
         })
         .collect()
 }
@@ -739,6 +743,7 @@ mod tests {
             height: 1,
             texels,
             sampler: Default::default(),
+            transform: Default::default(),
             name: "t".into(),
         };
         let srgb = srgb8_table();

@@ -298,10 +298,11 @@ pub struct GpuLighting {
     pub _pad2: u32,
 }
 
-/// One texture of a material as the kernel reads it, 24 bytes: its size (0 × 0: none), its
+/// One texture of a material as the kernel reads it, 48 bytes: its size (0 × 0: none), its
 /// first float in `texture_texels`, its sampler (`texture_sampler_code`; bit 5 packed), the
-/// first float of the code table a packed texture's texels index (`beauty::TextureLayout`), and
-/// the channel a roughness or metallic texture is read from.
+/// first float of the code table a packed texture's texels index (`beauty::TextureLayout`),
+/// the channel a roughness or metallic texture is read from, and its UV transform
+/// (`texture::UvTransform`: `u' = uv_u · uv + uv_offset.x`, `v' = uv_v · uv + uv_offset.y`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterialTexture {
@@ -311,10 +312,13 @@ pub struct GpuMaterialTexture {
     pub sampler: u32,
     pub table: u32,
     pub channel: u32,
+    pub uv_u: [f32; 2],
+    pub uv_v: [f32; 2],
+    pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 96 bytes: `prismbake::render::beauty::SurfaceMaterial`, its
-/// base-colour, roughness and metallic textures (if any) located in the texel buffer.
+/// One material of a beauty scene, 176 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// its base-colour, roughness and metallic textures (if any) located in the texel buffer.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -325,6 +329,7 @@ pub struct GpuMaterial {
     pub color_tex: GpuMaterialTexture,
     pub roughness_tex: GpuMaterialTexture,
     pub metallic_tex: GpuMaterialTexture,
+    pub _pad: [u32; 2],
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -366,8 +371,8 @@ const _: () = {
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
     assert!(std::mem::size_of::<GpuLighting>() == 96);
-    assert!(std::mem::size_of::<GpuMaterialTexture>() == 24);
-    assert!(std::mem::size_of::<GpuMaterial>() == 96);
+    assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
+    assert!(std::mem::size_of::<GpuMaterial>() == 176);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
 };
 
@@ -502,7 +507,10 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 offset,
                 sampler,
                 table,
-                channel
+                channel,
+                uv_u,
+                uv_v,
+                uv_offset
             }
         ),
         layout!(
@@ -514,7 +522,8 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 specular,
                 color_tex,
                 roughness_tex,
-                metallic_tex
+                metallic_tex,
+                _pad
             }
         ),
         layout!(
@@ -563,7 +572,9 @@ mod tests {
         assert_eq!(offset_of!(GpuLighting, ground_up), 16);
         assert_eq!(offset_of!(GpuLighting, eps), 32);
         assert_eq!(offset_of!(GpuMaterial, color_tex), 24);
-        assert_eq!(offset_of!(GpuMaterial, metallic_tex), 72);
+        // vec2<f32> aligns to 8: each texture record's transform and the records pack.
+        assert_eq!(offset_of!(GpuMaterialTexture, uv_u), 24);
+        assert_eq!(offset_of!(GpuMaterial, metallic_tex), 120);
         assert_eq!(offset_of!(GpuBeautySums, background), 16);
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);

@@ -346,7 +346,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
     // end: the last material), read at every hit on the first and the second bounce.
     use prismbake::bake::PRISM_MATERIAL_SHIFT;
     use prismbake::render::beauty::TexChannel;
-    use prismbake::texture::{raw8_table, ColorMap, Sampler, TexWrap, TextureSlot};
+    use prismbake::texture::{raw8_table, ColorMap, Sampler, TexWrap, TextureSlot, UvTransform};
     let rel = "rock/rock.glb";
     let mut ex = example_scene(rel);
     for (i, p) in ex.scene.table.prisms.iter_mut().enumerate() {
@@ -381,6 +381,8 @@ fn materials_and_textures_per_prism_match_the_cpu() {
             .map(|i| Vec3::new(raw[7], raw[20 + 29 * (i % 8)], raw[255 - 30 * (i / 8)]))
             .collect(),
         sampler: Sampler::default(),
+        // Turned, tiled and shifted (KHR_texture_transform).
+        transform: UvTransform::gltf([0.1, -0.3], 0.6, [3.0, 2.0]),
         name: "orm".into(),
     };
     let textures = [texture, other, orm];

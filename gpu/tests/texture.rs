@@ -8,7 +8,7 @@
 use crate::util;
 use glam::{Vec2, Vec3};
 use prismbake::rng;
-use prismbake::texture::{raw8_table, srgb8_table, ColorMap, Sampler, TexWrap};
+use prismbake::texture::{raw8_table, srgb8_table, ColorMap, Sampler, TexWrap, UvTransform};
 use prismbake_gpu::beauty::{material_texture, texel_buffer, texture_layout, TEX_PACKED};
 use prismbake_gpu::layout::{texture_sampler_code, GpuMaterial};
 use prismbake_gpu::shaders;
@@ -76,15 +76,17 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
     let tex: Vec<Vec3> = (0..w * h).map(colour).collect();
     let tex8 = codes(srgb8_table(), 0);
     let raw8 = codes(raw8_table(), 1000);
-    let maps = |sampler: Sampler| {
+    let maps_with = |sampler: Sampler, transform: UvTransform| {
         [&tex, &tex8, &raw8].map(|texels| ColorMap {
             width: w,
             height: h,
             texels: texels.clone(),
             sampler,
+            transform,
             name: "probe".into(),
         })
     };
+    let maps = |sampler: Sampler| maps_with(sampler, UvTransform::IDENTITY);
     let layout = texture_layout(&maps(Sampler::default()));
     assert_eq!(
         layout.textures.iter().map(|t| t.1).collect::<Vec<_>>(),
@@ -98,15 +100,23 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
     // The beauty module (its `env_texels` and `materials`), the probe beside its kernels.
     let src = format!("{}\n{}", shaders::beauty_module_source(), PROBE);
     let mut cases = 0;
-    for nearest in [false, true] {
+    // A UV transform that swaps u and v, scales, flips and offsets, exactly in floats (powers
+    // of two), so that the probe's texel boundaries stay boundaries on both sides.
+    let swap = UvTransform([0.0, 2.0, 0.25, -1.0, 0.0, 0.5]);
+    for (nearest, transform) in [
+        (false, UvTransform::IDENTITY),
+        (true, UvTransform::IDENTITY),
+        (true, swap),
+    ] {
         for wu in wraps {
             for wv in wraps {
                 let sampler = Sampler {
                     wrap: [wu, wv],
                     nearest,
                 };
-                for (i, map) in maps(sampler).iter().enumerate() {
-                    let tex = material_texture(&maps(sampler), &layout, i as u32, 0);
+                let maps = maps_with(sampler, transform);
+                for (i, map) in maps.iter().enumerate() {
+                    let tex = material_texture(&maps, &layout, i as u32, 0);
                     let packed = layout.textures[i].1.is_some();
                     assert_eq!(
                         tex.sampler,
@@ -144,7 +154,7 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
                         // a channel by ~0.1–1.
                         assert!(
                         err <= 1e-5,
-                        "{sampler:?} packed {packed} uv {uv}: GPU {g:?}, CPU {want} (|Δ| {err:.2e})"
+                        "{sampler:?} {transform:?} packed {packed} uv {uv}: GPU {g:?}, CPU {want} (|Δ| {err:.2e})"
                     );
                     }
                     cases += uvs.len();
@@ -152,5 +162,5 @@ fn texture_lookups_read_the_cpus_texels_under_every_sampler() {
             }
         }
     }
-    eprintln!("texture probe: {cases} lookups agree (18 samplers, f32, sRGB and raw packed)");
+    eprintln!("texture probe: {cases} lookups agree (18 samplers, 9 of them transformed; f32, sRGB and raw packed)");
 }

@@ -9,7 +9,9 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
-use crate::texture::{ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef};
+use crate::texture::{
+    ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
+};
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
 use glam::{Mat3, Mat4, Vec2, Vec3};
@@ -52,7 +54,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             // Roughness in its green channel, metallic in its blue, both linear.
             let metallic_roughness = pbr
                 .metallic_roughness_texture()
-                .map(|t| texture_ref(path, &doc, &loader_buffers, &t, ColorSpace::Raw))
+                .map(|t| texture_ref(path, &loader_buffers, &t, ColorSpace::Raw))
                 .transpose()?;
             let channel = |channel| {
                 metallic_roughness
@@ -69,7 +71,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                 metallic: pbr.metallic_factor(),
                 base_color_texture: pbr
                     .base_color_texture()
-                    .map(|t| texture_ref(path, &doc, &loader_buffers, &t, ColorSpace::Srgb))
+                    .map(|t| texture_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
                     .transpose()?,
                 roughness_texture: channel(1),
                 metallic_texture: channel(2),
@@ -90,7 +92,6 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
 /// decoded from base64; any other URI is a file next to the asset.
 fn texture_ref(
     path: &Path,
-    doc: &::gltf::Document,
     buffers: &[Vec<u8>],
     info: &::gltf::texture::Info,
     color_space: ColorSpace,
@@ -136,6 +137,7 @@ fn texture_ref(
         },
     };
     let sampler = texture.sampler();
+    let transform = info.texture_transform();
     let wrap = |w: WrappingMode| match w {
         WrappingMode::Repeat => TexWrap::Repeat,
         WrappingMode::ClampToEdge => TexWrap::Clamp,
@@ -148,8 +150,14 @@ fn texture_ref(
             wrap: [wrap(sampler.wrap_s()), wrap(sampler.wrap_t())],
             nearest: sampler.mag_filter() == Some(MagFilter::Nearest),
         },
-        tex_coord: info.tex_coord(),
-        transformed: doc.extensions_used().any(|e| e == "KHR_texture_transform"),
+        // KHR_texture_transform's texCoord replaces the textureInfo's.
+        tex_coord: transform
+            .as_ref()
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord()),
+        transform: transform.map_or(UvTransform::IDENTITY, |t| {
+            UvTransform::gltf(t.offset(), t.rotation(), t.scale())
+        }),
         color_space,
     })
 }

@@ -4,7 +4,7 @@
 //!
 //! Materials: the `mtllib` files' `newmtl` entries, in order, with `Kd` (the base colour),
 //! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
-//! importer does; `-clamp on` clamps it, `-o`/`-s` are noted as a texture transform) and the
+//! importer does; `-clamp on` clamps it, `-s`/`-o` scale and offset its UVs) and the
 //! PBR extension's `Pr`/`Pm` (roughness, metallic) and their maps `map_Pr`/`map_Pm` (data
 //! textures, one channel: `-imfchan`, else red). A missing .mtl or an undefined `usemtl`
 //! name is a warning (those faces get the default material), not an error.
@@ -19,7 +19,9 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
-use crate::texture::{ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef};
+use crate::texture::{
+    ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
+};
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::Path;
@@ -110,7 +112,7 @@ fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Ve
 /// One .mtl file's `newmtl` entries (`Kd`, `map_Kd`, `Pr`, `Pm`; the rest is ignored).
 /// A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the channel
 /// its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey image's
-/// one channel); `-clamp on` clamps its UVs, `-o`/`-s` transform them (not applied).
+/// one channel); `-clamp on` clamps its UVs, `-s` scales and `-o` offsets them.
 fn mtl_map<'a>(
     keyword: &str,
     words: &mut impl Iterator<Item = &'a str>,
@@ -127,6 +129,21 @@ fn mtl_map<'a>(
     } else {
         TexWrap::Repeat
     };
+    // `-s u [v [w]]` scales and `-o u [v [w]]` offsets the map's UVs (v as u's if absent).
+    let vector = |flag: &str, default: f32| -> std::result::Result<[f32; 2], String> {
+        let Some(at) = options.iter().position(|o| *o == flag) else {
+            return Ok([default; 2]);
+        };
+        let mut v = options[at + 1..]
+            .iter()
+            .map_while(|w| w.parse::<f32>().ok())
+            .filter(|x| x.is_finite());
+        let u = v
+            .next()
+            .ok_or_else(|| format!("{keyword} {flag} takes a number (fix the line)"))?;
+        Ok([u, v.next().unwrap_or(u)])
+    };
+    let transform = UvTransform::scale_offset(vector("-s", 1.0)?, vector("-o", 0.0)?);
     let channel = match options.windows(2).find(|w| w[0] == "-imfchan") {
         Some([_, "g"]) => 1,
         Some([_, "b"]) => 2,
@@ -140,7 +157,7 @@ fn mtl_map<'a>(
             nearest: false,
         },
         tex_coord: 0,
-        transformed: options.iter().any(|o| *o == "-o" || *o == "-s"),
+        transform,
         color_space,
     };
     Ok((texture, channel))

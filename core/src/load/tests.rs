@@ -4,7 +4,7 @@
 
 use super::{load_height_map, load_mesh, MapOptions, MeshOptions};
 use crate::mesh::BaseMesh;
-use crate::texture::{Sampler, TexWrap, TextureData};
+use crate::texture::{Sampler, TexWrap, TextureData, UvTransform};
 use glam::{Vec2, Vec3};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
@@ -394,7 +394,7 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
             nearest: true
         }
     );
-    assert_eq!((t.tex_coord, t.transformed), (0, false));
+    assert_eq!((t.tex_coord, t.transform), (0, UvTransform::IDENTITY));
     // A colour texture is sRGB; the metallic-roughness texture is data, its green the
     // roughness and its blue the metallic, each times its factor.
     assert_eq!(t.color_space, crate::texture::ColorSpace::Srgb);
@@ -437,7 +437,7 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
 }
 
 #[test]
-fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_flagged() {
+fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_transformed() {
     let dir = temp_dir("gltf-texture-data");
     let mut png = Vec::new();
     ::image::RgbImage::from_pixel(2, 1, ::image::Rgb([255, 255, 0]))
@@ -456,7 +456,8 @@ fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_flagged() {
         "meshes": [{"primitives": [
             {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
         "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {
-            "index": 0, "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}],
+            "index": 0, "extensions": {"KHR_texture_transform": {
+                "offset": [0.25, 0.5], "rotation": 0.5, "scale": [2.0, 3.0], "texCoord": 1}}}}}],
         "textures": [{"source": 0}],
         "images": [{"uri": format!("data:image/png;base64,{}", base64(&png))}],
     });
@@ -465,13 +466,17 @@ fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_flagged() {
     assert_eq!(t.name, "image 0");
     assert_eq!(t.data, TextureData::Embedded(png));
     assert_eq!(t.sampler, Sampler::default());
-    assert!(t.transformed);
+    // The extension's transform, and its texCoord in place of the textureInfo's.
+    assert_eq!(t.transform, UvTransform::gltf([0.25, 0.5], 0.5, [2.0, 3.0]));
+    assert_eq!(t.tex_coord, 1);
     let c = crate::texture::ColorMap::load(&m.source, &t, crate::texture::TextureSlot::BaseColor)
         .unwrap();
     assert_eq!(c.texels, vec![glam::Vec3::new(1.0, 1.0, 0.0); 2]);
+    assert_eq!(c.transform, t.transform);
+    // Loaded with UV set 0, the texture (now on set 1) is not read, and said so.
     let w = crate::render::lookdev::material_warning(&m, 0).unwrap();
     assert!(
-        w.contains("KHR_texture_transform") && w.contains("(image 0)"),
+        w.contains("reads TEXCOORD_1") && w.contains("(image 0)"),
         "{w}"
     );
 }
@@ -715,7 +720,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     let mtl = "# two materials\n\
         newmtl paint\nKd 0.5 0.25 0.125\nNs 250\nPr 0.3\n\
         newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
-        map_Pr rough.png\nmap_Pm -imfchan b orm.png\n";
+        map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\n";
     std::fs::write(&path, obj).unwrap();
     std::fs::write(dir.join("m.mtl"), mtl).unwrap();
     let m = load_mesh(&path, &MeshOptions::default()).unwrap();
@@ -742,7 +747,11 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!(t.name, "tex/rust.png");
     assert_eq!(t.data, TextureData::File(dir.join("tex/rust.png")));
     assert_eq!(t.sampler.wrap, [TexWrap::Clamp; 2]);
-    assert!(t.transformed);
+    // -s 2 2 1: scaled (w ignored), no offset.
+    assert_eq!(
+        t.transform,
+        UvTransform::scale_offset([2.0, 2.0], [0.0, 0.0])
+    );
     assert_eq!(t.color_space, crate::texture::ColorSpace::Srgb);
     let (r, mt) = (
         rust.roughness_texture.as_ref().unwrap(),
@@ -752,7 +761,12 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!((mt.texture.name.as_str(), mt.channel), ("orm.png", 2));
     assert_eq!(r.texture.data, TextureData::File(dir.join("rough.png")));
     assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
-    assert!(!r.texture.transformed);
+    // -o 0.5: both axes offset by it.
+    assert_eq!(
+        r.texture.transform,
+        UvTransform::scale_offset([1.0; 2], [0.5; 2])
+    );
+    assert!(mt.texture.transform.is_identity());
     // Without any mtllib: no materials, every face the default.
     let bare = dir.join("bare.obj");
     std::fs::write(

@@ -21,7 +21,9 @@ use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
-use crate::texture::{ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef};
+use crate::texture::{
+    ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
+};
 use glam::{DMat4, DQuat, DVec3, Mat3, Vec2, Vec3};
 use openusd::sdf::{self, Value};
 use openusd::usd::{Prim, Stage};
@@ -1506,7 +1508,7 @@ fn uv_texture(
         },
         // The mesh's own UV set (checked above): `Loader::material_index` sets it.
         tex_coord: 0,
-        transformed: false,
+        transform: UvTransform::IDENTITY,
         color_space: match token_input(path, stage, tex, "sourceColorSpace")?.as_deref() {
             Some("raw") => ColorSpace::Raw,
             Some("sRGB") => ColorSpace::Srgb,

@@ -350,8 +350,7 @@ pub fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
 }
 
 /// What the beauty does not take from material `m`'s textures: each texture that reads another
-/// UV set than the asset's (`uv_set`), each texture's transform (`render`'s warning,
-/// `validate`'s `textures` check).
+/// UV set than the asset's (`uv_set`) (`render`'s warning, `validate`'s `textures` check).
 pub fn texture_notes(m: &MeshMaterial, uv_set: u32) -> Vec<String> {
     let mut notes = vec![];
     for (slots, t) in m.texture_uses() {
@@ -383,12 +382,6 @@ pub fn texture_notes(m: &MeshMaterial, uv_set: u32) -> Vec<String> {
                  loaded with UV set {uv_set}: it is not read, the beauty shades with its \
                  {factors} (the sidecar's uv_set = {} reads it; {flags} sets one value)",
                 m.name, t.name, t.tex_coord, t.tex_coord
-            ));
-        } else if t.transformed {
-            notes.push(format!(
-                "material '{}': the file uses KHR_texture_transform, which is not applied to its \
-                 {what} texture ({})",
-                m.name, t.name
             ));
         }
     }
