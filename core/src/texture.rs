@@ -194,8 +194,13 @@ pub struct ChannelRef {
 impl ChannelRef {
     /// "r", "g" or "b".
     pub fn channel_name(&self) -> &'static str {
-        ["r", "g", "b"][self.channel.min(2) as usize]
+        channel_name(self.channel)
     }
+}
+
+/// Channel `c`'s name: "r", "g" or "b".
+pub fn channel_name(c: u8) -> &'static str {
+    ["r", "g", "b"][c.min(2) as usize]
 }
 
 /// A decoded texture: linear RGB texels, row-major, row 0 at the top of the image.

@@ -236,10 +236,10 @@ pub fn describe_material(
 
 /// "name, W x H, wrapS/wrapT, filter, channel g" of a texture channel of `scene`.
 fn describe_channel(scene: &BeautyScene, c: TexChannel) -> String {
-    let name = ["r", "g", "b"][c.channel.min(2) as usize];
     format!(
-        "{}, channel {name}",
-        scene.textures[c.texture as usize].describe()
+        "{}, channel {}",
+        scene.textures[c.texture as usize].describe(),
+        crate::texture::channel_name(c.channel)
     )
 }
 
