@@ -805,9 +805,11 @@ fn a_broken_base_colour_texture_fails_the_beauty_only() {
     .assert_success();
 }
 
-/// A square facing +Z split into two glTF primitives, one triangle each, sharing vertices:
-/// the first with a red material, the second with a blue one; UVs over the square.
-fn two_material_square(dir: &Path) -> PathBuf {
+/// A square facing +Z, its four vertices shared by two glTF primitives of one triangle each,
+/// with UVs over it (`square.bin` beside it): the primitives take materials `materials[0]` and
+/// `materials[1]`; `rest` gives the file's materials (and textures, samplers, images) as JSON
+/// members.
+fn square_gltf(dir: &Path, materials: [u32; 2], rest: &str) -> PathBuf {
     let positions: [f32; 12] = [-1., -1., 0., 1., -1., 0., 1., 1., 0., -1., 1., 0.];
     let normals: [f32; 12] = [0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.];
     let uvs: [f32; 8] = [0., 1., 1., 1., 1., 0., 0., 0.];
@@ -820,28 +822,41 @@ fn two_material_square(dir: &Path) -> PathBuf {
         .collect();
     bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
     std::fs::write(dir.join("square.bin"), &bin).unwrap();
-    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
-      "meshes":[{"primitives":[
-        {"attributes":{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2},"indices":3,"material":0},
-        {"attributes":{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2},"indices":4,"material":1}]}],
-      "materials":[
-        {"name":"red","pbrMetallicRoughness":{"baseColorFactor":[0.8,0.05,0.05,1],"metallicFactor":0,"roughnessFactor":0.6}},
-        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6}}],
+    let [m0, m1] = materials;
+    let json = format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+      "meshes":[{{"primitives":[
+        {{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2}},"indices":3,"material":{m0}}},
+        {{"attributes":{{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2}},"indices":4,"material":{m1}}}]}}],
+      {rest},
       "accessors":[
-        {"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]},
-        {"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"},
-        {"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"},
-        {"bufferView":3,"byteOffset":0,"componentType":5123,"count":3,"type":"SCALAR"},
-        {"bufferView":3,"byteOffset":6,"componentType":5123,"count":3,"type":"SCALAR"}],
+        {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}},
+        {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"}},
+        {{"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"}},
+        {{"bufferView":3,"byteOffset":0,"componentType":5123,"count":3,"type":"SCALAR"}},
+        {{"bufferView":3,"byteOffset":6,"componentType":5123,"count":3,"type":"SCALAR"}}],
       "bufferViews":[
-        {"buffer":0,"byteOffset":0,"byteLength":48},
-        {"buffer":0,"byteOffset":48,"byteLength":48},
-        {"buffer":0,"byteOffset":96,"byteLength":32},
-        {"buffer":0,"byteOffset":128,"byteLength":12}],
-      "buffers":[{"byteLength":140,"uri":"square.bin"}]}"#;
+        {{"buffer":0,"byteOffset":0,"byteLength":48}},
+        {{"buffer":0,"byteOffset":48,"byteLength":48}},
+        {{"buffer":0,"byteOffset":96,"byteLength":32}},
+        {{"buffer":0,"byteOffset":128,"byteLength":12}}],
+      "buffers":[{{"byteLength":140,"uri":"square.bin"}}]}}"#
+    );
     let path = dir.join("square.gltf");
     std::fs::write(&path, json).unwrap();
     path
+}
+
+/// The square (`square_gltf`) with a red material on its first triangle, a blue one on its
+/// second.
+fn two_material_square(dir: &Path) -> PathBuf {
+    square_gltf(
+        dir,
+        [0, 1],
+        r#""materials":[
+        {"name":"red","pbrMetallicRoughness":{"baseColorFactor":[0.8,0.05,0.05,1],"metallicFactor":0,"roughnessFactor":0.6}},
+        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6}}]"#,
+    )
 }
 
 /// Each primitive's material shades its own triangle: red below the square's diagonal, blue
@@ -1050,24 +1065,12 @@ fn a_material_with_nan_values_fails_the_beauty_naming_the_override() {
     );
 }
 
-/// A square facing +Z (UVs over it, one material) whose roughness and metallic come from a
+/// The square (`square_gltf`, one material) whose roughness and metallic come from a
 /// metallic-roughness texture `orm.png` (glTF's: roughness in green, metallic in blue, factors
 /// left out: 1), clamped: its left half a rough dielectric, its right half a smooth metal.
 /// Red, which glTF leaves to occlusion, is the opposite of blue, so that reading the wrong
 /// channel shows.
 fn metallic_roughness_square(dir: &Path) -> PathBuf {
-    let positions: [f32; 12] = [-1., -1., 0., 1., -1., 0., 1., 1., 0., -1., 1., 0.];
-    let normals: [f32; 12] = [0., 0., 1., 0., 0., 1., 0., 0., 1., 0., 0., 1.];
-    let uvs: [f32; 8] = [0., 1., 1., 1., 1., 0., 0., 0.];
-    let indices: [u16; 6] = [0, 1, 2, 0, 2, 3];
-    let mut bin: Vec<u8> = positions
-        .iter()
-        .chain(&normals)
-        .chain(&uvs)
-        .flat_map(|f| f.to_le_bytes())
-        .collect();
-    bin.extend(indices.iter().flat_map(|i| i.to_le_bytes()));
-    std::fs::write(dir.join("square.bin"), &bin).unwrap();
     image::RgbImage::from_fn(4, 4, |x, _| {
         if x < 2 {
             image::Rgb([255, 255, 0])
@@ -1077,28 +1080,15 @@ fn metallic_roughness_square(dir: &Path) -> PathBuf {
     })
     .save(dir.join("orm.png"))
     .unwrap();
-    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],
-      "meshes":[{"primitives":[
-        {"attributes":{"POSITION":0,"NORMAL":1,"TEXCOORD_0":2},"indices":3,"material":0}]}],
-      "materials":[{"name":"half metal","pbrMetallicRoughness":{"baseColorFactor":[0.9,0.9,0.9,1],
+    square_gltf(
+        dir,
+        [0, 0],
+        r#""materials":[{"name":"half metal","pbrMetallicRoughness":{"baseColorFactor":[0.9,0.9,0.9,1],
         "metallicRoughnessTexture":{"index":0}}}],
       "textures":[{"source":0,"sampler":0}],
       "samplers":[{"wrapS":33071,"wrapT":33071}],
-      "images":[{"uri":"orm.png"}],
-      "accessors":[
-        {"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]},
-        {"bufferView":1,"componentType":5126,"count":4,"type":"VEC3"},
-        {"bufferView":2,"componentType":5126,"count":4,"type":"VEC2"},
-        {"bufferView":3,"componentType":5123,"count":6,"type":"SCALAR"}],
-      "bufferViews":[
-        {"buffer":0,"byteOffset":0,"byteLength":48},
-        {"buffer":0,"byteOffset":48,"byteLength":48},
-        {"buffer":0,"byteOffset":96,"byteLength":32},
-        {"buffer":0,"byteOffset":128,"byteLength":12}],
-      "buffers":[{"byteLength":140,"uri":"square.bin"}]}"#;
-    let path = dir.join("square.gltf");
-    std::fs::write(&path, json).unwrap();
-    path
+      "images":[{"uri":"orm.png"}]"#,
+    )
 }
 
 /// Mean luminance of the square's left and right thirds (away from the texture's seam) in a
