@@ -132,7 +132,7 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
         if let Err(e) = check_material_values(mesh, m, &LookdevOptions::default()) {
             failures.push(e.to_string());
         }
-        warnings.extend(texture_notes(m, uv_set));
+        warnings.extend(texture_notes(m, uv_set, &|_| true));
         for (slots, t) in m.texture_uses() {
             if !texture_readable(t, uv_set) {
                 continue;

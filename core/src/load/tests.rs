@@ -417,9 +417,9 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     assert_eq!(other.texture_uses().len(), 1, "one image, two inputs");
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
-    assert_eq!(material_warning(&m, 0), None);
+    assert_eq!(material_warning(&m, 0, &|_| true), None);
     // Loaded with another UV set than the texture's: not read, and said so.
-    let w = material_warning(&m, 1).unwrap();
+    let w = material_warning(&m, 1, &|_| true).unwrap();
     for part in [
         "material 'paint'",
         "(my%20albedo.png) reads TEXCOORD_0",
@@ -474,7 +474,7 @@ fn gltf_texture_in_a_data_uri_with_a_transform_is_decoded_and_transformed() {
     assert_eq!(c.texels, vec![glam::Vec3::new(1.0, 1.0, 0.0); 2]);
     assert_eq!(c.transform, t.transform);
     // Loaded with UV set 0, the texture (now on set 1) is not read, and said so.
-    let w = crate::render::lookdev::material_warning(&m, 0).unwrap();
+    let w = crate::render::lookdev::material_warning(&m, 0, &|_| true).unwrap();
     assert!(
         w.contains("reads TEXCOORD_1") && w.contains("(image 0)"),
         "{w}"

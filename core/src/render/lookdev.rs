@@ -32,7 +32,7 @@ use crate::load::{self, MapOptions};
 use crate::mesh::{MeshMaterial, UpAxis};
 use crate::repair;
 use crate::table_cache;
-use crate::texture::{ChannelRef, ColorMap, TextureRef, TextureSlot};
+use crate::texture::{ColorMap, TextureRef, TextureSlot};
 use crate::trace::Intersector;
 use glam::Vec3;
 use serde::Serialize;
@@ -349,11 +349,20 @@ pub fn texture_readable(texture: &TextureRef, uv_set: u32) -> bool {
     texture.tex_coord == uv_set
 }
 
-/// What the beauty does not take from material `m`'s textures: each texture that reads another
-/// UV set than the asset's (`uv_set`) (`render`'s warning, `validate`'s `textures` check).
-pub fn texture_notes(m: &MeshMaterial, uv_set: u32) -> Vec<String> {
+/// What the beauty does not take from material `m`'s textures: each texture feeding an input
+/// it `reads` (the command line sets none of them) that reads another UV set than the asset's
+/// (`uv_set`) (`render`'s warning, `validate`'s `textures` check).
+pub fn texture_notes(
+    m: &MeshMaterial,
+    uv_set: u32,
+    reads: &dyn Fn(TextureSlot) -> bool,
+) -> Vec<String> {
     let mut notes = vec![];
-    for (slots, t) in m.texture_uses() {
+    for (mut slots, t) in m.texture_uses() {
+        slots.retain(|&slot| reads(slot));
+        if slots.is_empty() {
+            continue;
+        }
         let what = slots
             .iter()
             .map(|s| s.name())
@@ -389,11 +398,15 @@ pub fn texture_notes(m: &MeshMaterial, uv_set: u32) -> Vec<String> {
 }
 
 /// What the beauty does not take from the asset's materials, if anything (`texture_notes`).
-pub fn material_warning(mesh: &crate::mesh::BaseMesh, uv_set: u32) -> Option<String> {
+pub fn material_warning(
+    mesh: &crate::mesh::BaseMesh,
+    uv_set: u32,
+    reads: &dyn Fn(TextureSlot) -> bool,
+) -> Option<String> {
     let notes: Vec<String> = mesh
         .materials
         .iter()
-        .flat_map(|m| texture_notes(m, uv_set))
+        .flat_map(|m| texture_notes(m, uv_set, reads))
         .collect();
     (!notes.is_empty()).then(|| notes.join("; "))
 }
@@ -513,47 +526,16 @@ fn asset_materials(
         TextureSlot::Roughness => opts.roughness.is_none(),
         TextureSlot::Metallic => opts.metallic.is_none(),
     };
-    let unread: Vec<String> = mesh
-        .materials
-        .iter()
-        .flat_map(|m| {
-            texture_notes(
-                &MeshMaterial {
-                    base_color_texture: m
-                        .base_color_texture
-                        .clone()
-                        .filter(|_| reads(TextureSlot::BaseColor)),
-                    roughness_texture: m
-                        .roughness_texture
-                        .clone()
-                        .filter(|_| reads(TextureSlot::Roughness)),
-                    metallic_texture: m
-                        .metallic_texture
-                        .clone()
-                        .filter(|_| reads(TextureSlot::Metallic)),
-                    ..m.clone()
-                },
-                spec.uv_set,
-            )
-        })
-        .collect();
-    if !unread.is_empty() {
-        eprintln!("warning: {}: {}", mesh.source.display(), unread.join("; "));
+    if let Some(w) = material_warning(mesh, spec.uv_set, &reads) {
+        eprintln!("warning: {}: {w}", mesh.source.display());
     }
-    // The images decoded so far (an embedded one's bytes cloned: small beside its texels).
-    let mut decoded: Vec<TextureRef> = vec![];
-    let mut decode = |t: &TextureRef, slot: TextureSlot| -> Result<Option<u32>> {
+    // The images decoded so far.
+    let mut decoded: Vec<&TextureRef> = vec![];
+    let mut decode = |t, slot| -> Result<Option<u32>> {
         if !reads(slot) || !texture_readable(t, spec.uv_set) {
             return Ok(None);
         }
-        Ok(Some(match decoded.iter().position(|d| d == t) {
-            Some(i) => i as u32,
-            None => {
-                out.textures.push(ColorMap::load(&mesh.source, t, slot)?);
-                decoded.push(t.clone());
-                (decoded.len() - 1) as u32
-            }
-        }))
+        decode_once(&mut decoded, &mut out.textures, &mesh.source, t, slot).map(Some)
     };
     let mut list = vec![];
     for m in &mesh.materials {
@@ -562,17 +544,20 @@ fn asset_materials(
             Some(t) => decode(t, TextureSlot::BaseColor)?,
             None => None,
         };
-        let mut channel = |c: &Option<ChannelRef>, slot| -> Result<Option<TexChannel>> {
-            Ok(match c {
-                Some(c) => decode(&c.texture, slot)?.map(|texture| TexChannel {
+        let mut channels = [None; 2];
+        let inputs = [
+            (&m.roughness_texture, TextureSlot::Roughness),
+            (&m.metallic_texture, TextureSlot::Metallic),
+        ];
+        for (out, (c, slot)) in channels.iter_mut().zip(inputs) {
+            if let Some(c) = c {
+                *out = decode(&c.texture, slot)?.map(|texture| TexChannel {
                     texture,
                     channel: c.channel,
-                }),
-                None => None,
-            })
-        };
-        let roughness_texture = channel(&m.roughness_texture, TextureSlot::Roughness)?;
-        let metallic_texture = channel(&m.metallic_texture, TextureSlot::Metallic)?;
+                });
+            }
+        }
+        let [roughness_texture, metallic_texture] = channels;
         let c = m.base_color;
         list.push(AssetMaterial {
             name: m.name.clone(),
@@ -587,6 +572,23 @@ fn asset_materials(
     list.push(AssetMaterial::default_grey());
     out.list = list;
     Ok(out)
+}
+
+/// The index in `textures` of `t` decoded, decoding it (for `slot`) unless `decoded`, the
+/// images in `textures`' order, already holds it.
+fn decode_once<'m>(
+    decoded: &mut Vec<&'m TextureRef>,
+    textures: &mut Vec<ColorMap>,
+    source: &Path,
+    t: &'m TextureRef,
+    slot: TextureSlot,
+) -> Result<u32> {
+    if let Some(i) = decoded.iter().position(|d| *d == t) {
+        return Ok(i as u32);
+    }
+    textures.push(ColorMap::load(source, t, slot)?);
+    decoded.push(t);
+    Ok((decoded.len() - 1) as u32)
 }
 
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
