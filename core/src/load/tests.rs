@@ -785,6 +785,15 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         e.contains("m.mtl") && e.contains("line 2") && e.contains("'one'"),
         "{e}"
     );
+    // So is a map's -s or -o without its number.
+    std::fs::write(dir.join("m.mtl"), "newmtl x\n\nmap_Pr -s rough.png\n").unwrap();
+    let e = load_mesh(&path, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("m.mtl") && e.contains("line 3") && e.contains("map_Pr -s takes a number"),
+        "{e}"
+    );
 }
 
 #[test]
