@@ -20,6 +20,7 @@ pub mod report;
 pub mod rng;
 pub mod seam;
 pub mod table_cache;
+pub mod tangent;
 pub mod tessellate;
 pub mod texture;
 pub mod trace;
