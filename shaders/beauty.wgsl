@@ -522,6 +522,7 @@ fn query_answer(q: QueryRec, found: Hit) -> Answer {
     var hit = found;
     if (q.any == 0u && hit.prism != NO_PRISM) {
         fill_surface(&hit);
+        hit = shade_hit(hit);
     }
     return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u, hit.uv);
 }

@@ -118,7 +118,7 @@ struct Lighting {
     env_from_cos: f32,
     exposure: f32,       // the preview's exposure factor (tonemap.wgsl)
     key_cos_radius: f32, // cos of the key light's angular radius (1: point-like)
-    _pad2: u32,
+    tangent_offset: u32, // the prisms' corner tangents in texture_texels (12 floats a prism)
 }
 
 // GpuMaterialTexture, 48 bytes: one texture of a material in texture_texels (texture.wgsl;
@@ -135,8 +135,8 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 176 bytes: beauty::SurfaceMaterial, its base-colour, roughness and metallic
-// textures.
+// GpuMaterial, 256 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// normal textures, and its normal map's scale and bias (beauty::NormalTex).
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -145,7 +145,12 @@ struct SurfaceMaterial {
     color_tex: MaterialTexture,
     roughness_tex: MaterialTexture,
     metallic_tex: MaterialTexture,
+    normal_tex: MaterialTexture,
     _pad: vec2<u32>,
+    normal_scale: vec3f,
+    _pad1: u32,
+    normal_bias: vec3f,
+    _pad2: u32,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

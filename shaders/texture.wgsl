@@ -1,5 +1,6 @@
-// texture.wgsl — the materials and their base-colour, roughness and metallic textures, the
-// mirror of core/src/texture.rs (`ColorMap`) and of `BeautyScene::material_at`. A texture is
+// texture.wgsl — the materials and their base-colour, roughness, metallic and normal textures,
+// the mirror of core/src/texture.rs (`ColorMap`), of `BeautyScene::material_at` and
+// `shade_hit`, and of core/src/tangent.rs (`frame_at`). A texture is
 // linear RGB, 3 floats per texel, or (packed) one word of 8-bit codes per texel and the CPU's
 // table of their values, sRGB or raw (gpu::beauty::TextureLayout), rows top to bottom, stored
 // in `texture_texels` (from its `offset`), sampled with the height map's texel conventions and
@@ -115,4 +116,38 @@ fn material_at(prism: u32, uv: vec2f) -> Material {
         m.metallic *= v[min(s.metallic_tex.channel, 2u)];
     }
     return m;
+}
+
+// The tangent of corner `k` of prism `prism` (tangent::corner_tangents: xyz and the
+// bitangent's sign), from texture_texels at lighting.tangent_offset.
+fn corner_tangent(prism: u32, k: u32) -> vec4f {
+    let i = lighting.tangent_offset + (prism * 3u + k) * 4u;
+    return vec4f(texture_texels[i], texture_texels[i + 1u], texture_texels[i + 2u],
+        texture_texels[i + 3u]);
+}
+
+// BeautyScene::shade_hit: the hit's shading normal bent by its material's normal map (texel
+// times scale plus bias, in the tangent frame tangent::frame_at makes about the shading
+// normal), left as it is where the frame or the mapped normal degenerates.
+fn shade_hit(found: Hit) -> Hit {
+    var hit = found;
+    let s = materials[material_index(hit.prism)];
+    if (s.normal_tex.width == 0u || hit.prism >= arrayLength(&prisms)) {
+        return hit;
+    }
+    let b = hit.bary;
+    let t4 = corner_tangent(hit.prism, 0u) * b.x + corner_tangent(hit.prism, 1u) * b.y
+        + corner_tangent(hit.prism, 2u) * b.z;
+    let n = hit.shading_normal;
+    let t = normalize_or_zero(t4.xyz - n * dot(n, t4.xyz));
+    if (all(t == vec3f(0.0))) {
+        return hit;
+    }
+    let bt = cross(n, t) * select(1.0, -1.0, t4.w < 0.0);
+    let c = texture_sample(s.normal_tex, hit.uv) * s.normal_scale + s.normal_bias;
+    let mapped = normalize_or_zero(t * c.x + bt * c.y + n * c.z);
+    if (any(mapped != vec3f(0.0))) {
+        hit.shading_normal = mapped;
+    }
+    return hit;
 }

@@ -178,6 +178,10 @@ pub struct LookArgs {
     /// Metallic in [0, 1]; default: the glTF material's metallicFactor, else 0.
     #[arg(long)]
     pub metallic: Option<f32>,
+    /// Shade with the surface's own normals: do not bend them by the materials' tangent-space
+    /// normal maps (glTF normalTexture, USD normal, .mtl norm / map_Bump).
+    #[arg(long)]
+    pub no_normal_maps: bool,
     /// Dielectric reflectance at normal incidence (0.04 ≈ IOR 1.5; 0 = pure diffuse).
     #[arg(long, default_value_t = 0.04)]
     pub specular: f32,

@@ -349,6 +349,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         base_color: l.base_color.map(Vec3::from),
         roughness: l.roughness,
         metallic: l.metallic,
+        normal_maps: !l.no_normal_maps,
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,
@@ -497,6 +498,7 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
                 m.texture.as_deref(),
                 m.roughness_texture.as_deref(),
                 m.metallic_texture.as_deref(),
+                m.normal_texture.as_deref(),
             ],
         );
         eprintln!(

@@ -70,6 +70,8 @@ pub struct MeshMaterial {
     pub roughness_texture: Option<crate::texture::ChannelRef>,
     /// A texture channel multiplied into `metallic` (the metallic-roughness texture's blue).
     pub metallic_texture: Option<crate::texture::ChannelRef>,
+    /// A tangent-space normal map that bends the shading normal (glTF's `normalTexture`).
+    pub normal_texture: Option<crate::texture::NormalMapRef>,
 }
 
 impl MeshMaterial {
@@ -83,11 +85,12 @@ impl MeshMaterial {
             base_color_texture: None,
             roughness_texture: None,
             metallic_texture: None,
+            normal_texture: None,
         }
     }
 
     /// Its textures, each with the input it feeds, in the order base colour, roughness,
-    /// metallic (one image may feed two).
+    /// metallic, normal (one image may feed two).
     pub fn textures(&self) -> Vec<(crate::texture::TextureSlot, &crate::texture::TextureRef)> {
         use crate::texture::TextureSlot;
         let mut out = vec![];
@@ -99,6 +102,9 @@ impl MeshMaterial {
         }
         if let Some(c) = &self.metallic_texture {
             out.push((TextureSlot::Metallic, &c.texture));
+        }
+        if let Some(n) = &self.normal_texture {
+            out.push((TextureSlot::Normal, &n.texture));
         }
         out
     }

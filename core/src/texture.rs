@@ -94,15 +94,18 @@ pub enum TextureSlot {
     BaseColor,
     Roughness,
     Metallic,
+    /// A tangent-space normal map (`NormalMapRef`).
+    Normal,
 }
 
 impl TextureSlot {
-    /// "base-colour", "roughness", "metallic".
+    /// "base-colour", "roughness", "metallic", "normal".
     pub fn name(self) -> &'static str {
         match self {
             TextureSlot::BaseColor => "base-colour",
             TextureSlot::Roughness => "roughness",
             TextureSlot::Metallic => "metallic",
+            TextureSlot::Normal => "normal",
         }
     }
 
@@ -112,6 +115,7 @@ impl TextureSlot {
             TextureSlot::BaseColor => "--base-color R,G,B",
             TextureSlot::Roughness => "--roughness R",
             TextureSlot::Metallic => "--metallic M",
+            TextureSlot::Normal => "--no-normal-maps",
         }
     }
 }
@@ -182,6 +186,40 @@ pub struct TextureRef {
     /// How the file transforms its UVs for this texture (`KHR_texture_transform`, `-o`/`-s`).
     pub transform: UvTransform,
     pub color_space: ColorSpace,
+}
+
+/// A tangent-space normal map: the normal in the tangent frame (`tangent::frame_at`: x along
+/// the tangent, y along the bitangent, z along the surface normal) is the texel times `scale`
+/// plus `bias`, normalised. glTF's `normalTexture` is `NormalMapRef::gltf`; a USD
+/// `UsdUVTexture` on `normal` gives its own `scale` and `bias`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalMapRef {
+    pub texture: TextureRef,
+    pub scale: [f32; 3],
+    pub bias: [f32; 3],
+}
+
+impl NormalMapRef {
+    /// A map of 0..1 codes for -1..1 with its x and y scaled by `strength` (glTF's
+    /// `normalTexture.scale`, an `.mtl`'s `-bm`): `(2c − 1) · (s, s, 1)`.
+    pub fn unit(texture: TextureRef, strength: f32) -> Self {
+        NormalMapRef {
+            texture,
+            scale: [2.0 * strength, 2.0 * strength, 2.0],
+            bias: [-strength, -strength, -1.0],
+        }
+    }
+
+    /// For messages: "strength S" for a map `unit` makes, else its scale and bias.
+    pub fn describe_mapping(&self) -> String {
+        let s = -self.bias[0];
+        if *self == NormalMapRef::unit(self.texture.clone(), s) {
+            return format!("strength {s}");
+        }
+        let [a, b, c] = self.scale;
+        let [d, e, f] = self.bias;
+        format!("scale ({a}, {b}, {c}), bias ({d}, {e}, {f})")
+    }
 }
 
 /// A scalar material input read from one channel of a texture (0 red, 1 green, 2 blue).
@@ -392,6 +430,12 @@ impl ColorMap {
         let top = self.texel(x, y).lerp(self.texel(x + 1, y), t.x);
         let bottom = self.texel(x, y + 1).lerp(self.texel(x + 1, y + 1), t.x);
         top.lerp(bottom, t.y)
+    }
+
+    /// Whether every texel is grey (its three channels equal): a grey image, which no
+    /// tangent-space normal map is (it would hold normals along (1, 1, 1) or its opposite).
+    pub fn is_grey(&self) -> bool {
+        self.texels.iter().all(|c| c.x == c.y && c.y == c.z)
     }
 
     /// For logs: "name, W x H, wrapS/wrapT, filter".

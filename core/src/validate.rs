@@ -15,12 +15,12 @@ use crate::load;
 use crate::mesh::BaseMesh;
 use crate::prism_file;
 use crate::render::lookdev::{
-    check_material_values, texture_notes, texture_readable, LookdevOptions,
+    check_material_values, grey_normal_map, texture_notes, texture_readable, LookdevOptions,
 };
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
 use crate::seam::{measure_seams, SeamReport};
-use crate::texture::ColorMap;
+use crate::texture::{ColorMap, TextureSlot};
 use glam::{Vec2, Vec3};
 use serde::Serialize;
 use std::path::Path;
@@ -138,6 +138,9 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
                 continue;
             }
             match ColorMap::load(&mesh.source, t, slots[0]) {
+                Ok(c) if slots.contains(&TextureSlot::Normal) && c.is_grey() => {
+                    warnings.push(format!("material '{}': {}", m.name, grey_normal_map(t)))
+                }
                 Ok(c) => {
                     let uses: Vec<&str> = slots.iter().map(|s| s.name()).collect();
                     read.push(format!(
@@ -464,6 +467,9 @@ pub struct MaterialInfo {
     /// The same for `metallic`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metallic_texture: Option<String>,
+    /// "name, strength 1": the normal map.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub normal_texture: Option<String>,
 }
 
 /// "orm.png, channel g".
@@ -490,6 +496,10 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
             roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
             metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
+            normal_texture: m
+                .normal_texture
+                .as_ref()
+                .map(|n| format!("{}, {}", n.texture.name, n.describe_mapping())),
         })
         .collect();
     let none = count[mesh.materials.len()];
@@ -503,6 +513,7 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             texture: None,
             roughness_texture: None,
             metallic_texture: None,
+            normal_texture: None,
         });
     }
     out
@@ -543,6 +554,7 @@ impl InspectInfo {
                     m.texture.as_deref(),
                     m.roughness_texture.as_deref(),
                     m.metallic_texture.as_deref(),
+                    m.normal_texture.as_deref(),
                 ],
             );
             s.push_str(&format!(

@@ -36,8 +36,8 @@ use std::sync::Mutex;
 use wgpu::util::DeviceExt;
 
 /// The lighting uniform of a beauty scene (everything but the environment's tables and the
-/// materials).
-pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
+/// materials) whose textures `layout` lays out (the tangents follow them).
+pub fn lighting_uniform(s: &BeautyScene, layout: &TextureLayout) -> GpuLighting {
     let key = s.key;
     let ground = s.ground;
     GpuLighting {
@@ -52,6 +52,7 @@ pub fn lighting_uniform(s: &BeautyScene) -> GpuLighting {
         has_ground: ground.is_some() as u32,
         env_lights: s.env_lights as u32,
         exposure: s.exposure,
+        tangent_offset: layout.len as u32,
         ..env_lighting(s.env, s.env_frame)
     }
 }
@@ -242,9 +243,21 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             color_tex: m.texture.map_or(Default::default(), |i| tex(i, 0)),
             roughness_tex: channel(m.roughness_texture),
             metallic_tex: channel(m.metallic_texture),
-            _pad: [0; 2],
+            // A normal map needs the tangents (`BeautyScene::tangents`) to be read in.
+            normal_tex: m
+                .normal_texture
+                .filter(|_| !s.tangents.is_empty())
+                .map_or(Default::default(), |n| tex(n.texture, 0)),
+            normal_scale: m.normal_texture.map_or([0.0; 3], |n| n.scale.to_array()),
+            normal_bias: m.normal_texture.map_or([0.0; 3], |n| n.bias.to_array()),
+            ..Default::default()
         })
         .collect()
+}
+
+/// Floats of the prisms' corner tangents at the end of `texture_texels` (12 a prism).
+fn tangent_floats(s: &BeautyScene) -> usize {
+    s.tangents.len() * 12
 }
 
 /// The environment's per-row arrays as `env_rows` (`shaders/env.wgsl`) holds them: texel y
@@ -350,7 +363,7 @@ pub fn check_lighting_fits(
     textures: &[ColorMap],
 ) -> Result<(), GpuError> {
     let layout = texture_layout(textures);
-    check_lighting_sizes(ctx, env, &layout)
+    check_lighting_sizes(ctx, env, &layout, 0)
 }
 
 /// `check_lighting_fits` for a layout already made (each makes it once: a pass over every
@@ -359,12 +372,13 @@ fn check_lighting_sizes(
     ctx: &GpuContext,
     env: Option<&EnvMap>,
     layout: &TextureLayout,
+    tangent_floats: usize,
 ) -> Result<(), GpuError> {
     if let Some(e) = env {
         ctx.check_texture_side("environment map", e.width, e.height, LIGHTING_FIX)?;
     }
     let limit = ctx.max_binding_bytes();
-    let bytes = layout.len as u64 * std::mem::size_of::<f32>() as u64;
+    let bytes = (layout.len + tangent_floats) as u64 * std::mem::size_of::<f32>() as u64;
     if bytes > limit {
         return Err(GpuError::TooLarge {
             what: "material texture texels",
@@ -384,7 +398,7 @@ pub struct GpuBeautyScene {
     /// Address and size of the `EnvMap` the tables came from, and of the textures the texels
     /// end with (what `serves` compares).
     env_id: (usize, u32, u32),
-    texture_id: (usize, usize),
+    texture_id: (usize, usize, usize, usize),
     material_count: usize,
     /// Where the textures went (`update` rewrites the materials that point there).
     layout: TextureLayout,
@@ -401,7 +415,7 @@ impl GpuBeautyScene {
     /// 11 M texels, e.g. a 4096 × 2048 environment; hardware adapters allow more).
     pub fn upload(ctx: &GpuContext, s: &BeautyScene) -> Result<GpuBeautyScene, GpuError> {
         let layout = texture_layout(s.textures);
-        check_lighting_sizes(ctx, Some(s.env), &layout)?;
+        check_lighting_sizes(ctx, Some(s.env), &layout, tangent_floats(s))?;
         let mut bytes = EnvTextures::bytes(s.env);
         let mut storage = |what: &'static str, data: &[f32]| {
             let data: &[u8] = bytemuck::cast_slice(data);
@@ -414,6 +428,8 @@ impl GpuBeautyScene {
                 })
         };
         let mut texels = texel_buffer(s.textures, &layout);
+        // The tangents normal maps are read in, after the textures (`GpuLighting::tangent_offset`).
+        texels.extend(s.tangents.iter().flatten().flat_map(|t| t.to_array()));
         if texels.is_empty() {
             texels.push(0.0); // a binding is never empty
         }
@@ -434,7 +450,7 @@ impl GpuBeautyScene {
             .device
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("lighting"),
-                contents: bytemuck::bytes_of(&lighting_uniform(s)),
+                contents: bytemuck::bytes_of(&lighting_uniform(s, &layout)),
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -473,12 +489,12 @@ impl GpuBeautyScene {
             group,
             uniform,
             env_id: env_id(s.env),
-            texture_id: texture_id(s.textures),
+            texture_id: texture_id(s),
             material_count: records.len(),
+            current: Mutex::new(lighting_uniform(s, &layout)),
             layout,
             materials,
             bytes,
-            current: Mutex::new(lighting_uniform(s)),
         })
     }
 
@@ -487,7 +503,7 @@ impl GpuBeautyScene {
     /// frames of one job).
     pub fn serves(&self, s: &BeautyScene) -> bool {
         self.env_id == env_id(s.env)
-            && self.texture_id == texture_id(s.textures)
+            && self.texture_id == texture_id(s)
             && self.material_count == s.materials.len()
     }
 
@@ -495,7 +511,7 @@ impl GpuBeautyScene {
     /// whose environment and textures must be the ones uploaded (`serves`).
     pub fn update(&self, ctx: &GpuContext, s: &BeautyScene) {
         debug_assert!(self.serves(s));
-        let lighting = lighting_uniform(s);
+        let lighting = lighting_uniform(s, &self.layout);
         ctx.queue
             .write_buffer(&self.uniform, 0, bytemuck::bytes_of(&lighting));
         ctx.queue.write_buffer(
@@ -521,8 +537,9 @@ fn env_id(env: &EnvMap) -> (usize, u32, u32) {
     (env as *const EnvMap as usize, env.width, env.height)
 }
 
-fn texture_id(t: &[ColorMap]) -> (usize, usize) {
-    (t.as_ptr() as usize, t.len())
+fn texture_id(s: &BeautyScene) -> (usize, usize, usize, usize) {
+    let (t, n) = (s.textures, s.tangents);
+    (t.as_ptr() as usize, t.len(), n.as_ptr() as usize, n.len())
 }
 
 /// Render one beauty frame on the GPU: the CPU's `render_beauty` for the same scene, camera,

@@ -295,7 +295,9 @@ pub struct GpuLighting {
     pub exposure: f32,
     /// Cosine of the key light's angular radius (`KeyLight::cos_radius`; 1: point-like).
     pub key_cos_radius: f32,
-    pub _pad2: u32,
+    /// The first float of the prisms' corner tangents in `texture_texels`
+    /// (`BeautyScene::tangents`, 12 floats a prism), which normal maps are read in.
+    pub tangent_offset: u32,
 }
 
 /// One texture of a material as the kernel reads it, 48 bytes: its size (0 × 0: none), its
@@ -317,8 +319,9 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 176 bytes: `prismbake::render::beauty::SurfaceMaterial`,
-/// its base-colour, roughness and metallic textures (if any) located in the texel buffer.
+/// One material of a beauty scene, 256 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// its base-colour, roughness, metallic and normal textures (if any) located in the texel
+/// buffer, and its normal map's scale and bias (`beauty::NormalTex`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -329,7 +332,12 @@ pub struct GpuMaterial {
     pub color_tex: GpuMaterialTexture,
     pub roughness_tex: GpuMaterialTexture,
     pub metallic_tex: GpuMaterialTexture,
+    pub normal_tex: GpuMaterialTexture,
     pub _pad: [u32; 2],
+    pub normal_scale: [f32; 3],
+    pub _pad1: u32,
+    pub normal_bias: [f32; 3],
+    pub _pad2: u32,
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -372,7 +380,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
     assert!(std::mem::size_of::<GpuLighting>() == 96);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 176);
+    assert!(std::mem::size_of::<GpuMaterial>() == 256);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
 };
 
@@ -496,7 +504,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_from_cos,
                 exposure,
                 key_cos_radius,
-                _pad2
+                tangent_offset
             }
         ),
         layout!(
@@ -523,7 +531,12 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 color_tex,
                 roughness_tex,
                 metallic_tex,
-                _pad
+                normal_tex,
+                _pad,
+                normal_scale,
+                _pad1,
+                normal_bias,
+                _pad2
             }
         ),
         layout!(
@@ -575,6 +588,8 @@ mod tests {
         // vec2<f32> aligns to 8: each texture record's transform and the records pack.
         assert_eq!(offset_of!(GpuMaterialTexture, uv_u), 24);
         assert_eq!(offset_of!(GpuMaterial, metallic_tex), 120);
+        assert_eq!(offset_of!(GpuMaterial, normal_scale), 224);
+        assert_eq!(offset_of!(GpuMaterial, normal_bias), 240);
         assert_eq!(offset_of!(GpuBeautySums, background), 16);
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);

@@ -10,7 +10,7 @@ use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
 use crate::texture::{
-    ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
+    ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::mesh::{Mode, Semantic};
@@ -54,7 +54,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             // Roughness in its green channel, metallic in its blue, both linear.
             let metallic_roughness = pbr
                 .metallic_roughness_texture()
-                .map(|t| texture_ref(path, &loader_buffers, &t, ColorSpace::Raw))
+                .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Raw))
                 .transpose()?;
             let channel = |channel| {
                 metallic_roughness
@@ -71,10 +71,14 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                 metallic: pbr.metallic_factor(),
                 base_color_texture: pbr
                     .base_color_texture()
-                    .map(|t| texture_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
+                    .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
                     .transpose()?,
                 roughness_texture: channel(1),
                 metallic_texture: channel(2),
+                normal_texture: m
+                    .normal_texture()
+                    .map(|t| normal_ref(path, &loader_buffers, &t))
+                    .transpose()?,
             })
         })
         .collect::<Result<_>>()?;
@@ -87,17 +91,71 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     Ok(mesh)
 }
 
-/// Where a material's texture is and how it is sampled. An image in a buffer view is copied
-/// out (decoded only if a beauty render needs it, `texture::ColorMap::load`); a `data:` URI is
-/// decoded from base64; any other URI is a file next to the asset.
-fn texture_ref(
+/// A textureInfo's texture (`texture_ref`), with its `KHR_texture_transform`.
+fn info_ref(
     path: &Path,
     buffers: &[Vec<u8>],
     info: &::gltf::texture::Info,
     color_space: ColorSpace,
 ) -> Result<TextureRef> {
+    let transform = info
+        .texture_transform()
+        .map(|t| (UvTransform::gltf(t.offset(), t.rotation(), t.scale()), t.tex_coord()));
+    texture_ref(path, buffers, info.texture(), info.tex_coord(), transform, color_space)
+}
+
+/// A material's `normalTexture`: a raw texture of 0..1 codes for -1..1, its x and y times
+/// its `scale`. gltf 1.4 reads no `KHR_texture_transform` on it: the extension's JSON is read
+/// here.
+fn normal_ref(
+    path: &Path,
+    buffers: &[Vec<u8>],
+    info: &::gltf::material::NormalTexture,
+) -> Result<NormalMapRef> {
+    let transform = match info.extension_value("KHR_texture_transform") {
+        Some(v) => {
+            let t: ::gltf::json::extensions::texture::TextureTransform =
+                serde_json::from_value(v.clone()).map_err(|e| {
+                    Error::invalid(
+                        path,
+                        format!(
+                            "a normalTexture (texture #{}) has a malformed KHR_texture_transform: \
+                             {e} (re-export the asset)",
+                            info.texture().index()
+                        ),
+                    )
+                })?;
+            Some((
+                UvTransform::gltf(t.offset.0, t.rotation.0, t.scale.0),
+                t.tex_coord,
+            ))
+        }
+        None => None,
+    };
+    let texture = texture_ref(
+        path,
+        buffers,
+        info.texture(),
+        info.tex_coord(),
+        transform,
+        ColorSpace::Raw,
+    )?;
+    Ok(NormalMapRef::unit(texture, info.scale()))
+}
+
+/// Where a material's texture is and how it is sampled. An image in a buffer view is copied
+/// out (decoded only if a beauty render needs it, `texture::ColorMap::load`); a `data:` URI is
+/// decoded from base64; any other URI is a file next to the asset. `transform`: the
+/// textureInfo's `KHR_texture_transform` and the `texCoord` it names in place of `tex_coord`.
+fn texture_ref(
+    path: &Path,
+    buffers: &[Vec<u8>],
+    texture: ::gltf::Texture,
+    tex_coord: u32,
+    transform: Option<(UvTransform, Option<u32>)>,
+    color_space: ColorSpace,
+) -> Result<TextureRef> {
     use ::gltf::texture::{MagFilter, WrappingMode};
-    let texture = info.texture();
     let image = texture.source();
     let name = match (image.name(), image.source()) {
         (Some(name), _) => name.to_string(),
@@ -137,7 +195,6 @@ fn texture_ref(
         },
     };
     let sampler = texture.sampler();
-    let transform = info.texture_transform();
     let wrap = |w: WrappingMode| match w {
         WrappingMode::Repeat => TexWrap::Repeat,
         WrappingMode::ClampToEdge => TexWrap::Clamp,
@@ -151,13 +208,8 @@ fn texture_ref(
             nearest: sampler.mag_filter() == Some(MagFilter::Nearest),
         },
         // KHR_texture_transform's texCoord replaces the textureInfo's.
-        tex_coord: transform
-            .as_ref()
-            .and_then(|t| t.tex_coord())
-            .unwrap_or(info.tex_coord()),
-        transform: transform.map_or(UvTransform::IDENTITY, |t| {
-            UvTransform::gltf(t.offset(), t.rotation(), t.scale())
-        }),
+        tex_coord: transform.and_then(|t| t.1).unwrap_or(tex_coord),
+        transform: transform.map_or(UvTransform::IDENTITY, |t| t.0),
         color_space,
     })
 }

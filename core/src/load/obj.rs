@@ -6,8 +6,10 @@
 //! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
 //! importer does; `-clamp on` clamps it, `-s`/`-o` scale and offset its UVs) and the
 //! PBR extension's `Pr`/`Pm` (roughness, metallic) and their maps `map_Pr`/`map_Pm` (data
-//! textures, one channel: `-imfchan`, else red). A missing .mtl or an undefined `usemtl`
-//! name is a warning (those faces get the default material), not an error.
+//! textures, one channel: `-imfchan`, else red), and a tangent-space normal map: `norm`, or
+//! `map_Bump`/`bump` as Blender's exporter and importer use them (`-bm` its strength; a grey
+//! bump map is not read, `render::lookdev::grey_normal_map`). A missing .mtl or an undefined
+//! `usemtl` name is a warning (those faces get the default material), not an error.
 //!
 //! A small parser of our own rather than `tobj`: with `single_index`, tobj 4.0.5 panics
 //! (multiply overflow) on a relative index reaching before the first element
@@ -20,7 +22,7 @@ use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
 use crate::texture::{
-    ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
+    ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
 use glam::{Vec2, Vec3};
 use std::collections::HashMap;
@@ -109,16 +111,25 @@ fn load_materials(path: &Path, libs: &[String]) -> Result<(Vec<MeshMaterial>, Ve
     Ok((materials, names))
 }
 
-/// One .mtl file's `newmtl` entries (`Kd`, `map_Kd`, `Pr`, `Pm`; the rest is ignored).
-/// A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the channel
-/// its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey image's
-/// one channel); `-clamp on` clamps its UVs, `-s` scales and `-o` offsets them.
+/// A `map_*` statement of an `.mtl`: its texture, the channel `-imfchan` picks and the
+/// strength `-bm` gives (1 without).
+struct MtlMap {
+    texture: TextureRef,
+    channel: u8,
+    strength: f32,
+}
+
+/// One .mtl file's `newmtl` entries (`Kd`, `map_Kd`, `Pr`, `Pm`, `norm`; the rest is
+/// ignored). A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the
+/// channel its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey
+/// image's one channel); `-clamp on` clamps its UVs, `-s` scales and `-o` offsets them, `-bm`
+/// is a normal map's strength.
 fn mtl_map<'a>(
     keyword: &str,
     words: &mut impl Iterator<Item = &'a str>,
     dir: &Path,
     color_space: ColorSpace,
-) -> std::result::Result<(TextureRef, u8), String> {
+) -> std::result::Result<MtlMap, String> {
     let words: Vec<&str> = words.collect();
     let Some((name, options)) = words.split_last() else {
         return Err(format!("{keyword} names no file (fix the line)"));
@@ -144,6 +155,7 @@ fn mtl_map<'a>(
         Ok([u, v.next().unwrap_or(u)])
     };
     let transform = UvTransform::scale_offset(vector("-s", 1.0)?, vector("-o", 0.0)?);
+    let strength = vector("-bm", 1.0)?[0];
     let channel = match options.windows(2).find(|w| w[0] == "-imfchan") {
         Some([_, "g"]) => 1,
         Some([_, "b"]) => 2,
@@ -160,7 +172,11 @@ fn mtl_map<'a>(
         transform,
         color_space,
     };
-    Ok((texture, channel))
+    Ok(MtlMap {
+        texture,
+        channel,
+        strength,
+    })
 }
 
 fn parse_mtl(
@@ -200,13 +216,18 @@ fn parse_mtl(
             "Pm" => m.metallic = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
             // A map replaces its value (the factor becomes 1), as Kd's does.
             "map_Kd" => {
-                let (t, _) = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
+                let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
                 m.base_color = [1.0; 4];
-                m.base_color_texture = Some(t);
+                m.base_color_texture = Some(t.texture);
+            }
+            "norm" | "map_Bump" | "bump" => {
+                let t = mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;
+                m.normal_texture = Some(NormalMapRef::unit(t.texture, t.strength));
             }
             "map_Pr" | "map_Pm" => {
-                let (texture, channel) =
-                    mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;
+                let MtlMap {
+                    texture, channel, ..
+                } = mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;
                 let c = Some(ChannelRef { texture, channel });
                 if keyword == "map_Pr" {
                     (m.roughness, m.roughness_texture) = (1.0, c);

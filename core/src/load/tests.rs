@@ -361,11 +361,13 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
                                       "baseColorTexture": {"index": 0}}},
             {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0],
                                       "roughnessFactor": 0.25, "metallicFactor": 0.5,
-                                      "metallicRoughnessTexture": {"index": 1}}},
+                                      "metallicRoughnessTexture": {"index": 1}},
+             "normalTexture": {"index": 2, "scale": 0.5, "extensions":
+                 {"KHR_texture_transform": {"offset": [0.5, 0.0], "texCoord": 0}}}},
         ],
-        "textures": [{"source": 0, "sampler": 0}, {"source": 1}],
+        "textures": [{"source": 0, "sampler": 0}, {"source": 1}, {"source": 2}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
-        "images": [{"uri": "my%20albedo.png"}, {"uri": "orm.png"}],
+        "images": [{"uri": "my%20albedo.png"}, {"uri": "orm.png"}, {"uri": "normal.png"}],
     });
     let m = load_gltf_doc(&dir, "textured.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
     // One group per primitive, each with its material (2: none, the slot after the file's).
@@ -414,7 +416,18 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     assert_eq!(r.texture.name, "orm.png");
     assert_eq!(r.texture.data, TextureData::File(dir.join("orm.png")));
     assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
-    assert_eq!(other.texture_uses().len(), 1, "one image, two inputs");
+    // The normal map: data, its x and y times its scale, its own KHR_texture_transform (which
+    // gltf 1.4 leaves in the JSON).
+    let n = other.normal_texture.clone().unwrap();
+    assert_eq!(n.texture.data, TextureData::File(dir.join("normal.png")));
+    assert_eq!(n.texture.color_space, crate::texture::ColorSpace::Raw);
+    assert_eq!((n.scale, n.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
+    assert_eq!(
+        n.texture.transform,
+        UvTransform::gltf([0.5, 0.0], 0.0, [1.0, 1.0])
+    );
+    assert_eq!(paint.normal_texture, None);
+    assert_eq!(other.texture_uses().len(), 2, "one image, two inputs; the normal map");
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
     assert_eq!(material_warning(&m, 0, &|_| true), None);
@@ -720,7 +733,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     let mtl = "# two materials\n\
         newmtl paint\nKd 0.5 0.25 0.125\nNs 250\nPr 0.3\n\
         newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
-        map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\n";
+        map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\nmap_Bump -bm 0.5 normal.png\n";
     std::fs::write(&path, obj).unwrap();
     std::fs::write(dir.join("m.mtl"), mtl).unwrap();
     let m = load_mesh(&path, &MeshOptions::default()).unwrap();
@@ -767,6 +780,13 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         UvTransform::scale_offset([1.0; 2], [0.5; 2])
     );
     assert!(mt.texture.transform.is_identity());
+    // map_Bump is a tangent-space normal map (Blender's use of it), -bm its strength.
+    let n = rust.normal_texture.as_ref().unwrap();
+    assert_eq!(n.texture.data, TextureData::File(dir.join("normal.png")));
+    assert_eq!(n.texture.color_space, crate::texture::ColorSpace::Raw);
+    assert_eq!((n.scale, n.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
+    assert_eq!(n.describe_mapping(), "strength 0.5");
+    assert_eq!(paint.normal_texture, None);
     // Without any mtllib: no materials, every face the default.
     let bare = dir.join("bare.obj");
     std::fs::write(

@@ -22,7 +22,7 @@ use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
 use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
 use crate::texture::{
-    ChannelRef, ColorSpace, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
+    ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
 use glam::{DMat4, DQuat, DVec3, Mat3, Vec2, Vec3};
 use openusd::sdf::{self, Value};
@@ -1440,10 +1440,71 @@ fn mesh_material(
             (m.metallic, m.metallic_texture) = (1.0, c);
         }
     }
+    m.normal_texture = normal_map(path, stage, &surface, &material, uv_name)?;
     Ok(Some((material, m)))
 }
 
-/// A `UsdUVTexture` feeding a material's `what` input ("diffuse", "roughness", "metallic"): its
+/// A `UsdPreviewSurface`'s `normal` input from a `UsdUVTexture`'s `rgb`: a tangent-space
+/// normal map whose texel times the texture's `inputs:scale` plus its `inputs:bias` is the
+/// normal, as UsdPreviewSurface specifies (exporters write scale 2 and bias −1 for a 0..1
+/// image; without them the texels are the normal's components as they are, and a warning
+/// says so).
+fn normal_map(
+    path: &Path,
+    stage: &Stage,
+    surface: &sdf::Path,
+    material: &sdf::Path,
+    uv_name: Option<&str>,
+) -> Result<Option<NormalMapRef>> {
+    let input = property_path(path, surface, "inputs:normal")?;
+    let Some((tex, output)) = connected_output(path, stage, &input)? else {
+        return Ok(None);
+    };
+    if info_id(path, stage, &tex)?.as_deref() != Some("UsdUVTexture") || output != "rgb" {
+        warn(
+            path,
+            &format!(
+                "{material}: normal comes from {tex} output '{output}', not a UsdUVTexture's \
+                 rgb: not read"
+            ),
+        );
+        return Ok(None);
+    }
+    let Some(texture) = uv_texture(path, stage, &tex, uv_name, "normal")? else {
+        return Ok(None);
+    };
+    let mut scale_bias = [[1.0f32; 3], [0.0; 3]];
+    for (k, name) in ["scale", "bias"].iter().enumerate() {
+        if let Some(v) = input_value(path, stage, &tex, name)? {
+            let v = vec4(&v).ok_or_else(|| {
+                prim_err(
+                    path,
+                    &tex,
+                    format!("inputs:{name} is {}, expected float4", kind(&v)),
+                )
+            })?;
+            scale_bias[k] = [v[0] as f32, v[1] as f32, v[2] as f32];
+        }
+    }
+    let [scale, bias] = scale_bias;
+    if scale == [1.0; 3] && bias == [0.0; 3] {
+        warn(
+            path,
+            &format!(
+                "{tex}: the normal texture has no inputs:scale and inputs:bias: its texels are \
+                 read as normals as they are (a 0..1 image wants scale (2, 2, 2, 1) and bias \
+                 (-1, -1, -1, 0))"
+            ),
+        );
+    }
+    Ok(Some(NormalMapRef {
+        texture,
+        scale,
+        bias,
+    }))
+}
+
+/// A `UsdUVTexture` feeding a material's `what` input ("diffuse", "roughness", "metallic", "normal"): its
 /// file, wrap modes and colour space (`sourceColorSpace`: `raw`, `sRGB`, else `auto`); `None`
 /// (with a warning) when it reads another UV primvar than the mesh's `uv_name` or has no file.
 fn uv_texture(
@@ -1484,7 +1545,12 @@ fn uv_texture(
             _ => TexWrap::Repeat,
         })
     };
-    for (name, identity) in [("scale", 1.0), ("bias", 0.0)] {
+    // A normal map applies them (`normal_map`).
+    let applied: &[(&str, f64)] = match what {
+        "normal" => &[],
+        _ => &[("scale", 1.0), ("bias", 0.0)],
+    };
+    for &(name, identity) in applied {
         let v = input_value(path, stage, tex, name)?;
         if v.as_ref()
             .and_then(vec4)

@@ -448,7 +448,18 @@ fn preview_surface_materials_are_read_per_mesh() {
                 color3f inputs:diffuseColor.connect = </A/Looks/Stone/Albedo.outputs:rgb>
                 float inputs:roughness.connect = </A/Looks/Stone/Rough.outputs:g>
                 float inputs:metallic.connect = </A/Looks/Stone/Albedo.outputs:r>
+                normal3f inputs:normal.connect = </A/Looks/Stone/Bumps.outputs:rgb>
                 token outputs:surface
+            }}
+            def Shader "Bumps"
+            {{
+                uniform token info:id = "UsdUVTexture"
+                asset inputs:file = @./tex/normal.png@
+                token inputs:sourceColorSpace = "raw"
+                float4 inputs:scale = (2, 2, 2, 2)
+                float4 inputs:bias = (-1, -1, -1, -1)
+                float2 inputs:st.connect = </A/Looks/Stone/Reader.outputs:result>
+                float3 outputs:rgb
             }}
             def Shader "Rough"
             {{
@@ -520,7 +531,13 @@ fn preview_surface_materials_are_read_per_mesh() {
     assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
     let mt = stone.metallic_texture.as_ref().unwrap();
     assert_eq!((&mt.texture, mt.channel), (t, 0));
-    assert_eq!(stone.texture_uses().len(), 2);
+    // The normal map: its scale and bias as the texture gives them (exporters' 2 and -1).
+    let n = stone.normal_texture.as_ref().unwrap();
+    assert_eq!(n.texture.name, "normal.png");
+    assert_eq!((n.scale, n.bias), ([2.0; 3], [-1.0; 3]));
+    assert_eq!(n.describe_mapping(), "strength 1");
+    assert_eq!(stone.texture_uses().len(), 3);
+    assert_eq!(gold.normal_texture, None);
     assert_eq!(gold.base_color, [1.0, 0.75, 0.25, 1.0]);
     assert_eq!((gold.roughness, gold.metallic), (0.2, 1.0));
     assert_eq!(gold.base_color_texture, None);

@@ -27,7 +27,7 @@ use crate::bake::Prism;
 use crate::rng::{self, Purpose};
 use crate::texture::ColorMap;
 use crate::trace::{Hit, Intersector, Ray, RayContext};
-use glam::{Quat, Vec2, Vec3};
+use glam::{Quat, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -131,8 +131,11 @@ pub struct BeautyScene<'a> {
     /// an index past the end (an asset's triangles without a material, tables without any).
     /// At least one.
     pub materials: &'a [SurfaceMaterial],
-    /// The base-colour textures `SurfaceMaterial::texture` indexes.
+    /// The textures `SurfaceMaterial`'s texture indices index.
     pub textures: &'a [ColorMap],
+    /// Per prism, its corners' tangents (`tangent::corner_tangents`), which a material's normal
+    /// map is read in; empty where no material has one.
+    pub tangents: &'a [[Vec4; 3]],
     /// The traced table's prisms (their material indices).
     pub prisms: &'a [Prism],
     pub ground: Option<Ground>,
@@ -154,6 +157,16 @@ pub struct SurfaceMaterial {
     pub texture: Option<u32>,
     pub roughness_texture: Option<TexChannel>,
     pub metallic_texture: Option<TexChannel>,
+    pub normal_texture: Option<NormalTex>,
+}
+
+/// A tangent-space normal map (`texture::NormalMapRef`): one of `BeautyScene::textures`, whose
+/// texel times `scale` plus `bias` is the normal in the tangent frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NormalTex {
+    pub texture: u32,
+    pub scale: Vec3,
+    pub bias: Vec3,
 }
 
 /// One channel (0 red, 1 green, 2 blue) of one of `BeautyScene::textures`.
@@ -224,6 +237,30 @@ impl BeautyScene<'_> {
             m.metallic *= v[c.channel as usize];
         }
         m
+    }
+
+    /// The hit as the beauty shades it: its shading normal bent by its material's normal map,
+    /// if any. The map's texel, times its scale plus its bias, is the normal in the tangent
+    /// frame at the hit (`tangent::frame_at`: the prism's MikkTSpace tangent made
+    /// perpendicular to the shading normal). Left as it is where the frame or the mapped
+    /// normal degenerates (a tangent along the normal, a texel that maps to zero).
+    #[inline]
+    pub fn shade_hit(&self, mut hit: Hit) -> Hit {
+        let s = &self.materials[self.material_index(hit.prism)];
+        let (Some(nm), Some(corners)) = (s.normal_texture, self.tangents.get(hit.prism as usize))
+        else {
+            return hit;
+        };
+        let n = hit.shading_normal;
+        let Some((t, b)) = crate::tangent::frame_at(corners, hit.bary, n) else {
+            return hit;
+        };
+        let c = self.textures[nm.texture as usize].sample(hit.uv) * nm.scale + nm.bias;
+        let mapped = (t * c.x + b * c.y + n * c.z).normalize_or_zero();
+        if mapped != Vec3::ZERO {
+            hit.shading_normal = mapped;
+        }
+        hit
     }
 }
 
@@ -559,7 +596,7 @@ fn surface_radiance(
         n.rays += 1;
         match isect.intersect(&ray, &bctx) {
             Some(h) => {
-                hit = h;
+                hit = s.shade_hit(h);
                 dir = wi;
             }
             None => {
@@ -579,7 +616,7 @@ fn trace_sample(
     n: &mut BeautyCounters,
 ) -> SampleResult {
     n.rays += 1;
-    let hit = isect.intersect(ray, ctx);
+    let hit = isect.intersect(ray, ctx).map(|h| s.shade_hit(h));
     let ground_t = s.ground.as_ref().and_then(|g| ground_hit(g, ray));
     match (hit, ground_t) {
         (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => SampleResult {

@@ -12,7 +12,8 @@
 //! table made from the same inputs (`table_cache`, keyed by `asset::input_hash`).
 
 use super::beauty::{
-    self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight, SurfaceMaterial, TexChannel,
+    self, BeautyCounters, BeautyImage, BeautyScene, Ground, KeyLight, NormalTex, SurfaceMaterial,
+    TexChannel,
 };
 use super::camera::Camera;
 use super::denoise::{Denoiser, Quality};
@@ -64,6 +65,8 @@ pub struct LookdevOptions {
     /// `DEFAULT_METALLIC`).
     pub roughness: Option<f32>,
     pub metallic: Option<f32>,
+    /// Bend the shading normals by the materials' normal maps (`--no-normal-maps`: false).
+    pub normal_maps: bool,
     pub specular: f32,
     pub bounces: u32,
     pub ground: bool,
@@ -88,6 +91,7 @@ impl Default for LookdevOptions {
             base_color: None,
             roughness: None,
             metallic: None,
+            normal_maps: true,
             specular: 0.04,
             bounces: 2,
             ground: false,
@@ -218,20 +222,27 @@ pub struct MaterialSummary {
     /// The same for `metallic`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metallic_texture: Option<String>,
+    /// "rock_normal, 256x256, repeat/repeat, bilinear, strength 1": the normal map that bends
+    /// the shading normal; absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub normal_texture: Option<String>,
 }
 
 /// A material for people: "base colour (r, g, b) x texture T, roughness R x texture U,
-/// metallic M" (the render's summary lines, `inspect`): each factor with the texture that
-/// multiplies it, if any.
+/// metallic M, normal map N" (the render's summary lines, `inspect`): each factor with the
+/// texture that multiplies it, if any, then the normal map, if any.
 pub fn describe_material(
     base_color: [f32; 3],
     roughness: f32,
     metallic: f32,
-    textures: [Option<&str>; 3],
+    textures: [Option<&str>; 4],
 ) -> String {
     let [r, g, b] = base_color;
-    let [tc, tr, tm] = textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
-    format!("base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}")
+    let [tc, tr, tm, _] = textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
+    let normal = textures[3].map_or(String::new(), |t| format!(", normal map {t}"));
+    format!(
+        "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}{normal}"
+    )
 }
 
 /// "name, W x H, wrapS/wrapT, filter, channel g" of a texture channel of `scene`.
@@ -265,6 +276,13 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
             texture: m.texture.map(|t| scene.textures[t as usize].describe()),
             roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
             metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
+            normal_texture: a.normal_mapping.as_ref().and(m.normal_texture).map(|n| {
+                format!(
+                    "{}, {}",
+                    scene.textures[n.texture as usize].describe(),
+                    a.normal_mapping.as_deref().unwrap_or_default()
+                )
+            }),
         })
         .collect()
 }
@@ -378,6 +396,7 @@ pub fn texture_notes(
                     }
                     TextureSlot::Roughness => format!("roughness factor {}", m.roughness),
                     TextureSlot::Metallic => format!("metallic factor {}", m.metallic),
+                    TextureSlot::Normal => "own normals".to_string(),
                 })
                 .collect::<Vec<_>>()
                 .join(" and ");
@@ -428,6 +447,9 @@ struct AssetMaterial {
     texture: Option<u32>,
     roughness_texture: Option<TexChannel>,
     metallic_texture: Option<TexChannel>,
+    normal_texture: Option<NormalTex>,
+    /// How its normal map's texels become normals, for the summary ("strength 1").
+    normal_mapping: Option<String>,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -448,6 +470,8 @@ impl AssetMaterial {
             texture: None,
             roughness_texture: None,
             metallic_texture: None,
+            normal_texture: None,
+            normal_mapping: None,
         }
     }
 }
@@ -525,6 +549,7 @@ fn asset_materials(
         TextureSlot::BaseColor => opts.base_color.is_none(),
         TextureSlot::Roughness => opts.roughness.is_none(),
         TextureSlot::Metallic => opts.metallic.is_none(),
+        TextureSlot::Normal => opts.normal_maps,
     };
     if let Some(w) = material_warning(mesh, spec.uv_set, &reads) {
         eprintln!("warning: {}: {w}", mesh.source.display());
@@ -535,7 +560,7 @@ fn asset_materials(
         if !reads(slot) || !texture_readable(t, spec.uv_set) {
             return Ok(None);
         }
-        decode_once(&mut decoded, &mut out.textures, &mesh.source, t, slot).map(Some)
+        decode_once(&mut decoded, &mut out.textures, &mesh.source, t, slot)
     };
     let mut list = vec![];
     for m in &mesh.materials {
@@ -558,6 +583,14 @@ fn asset_materials(
             }
         }
         let [roughness_texture, metallic_texture] = channels;
+        let normal_texture = match &m.normal_texture {
+            Some(n) => decode(&n.texture, TextureSlot::Normal)?.map(|texture| NormalTex {
+                texture,
+                scale: Vec3::from_array(n.scale),
+                bias: Vec3::from_array(n.bias),
+            }),
+            None => None,
+        };
         let c = m.base_color;
         list.push(AssetMaterial {
             name: m.name.clone(),
@@ -567,6 +600,8 @@ fn asset_materials(
             texture,
             roughness_texture,
             metallic_texture,
+            normal_mapping: normal_texture.and(m.normal_texture.as_ref()).map(|n| n.describe_mapping()),
+            normal_texture,
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -575,20 +610,40 @@ fn asset_materials(
 }
 
 /// The index in `textures` of `t` decoded, decoding it (for `slot`) unless `decoded`, the
-/// images in `textures`' order, already holds it.
+/// images in `textures`' order, already holds it. `None` for a normal map that is a grey image
+/// (a bump map, which the beauty does not read: a warning says so).
 fn decode_once<'m>(
     decoded: &mut Vec<&'m TextureRef>,
     textures: &mut Vec<ColorMap>,
     source: &Path,
     t: &'m TextureRef,
     slot: TextureSlot,
-) -> Result<u32> {
-    if let Some(i) = decoded.iter().position(|d| *d == t) {
-        return Ok(i as u32);
+) -> Result<Option<u32>> {
+    let found = decoded.iter().position(|d| *d == t);
+    let decoding = match found {
+        Some(_) => None,
+        None => Some(ColorMap::load(source, t, slot)?),
+    };
+    let map = decoding.as_ref().or(found.map(|i| &textures[i]));
+    if slot == TextureSlot::Normal && map.is_some_and(ColorMap::is_grey) {
+        eprintln!("warning: {}: {}", source.display(), grey_normal_map(t));
+        return Ok(None);
     }
-    textures.push(ColorMap::load(source, t, slot)?);
-    decoded.push(t);
-    Ok((decoded.len() - 1) as u32)
+    if let Some(map) = decoding {
+        textures.push(map);
+        decoded.push(t);
+    }
+    Ok(Some(found.unwrap_or(decoded.len() - 1) as u32))
+}
+
+/// Why a grey normal map is not read (`render`'s warning, `validate`'s `textures` check).
+pub fn grey_normal_map(t: &TextureRef) -> String {
+    format!(
+        "normal map '{}' is a grey image, a bump (height) map rather than a tangent-space normal \
+         map: the beauty does not read it (bake it to a normal map, e.g. with Blender's Bump \
+         node, or pass --no-normal-maps to silence this)",
+        t.name
+    )
 }
 
 /// Load the input (asset: load → [cache] → repair → bake; or a baked table).
@@ -904,8 +959,14 @@ pub fn render_all(
             texture: m.texture.filter(|_| opts.base_color.is_none()),
             roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),
             metallic_texture: m.metallic_texture.filter(|_| opts.metallic.is_none()),
+            normal_texture: m.normal_texture.filter(|_| opts.normal_maps),
         })
         .collect();
+    // The tangent frames normal maps are read in, where some material has one.
+    let tangents = match materials.iter().any(|m| m.normal_texture.is_some()) {
+        true => crate::tangent::corner_tangents(&s.scene.table),
+        false => vec![],
+    };
     let env_fallback;
     let env = match &s.env {
         Some(e) => e,
@@ -929,6 +990,7 @@ pub fn render_all(
         }),
         materials: &materials,
         textures: &s.materials.textures,
+        tangents: &tangents,
         prisms: &s.scene.table.prisms,
         ground: opts.ground.then(|| Ground {
             up,
