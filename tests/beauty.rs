@@ -1229,6 +1229,127 @@ fn a_metallic_roughness_texture_sets_roughness_and_metallic_per_texel() {
     assert!(!exr.exists());
 }
 
+/// The square (`square_gltf`, one white matte material) with a tangent-space normal map
+/// `tilt.png` (clamped) whose left half tilts the normal `deg` degrees towards -x, its right
+/// half towards +x (u runs along +x, so +x is the map's red), and glTF `scale` `scale`; the
+/// normals the 8-bit codes decode to, left and right.
+fn normal_map_square(dir: &Path, deg: f32, scale: f32) -> (PathBuf, [[f32; 3]; 2]) {
+    let (sin, cos) = deg.to_radians().sin_cos();
+    let code = |v: f32| ((v + 1.0) * 0.5 * 255.0).round() as u8;
+    let (left, right) = ([code(-sin), 128, code(cos)], [code(sin), 128, code(cos)]);
+    image::RgbImage::from_fn(4, 4, |x, _| image::Rgb(if x < 2 { left } else { right }))
+        .save(dir.join("tilt.png"))
+        .unwrap();
+    let normal = |c: [u8; 3]| {
+        let v = c.map(|c| c as f32 / 255.0 * 2.0 - 1.0);
+        let v = [v[0] * scale, v[1] * scale, v[2]];
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|x| x / len)
+    };
+    let path = square_gltf(
+        dir,
+        [0, 0],
+        &format!(
+            r#""materials":[{{"name":"tilted","pbrMetallicRoughness":{{"baseColorFactor":[0.9,0.9,0.9,1],
+        "metallicFactor":0,"roughnessFactor":1}},"normalTexture":{{"index":0,"scale":{scale}}}}}],
+      "textures":[{{"source":0,"sampler":0}}],
+      "samplers":[{{"wrapS":33071,"wrapT":33071}}],
+      "images":[{{"uri":"tilt.png"}}]"#
+        ),
+    );
+    (path, [normal(left), normal(right)])
+}
+
+/// A normal map bends the shading normal in the tangent frame: a matte square whose map tilts
+/// its left half 20° away from a key light 60° off its normal and its right half 20° towards
+/// it shows Lambert's cosine of the bent normals, 0.9/π · 3 · cos(80° and 40°), on the CPU and
+/// the GPU, within 1%; `--no-normal-maps` and a grey map (a bump map: not read, a warning)
+/// give the flat cos 60° on both halves; glTF's `scale` scales the map's x and y.
+#[test]
+fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
+    let dir = temp_dir("normal-map");
+    let map = example("maps/scales_256.png");
+    let render = |square: &Path, name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "render",
+            s(square),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0",
+            "--res",
+            "32x32",
+            "--spp",
+            "2",
+            "--aov",
+            "beauty",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "30",
+            "--env-intensity",
+            "0",
+            "--key-light",
+            "60,0,3",
+            "--specular",
+            "0",
+            "--bounces",
+            "1",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        o.assert_success();
+        let (left, right) = left_right_luminance(&out.join("beauty.exr"));
+        (o, left, right)
+    };
+    // The key light: azimuth 60° from the square's normal (+z) towards +x, on the horizon.
+    let l = [60f32.to_radians().sin(), 0.0, 60f32.to_radians().cos()];
+    let lambert = |n: [f32; 3]| 0.9 / std::f32::consts::PI * 3.0 * (n[0] * l[0] + n[2] * l[2]).max(0.0);
+    let close = |got: f32, want: f32, what: &str| {
+        assert!((got - want).abs() <= 0.01 * want + 1e-4, "{what}: {got}, want {want}");
+    };
+    let (square, [nl, nr]) = normal_map_square(&dir, 20.0, 1.0);
+    for device in ["cpu", "gpu"] {
+        let (o, left, right) = render(&square, device, &["--device", device]);
+        eprintln!("{device}: left {left:.4}, right {right:.4}");
+        close(left, lambert(nl), &format!("{device} left"));
+        close(right, lambert(nr), &format!("{device} right"));
+        assert_eq!(
+            o.json()["materials"][0]["normal_texture"].as_str(),
+            Some("tilt.png, 4x4, clamp/clamp, bilinear, strength 1")
+        );
+    }
+    let flat = lambert([0.0, 0.0, 1.0]);
+    let (o, left, right) = render(&square, "off", &["--no-normal-maps"]);
+    assert!(o.json()["materials"][0].get("normal_texture").is_none());
+    close(left, flat, "--no-normal-maps left");
+    close(right, flat, "--no-normal-maps right");
+    // glTF's scale: x and y times 0.5 before the normal is normalised.
+    let (square, [nl, nr]) = normal_map_square(&dir, 20.0, 0.5);
+    let (_, left, right) = render(&square, "half", &[]);
+    close(left, lambert(nl), "scale 0.5 left");
+    close(right, lambert(nr), "scale 0.5 right");
+    assert!(nr[0] < 0.2, "the scale halves the tilt: {nr:?}");
+    // A grey image is a bump map, not a normal map: not read, and said so.
+    image::GrayImage::from_pixel(4, 4, image::Luma([200]))
+        .save(dir.join("tilt.png"))
+        .unwrap();
+    let (o, left, right) = render(&square, "grey", &[]);
+    assert!(
+        o.stderr.contains("normal map 'tilt.png' is a grey image"),
+        "{}",
+        o.stderr
+    );
+    close(left, flat, "grey left");
+    close(right, flat, "grey right");
+}
+
 /// A key light with an angle is a disc of even radiance (its irradiance over its solid angle)
 /// that BSDF samples meet as well as shadow rays, the two shared by MIS: a mirror square facing
 /// it shows the disc at exactly that radiance (it showed nothing when only shadow rays found
