@@ -344,9 +344,10 @@ fn materials_and_textures_per_prism_match_the_cpu() {
     // texture again mirrored/clamped nearest with its red channel as the metallic, and a grey
     // metal whose roughness and metallic are the green and blue of one 8-bit data texture
     // (glTF's metallic-roughness), assigned to the prisms in turn (the fifth index is past the
-    // end: the last material), read at every hit on the first and the second bounce.
+    // end: the last material), read at every hit on the first and the second bounce. The red
+    // metal has a normal map (8-bit data, strength 0.8) read in the rock's MikkTSpace tangents.
     use prismbake::bake::PRISM_MATERIAL_SHIFT;
-    use prismbake::render::beauty::TexChannel;
+    use prismbake::render::beauty::{NormalTex, TexChannel};
     use prismbake::texture::{raw8_table, ColorMap, Sampler, TexWrap, TextureSlot, UvTransform};
     let rel = "rock/rock.glb";
     let mut ex = example_scene(rel);
@@ -386,7 +387,22 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         transform: UvTransform::gltf([0.1, -0.3], 0.6, [3.0, 2.0]),
         name: "orm".into(),
     };
-    let textures = [texture, other, orm];
+    // 8 x 8 normals tilting up to about 35° every way, as 8-bit codes, tiled four times.
+    let bumps = ColorMap {
+        width: 8,
+        height: 8,
+        texels: (0..64)
+            .map(|i| {
+                let (x, y) = ((i % 8) as f32 / 7.0 - 0.5, (i / 8) as f32 / 7.0 - 0.5);
+                let n = Vec3::new(1.4 * x, -1.2 * y, 1.0).normalize();
+                (n * 0.5 + 0.5).to_array().map(|c| raw[(c * 255.0).round() as usize]).into()
+            })
+            .collect(),
+        sampler: Sampler::default(),
+        transform: UvTransform::scale_offset([4.0, 4.0], [0.0, 0.0]),
+        name: "bumps".into(),
+    };
+    let textures = [texture, other, orm, bumps];
     // 8-bit PNGs go up packed with the sRGB table, the data texture with the raw one
     // (`TextureLayout`).
     let layout = prismbake_gpu::beauty::texture_layout(&textures);
@@ -397,7 +413,8 @@ fn materials_and_textures_per_prism_match_the_cpu() {
             vec![
                 (512, Some(0)),
                 (512 + 256 * 256, Some(0)),
-                (512 + 2 * 256 * 256, Some(1))
+                (512 + 2 * 256 * 256, Some(1)),
+                (512 + 2 * 256 * 256 + 64, Some(1))
             ]
         )
     );
@@ -411,12 +428,20 @@ fn materials_and_textures_per_prism_match_the_cpu() {
             texture: Some(0),
             ..Default::default()
         },
-        SurfaceMaterial::from(Material {
-            base_color: Vec3::new(0.9, 0.2, 0.1),
-            roughness: 0.35,
-            metallic: 1.0,
-            specular: 0.04,
-        }),
+        SurfaceMaterial {
+            material: Material {
+                base_color: Vec3::new(0.9, 0.2, 0.1),
+                roughness: 0.35,
+                metallic: 1.0,
+                specular: 0.04,
+            },
+            normal_texture: Some(NormalTex {
+                texture: 3,
+                scale: Vec3::new(1.6, 1.6, 2.0),
+                bias: Vec3::new(-0.8, -0.8, -1.0),
+            }),
+            ..Default::default()
+        },
         SurfaceMaterial {
             material: Material {
                 metallic: 1.0,
@@ -449,7 +474,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         key: Some(KeyLight::from_angles(-30.0, 40.0, 2.0, false)),
         materials: &materials,
         textures: &textures,
-        tangents: &[],
+        tangents: &prismbake::tangent::corner_tangents(&ex.scene.table),
         prisms: &ex.scene.table.prisms,
         ground: None,
         bounces: 2,
@@ -462,7 +487,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         spp: 3,
         seed: 5,
     };
-    check(rel, &ex, &bscene, &settings, "4 materials, 3 textures");
+    check(rel, &ex, &bscene, &settings, "4 materials, 4 textures");
 }
 
 #[test]
