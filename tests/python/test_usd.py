@@ -262,6 +262,88 @@ def test_blender_roughness_and_metallic_textures_shade_from_gltf_and_usd_alike(r
     assert np.abs(images["glb"] - images["usda"]).mean() < 1e-4
 
 
+NM_SCRIPT = textwrap.dedent(
+    """
+    import math, sys, bpy
+    out = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    ob = bpy.context.active_object
+    # 8 x 8 tangent-space normals: the left half tilted 20 degrees towards -u, the right half
+    # towards +u (the plane's u runs along +x).
+    img = bpy.data.images.new("tilt", 8, 8, alpha=False)
+    s, c = math.sin(math.radians(20)), math.cos(math.radians(20))
+    px = []
+    for y in range(8):
+        for x in range(8):
+            t = -s if x < 4 else s
+            px += [(t + 1) / 2, 0.5, (c + 1) / 2, 1.0]
+    img.pixels[:] = px
+    img.filepath_raw = out + "_normal.png"
+    img.file_format = "PNG"
+    img.save()
+    img.colorspace_settings.name = "Non-Color"
+    mat = bpy.data.materials.new("Tilted")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    bsdf = nt.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.9, 0.9, 0.9, 1)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    nmap = nt.nodes.new("ShaderNodeNormalMap")
+    nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    ob.data.materials.append(mat)
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb")
+    bpy.ops.wm.obj_export(filepath=out + ".obj")
+    """
+)
+
+
+def test_blender_normal_maps_shade_from_gltf_usd_and_obj_alike(run, tmp_path):
+    """A Blender material with a Normal Map node (glTF: a normalTexture; USD: a UsdUVTexture's
+    rgb on `normal` with scale 2 and bias -1; OBJ: map_Bump) bends the shading normal: under
+    a key light 60 degrees off the plane's normal, the half tilted 20 degrees towards it is
+    lit by about cos 40 / cos 80 times the other half, and the three files render the same
+    beauty; --no-normal-maps shades both halves alike."""
+    base = tmp_path / "plane"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=NM_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    images = {}
+    # The same view of the plane in either frame (Blender's Z-up, glTF's and OBJ's Y-up).
+    cameras = {"glb": "0,5,0.5", "usda": "0,-0.5,5", "obj": "0,5,0.5"}
+    for ext, camera in cameras.items():
+        out = tmp_path / ext
+        args = ["render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
+                "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
+                "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0", "--bounces",
+                "1", "--specular", "0", "--key-light", "90,30,3", "--json", "-o", out]
+        proc = run(*args, check=0)
+        (m,) = json.loads(proc.stdout)["materials"]
+        assert m["normal_texture"].endswith("8x8, repeat/repeat, bilinear, strength 1"), (ext, m)
+        with OpenEXR.File(str(out / "beauty.exr")) as f:
+            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+        lum = rgba[..., :3] @ [0.2126, 0.7152, 0.0722]
+        left, right = lum[10:22, 6:12].mean(), lum[10:22, 20:26].mean()
+        assert 3.5 * left < right < 5.5 * left, (ext, left, right)
+        images[ext] = rgba
+        if ext == "glb":
+            flat_out = tmp_path / "flat"
+            run(*args[:-1], flat_out, "--no-normal-maps", check=0)
+            with OpenEXR.File(str(flat_out / "beauty.exr")) as f:
+                flat = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+            lum = flat[..., :3] @ [0.2126, 0.7152, 0.0722]
+            left, right = lum[10:22, 6:12].mean(), lum[10:22, 20:26].mean()
+            assert abs(left - right) < 1e-3 * right, (left, right)
+    for ext in ("usda", "obj"):
+        assert np.abs(images["glb"] - images[ext]).mean() < 1e-4, ext
+
+
 def make_usd_core_mesh(path):
     """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
     UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""
