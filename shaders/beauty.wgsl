@@ -326,8 +326,11 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
     } else {
         // beauty::surface_radiance, event `bounce`, at the hit the last trace found.
         let bounce = (*s).bounce;
-        let m = material_at(hit.prism, hit.uv);
         let throughput = (*s).throughput;
+        if (lighting.emissive != 0u) {
+            (*s).radiance += throughput * emission_at(hit.prism, hit.uv);
+        }
+        let m = material_at(hit.prism, hit.uv);
         let wo = -(*s).dir;
         let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
         let ng = facing.ng;
@@ -386,8 +389,12 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
             let ray = shadow_ray(offset_origin(p, ng, wi, eps), wi);
             if (last) {
                 (*s).flags |= PATH_LAST;
-                // Last event: only whether the ray escapes matters.
-                if (env_lights) {
+                if (lighting.emissive != 0u) {
+                    // Last event: the surface the ray meets counts with its glow.
+                    (*s).rays += 1u;
+                    q2 = query(ray, bounce + 1u, false);
+                } else if (env_lights) {
+                    // Last event: only whether the ray escapes matters.
                     (*s).env_shadow_rays += 1u;
                     q2 = query(ray, bounce + 1u, true);
                 } else if (key_disc_contains(wi)) {
@@ -463,6 +470,8 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
             if (has(*s, PATH_LAST)) {
                 if (live_next && next_prism == NO_PRISM) {
                     (*s).radiance += throughput * escape_radiance(wi, (*s).bs_pdf, delta);
+                } else if (live_next && lighting.emissive != 0u) {
+                    (*s).radiance += throughput * emission_at(next_prism, next.uv);
                 }
             } else if (next_prism != NO_PRISM) {
                 (*s).dir = wi;

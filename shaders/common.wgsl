@@ -119,6 +119,10 @@ struct Lighting {
     exposure: f32,       // the preview's exposure factor (tonemap.wgsl)
     key_cos_radius: f32, // cos of the key light's angular radius (1: point-like)
     tangent_offset: u32, // the prisms' corner tangents in texture_texels (12 floats a prism)
+    emissive: u32,       // 1: some material glows (BeautyScene::emissive)
+    _pad3: u32,
+    _pad4: u32,
+    _pad5: u32,
 }
 
 // GpuMaterialTexture, 48 bytes: one texture of a material in texture_texels (texture.wgsl;
@@ -135,8 +139,9 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 256 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
-// normal textures, and its normal map's scale and bias (beauty::NormalTex).
+// GpuMaterial, 320 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// normal textures, its normal map's scale and bias (beauty::NormalTex), and its emission and
+// emission texture.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -151,6 +156,9 @@ struct SurfaceMaterial {
     _pad1: u32,
     normal_bias: vec3f,
     _pad2: u32,
+    emission: vec3f,
+    _pad3: u32,
+    emission_tex: MaterialTexture,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -118,6 +118,15 @@ fn material_at(prism: u32, uv: vec2f) -> Material {
     return m;
 }
 
+// BeautyScene::emission_at: the radiance the surface of prism `prism` emits at `uv`.
+fn emission_at(prism: u32, uv: vec2f) -> vec3f {
+    let s = materials[material_index(prism)];
+    if (s.emission_tex.width != 0u) {
+        return s.emission * texture_sample(s.emission_tex, uv);
+    }
+    return s.emission;
+}
+
 // The tangent of corner `k` of prism `prism` (tangent::corner_tangents: xyz and the
 // bitangent's sign), from texture_texels at lighting.tangent_offset.
 fn corner_tangent(prism: u32, k: u32) -> vec4f {
@@ -131,10 +140,12 @@ fn corner_tangent(prism: u32, k: u32) -> vec4f {
 // normal), left as it is where the frame or the mapped normal degenerates.
 fn shade_hit(found: Hit) -> Hit {
     var hit = found;
-    let s = materials[material_index(hit.prism)];
-    if (s.normal_tex.width == 0u || hit.prism >= arrayLength(&prisms)) {
+    // One word read where the material has no normal map (most hits, every scene without).
+    let mi = material_index(hit.prism);
+    if (materials[mi].normal_tex.width == 0u || hit.prism >= arrayLength(&prisms)) {
         return hit;
     }
+    let s = materials[mi];
     let b = hit.bary;
     let t4 = corner_tangent(hit.prism, 0u) * b.x + corner_tangent(hit.prism, 1u) * b.y
         + corner_tangent(hit.prism, 2u) * b.z;

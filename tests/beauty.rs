@@ -1350,6 +1350,99 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
     close(right, flat, "grey right");
 }
 
+/// A black square that glows: glTF `emissiveFactor` (0.2, 0.4, 0.8) times its
+/// `KHR_materials_emissive_strength` 2.5, times an `emissiveTexture` (`glow.png`, clamped)
+/// white on its left half and sRGB code 128 on its right.
+fn glowing_square(dir: &Path) -> PathBuf {
+    image::RgbImage::from_fn(4, 4, |x, _| image::Rgb(if x < 2 { [255; 3] } else { [128; 3] }))
+        .save(dir.join("glow.png"))
+        .unwrap();
+    square_gltf(
+        dir,
+        [0, 0],
+        r#""extensionsUsed":["KHR_materials_emissive_strength"],
+      "materials":[{"name":"lamp","pbrMetallicRoughness":{"baseColorFactor":[0,0,0,1],"metallicFactor":0},
+        "emissiveFactor":[0.2,0.4,0.8],"emissiveTexture":{"index":0},
+        "extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":2.5}}}],
+      "textures":[{"source":0,"sampler":0}],
+      "samplers":[{"wrapS":33071,"wrapT":33071}],
+      "images":[{"uri":"glow.png"}]"#,
+    )
+}
+
+/// An emissive material glows: in the dark, a black square shows its emission times its
+/// texture exactly (the left half (0.5, 1, 2), the right half that times sRGB 128's 0.2158),
+/// on the CPU and the GPU; the summary states it; `--no-emission` turns it off.
+#[test]
+fn an_emissive_material_glows_by_its_factor_strength_and_texture() {
+    let dir = temp_dir("emission");
+    let square = glowing_square(&dir);
+    let map = example("maps/scales_256.png");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "render",
+            s(&square),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0.002",
+            "--res",
+            "32x32",
+            "--spp",
+            "2",
+            "--aov",
+            "beauty",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "30",
+            "--env-intensity",
+            "0",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        o.assert_success();
+        (o, read_rgba(&out.join("beauty.exr")))
+    };
+    let glow = [0.5f32, 1.0, 2.0];
+    let grey = ((128.0f32 / 255.0 + 0.055) / 1.055).powf(2.4);
+    let mean = |px: &[[f32; 4]], xs: std::ops::Range<usize>| {
+        let mut sum = [0f32; 3];
+        for y in 10..22 {
+            for x in xs.clone() {
+                for c in 0..3 {
+                    sum[c] += px[y * 32 + x][c] / (12 * xs.len()) as f32;
+                }
+            }
+        }
+        sum
+    };
+    for device in ["cpu", "gpu"] {
+        let (o, px) = render(device, &["--device", device]);
+        let m = &o.json()["materials"][0];
+        assert_eq!(m["emission"], serde_json::json!([0.5, 1.0, 2.0]), "{m}");
+        assert_eq!(
+            m["emission_texture"].as_str(),
+            Some("glow.png, 4x4, clamp/clamp, bilinear")
+        );
+        let (left, right) = (mean(&px, 7..12), mean(&px, 20..25));
+        eprintln!("{device}: left {left:?}, right {right:?}");
+        for c in 0..3 {
+            assert!((left[c] - glow[c]).abs() < 1e-4, "{device} left {left:?}");
+            assert!((right[c] - glow[c] * grey).abs() < 1e-4, "{device} right {right:?}");
+        }
+    }
+    let (o, px) = render("off", &["--no-emission"]);
+    assert!(o.json()["materials"][0].get("emission").is_none());
+    assert!(mean(&px, 7..25).iter().all(|&c| c < 1e-6), "{:?}", mean(&px, 7..25));
+}
+
 /// A key light with an angle is a disc of even radiance (its irradiance over its solid angle)
 /// that BSDF samples meet as well as shadow rays, the two shared by MIS: a mirror square facing
 /// it shows the disc at exactly that radiance (it showed nothing when only shadow rays found

@@ -182,6 +182,10 @@ pub struct LookArgs {
     /// normal maps (glTF normalTexture, USD normal, .mtl norm / map_Bump).
     #[arg(long)]
     pub no_normal_maps: bool,
+    /// Render the materials without their glow (glTF emissiveFactor / emissiveTexture, USD
+    /// emissiveColor, .mtl Ke / map_Ke).
+    #[arg(long)]
+    pub no_emission: bool,
     /// Dielectric reflectance at normal incidence (0.04 ≈ IOR 1.5; 0 = pure diffuse).
     #[arg(long, default_value_t = 0.04)]
     pub specular: f32,

@@ -350,6 +350,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         roughness: l.roughness,
         metallic: l.metallic,
         normal_maps: !l.no_normal_maps,
+        emission: !l.no_emission,
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,
@@ -494,11 +495,13 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
             m.base_color,
             m.roughness,
             m.metallic,
+            m.emission,
             [
                 m.texture.as_deref(),
                 m.roughness_texture.as_deref(),
                 m.metallic_texture.as_deref(),
                 m.normal_texture.as_deref(),
+                m.emission_texture.as_deref(),
             ],
         );
         eprintln!(

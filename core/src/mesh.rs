@@ -72,6 +72,11 @@ pub struct MeshMaterial {
     pub metallic_texture: Option<crate::texture::ChannelRef>,
     /// A tangent-space normal map that bends the shading normal (glTF's `normalTexture`).
     pub normal_texture: Option<crate::texture::NormalMapRef>,
+    /// Emitted radiance, linear RGB (glTF's `emissiveFactor` times its
+    /// `KHR_materials_emissive_strength`); zero for a surface that does not glow.
+    pub emission: [f32; 3],
+    /// A colour texture multiplied into `emission` (glTF's `emissiveTexture`).
+    pub emission_texture: Option<crate::texture::TextureRef>,
 }
 
 impl MeshMaterial {
@@ -86,11 +91,13 @@ impl MeshMaterial {
             roughness_texture: None,
             metallic_texture: None,
             normal_texture: None,
+            emission: [0.0; 3],
+            emission_texture: None,
         }
     }
 
     /// Its textures, each with the input it feeds, in the order base colour, roughness,
-    /// metallic, normal (one image may feed two).
+    /// metallic, normal, emission (one image may feed two).
     pub fn textures(&self) -> Vec<(crate::texture::TextureSlot, &crate::texture::TextureRef)> {
         use crate::texture::TextureSlot;
         let mut out = vec![];
@@ -105,6 +112,9 @@ impl MeshMaterial {
         }
         if let Some(n) = &self.normal_texture {
             out.push((TextureSlot::Normal, &n.texture));
+        }
+        if let Some(t) = &self.emission_texture {
+            out.push((TextureSlot::Emission, t));
         }
         out
     }

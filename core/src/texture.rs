@@ -96,16 +96,19 @@ pub enum TextureSlot {
     Metallic,
     /// A tangent-space normal map (`NormalMapRef`).
     Normal,
+    /// Emitted radiance, multiplied into the emission colour.
+    Emission,
 }
 
 impl TextureSlot {
-    /// "base-colour", "roughness", "metallic", "normal".
+    /// "base-colour", "roughness", "metallic", "normal", "emission".
     pub fn name(self) -> &'static str {
         match self {
             TextureSlot::BaseColor => "base-colour",
             TextureSlot::Roughness => "roughness",
             TextureSlot::Metallic => "metallic",
             TextureSlot::Normal => "normal",
+            TextureSlot::Emission => "emission",
         }
     }
 
@@ -116,6 +119,7 @@ impl TextureSlot {
             TextureSlot::Roughness => "--roughness R",
             TextureSlot::Metallic => "--metallic M",
             TextureSlot::Normal => "--no-normal-maps",
+            TextureSlot::Emission => "--no-emission",
         }
     }
 }

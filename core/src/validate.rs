@@ -470,6 +470,12 @@ pub struct MaterialInfo {
     /// "name, strength 1": the normal map.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_texture: Option<String>,
+    /// Emitted radiance; absent where it is black.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub emission: Option<[f32; 3]>,
+    /// The emission texture's name.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub emission_texture: Option<String>,
 }
 
 /// "orm.png, channel g".
@@ -500,6 +506,12 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                 .normal_texture
                 .as_ref()
                 .map(|n| format!("{}, {}", n.texture.name, n.describe_mapping())),
+            emission: (m.emission != [0.0; 3]).then_some(m.emission),
+            emission_texture: m
+                .emission_texture
+                .as_ref()
+                .filter(|_| m.emission != [0.0; 3])
+                .map(|t| t.name.clone()),
         })
         .collect();
     let none = count[mesh.materials.len()];
@@ -514,6 +526,8 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             roughness_texture: None,
             metallic_texture: None,
             normal_texture: None,
+            emission: None,
+            emission_texture: None,
         });
     }
     out
@@ -550,11 +564,13 @@ impl InspectInfo {
                 m.base_color,
                 m.roughness,
                 m.metallic,
+                m.emission,
                 [
                     m.texture.as_deref(),
                     m.roughness_texture.as_deref(),
                     m.metallic_texture.as_deref(),
                     m.normal_texture.as_deref(),
+                    m.emission_texture.as_deref(),
                 ],
             );
             s.push_str(&format!(

@@ -53,6 +53,7 @@ pub fn lighting_uniform(s: &BeautyScene, layout: &TextureLayout) -> GpuLighting 
         env_lights: s.env_lights as u32,
         exposure: s.exposure,
         tangent_offset: layout.len as u32,
+        emissive: s.emissive as u32,
         ..env_lighting(s.env, s.env_frame)
     }
 }
@@ -250,6 +251,8 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
                 .map_or(Default::default(), |n| tex(n.texture, 0)),
             normal_scale: m.normal_texture.map_or([0.0; 3], |n| n.scale.to_array()),
             normal_bias: m.normal_texture.map_or([0.0; 3], |n| n.bias.to_array()),
+            emission: m.emission.to_array(),
+            emission_tex: m.emission_texture.map_or(Default::default(), |i| tex(i, 0)),
             ..Default::default()
         })
         .collect()

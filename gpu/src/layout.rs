@@ -298,6 +298,9 @@ pub struct GpuLighting {
     /// The first float of the prisms' corner tangents in `texture_texels`
     /// (`BeautyScene::tangents`, 12 floats a prism), which normal maps are read in.
     pub tangent_offset: u32,
+    /// 1: some material glows (`BeautyScene::emissive`).
+    pub emissive: u32,
+    pub _pad3: [u32; 3],
 }
 
 /// One texture of a material as the kernel reads it, 48 bytes: its size (0 × 0: none), its
@@ -319,9 +322,10 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 256 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// One material of a beauty scene, 320 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
-/// buffer, and its normal map's scale and bias (`beauty::NormalTex`).
+/// buffer, its normal map's scale and bias (`beauty::NormalTex`), and its emission and
+/// emission texture.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -338,6 +342,9 @@ pub struct GpuMaterial {
     pub _pad1: u32,
     pub normal_bias: [f32; 3],
     pub _pad2: u32,
+    pub emission: [f32; 3],
+    pub _pad3: u32,
+    pub emission_tex: GpuMaterialTexture,
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -378,9 +385,9 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
     assert!(std::mem::size_of::<GpuFrame>() == 112);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
-    assert!(std::mem::size_of::<GpuLighting>() == 96);
+    assert!(std::mem::size_of::<GpuLighting>() == 112);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 256);
+    assert!(std::mem::size_of::<GpuMaterial>() == 320);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
 };
 
@@ -504,7 +511,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_from_cos,
                 exposure,
                 key_cos_radius,
-                tangent_offset
+                tangent_offset,
+                emissive,
+                _pad3
             }
         ),
         layout!(
@@ -536,7 +545,10 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 normal_scale,
                 _pad1,
                 normal_bias,
-                _pad2
+                _pad2,
+                emission,
+                _pad3,
+                emission_tex
             }
         ),
         layout!(
@@ -590,6 +602,7 @@ mod tests {
         assert_eq!(offset_of!(GpuMaterial, metallic_tex), 120);
         assert_eq!(offset_of!(GpuMaterial, normal_scale), 224);
         assert_eq!(offset_of!(GpuMaterial, normal_bias), 240);
+        assert_eq!(offset_of!(GpuMaterial, emission_tex), 272);
         assert_eq!(offset_of!(GpuBeautySums, background), 16);
         assert_eq!(offset_of!(GpuBeautySums, ground_background), 32);
         assert_eq!(offset_of!(GpuBeautySums, ground_unshadowed), 48);

@@ -321,6 +321,7 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
         tangents: &[],
+        emissive: false,
         prisms: &ex.scene.table.prisms,
         ground: Some(ground),
         bounces: 2,
@@ -345,7 +346,8 @@ fn materials_and_textures_per_prism_match_the_cpu() {
     // metal whose roughness and metallic are the green and blue of one 8-bit data texture
     // (glTF's metallic-roughness), assigned to the prisms in turn (the fifth index is past the
     // end: the last material), read at every hit on the first and the second bounce. The red
-    // metal has a normal map (8-bit data, strength 0.8) read in the rock's MikkTSpace tangents.
+    // metal has a normal map (8-bit data, strength 0.8) read in the rock's MikkTSpace tangents;
+    // the first material glows.
     use prismbake::bake::PRISM_MATERIAL_SHIFT;
     use prismbake::render::beauty::{NormalTex, TexChannel};
     use prismbake::texture::{raw8_table, ColorMap, Sampler, TexWrap, TextureSlot, UvTransform};
@@ -426,6 +428,10 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 ..Material::default()
             },
             texture: Some(0),
+            // Glowing through the second texture (counted at every hit and, the scene being
+            // emissive, by the last bounce's closest-hit ray).
+            emission: Vec3::new(0.5, 0.4, 0.3),
+            emission_texture: Some(1),
             ..Default::default()
         },
         SurfaceMaterial {
@@ -475,6 +481,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         materials: &materials,
         textures: &textures,
         tangents: &prismbake::tangent::corner_tangents(&ex.scene.table),
+        emissive: true,
         prisms: &ex.scene.table.prisms,
         ground: None,
         bounces: 2,
@@ -494,7 +501,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
 fn metal_and_mirror_under_a_sun_match_the_cpu() {
     // Importance sampling of a lopsided map in a rotated Z-up frame, a rough metal (GGX VNDF
     // and MIS on both lobes' pdfs) and a perfect mirror (the delta lobe, MIS weight 1), three
-    // bounces, no key light, no ground.
+    // bounces, no key light, no ground; then each under a key disc alone, and glowing alone.
     let rel = "torus/torus.obj";
     let ex = example_scene(rel);
     let env = sun_env(EnvFrame {
@@ -536,6 +543,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             materials: &[SurfaceMaterial::from(material)],
             textures: &[],
             tangents: &[],
+            emissive: false,
             prisms: &ex.scene.table.prisms,
             ground: None,
             bounces: 3,
@@ -562,6 +570,24 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             &settings,
             &format!("{label}, key disc alone"),
         );
+        // The same surface glowing before the backdrop: all its light is its own emission,
+        // seen directly, at each bounce's hit, and by the last bounce's closest-hit ray (the
+        // torus sees itself across its hole).
+        let glowing = [SurfaceMaterial {
+            emission: Vec3::new(1.5, 1.0, 0.5),
+            ..SurfaceMaterial::from(material)
+        }];
+        let glow = BeautyScene {
+            env: &backdrop,
+            env_lights: false,
+            materials: &glowing,
+            emissive: true,
+            // One bounce: its ray is the last, so the glow it finds is all the
+            // interreflection.
+            bounces: 1,
+            ..bscene
+        };
+        check(rel, &ex, &glow, &settings, &format!("{label}, glowing"));
     }
 }
 
@@ -584,6 +610,7 @@ fn wavefront_path_records_are_sized_to_the_frame_and_fused_takes_none() {
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
         tangents: &[],
+        emissive: false,
         prisms: &ex.scene.table.prisms,
         ground: None,
         bounces: 2,

@@ -79,6 +79,13 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                     .normal_texture()
                     .map(|t| normal_ref(path, &loader_buffers, &t))
                     .transpose()?,
+                emission: m
+                    .emissive_factor()
+                    .map(|c| c * m.emissive_strength().unwrap_or(1.0)),
+                emission_texture: m
+                    .emissive_texture()
+                    .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
+                    .transpose()?,
             })
         })
         .collect::<Result<_>>()?;

@@ -6,7 +6,8 @@
 //! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
 //! importer does; `-clamp on` clamps it, `-s`/`-o` scale and offset its UVs) and the
 //! PBR extension's `Pr`/`Pm` (roughness, metallic) and their maps `map_Pr`/`map_Pm` (data
-//! textures, one channel: `-imfchan`, else red), and a tangent-space normal map: `norm`, or
+//! textures, one channel: `-imfchan`, else red), `Ke`/`map_Ke` (emission), and a
+//! tangent-space normal map: `norm`, or
 //! `map_Bump`/`bump` as Blender's exporter and importer use them (`-bm` its strength; a grey
 //! bump map is not read, `render::lookdev::grey_normal_map`). A missing .mtl or an undefined
 //! `usemtl` name is a warning (those faces get the default material), not an error.
@@ -119,8 +120,8 @@ struct MtlMap {
     strength: f32,
 }
 
-/// One .mtl file's `newmtl` entries (`Kd`, `map_Kd`, `Pr`, `Pm`, `norm`; the rest is
-/// ignored). A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the
+/// One .mtl file's `newmtl` entries (`Kd`, `Ke`, `Pr`, `Pm` and their maps, `norm`; the
+/// rest is ignored). A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the
 /// channel its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey
 /// image's one channel); `-clamp on` clamps its UVs, `-s` scales and `-o` offsets them, `-bm`
 /// is a normal map's strength.
@@ -211,6 +212,13 @@ fn parse_mtl(
             "Kd" => {
                 let [r, g, b] = floats::<3>(&mut words).map_err(at)?;
                 m.base_color = [r, g, b, 1.0];
+            }
+            "Ke" => m.emission = floats::<3>(&mut words).map_err(at)?,
+            // Blender's importer: the map replaces Ke's colour (its strength stays 1).
+            "map_Ke" => {
+                let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
+                m.emission = [1.0; 3];
+                m.emission_texture = Some(t.texture);
             }
             "Pr" => m.roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
             "Pm" => m.metallic = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),

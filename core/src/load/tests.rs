@@ -358,7 +358,9 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
             {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
         "materials": [
             {"name": "paint", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.7, 1.0],
-                                      "baseColorTexture": {"index": 0}}},
+                                      "baseColorTexture": {"index": 0}},
+             "emissiveFactor": [1.0, 0.5, 0.25], "emissiveTexture": {"index": 0},
+             "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4.0}}},
             {"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.2, 0.3, 1.0],
                                       "roughnessFactor": 0.25, "metallicFactor": 0.5,
                                       "metallicRoughnessTexture": {"index": 1}},
@@ -427,6 +429,10 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         UvTransform::gltf([0.5, 0.0], 0.0, [1.0, 1.0])
     );
     assert_eq!(paint.normal_texture, None);
+    // Emission: the factor times the strength, and its (sRGB) texture.
+    assert_eq!(paint.emission, [4.0, 2.0, 1.0]);
+    assert_eq!(paint.emission_texture.as_ref(), Some(&t));
+    assert_eq!((other.emission, other.emission_texture.clone()), ([0.0; 3], None));
     assert_eq!(other.texture_uses().len(), 2, "one image, two inputs; the normal map");
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
@@ -731,9 +737,9 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         usemtl nowhere\nf 1 2 4\n\
         usemtl paint\nf 2 3 4\n";
     let mtl = "# two materials\n\
-        newmtl paint\nKd 0.5 0.25 0.125\nNs 250\nPr 0.3\n\
+        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNs 250\nPr 0.3\n\
         newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
-        map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\nmap_Bump -bm 0.5 normal.png\n";
+        map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\nmap_Bump -bm 0.5 normal.png\nmap_Ke glow.png\n";
     std::fs::write(&path, obj).unwrap();
     std::fs::write(dir.join("m.mtl"), mtl).unwrap();
     let m = load_mesh(&path, &MeshOptions::default()).unwrap();
@@ -787,6 +793,11 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!((n.scale, n.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
     assert_eq!(n.describe_mapping(), "strength 0.5");
     assert_eq!(paint.normal_texture, None);
+    // Ke is the emission; map_Ke replaces it (an sRGB colour texture).
+    assert_eq!((paint.emission, paint.emission_texture.clone()), ([0.1, 0.2, 0.3], None));
+    let glow = rust.emission_texture.as_ref().unwrap();
+    assert_eq!((rust.emission, glow.name.as_str()), ([1.0; 3], "glow.png"));
+    assert_eq!(glow.color_space, crate::texture::ColorSpace::Srgb);
     // Without any mtllib: no materials, every face the default.
     let bare = dir.join("bare.obj");
     std::fs::write(

@@ -1402,6 +1402,28 @@ fn mesh_material(
             }
         }
     }
+    // emissiveColor: a value (UsdPreviewSurface's default: black), or a texture's colour.
+    let emissive = property_path(path, &surface, "inputs:emissiveColor")?;
+    match connected_output(path, stage, &emissive)? {
+        Some((tex, _)) if info_id(path, stage, &tex)?.as_deref() == Some("UsdUVTexture") => {
+            m.emission_texture = uv_texture(path, stage, &tex, uv_name, "emission")?;
+            if m.emission_texture.is_some() {
+                m.emission = [1.0; 3];
+            }
+        }
+        Some((shader, _)) => warn(
+            path,
+            &format!("{material}: emissiveColor comes from {shader}, not a UsdUVTexture: not read"),
+        ),
+        None => {
+            if let Some(c) = input_value(path, stage, &surface, "emissiveColor")?
+                .as_ref()
+                .and_then(vec3)
+            {
+                m.emission = [c.x as f32, c.y as f32, c.z as f32];
+            }
+        }
+    }
     // A texture replaces the input's value (the factor becomes 1), one channel of it.
     for name in ["roughness", "metallic"] {
         let input = property_path(path, &surface, &format!("inputs:{name}"))?;
@@ -1504,7 +1526,8 @@ fn normal_map(
     }))
 }
 
-/// A `UsdUVTexture` feeding a material's `what` input ("diffuse", "roughness", "metallic", "normal"): its
+/// A `UsdUVTexture` feeding a material's `what` input ("diffuse", "roughness", "metallic",
+/// "normal", "emission"): its
 /// file, wrap modes and colour space (`sourceColorSpace`: `raw`, `sRGB`, else `auto`); `None`
 /// (with a warning) when it reads another UV primvar than the mesh's `uv_name` or has no file.
 fn uv_texture(

@@ -131,6 +131,10 @@ pub struct BeautyScene<'a> {
     /// an index past the end (an asset's triangles without a material, tables without any).
     /// At least one.
     pub materials: &'a [SurfaceMaterial],
+    /// Whether some material emits (`SurfaceMaterial::emission`): then a path's last bounce
+    /// ray looks for the surface it meets, to count its glow, instead of only testing whether
+    /// it escapes.
+    pub emissive: bool,
     /// The textures `SurfaceMaterial`'s texture indices index.
     pub textures: &'a [ColorMap],
     /// Per prism, its corners' tangents (`tangent::corner_tangents`), which a material's normal
@@ -158,6 +162,10 @@ pub struct SurfaceMaterial {
     pub roughness_texture: Option<TexChannel>,
     pub metallic_texture: Option<TexChannel>,
     pub normal_texture: Option<NormalTex>,
+    /// Emitted radiance, linear RGB, times `emission_texture` at the hit if any (an index
+    /// into `BeautyScene::textures`).
+    pub emission: Vec3,
+    pub emission_texture: Option<u32>,
 }
 
 /// A tangent-space normal map (`texture::NormalMapRef`): one of `BeautyScene::textures`, whose
@@ -237,6 +245,17 @@ impl BeautyScene<'_> {
             m.metallic *= v[c.channel as usize];
         }
         m
+    }
+
+    /// The radiance a hit's surface emits (either side): its material's emission times its
+    /// emission texture there.
+    #[inline]
+    pub fn emission_at(&self, hit: &Hit) -> Vec3 {
+        let s = &self.materials[self.material_index(hit.prism)];
+        match s.emission_texture {
+            Some(t) => s.emission * self.textures[t as usize].sample(hit.uv),
+            None => s.emission,
+        }
     }
 
     /// The hit as the beauty shades it: its shading normal bent by its material's normal map,
@@ -511,6 +530,9 @@ fn surface_radiance(
     let mut throughput = Vec3::ONE;
     let mut radiance = Vec3::ZERO;
     for bounce in 0..s.bounces {
+        if s.emissive {
+            radiance += throughput * s.emission_at(&hit);
+        }
         let m = &s.material_at(&hit);
         let wo = -dir;
         let (ng, ns) = facing_normals(&hit, dir);
@@ -580,6 +602,16 @@ fn surface_radiance(
         let ray = shadow_ray(offset_origin(p, ng, wi, s.eps), wi);
         let key_seen = s.key.and_then(|k| k.radiance_along(wi));
         if bounce + 1 == s.bounces {
+            if s.emissive {
+                // Last event: the surface the ray meets counts with its glow.
+                n.rays += 1;
+                radiance += throughput
+                    * match isect.intersect(&ray, &bctx) {
+                        Some(h) => s.emission_at(&h),
+                        None => escape_radiance(s, wi, &bs),
+                    };
+                break;
+            }
             // Last event: only whether the ray escapes matters.
             if s.env_lights || key_seen.is_some() {
                 if s.env_lights {

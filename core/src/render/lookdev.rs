@@ -67,6 +67,8 @@ pub struct LookdevOptions {
     pub metallic: Option<f32>,
     /// Bend the shading normals by the materials' normal maps (`--no-normal-maps`: false).
     pub normal_maps: bool,
+    /// Let the materials glow (`--no-emission`: false).
+    pub emission: bool,
     pub specular: f32,
     pub bounces: u32,
     pub ground: bool,
@@ -92,6 +94,7 @@ impl Default for LookdevOptions {
             roughness: None,
             metallic: None,
             normal_maps: true,
+            emission: true,
             specular: 0.04,
             bounces: 2,
             ground: false,
@@ -226,22 +229,32 @@ pub struct MaterialSummary {
     /// the shading normal; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_texture: Option<String>,
+    /// Emitted radiance, linear RGB; absent for a material that does not glow.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub emission: Option<[f32; 3]>,
+    /// The texture multiplied into `emission`; absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub emission_texture: Option<String>,
 }
 
 /// A material for people: "base colour (r, g, b) x texture T, roughness R x texture U,
-/// metallic M, normal map N" (the render's summary lines, `inspect`): each factor with the
-/// texture that multiplies it, if any, then the normal map, if any.
+/// metallic M, normal map N, emission (r, g, b) x texture E" (the render's summary lines,
+/// `inspect`): each factor with the texture that multiplies it, if any, then the normal map
+/// and the emission, if any. `textures`: base colour, roughness, metallic, normal, emission.
 pub fn describe_material(
     base_color: [f32; 3],
     roughness: f32,
     metallic: f32,
-    textures: [Option<&str>; 4],
+    emission: Option<[f32; 3]>,
+    textures: [Option<&str>; 5],
 ) -> String {
     let [r, g, b] = base_color;
-    let [tc, tr, tm, _] = textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
+    let [tc, tr, tm, _, te] =
+        textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
     let normal = textures[3].map_or(String::new(), |t| format!(", normal map {t}"));
+    let glow = emission.map_or(String::new(), |[r, g, b]| format!(", emission ({r}, {g}, {b}){te}"));
     format!(
-        "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}{normal}"
+        "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}{normal}{glow}"
     )
 }
 
@@ -276,6 +289,11 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
             texture: m.texture.map(|t| scene.textures[t as usize].describe()),
             roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
             metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
+            emission: (m.emission != Vec3::ZERO).then(|| m.emission.to_array()),
+            emission_texture: m
+                .emission_texture
+                .filter(|_| m.emission != Vec3::ZERO)
+                .map(|t| scene.textures[t as usize].describe()),
             normal_texture: a.normal_mapping.as_ref().and(m.normal_texture).map(|n| {
                 format!(
                     "{}, {}",
@@ -397,6 +415,10 @@ pub fn texture_notes(
                     TextureSlot::Roughness => format!("roughness factor {}", m.roughness),
                     TextureSlot::Metallic => format!("metallic factor {}", m.metallic),
                     TextureSlot::Normal => "own normals".to_string(),
+                    TextureSlot::Emission => {
+                        let [r, g, b] = m.emission;
+                        format!("emission ({r}, {g}, {b})")
+                    }
                 })
                 .collect::<Vec<_>>()
                 .join(" and ");
@@ -450,6 +472,8 @@ struct AssetMaterial {
     normal_texture: Option<NormalTex>,
     /// How its normal map's texels become normals, for the summary ("strength 1").
     normal_mapping: Option<String>,
+    emission: Vec3,
+    emission_texture: Option<u32>,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -472,6 +496,8 @@ impl AssetMaterial {
             metallic_texture: None,
             normal_texture: None,
             normal_mapping: None,
+            emission: Vec3::ZERO,
+            emission_texture: None,
         }
     }
 }
@@ -514,6 +540,7 @@ pub fn check_material_values(
             opts.metallic.is_none(),
             &[m.metallic][..],
         ),
+        ("emission", "--no-emission", opts.emission, &m.emission[..]),
     ];
     for (what, flag, read, v) in values {
         if read && v.iter().any(|x| !x.is_finite()) {
@@ -550,6 +577,7 @@ fn asset_materials(
         TextureSlot::Roughness => opts.roughness.is_none(),
         TextureSlot::Metallic => opts.metallic.is_none(),
         TextureSlot::Normal => opts.normal_maps,
+        TextureSlot::Emission => opts.emission,
     };
     if let Some(w) = material_warning(mesh, spec.uv_set, &reads) {
         eprintln!("warning: {}: {w}", mesh.source.display());
@@ -591,6 +619,10 @@ fn asset_materials(
             }),
             None => None,
         };
+        let emission_texture = match &m.emission_texture {
+            Some(t) => decode(t, TextureSlot::Emission)?,
+            None => None,
+        };
         let c = m.base_color;
         list.push(AssetMaterial {
             name: m.name.clone(),
@@ -602,6 +634,8 @@ fn asset_materials(
             metallic_texture,
             normal_mapping: normal_texture.and(m.normal_texture.as_ref()).map(|n| n.describe_mapping()),
             normal_texture,
+            emission: Vec3::from_array(m.emission),
+            emission_texture,
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -960,6 +994,11 @@ pub fn render_all(
             roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),
             metallic_texture: m.metallic_texture.filter(|_| opts.metallic.is_none()),
             normal_texture: m.normal_texture.filter(|_| opts.normal_maps),
+            emission: match opts.emission {
+                true => m.emission,
+                false => Vec3::ZERO,
+            },
+            emission_texture: m.emission_texture.filter(|_| opts.emission),
         })
         .collect();
     // The tangent frames normal maps are read in, where some material has one.
@@ -989,6 +1028,7 @@ pub fn render_all(
             KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z).with_angle(opts.key_angle_deg)
         }),
         materials: &materials,
+        emissive: materials.iter().any(|m| m.emission != Vec3::ZERO),
         textures: &s.materials.textures,
         tangents: &tangents,
         prisms: &s.scene.table.prisms,
