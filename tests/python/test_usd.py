@@ -344,6 +344,51 @@ def test_blender_normal_maps_shade_from_gltf_usd_and_obj_alike(run, tmp_path):
         assert np.abs(images["glb"] - images[ext]).mean() < 1e-4, ext
 
 
+EMISSION_SCRIPT = textwrap.dedent(
+    """
+    import sys, bpy
+    out = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    ob = bpy.context.active_object
+    mat = bpy.data.materials.new("Lamp")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
+    bsdf.inputs["Emission Color"].default_value = (1.0, 0.5, 0.25, 1)
+    bsdf.inputs["Emission Strength"].default_value = 2.0
+    ob.data.materials.append(mat)
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb")
+    bpy.ops.wm.obj_export(filepath=out + ".obj")
+    """
+)
+
+
+def test_blender_emission_glows_from_gltf_usd_and_obj_alike(run, tmp_path):
+    """A Principled BSDF's Emission (colour (1, 0.5, 0.25), strength 2) exported to .glb
+    (emissiveFactor and KHR_materials_emissive_strength), .usda (emissiveColor) and .obj (Ke)
+    renders, in the dark, a black plane of radiance (2, 1, 0.5) from each."""
+    base = tmp_path / "plane"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=EMISSION_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    cameras = {"glb": "0,5,0.5", "usda": "0,-0.5,5", "obj": "0,5,0.5"}
+    for ext, camera in cameras.items():
+        out = tmp_path / ext
+        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
+                   "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
+                   "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0", "--json",
+                   "-o", out, check=0)
+        (m,) = json.loads(proc.stdout)["materials"]
+        assert m["emission"] == pytest.approx([2.0, 1.0, 0.5]), (ext, m)
+        with OpenEXR.File(str(out / "beauty.exr")) as f:
+            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+        assert np.allclose(rgba[10:22, 10:22, :3].mean(axis=(0, 1)), [2.0, 1.0, 0.5], atol=1e-4), ext
+
+
 def make_usd_core_mesh(path):
     """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
     UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""
