@@ -1002,7 +1002,7 @@ fn a_radiance_hdr_environment_lights_as_its_exr_twin() {
     assert!(peak > 1.0, "brightest pixel {peak}");
 }
 
-/// A material whose values are not numbers (an `.mtl`'s `Kd nan 0.5 inf`, `Pr nan`) fails the
+/// A material whose values are not numbers (an `.mtl`'s `Kd nan 0.5 inf`, `Pr nan`, `Ke inf`) fails the
 /// beauty before any frame, naming the file, the material and the flag that overrides it (it
 /// rendered NaN pixels before); the flags that override those values render it, and AOVs
 /// never read materials.
@@ -1016,7 +1016,7 @@ fn a_material_with_nan_values_fails_the_beauty_naming_the_override() {
          vn 0 0 1\nusemtl bad\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n",
     )
     .unwrap();
-    std::fs::write(dir.join("quad.mtl"), "newmtl bad\nKd nan 0.5 inf\nPr nan\n").unwrap();
+    std::fs::write(dir.join("quad.mtl"), "newmtl bad\nKd nan 0.5 inf\nPr nan\nKe 0 inf 0\n").unwrap();
     let map = example("maps/scales_256.png");
     let render = |out: &str, aovs: &str, extra: &[&str]| {
         let mut args = vec![
@@ -1045,6 +1045,9 @@ fn a_material_with_nan_values_fails_the_beauty_naming_the_override() {
     let (failed, _) = render("nan-roughness", "beauty", &["--base-color", "0.5,0.5,0.5"]);
     failed.assert_error(&["material 'bad'", "roughness", "--roughness"]);
     let overrides = ["--base-color", "0.5,0.5,0.5", "--roughness", "0.4"];
+    let (failed, _) = render("nan-emission", "beauty", &overrides);
+    failed.assert_error(&["material 'bad'", "emission", "--no-emission"]);
+    let overrides = [&overrides[..], &["--no-emission"]].concat();
     let (ok, out) = render("overridden", "beauty", &overrides);
     ok.assert_success();
     let px = read_rgba(&out.join("beauty.exr"));
