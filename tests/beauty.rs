@@ -1016,7 +1016,11 @@ fn a_material_with_nan_values_fails_the_beauty_naming_the_override() {
          vn 0 0 1\nusemtl bad\nf 1/1/1 2/2/1 3/3/1\nf 1/1/1 3/3/1 4/4/1\n",
     )
     .unwrap();
-    std::fs::write(dir.join("quad.mtl"), "newmtl bad\nKd nan 0.5 inf\nPr nan\nKe 0 inf 0\n").unwrap();
+    std::fs::write(
+        dir.join("quad.mtl"),
+        "newmtl bad\nKd nan 0.5 inf\nPr nan\nKe 0 inf 0\n",
+    )
+    .unwrap();
     let map = example("maps/scales_256.png");
     let render = |out: &str, aovs: &str, extra: &[&str]| {
         let mut args = vec![
@@ -1313,9 +1317,13 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
     };
     // The key light: azimuth 60° from the square's normal (+z) towards +x, on the horizon.
     let l = [60f32.to_radians().sin(), 0.0, 60f32.to_radians().cos()];
-    let lambert = |n: [f32; 3]| 0.9 / std::f32::consts::PI * 3.0 * (n[0] * l[0] + n[2] * l[2]).max(0.0);
+    let lambert =
+        |n: [f32; 3]| 0.9 / std::f32::consts::PI * 3.0 * (n[0] * l[0] + n[2] * l[2]).max(0.0);
     let close = |got: f32, want: f32, what: &str| {
-        assert!((got - want).abs() <= 0.01 * want + 1e-4, "{what}: {got}, want {want}");
+        assert!(
+            (got - want).abs() <= 0.01 * want + 1e-4,
+            "{what}: {got}, want {want}"
+        );
     };
     let (square, [nl, nr]) = normal_map_square(&dir, 20.0, 1.0);
     for device in ["cpu", "gpu"] {
@@ -1357,9 +1365,11 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
 /// `KHR_materials_emissive_strength` 2.5, times an `emissiveTexture` (`glow.png`, clamped)
 /// white on its left half and sRGB code 128 on its right.
 fn glowing_square(dir: &Path) -> PathBuf {
-    image::RgbImage::from_fn(4, 4, |x, _| image::Rgb(if x < 2 { [255; 3] } else { [128; 3] }))
-        .save(dir.join("glow.png"))
-        .unwrap();
+    image::RgbImage::from_fn(4, 4, |x, _| {
+        image::Rgb(if x < 2 { [255; 3] } else { [128; 3] })
+    })
+    .save(dir.join("glow.png"))
+    .unwrap();
     square_gltf(
         dir,
         [0, 0],
@@ -1438,12 +1448,19 @@ fn an_emissive_material_glows_by_its_factor_strength_and_texture() {
         eprintln!("{device}: left {left:?}, right {right:?}");
         for c in 0..3 {
             assert!((left[c] - glow[c]).abs() < 1e-4, "{device} left {left:?}");
-            assert!((right[c] - glow[c] * grey).abs() < 1e-4, "{device} right {right:?}");
+            assert!(
+                (right[c] - glow[c] * grey).abs() < 1e-4,
+                "{device} right {right:?}"
+            );
         }
     }
     let (o, px) = render("off", &["--no-emission"]);
     assert!(o.json()["materials"][0].get("emission").is_none());
-    assert!(mean(&px, 7..25).iter().all(|&c| c < 1e-6), "{:?}", mean(&px, 7..25));
+    assert!(
+        mean(&px, 7..25).iter().all(|&c| c < 1e-6),
+        "{:?}",
+        mean(&px, 7..25)
+    );
 }
 
 /// A key light with an angle is a disc of even radiance (its irradiance over its solid angle)

@@ -81,10 +81,16 @@ fn face_tangent(pos: [Vec3; 3], uv: [Vec2; 3], n: Vec3) -> Vec4 {
     let dpdv = (e2 * d1.x - e1 * d2.x) / det;
     let t = (dpdu - n * n.dot(dpdu)).normalize_or_zero();
     if det.is_finite() && det != 0.0 && t != Vec3::ZERO {
-        let sign = if n.cross(t).dot(dpdv) < 0.0 { -1.0 } else { 1.0 };
+        let sign = if n.cross(t).dot(dpdv) < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
         return t.extend(sign);
     }
-    crate::render::shading::onb(n.normalize_or(Vec3::Z)).0.extend(1.0)
+    crate::render::shading::onb(n.normalize_or(Vec3::Z))
+        .0
+        .extend(1.0)
 }
 
 /// The tangent frame at barycentrics `bary` of a prism whose corner tangents are `corners`,
@@ -142,10 +148,17 @@ mod tests {
     fn a_square_mapped_as_it_lies_has_tangent_u_and_bitangent_v() {
         let uv = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)].map(Vec2::from);
         for t in corners_of(&corner_tangents(&square(uv))) {
-            assert!((t - Vec4::new(1.0, 0.0, 0.0, 1.0)).abs().max_element() < 1e-6, "{t}");
+            assert!(
+                (t - Vec4::new(1.0, 0.0, 0.0, 1.0)).abs().max_element() < 1e-6,
+                "{t}"
+            );
         }
-        let (t, b) = frame_at(&[Vec4::new(1.0, 0.0, 0.0, 1.0); 3], Vec3::ONE / 3.0, Vec3::Z)
-            .expect("a frame");
+        let (t, b) = frame_at(
+            &[Vec4::new(1.0, 0.0, 0.0, 1.0); 3],
+            Vec3::ONE / 3.0,
+            Vec3::Z,
+        )
+        .expect("a frame");
         assert_eq!((t, b), (Vec3::X, Vec3::Y));
     }
 
@@ -155,14 +168,20 @@ mod tests {
         // is negative (cross(z, -x) = -y).
         let mirrored = [(1.0, 0.0), (0.0, 0.0), (0.0, 1.0), (1.0, 1.0)].map(Vec2::from);
         for t in corners_of(&corner_tangents(&square(mirrored))) {
-            assert!((t - Vec4::new(-1.0, 0.0, 0.0, -1.0)).abs().max_element() < 1e-6, "{t}");
+            assert!(
+                (t - Vec4::new(-1.0, 0.0, 0.0, -1.0)).abs().max_element() < 1e-6,
+                "{t}"
+            );
             let (tt, b) = frame_at(&[t; 3], Vec3::ONE / 3.0, Vec3::Z).expect("a frame");
             assert!((tt + Vec3::X).length() < 1e-6 && (b - Vec3::Y).length() < 1e-6);
         }
         // u runs along +y and v along -x (a quarter turn): tangent +y, bitangent -x.
         let turned = [(0.0, 1.0), (0.0, 0.0), (1.0, 0.0), (1.0, 1.0)].map(Vec2::from);
         for t in corners_of(&corner_tangents(&square(turned))) {
-            assert!((t - Vec4::new(0.0, 1.0, 0.0, 1.0)).abs().max_element() < 1e-6, "{t}");
+            assert!(
+                (t - Vec4::new(0.0, 1.0, 0.0, 1.0)).abs().max_element() < 1e-6,
+                "{t}"
+            );
         }
     }
 

@@ -397,7 +397,10 @@ fn materials_and_textures_per_prism_match_the_cpu() {
             .map(|i| {
                 let (x, y) = ((i % 8) as f32 / 7.0 - 0.5, (i / 8) as f32 / 7.0 - 0.5);
                 let n = Vec3::new(1.4 * x, -1.2 * y, 1.0).normalize();
-                (n * 0.5 + 0.5).to_array().map(|c| raw[(c * 255.0).round() as usize]).into()
+                (n * 0.5 + 0.5)
+                    .to_array()
+                    .map(|c| raw[(c * 255.0).round() as usize])
+                    .into()
             })
             .collect(),
         sampler: Sampler::default(),

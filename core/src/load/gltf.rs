@@ -105,10 +105,20 @@ fn info_ref(
     info: &::gltf::texture::Info,
     color_space: ColorSpace,
 ) -> Result<TextureRef> {
-    let transform = info
-        .texture_transform()
-        .map(|t| (UvTransform::gltf(t.offset(), t.rotation(), t.scale()), t.tex_coord()));
-    texture_ref(path, buffers, info.texture(), info.tex_coord(), transform, color_space)
+    let transform = info.texture_transform().map(|t| {
+        (
+            UvTransform::gltf(t.offset(), t.rotation(), t.scale()),
+            t.tex_coord(),
+        )
+    });
+    texture_ref(
+        path,
+        buffers,
+        info.texture(),
+        info.tex_coord(),
+        transform,
+        color_space,
+    )
 }
 
 /// A material's `normalTexture`: a raw texture of 0..1 codes for -1..1, its x and y times

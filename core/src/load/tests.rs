@@ -432,8 +432,15 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     // Emission: the factor times the strength, and its (sRGB) texture.
     assert_eq!(paint.emission, [4.0, 2.0, 1.0]);
     assert_eq!(paint.emission_texture.as_ref(), Some(&t));
-    assert_eq!((other.emission, other.emission_texture.clone()), ([0.0; 3], None));
-    assert_eq!(other.texture_uses().len(), 2, "one image, two inputs; the normal map");
+    assert_eq!(
+        (other.emission, other.emission_texture.clone()),
+        ([0.0; 3], None)
+    );
+    assert_eq!(
+        other.texture_uses().len(),
+        2,
+        "one image, two inputs; the normal map"
+    );
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
     assert_eq!(material_warning(&m, 0, &|_| true), None);
@@ -794,7 +801,10 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!(n.describe_mapping(), "strength 0.5");
     assert_eq!(paint.normal_texture, None);
     // Ke is the emission; map_Ke replaces it (an sRGB colour texture).
-    assert_eq!((paint.emission, paint.emission_texture.clone()), ([0.1, 0.2, 0.3], None));
+    assert_eq!(
+        (paint.emission, paint.emission_texture.clone()),
+        ([0.1, 0.2, 0.3], None)
+    );
     let glow = rust.emission_texture.as_ref().unwrap();
     assert_eq!((rust.emission, glow.name.as_str()), ([1.0; 3], "glow.png"));
     assert_eq!(glow.color_space, crate::texture::ColorSpace::Srgb);

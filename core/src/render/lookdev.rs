@@ -252,7 +252,9 @@ pub fn describe_material(
     let [tc, tr, tm, _, te] =
         textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
     let normal = textures[3].map_or(String::new(), |t| format!(", normal map {t}"));
-    let glow = emission.map_or(String::new(), |[r, g, b]| format!(", emission ({r}, {g}, {b}){te}"));
+    let glow = emission.map_or(String::new(), |[r, g, b]| {
+        format!(", emission ({r}, {g}, {b}){te}")
+    });
     format!(
         "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}{normal}{glow}"
     )
@@ -294,13 +296,12 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
                 .emission_texture
                 .filter(|_| m.emission != Vec3::ZERO)
                 .map(|t| scene.textures[t as usize].describe()),
-            normal_texture: a.normal_mapping.as_ref().and(m.normal_texture).map(|n| {
-                format!(
-                    "{}, {}",
-                    scene.textures[n.texture as usize].describe(),
-                    a.normal_mapping.as_deref().unwrap_or_default()
-                )
-            }),
+            normal_texture: m
+                .normal_texture
+                .zip(a.normal_mapping.as_deref())
+                .map(|(n, how)| {
+                    format!("{}, {how}", scene.textures[n.texture as usize].describe())
+                }),
         })
         .collect()
 }
@@ -632,7 +633,9 @@ fn asset_materials(
             texture,
             roughness_texture,
             metallic_texture,
-            normal_mapping: normal_texture.and(m.normal_texture.as_ref()).map(|n| n.describe_mapping()),
+            normal_mapping: normal_texture
+                .and(m.normal_texture.as_ref())
+                .map(|n| n.describe_mapping()),
             normal_texture,
             emission: Vec3::from_array(m.emission),
             emission_texture,
