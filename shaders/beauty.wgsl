@@ -327,10 +327,12 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         // beauty::surface_radiance, event `bounce`, at the hit the last trace found.
         let bounce = (*s).bounce;
         let throughput = (*s).throughput;
-        if (lighting.emissive != 0u) {
-            (*s).radiance += throughput * emission_at(hit.prism, hit.uv);
-        }
         let m = material_at(hit.prism, hit.uv);
+        if (bounce == 0u) {
+            // The camera hit's reflectance (trace_sample's albedo guide), read here rather
+            // than where the hit is found: one material lookup in the kernel, not two.
+            (*s).albedo = guide_albedo(m);
+        }
         let wo = -(*s).dir;
         let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
         let ng = facing.ng;
@@ -424,6 +426,13 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
         next_prism = next.prism;
         next_t = next.t;
     }
+    // The glow of the surface the continuation found (beauty::BeautyScene::emission_at),
+    // counted below where the CPU counts it: at the start of the surface's event, or as the
+    // last bounce's light. One lookup site in the kernel.
+    var glow = vec3f(0.0);
+    if (lighting.emissive != 0u && next_prism != NO_PRISM) {
+        glow = emission_at(next_prism, next.uv);
+    }
     let step = (*s).step;
     if (step == STEP_CAMERA) {
         let camera = path_camera_ray(*s);
@@ -434,8 +443,11 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
         if (next_prism != NO_PRISM && (!gt.ok || next_t <= gt.t)) {
             (*s).flags |= PATH_SURFACE;
             (*s).normal = facing_normals(next.geometric_normal, next.shading_normal, camera.dir).ns;
-            (*s).albedo = guide_albedo(material_at(next.prism, next.uv));
-            // trace_sample's `for bounce in 0..bounces`: none at 0 bounces.
+            // trace_sample's `for bounce in 0..bounces`: none at 0 bounces (BeautyScene::bounces
+            // is 1..=4; the albedo guide is read at the first event).
+            if (lighting.bounces > 0u) {
+                (*s).radiance += glow;
+            }
             (*s).step = select(STEP_DONE, STEP_SURFACE, lighting.bounces > 0u);
         } else if (gt.ok) {
             (*s).background = env_radiance_smooth(camera.dir);
@@ -470,10 +482,11 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
             if (has(*s, PATH_LAST)) {
                 if (live_next && next_prism == NO_PRISM) {
                     (*s).radiance += throughput * escape_radiance(wi, (*s).bs_pdf, delta);
-                } else if (live_next && lighting.emissive != 0u) {
-                    (*s).radiance += throughput * emission_at(next_prism, next.uv);
+                } else if (live_next) {
+                    (*s).radiance += throughput * glow;
                 }
             } else if (next_prism != NO_PRISM) {
+                (*s).radiance += throughput * glow;
                 (*s).dir = wi;
                 (*s).bounce += 1u;
                 (*s).step = STEP_SURFACE;

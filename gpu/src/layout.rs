@@ -300,7 +300,9 @@ pub struct GpuLighting {
     pub tangent_offset: u32,
     /// 1: some material glows (`BeautyScene::emissive`).
     pub emissive: u32,
-    pub _pad3: [u32; 3],
+    pub _pad3: u32,
+    pub _pad4: u32,
+    pub _pad5: u32,
 }
 
 /// One texture of a material as the kernel reads it, 48 bytes: its size (0 × 0: none), its
@@ -513,7 +515,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 key_cos_radius,
                 tangent_offset,
                 emissive,
-                _pad3
+                _pad3,
+                _pad4,
+                _pad5
             }
         ),
         layout!(
