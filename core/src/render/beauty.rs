@@ -265,6 +265,10 @@ impl BeautyScene<'_> {
     /// normal degenerates (a tangent along the normal, a texel that maps to zero).
     #[inline]
     pub fn shade_hit(&self, mut hit: Hit) -> Hit {
+        // No material has a normal map (the tangents are made only where one has).
+        if self.tangents.is_empty() {
+            return hit;
+        }
         let s = &self.materials[self.material_index(hit.prism)];
         let (Some(nm), Some(corners)) = (s.normal_texture, self.tangents.get(hit.prism as usize))
         else {
