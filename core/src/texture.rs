@@ -150,6 +150,33 @@ impl UvTransform {
         UvTransform([a, -b, b + offset[0], -c, d, 1.0 - d - offset[1]])
     }
 
+    /// `UsdTransform2d`'s `scale`, `rotation` (degrees, counter-clockwise) and `translation`,
+    /// which act on `st` (v up, as ours) as translation · rotation · scale.
+    pub fn usd(scale: [f32; 2], rotation_deg: f32, translation: [f32; 2]) -> Self {
+        let (sin, cos) = rotation_deg.to_radians().sin_cos();
+        UvTransform([
+            cos * scale[0],
+            -sin * scale[1],
+            translation[0],
+            sin * scale[0],
+            cos * scale[1],
+            translation[1],
+        ])
+    }
+
+    /// This map after `inner`: `uv ↦ self(inner(uv))`.
+    pub fn after(&self, inner: &UvTransform) -> Self {
+        let (a, b) = (&self.0, &inner.0);
+        UvTransform([
+            a[0] * b[0] + a[1] * b[3],
+            a[0] * b[1] + a[1] * b[4],
+            a[0] * b[2] + a[1] * b[5] + a[2],
+            a[3] * b[0] + a[4] * b[3],
+            a[3] * b[1] + a[4] * b[4],
+            a[3] * b[2] + a[4] * b[5] + a[5],
+        ])
+    }
+
     /// Scale, then offset, per axis (an `.mtl` map's `-s` and `-o`; OBJ's v is already up).
     pub fn scale_offset(scale: [f32; 2], offset: [f32; 2]) -> Self {
         UvTransform([scale[0], 0.0, offset[0], 0.0, scale[1], offset[1]])
@@ -468,6 +495,20 @@ impl ColorMap {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_usd_transform_scales_then_turns_counter_clockwise_then_translates() {
+        let t = UvTransform::usd([2.0, 1.0], 90.0, [0.5, 0.0]);
+        let uv = t.apply(Vec2::new(1.0, 0.0));
+        assert!((uv - Vec2::new(0.5, 2.0)).length() < 1e-6, "{uv}");
+        let uv = t.apply(Vec2::new(0.0, 1.0));
+        assert!((uv - Vec2::new(-0.5, 0.0)).length() < 1e-6, "{uv}");
+        // Composition: `after` applies its argument first.
+        let shift = UvTransform::scale_offset([1.0; 2], [0.0, 1.0]);
+        let uv = t.after(&shift).apply(Vec2::new(1.0, 0.0));
+        assert!((uv - t.apply(Vec2::new(1.0, 1.0))).length() < 1e-6, "{uv}");
+        assert_eq!(t.after(&UvTransform::IDENTITY), t);
+    }
 
     fn map(w: u32, h: u32, texels: Vec<Vec3>, sampler: Sampler) -> ColorMap {
         ColorMap {

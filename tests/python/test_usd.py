@@ -389,6 +389,73 @@ def test_blender_emission_glows_from_gltf_usd_and_obj_alike(run, tmp_path):
         assert np.allclose(rgba[10:22, 10:22, :3].mean(axis=(0, 1)), [2.0, 1.0, 0.5], atol=1e-4), ext
 
 
+MAPPING_SCRIPT = textwrap.dedent(
+    """
+    import math, sys, bpy
+    out = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    ob = bpy.context.active_object
+    # 8 x 8 texels, red on the left half, blue on the right.
+    img = bpy.data.images.new("halves", 8, 8, alpha=False)
+    px = []
+    for y in range(8):
+        for x in range(8):
+            px += [1.0, 0.2, 0.1, 1.0] if x < 4 else [0.1, 0.3, 1.0, 1.0]
+    img.pixels[:] = px
+    img.filepath_raw = out + "_color.png"
+    img.file_format = "PNG"
+    img.save()
+    mat = bpy.data.materials.new("Mapped")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    tex = nt.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    # Tiled twice, turned a quarter, shifted a quarter.
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Location"].default_value = (0.25, 0.0, 0.0)
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(90))
+    mapping.inputs["Scale"].default_value = (2.0, 2.0, 1.0)
+    coord = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(coord.outputs["UV"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    ob.data.materials.append(mat)
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb")
+    """
+)
+
+
+def test_blender_mapping_node_reads_the_same_from_gltf_and_usd(run, tmp_path):
+    """A Blender Mapping node (scale, rotation, location) on a colour texture, which Blender
+    writes as glTF's KHR_texture_transform and as a USD UsdTransform2d, renders the same
+    beauty from either file: the transformed texture (turned stripes), not the image as it
+    lies."""
+    base = tmp_path / "plane"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=MAPPING_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "UsdTransform2d" in base.with_suffix(".usda").read_text()
+    images = {}
+    for ext, camera in (("glb", "0,5,0.5"), ("usda", "0,-0.5,5")):
+        out = tmp_path / ext
+        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
+                   "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
+                   "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0",
+                   "--key-light", "30,60,3", "--json", "-o", out, check=0)
+        assert "warning" not in proc.stderr, proc.stderr
+        with OpenEXR.File(str(out / "beauty.exr")) as f:
+            images[ext] = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+    # Turned a quarter, the halves run across the image's rows: red and blue alternate down
+    # its middle column, where the image as it lies would be one colour.
+    column = images["usda"][6:26, 16, :3]
+    assert (column[:, 0] > column[:, 2]).any() and (column[:, 2] > column[:, 0]).any(), column
+    assert np.abs(images["glb"] - images["usda"]).mean() < 1e-4
+
+
 def make_usd_core_mesh(path):
     """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
     UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""

@@ -484,6 +484,15 @@ fn vec3(v: &Value) -> Option<DVec3> {
     })
 }
 
+fn vec2(v: &Value) -> Option<[f32; 2]> {
+    Some(match v {
+        Value::Vec2f(a) => [a.x, a.y],
+        Value::Vec2d(a) => [a.x as f32, a.y as f32],
+        Value::Vec2h(a) => [a.x.to_f32(), a.y.to_f32()],
+        _ => return None,
+    })
+}
+
 fn vec4(v: &Value) -> Option<[f64; 4]> {
     Some(match v {
         Value::Vec4f(a) => [a.x as f64, a.y as f64, a.z as f64, a.w as f64],
@@ -1544,11 +1553,34 @@ fn uv_texture(
         );
         return Ok(None);
     };
-    let st_in = property_path(path, tex, "inputs:st")?;
-    let primvar = match connected_output(path, stage, &st_in)? {
-        Some((reader, _)) => token_input(path, stage, &reader, "varname")?,
-        None => None,
-    };
+    // `st` from a primvar reader, through any `UsdTransform2d`s (each maps its `in`).
+    let mut transform = UvTransform::IDENTITY;
+    let mut source = connected_output(path, stage, &property_path(path, tex, "inputs:st")?)?;
+    let mut primvar = None;
+    for _ in 0..32 {
+        let Some((node, _)) = source else { break };
+        if info_id(path, stage, &node)?.as_deref() != Some("UsdTransform2d") {
+            primvar = token_input(path, stage, &node, "varname")?;
+            break;
+        }
+        let float2 = |name: &str, default: [f32; 2]| -> Result<[f32; 2]> {
+            Ok(match input_value(path, stage, &node, name)? {
+                None => default,
+                Some(v) => vec2(&v).ok_or_else(|| {
+                    prim_err(path, &node, format!("inputs:{name} is {}, expected float2", kind(&v)))
+                })?,
+            })
+        };
+        let rotation = match input_value(path, stage, &node, "rotation")? {
+            None => 0.0,
+            Some(v) => scalar(&v).ok_or_else(|| {
+                prim_err(path, &node, format!("inputs:rotation is {}, expected float", kind(&v)))
+            })? as f32,
+        };
+        let step = UvTransform::usd(float2("scale", [1.0; 2])?, rotation, float2("translation", [0.0; 2])?);
+        transform = transform.after(&step);
+        source = connected_output(path, stage, &property_path(path, &node, "inputs:in")?)?;
+    }
     if let (Some(p), Some(uv)) = (primvar.as_deref(), uv_name) {
         if p != uv {
             warn(
@@ -1597,7 +1629,7 @@ fn uv_texture(
         },
         // The mesh's own UV set (checked above): `Loader::material_index` sets it.
         tex_coord: 0,
-        transform: UvTransform::IDENTITY,
+        transform,
         color_space: match token_input(path, stage, tex, "sourceColorSpace")?.as_deref() {
             Some("raw") => ColorSpace::Raw,
             Some("sRGB") => ColorSpace::Srgb,

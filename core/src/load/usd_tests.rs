@@ -466,8 +466,23 @@ fn preview_surface_materials_are_read_per_mesh() {
                 uniform token info:id = "UsdUVTexture"
                 asset inputs:file = @./tex/orm.png@
                 token inputs:sourceColorSpace = "raw"
-                float2 inputs:st.connect = </A/Looks/Stone/Reader.outputs:result>
+                float2 inputs:st.connect = </A/Looks/Stone/Turn.outputs:result>
                 float outputs:g
+            }}
+            def Shader "Turn"
+            {{
+                uniform token info:id = "UsdTransform2d"
+                float2 inputs:in.connect = </A/Looks/Stone/Tile.outputs:result>
+                float inputs:rotation = 90
+                float2 inputs:translation = (0.25, 0.5)
+                float2 outputs:result
+            }}
+            def Shader "Tile"
+            {{
+                uniform token info:id = "UsdTransform2d"
+                float2 inputs:in.connect = </A/Looks/Stone/Reader.outputs:result>
+                float2 inputs:scale = (2, 3)
+                float2 outputs:result
             }}
             def Shader "Albedo"
             {{
@@ -530,6 +545,12 @@ fn preview_surface_materials_are_read_per_mesh() {
     let r = stone.roughness_texture.as_ref().unwrap();
     assert_eq!((r.texture.name.as_str(), r.channel), ("orm.png", 1));
     assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
+    // Read through two UsdTransform2d's, the one nearer the reader first.
+    let tile = crate::texture::UvTransform::usd([2.0, 3.0], 0.0, [0.0; 2]);
+    let turn = crate::texture::UvTransform::usd([1.0; 2], 90.0, [0.25, 0.5]);
+    assert_eq!(r.texture.transform, turn.after(&tile));
+    let uv = r.texture.transform.apply(glam::Vec2::new(1.0, 1.0));
+    assert!((uv - glam::Vec2::new(-2.75, 2.5)).length() < 1e-6, "{uv}");
     let mt = stone.metallic_texture.as_ref().unwrap();
     assert_eq!((&mt.texture, mt.channel), (t, 0));
     // The normal map: its scale and bias as the texture gives them (exporters' 2 and -1).
