@@ -119,6 +119,21 @@ impl MeshMaterial {
         out
     }
 
+    /// Read every texture through UV set `set` (USD: the mesh's own primvar, whichever set
+    /// it is loaded as).
+    pub fn set_tex_coord(&mut self, set: u32) {
+        let refs = [
+            self.base_color_texture.as_mut(),
+            self.roughness_texture.as_mut().map(|c| &mut c.texture),
+            self.metallic_texture.as_mut().map(|c| &mut c.texture),
+            self.normal_texture.as_mut().map(|n| &mut n.texture),
+            self.emission_texture.as_mut(),
+        ];
+        for t in refs.into_iter().flatten() {
+            t.tex_coord = set;
+        }
+    }
+
     /// Its distinct textures, each with the inputs it feeds (`textures`, an image that feeds
     /// two once).
     pub fn texture_uses(

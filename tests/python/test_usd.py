@@ -456,6 +456,57 @@ def test_blender_mapping_node_reads_the_same_from_gltf_and_usd(run, tmp_path):
     assert np.abs(images["glb"] - images["usda"]).mean() < 1e-4
 
 
+SUBSETS_SCRIPT = textwrap.dedent(
+    """
+    import sys, bpy
+    out = sys.argv[1]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    ob = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="EDIT")
+    bpy.ops.mesh.subdivide(number_cuts=1)
+    bpy.ops.object.mode_set(mode="OBJECT")
+    for name, color in (("Red", (0.8, 0.05, 0.05, 1)), ("Blue", (0.05, 0.05, 0.8, 1))):
+        mat = bpy.data.materials.new(name)
+        mat.use_nodes = True
+        mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = color
+        ob.data.materials.append(mat)
+    # The faces right of x = 0 take the second material.
+    for poly in ob.data.polygons:
+        poly.material_index = 1 if poly.center.x > 0 else 0
+    bpy.ops.wm.usd_export(filepath=out + ".usda")
+    bpy.ops.export_scene.gltf(filepath=out + ".glb")
+    """
+)
+
+
+def test_blender_material_slots_shade_their_faces_from_gltf_and_usd_alike(run, tmp_path):
+    """A Blender mesh with two material slots (glTF: a primitive each; USD: GeomSubsets of
+    family materialBind, each with its binding) shades its left faces red and its right faces
+    blue from either file, the same beauty."""
+    base = tmp_path / "plane"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=SUBSETS_SCRIPT, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "GeomSubset" in base.with_suffix(".usda").read_text()
+    images = {}
+    for ext, camera in (("glb", "0,5,0.5"), ("usda", "0,-0.5,5")):
+        out = tmp_path / ext
+        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
+                   "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
+                   "--camera-to", "0,0,0", "--fov", "30", "--json", "-o", out, check=0)
+        prisms = sorted(m["prisms"] for m in json.loads(proc.stdout)["materials"])
+        assert prisms == [4, 4], (ext, prisms)
+        with OpenEXR.File(str(out / "beauty.exr")) as f:
+            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+        left, right = rgba[10:22, 6:12, :3].mean(axis=(0, 1)), rgba[10:22, 20:26, :3].mean(axis=(0, 1))
+        assert left[0] > 4 * left[2] and right[2] > 4 * right[0], (ext, left, right)
+        images[ext] = rgba
+    assert np.abs(images["glb"] - images["usda"]).mean() < 1e-4
+
+
 def make_usd_core_mesh(path):
     """A quad + triangle mesh under transformed Xforms, with indexed faceVarying st and a
     UsdUVTexture displacement (scale 0.2, bias -0.1 → S 0.2, M 0.5), written by usd-core."""

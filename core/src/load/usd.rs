@@ -14,7 +14,8 @@
 //! `M = −bias / scale` (per DESIGN.md, `bias = −M·S`).
 //!
 //! Departures from USD, on purpose: subdivision schemes are ignored (the cage is the mesh),
-//! instancing and GeomSubset material bindings are not expanded, time-sampled values are read
+//! instancing is not expanded (GeomSubset material bindings are read for the beauty, a
+//! displacement per subset is not), time-sampled values are read
 //! at their first sample, `elementSize` > 1 is refused.
 
 use super::MeshOptions;
@@ -869,6 +870,9 @@ impl Loader<'_> {
             None => (None, None),
         };
         let material = self.material_index(prim, uv_name.as_deref())?;
+        // Per face, its group among the mesh's own (0) and its material subsets'.
+        let (subsets, face_slot) =
+            self.material_subsets(prim, faces.len(), uv_name.as_deref())?;
 
         // One vertex per distinct (point, normal, UV) corner.
         let mut key_to_vertex: HashMap<(usize, [u32; 3], [u32; 2]), u32> = HashMap::new();
@@ -901,14 +905,76 @@ impl Loader<'_> {
         let g = self.mesh.groups.len() as u32;
         self.mesh.groups.push(at.to_string());
         self.mesh.group_material.push(material);
+        for (name, m) in subsets {
+            self.mesh.groups.push(name);
+            self.mesh.group_material.push(m);
+        }
         self.mesh.positions.extend(new_pos);
         self.mesh.normals.extend(new_nrm);
         self.mesh.uvs.extend(new_uv);
-        for t in &tris {
+        for (t, &f) in tris.iter().zip(&tri_face) {
             self.mesh.triangles.push(t.map(|k| corner_vertex[k]));
-            self.mesh.face_group.push(g);
+            self.mesh.face_group.push(g + face_slot[f]);
         }
         Ok(())
+    }
+
+    /// The mesh's `GeomSubset` children of family `materialBind` (Blender writes one per
+    /// material slot of a mesh with several): each subset's (path, material) and, per face,
+    /// its subset's number from 1 (0: none, the mesh's own material). A subset of another
+    /// element type, or an index past the faces, is a warning: materials are read for the
+    /// beauty alone.
+    fn material_subsets(
+        &mut self,
+        prim: &Prim,
+        n_faces: usize,
+        uv_name: Option<&str>,
+    ) -> Result<(Vec<(String, u32)>, Vec<u32>)> {
+        let path = self.path;
+        let mut subsets = vec![];
+        let mut face_slot = vec![0u32; n_faces];
+        for child in children(path, prim)? {
+            if type_name(&child) != "GeomSubset" {
+                continue;
+            }
+            let token = |name: &str| -> Result<Option<String>> {
+                Ok(value(path, &child, name)?.and_then(|v| v.as_str().map(str::to_string)))
+            };
+            if token("familyName")?.as_deref() != Some("materialBind") {
+                continue;
+            }
+            let at = child.path().to_string();
+            if let Some(other) = token("elementType")?.filter(|t| t != "face") {
+                warn(
+                    path,
+                    &format!("{at}: a material subset of {other}s, not faces: not read"),
+                );
+                continue;
+            }
+            let indices = self
+                .array(&child, "indices", int_array, "int[]")?
+                .unwrap_or_default();
+            let material = self.material_index(&child, uv_name)?;
+            subsets.push((at.clone(), material));
+            let slot = subsets.len() as u32;
+            let mut outside = 0;
+            for i in indices {
+                match usize::try_from(i).ok().filter(|&f| f < n_faces) {
+                    Some(f) => face_slot[f] = slot,
+                    None => outside += 1,
+                }
+            }
+            if outside > 0 {
+                warn(
+                    path,
+                    &format!(
+                        "{at}: {outside} indices are not faces of the mesh's {n_faces}: ignored \
+                         (re-export)"
+                    ),
+                );
+            }
+        }
+        Ok((subsets, face_slot))
     }
 
     /// The UV primvar: `uv_set` 0 is the one the displacement texture reads (else `st`, else
@@ -1007,18 +1073,7 @@ impl Loader<'_> {
         let Some((at, mut material)) = found else {
             return Ok(u32::MAX);
         };
-        if let Some(t) = &mut material.base_color_texture {
-            t.tex_coord = self.opts.uv_set;
-        }
-        for c in [
-            &mut material.roughness_texture,
-            &mut material.metallic_texture,
-        ]
-        .into_iter()
-        .flatten()
-        {
-            c.texture.tex_coord = self.opts.uv_set;
-        }
+        material.set_tex_coord(self.opts.uv_set);
         if let Some(i) = self.material_paths.iter().position(|p| *p == at) {
             return Ok(i as u32);
         }

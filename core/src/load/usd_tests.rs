@@ -567,6 +567,76 @@ fn preview_surface_materials_are_read_per_mesh() {
 }
 
 #[test]
+fn material_subsets_bind_their_own_faces() {
+    // Four quads: the mesh binds Red; a materialBind subset binds Blue to faces 0 and 3 (and
+    // names a face 9 that is not there: ignored); a subset of another family, and one of
+    // points, bind nothing.
+    let d = dir("subsets");
+    let material = |name: &str, rgb: &str| {
+        format!(
+            r#"        def Material "{name}"
+        {{
+            token outputs:surface.connect = </A/Looks/{name}/Surf.outputs:surface>
+            def Shader "Surf"
+            {{
+                uniform token info:id = "UsdPreviewSurface"
+                color3f inputs:diffuseColor = {rgb}
+                token outputs:surface
+            }}
+        }}
+"#
+        )
+    };
+    let subset = |name: &str, family: &str, element: &str, indices: &str, m: &str| {
+        format!(
+            r#"        def GeomSubset "{name}" (
+            prepend apiSchemas = ["MaterialBindingAPI"]
+        )
+        {{
+            uniform token elementType = "{element}"
+            uniform token familyName = "{family}"
+            int[] indices = {indices}
+            rel material:binding = </A/Looks/{m}>
+        }}
+"#
+        )
+    };
+    let text = layer(
+        "Y",
+        &format!(
+            r#"def Xform "A"
+{{
+    def Mesh "M" (
+        prepend apiSchemas = ["MaterialBindingAPI"]
+    )
+    {{
+        int[] faceVertexCounts = [4, 4, 4, 4]
+        int[] faceVertexIndices = [0, 1, 4, 3, 1, 2, 5, 4, 3, 4, 7, 6, 4, 5, 8, 7]
+        point3f[] points = [(0, 0, 0), (1, 0, 0), (2, 0, 0), (0, 1, 0), (1, 1, 0), (2, 1, 0), (0, 2, 0), (1, 2, 0), (2, 2, 0)]
+        rel material:binding = </A/Looks/Red>
+{}{}{}    }}
+    def Scope "Looks"
+    {{
+{}{}    }}
+}}"#,
+            subset("Blue", "materialBind", "face", "[0, 3, 9]", "Blue"),
+            subset("Other", "partition", "face", "[1]", "Blue"),
+            subset("Points", "materialBind", "point", "[2]", "Blue"),
+            material("Red", "(1, 0, 0)"),
+            material("Blue", "(0, 0, 1)"),
+        ),
+    );
+    let p = write(&d, "a.usda", &text);
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    let names: Vec<&str> = m.materials.iter().map(|x| x.name.as_str()).collect();
+    assert_eq!(names, ["/A/Looks/Red", "/A/Looks/Blue"]);
+    // Two triangles a quad, in face order.
+    let per_face: Vec<u32> = (0..8).map(|t| m.face_material(t)).collect();
+    assert_eq!(per_face, [1, 1, 0, 0, 0, 0, 1, 1]);
+    assert_eq!(m.groups, ["/A/M", "/A/M/Blue"]);
+}
+
+#[test]
 fn meshes_without_materials_have_no_displacement() {
     let d = dir("nodisp");
     let p = write(&d, "a.usda", &quad_and_pentagon(""));
