@@ -251,3 +251,43 @@ impl BaseMesh {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::*;
+
+    #[test]
+    fn set_tex_coord_reaches_every_texture_of_a_material() {
+        let t = |name: &str| TextureRef {
+            name: name.into(),
+            data: TextureData::File(name.into()),
+            sampler: Sampler::default(),
+            tex_coord: 0,
+            transform: UvTransform::IDENTITY,
+            color_space: ColorSpace::Raw,
+        };
+        let channel = |name| {
+            Some(ChannelRef {
+                texture: t(name),
+                channel: 1,
+            })
+        };
+        let mut m = MeshMaterial {
+            base_color_texture: Some(t("colour")),
+            roughness_texture: channel("rough"),
+            metallic_texture: channel("metal"),
+            normal_texture: Some(NormalMapRef::unit(t("normal"), 1.0)),
+            emission_texture: Some(t("glow")),
+            ..MeshMaterial::plain("m".into(), [1.0; 4], 0.5, 0.0)
+        };
+        m.set_tex_coord(2);
+        let sets: Vec<(TextureSlot, u32)> = m
+            .textures()
+            .iter()
+            .map(|(slot, t)| (*slot, t.tex_coord))
+            .collect();
+        assert_eq!(sets.len(), 5, "{sets:?}");
+        assert!(sets.iter().all(|&(_, set)| set == 2), "{sets:?}");
+    }
+}

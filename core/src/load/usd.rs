@@ -871,8 +871,7 @@ impl Loader<'_> {
         };
         let material = self.material_index(prim, uv_name.as_deref())?;
         // Per face, its group among the mesh's own (0) and its material subsets'.
-        let (subsets, face_slot) =
-            self.material_subsets(prim, faces.len(), uv_name.as_deref())?;
+        let (subsets, face_slot) = self.material_subsets(prim, faces.len(), uv_name.as_deref())?;
 
         // One vertex per distinct (point, normal, UV) corner.
         let mut key_to_vertex: HashMap<(usize, [u32; 3], [u32; 2]), u32> = HashMap::new();
@@ -1622,17 +1621,29 @@ fn uv_texture(
             Ok(match input_value(path, stage, &node, name)? {
                 None => default,
                 Some(v) => vec2(&v).ok_or_else(|| {
-                    prim_err(path, &node, format!("inputs:{name} is {}, expected float2", kind(&v)))
+                    prim_err(
+                        path,
+                        &node,
+                        format!("inputs:{name} is {}, expected float2", kind(&v)),
+                    )
                 })?,
             })
         };
         let rotation = match input_value(path, stage, &node, "rotation")? {
             None => 0.0,
             Some(v) => scalar(&v).ok_or_else(|| {
-                prim_err(path, &node, format!("inputs:rotation is {}, expected float", kind(&v)))
+                prim_err(
+                    path,
+                    &node,
+                    format!("inputs:rotation is {}, expected float", kind(&v)),
+                )
             })? as f32,
         };
-        let step = UvTransform::usd(float2("scale", [1.0; 2])?, rotation, float2("translation", [0.0; 2])?);
+        let step = UvTransform::usd(
+            float2("scale", [1.0; 2])?,
+            rotation,
+            float2("translation", [0.0; 2])?,
+        );
         transform = transform.after(&step);
         source = connected_output(path, stage, &property_path(path, &node, "inputs:in")?)?;
     }
