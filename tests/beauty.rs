@@ -1463,6 +1463,94 @@ fn an_emissive_material_glows_by_its_factor_strength_and_texture() {
     );
 }
 
+/// A material's index of refraction sets its dielectric reflectance: on the square of a red
+/// material (no IOR: F0 0.04) and a blue one of glTF `KHR_materials_ior` 2.0 (F0 1/9), made
+/// black mirrors under an even white sky, each half shows its F0 (the mirror's Fresnel at
+/// near-normal incidence), on the CPU and the GPU; `--specular` sets every material's.
+#[test]
+fn a_materials_index_of_refraction_sets_its_reflectance() {
+    let dir = temp_dir("ior");
+    let gltf = std::fs::read_to_string(two_material_square(&dir)).unwrap();
+    let square = dir.join("ior.gltf");
+    let with_ior = gltf.replace(
+        r#""roughnessFactor":0.6}},
+        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6}}"#,
+        r#""roughnessFactor":0.6}},
+        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6},
+         "extensions":{"KHR_materials_ior":{"ior":2.0}}}"#,
+    );
+    assert_ne!(with_ior, gltf);
+    std::fs::write(&square, with_ior).unwrap();
+    let sky = dir.join("sky.exr");
+    write_constant_env(&sky, 1.0);
+    let map = example("maps/scales_256.png");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "render",
+            s(&square),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0",
+            "--res",
+            "32x32",
+            "--spp",
+            "2",
+            "--aov",
+            "beauty",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "30",
+            "--env",
+            s(&sky),
+            "--base-color",
+            "0,0,0",
+            "--roughness",
+            "0",
+            "--bounces",
+            "1",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        o.assert_success();
+        let f0: Vec<f64> = o.json()["materials"]
+            .as_array()
+            .expect("materials")
+            .iter()
+            .map(|m| m["specular"].as_f64().unwrap())
+            .collect();
+        let px = read_rgba(&out.join("beauty.exr"));
+        // The red triangle holds the bottom-right corner, the blue one the top-left.
+        (f0, px[24 * 32 + 24][1], px[7 * 32 + 7][1])
+    };
+    for device in ["cpu", "gpu"] {
+        let (f0, red, blue) = render(device, &["--device", device]);
+        eprintln!("{device}: F0 {f0:?}, red half {red}, blue half {blue}");
+        assert!(
+            (f0[0] - 0.04).abs() < 1e-6 && (f0[1] - 1.0 / 9.0).abs() < 1e-6,
+            "{f0:?}"
+        );
+        assert!((red - 0.04).abs() < 0.02 * 0.04, "{device}: red {red}");
+        assert!(
+            (blue - 1.0 / 9.0).abs() < 0.02 / 9.0,
+            "{device}: blue {blue}"
+        );
+    }
+    let (f0, red, blue) = render("override", &["--specular", "0.2"]);
+    assert_eq!(f0, [0.2; 2]);
+    assert!(
+        (red - 0.2).abs() < 0.004 && (blue - 0.2).abs() < 0.004,
+        "{red} {blue}"
+    );
+}
+
 /// A key light with an angle is a disc of even radiance (its irradiance over its solid angle)
 /// that BSDF samples meet as well as shadow rays, the two shared by MIS: a mirror square facing
 /// it shows the disc at exactly that radiance (it showed nothing when only shadow rays found

@@ -186,9 +186,11 @@ pub struct LookArgs {
     /// emissiveColor, .mtl Ke / map_Ke).
     #[arg(long)]
     pub no_emission: bool,
-    /// Dielectric reflectance at normal incidence (0.04 ≈ IOR 1.5; 0 = pure diffuse).
-    #[arg(long, default_value_t = 0.04)]
-    pub specular: f32,
+    /// Dielectric reflectance at normal incidence of every material (0.04 ≈ IOR 1.5; 0 = pure
+    /// diffuse); default: each material's from its index of refraction (glTF KHR_materials_ior
+    /// and KHR_materials_specular, USD ior, .mtl Ni), else 0.04.
+    #[arg(long)]
+    pub specular: Option<f32>,
     /// Surface bounces per path, 1..=4 (1 = direct light only).
     #[arg(long, default_value_t = 2)]
     pub bounces: u32,

@@ -77,6 +77,16 @@ pub struct MeshMaterial {
     pub emission: [f32; 3],
     /// A colour texture multiplied into `emission` (glTF's `emissiveTexture`).
     pub emission_texture: Option<crate::texture::TextureRef>,
+    /// The dielectric reflectance at normal incidence (F0) the file's index of refraction
+    /// gives (`ior_f0`; glTF's `KHR_materials_ior` times `KHR_materials_specular`'s factor,
+    /// USD's `ior`, an `.mtl`'s `Ni`); `None`: the renderer's default.
+    pub specular: Option<f32>,
+}
+
+/// The reflectance at normal incidence of a dielectric of index of refraction `ior` in air,
+/// `((ior − 1) / (ior + 1))²`; `None` for an index below 1 or not a number.
+pub fn ior_f0(ior: f32) -> Option<f32> {
+    (ior >= 1.0 && ior.is_finite()).then(|| ((ior - 1.0) / (ior + 1.0)).powi(2))
 }
 
 impl MeshMaterial {
@@ -93,6 +103,7 @@ impl MeshMaterial {
             normal_texture: None,
             emission: [0.0; 3],
             emission_texture: None,
+            specular: None,
         }
     }
 

@@ -214,6 +214,8 @@ fn parse_mtl(
                 m.base_color = [r, g, b, 1.0];
             }
             "Ke" => m.emission = floats::<3>(&mut words).map_err(at)?,
+            // The index of refraction (Blender's importer reads it as the IOR).
+            "Ni" => m.specular = crate::mesh::ior_f0(floats::<1>(&mut words).map_err(at)?[0]),
             // Blender's importer: the map replaces Ke's colour (its strength stays 1).
             "map_Ke" => {
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;

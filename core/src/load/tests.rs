@@ -365,7 +365,9 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
                                       "roughnessFactor": 0.25, "metallicFactor": 0.5,
                                       "metallicRoughnessTexture": {"index": 1}},
              "normalTexture": {"index": 2, "scale": 0.5, "extensions":
-                 {"KHR_texture_transform": {"offset": [0.5, 0.0], "texCoord": 0}}}},
+                 {"KHR_texture_transform": {"offset": [0.5, 0.0], "texCoord": 0}}},
+             "extensions": {"KHR_materials_ior": {"ior": 2.0},
+                            "KHR_materials_specular": {"specularFactor": 0.5}}},
         ],
         "textures": [{"source": 0, "sampler": 0}, {"source": 1}, {"source": 2}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
@@ -436,6 +438,13 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         (other.emission, other.emission_texture.clone()),
         ([0.0; 3], None)
     );
+    // The dielectric reflectance: F0 of IOR 2 (1/9) times the specular factor; none given.
+    assert!(
+        (other.specular.unwrap() - 0.5 / 9.0).abs() < 1e-7,
+        "{:?}",
+        other.specular
+    );
+    assert_eq!(paint.specular, None);
     assert_eq!(
         other.texture_uses().len(),
         2,
@@ -744,7 +753,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         usemtl nowhere\nf 1 2 4\n\
         usemtl paint\nf 2 3 4\n";
     let mtl = "# two materials\n\
-        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNs 250\nPr 0.3\n\
+        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNi 2\nNs 250\nPr 0.3\n\
         newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
         map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\nmap_Bump -bm 0.5 normal.png\nmap_Ke glow.png\n";
     std::fs::write(&path, obj).unwrap();
@@ -800,6 +809,9 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!((n.scale, n.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
     assert_eq!(n.describe_mapping(), "strength 0.5");
     assert_eq!(paint.normal_texture, None);
+    // Ni is the index of refraction: F0 1/9 for 2.
+    assert!((paint.specular.unwrap() - 1.0 / 9.0).abs() < 1e-7);
+    assert_eq!(rust.specular, None);
     // Ke is the emission; map_Ke replaces it (an sRGB colour texture).
     assert_eq!(
         (paint.emission, paint.emission_texture.clone()),

@@ -1465,6 +1465,13 @@ fn mesh_material(
             }
         }
     }
+    // ior (UsdPreviewSurface's default 1.5: F0 0.04) for the dielectric reflectance.
+    if let Some(ior) = input_value(path, stage, &surface, "ior")?
+        .as_ref()
+        .and_then(scalar)
+    {
+        m.specular = crate::mesh::ior_f0(ior as f32);
+    }
     // emissiveColor: a value (UsdPreviewSurface's default: black), or a texture's colour.
     let emissive = property_path(path, &surface, "inputs:emissiveColor")?;
     match connected_output(path, stage, &emissive)? {

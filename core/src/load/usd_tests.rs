@@ -509,6 +509,7 @@ fn preview_surface_materials_are_read_per_mesh() {
                 uniform token info:id = "UsdPreviewSurface"
                 color3f inputs:diffuseColor = (1, 0.75, 0.25)
                 color3f inputs:emissiveColor = (2, 1, 0.5)
+                float inputs:ior = 2
                 float inputs:roughness = 0.2
                 float inputs:metallic = 1
                 token outputs:surface
@@ -561,6 +562,9 @@ fn preview_surface_materials_are_read_per_mesh() {
     assert_eq!(stone.texture_uses().len(), 3);
     assert_eq!(gold.normal_texture, None);
     assert_eq!((gold.emission, stone.emission), ([2.0, 1.0, 0.5], [0.0; 3]));
+    // ior 2: F0 1/9.
+    assert!((gold.specular.unwrap() - 1.0 / 9.0).abs() < 1e-7);
+    assert_eq!(stone.specular, None);
     assert_eq!(gold.base_color, [1.0, 0.75, 0.25, 1.0]);
     assert_eq!((gold.roughness, gold.metallic), (0.2, 1.0));
     assert_eq!(gold.base_color_texture, None);

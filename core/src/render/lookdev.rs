@@ -69,7 +69,9 @@ pub struct LookdevOptions {
     pub normal_maps: bool,
     /// Let the materials glow (`--no-emission`: false).
     pub emission: bool,
-    pub specular: f32,
+    /// The dielectric reflectance F0 of every material (`--specular`); `None`: each
+    /// material's own (its file's index of refraction), else `DEFAULT_SPECULAR`.
+    pub specular: Option<f32>,
     pub bounces: u32,
     pub ground: bool,
     /// The previews' exposure in stops (`--exposure`): PNGs and contact sheets show the
@@ -95,7 +97,7 @@ impl Default for LookdevOptions {
             metallic: None,
             normal_maps: true,
             emission: true,
-            specular: 0.04,
+            specular: None,
             bounces: 2,
             ground: false,
             exposure_ev: 0.0,
@@ -122,7 +124,9 @@ impl LookdevOptions {
                 unit(name, v)?;
             }
         }
-        unit("--specular", self.specular)?;
+        if let Some(v) = self.specular {
+            unit("--specular", v)?;
+        }
         if !(1..=4).contains(&self.bounces) {
             return Err(Error::Param(format!(
                 "--bounces {}: must be 1..=4",
@@ -457,6 +461,9 @@ pub fn material_warning(
 pub const DEFAULT_ROUGHNESS: f32 = 0.5;
 /// Metallic of a surface whose asset has no material and no `--metallic`.
 pub const DEFAULT_METALLIC: f32 = 0.0;
+/// Dielectric reflectance F0 of a surface whose material gives none and no `--specular`
+/// (an index of refraction of 1.5).
+pub const DEFAULT_SPECULAR: f32 = 0.04;
 /// Base colour of a surface whose asset has no material and no `--base-color`.
 pub const DEFAULT_BASE_COLOR: Vec3 = Vec3::splat(0.8);
 
@@ -475,6 +482,7 @@ struct AssetMaterial {
     normal_mapping: Option<String>,
     emission: Vec3,
     emission_texture: Option<u32>,
+    specular: f32,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -499,6 +507,7 @@ impl AssetMaterial {
             normal_mapping: None,
             emission: Vec3::ZERO,
             emission_texture: None,
+            specular: DEFAULT_SPECULAR,
         }
     }
 }
@@ -639,6 +648,7 @@ fn asset_materials(
             normal_texture,
             emission: Vec3::from_array(m.emission),
             emission_texture,
+            specular: m.specular.unwrap_or(DEFAULT_SPECULAR),
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -991,7 +1001,7 @@ pub fn render_all(
                 base_color: opts.base_color.unwrap_or(m.base_color),
                 roughness: opts.roughness.unwrap_or(m.roughness),
                 metallic: opts.metallic.unwrap_or(m.metallic),
-                specular: opts.specular,
+                specular: opts.specular.unwrap_or(m.specular),
             },
             texture: m.texture.filter(|_| opts.base_color.is_none()),
             roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),
