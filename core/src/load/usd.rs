@@ -351,6 +351,10 @@ fn children(path: &Path, prim: &Prim) -> Result<Vec<Prim>> {
     Ok(kids)
 }
 
+/// A mesh's material subsets (`Loader::material_subsets`): each one's (path, material), and
+/// per face the number of its subset from 1 (0: none, the mesh's own material).
+type SubsetBinding = (Vec<(String, u32)>, Vec<u32>);
+
 fn type_name(prim: &Prim) -> String {
     prim.type_name()
         .ok()
@@ -928,7 +932,7 @@ impl Loader<'_> {
         prim: &Prim,
         n_faces: usize,
         uv_name: Option<&str>,
-    ) -> Result<(Vec<(String, u32)>, Vec<u32>)> {
+    ) -> Result<SubsetBinding> {
         let path = self.path;
         let mut subsets = vec![];
         let mut face_slot = vec![0u32; n_faces];
