@@ -891,6 +891,13 @@ fn a_crate_count_larger_than_the_file_is_an_error_not_an_abort() {
         include_bytes!("../../../fuzz/corpus/usdc/abort-huge-reference-list"),
         &["list op", "cannot hold"],
     );
+    // A payload list op flagged inlined, which openusd 0.6 reads at its payload (0) anyway:
+    // the count there states 1.9 × 10¹⁶ payloads.
+    refused(
+        "payloads.usdc",
+        include_bytes!("../../../fuzz/corpus/usdc/abort-inlined-payload-list-op"),
+        &["list op", "cannot hold"],
+    );
     // Valid references pass: a binary layer whose prim references two others, with and
     // without customData.
     let refs = openusd::usda::parse(&layer(

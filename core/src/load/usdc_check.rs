@@ -235,15 +235,21 @@ fn check_value(
     const COMPRESSED: u64 = 1 << 61;
     let payload = rep & ((1 << 48) - 1);
     let ty = (rep >> 48) & 0xFF;
-    // An inlined array is still read at its payload as an offset (the reader only
-    // debug-asserts that arrays are not inlined): only inlined scalars carry no offset.
-    if rep & INLINED != 0 && rep & ARRAY == 0 {
-        return Ok(());
-    }
     if depth > MAX_VALUE_DEPTH {
         return Err(w.corrupt(format!(
             "nests values (dictionaries) more than {MAX_VALUE_DEPTH} deep, or in a loop"
         )));
+    }
+    // A list op is read at its payload even when flagged inlined: openusd 0.6 refuses an
+    // inlined rep for the other list ops but not for a payload list op (a fuzzed inlined one
+    // stated 1.9 × 10¹⁶ payloads, an abort). No valid file inlines a list op.
+    if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
+        return check_list_op(w, version, ty, payload, elem, in_samples, depth);
+    }
+    // An inlined array is still read at its payload as an offset (the reader only
+    // debug-asserts that arrays are not inlined): only inlined scalars carry no offset.
+    if rep & INLINED != 0 && rep & ARRAY == 0 {
+        return Ok(());
     }
     if ty == TIME_SAMPLES {
         return check_time_samples(w, version, payload, in_samples, depth);
@@ -263,9 +269,6 @@ fn check_value(
             )));
         }
         return Ok(());
-    }
-    if let Some(&(_, elem)) = LIST_OPS.iter().find(|(t, _)| *t == ty) {
-        return check_list_op(w, version, ty, payload, elem, in_samples, depth);
     }
     // Of the rest, arrays and the double vector are read as arrays.
     if rep & ARRAY == 0 && ty != DOUBLE_VECTOR {
