@@ -284,6 +284,9 @@ pub struct ColorMap {
     pub name: String,
 }
 
+/// The first bytes of an OpenEXR file.
+const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
 /// The linear value of each 8-bit sRGB code: what an 8-bit colour texture's texels are made of
 /// (the GPU keeps such a texture as its codes and this table, `gpu::beauty::TextureLayout`).
 pub fn srgb8_table() -> [f32; 256] {
@@ -306,9 +309,10 @@ pub fn srgb_to_linear(x: f32) -> f32 {
 }
 
 impl ColorMap {
-    /// Decode `texture` of the asset `asset`, which feeds `slot` (for messages): PNG or JPEG,
-    /// any bit depth, grey or colour; alpha is dropped, grey becomes three equal channels, and
-    /// the codes become linear values by the texture's `ColorSpace`.
+    /// Decode `texture` of the asset `asset`, which feeds `slot` (for messages): PNG, JPEG or
+    /// TIFF, any bit depth, grey or colour, or an OpenEXR file (`load_exr`); alpha is dropped,
+    /// grey becomes three equal channels, and the codes become linear values by the texture's
+    /// `ColorSpace`.
     pub fn load(asset: &Path, texture: &TextureRef, slot: TextureSlot) -> Result<ColorMap> {
         use ::image::{ImageReader, Limits};
         let name = &texture.name;
@@ -330,18 +334,29 @@ impl ColorMap {
                     .map_err(|e| bad(format!("cannot read '{}': {e}", p.display())))?,
             ),
         };
+        if bytes.starts_with(&EXR_MAGIC) {
+            let TextureData::File(p) = &texture.data else {
+                return Err(bad(
+                    "is an OpenEXR image inside the asset file; OpenEXR textures are read \
+                     from files of their own"
+                        .into(),
+                ));
+            };
+            return Self::load_exr(p, texture).map_err(|e| bad(e.to_string()));
+        }
         let reader = || -> Result<ImageReader<std::io::Cursor<&[u8]>>> {
             let mut reader = ImageReader::new(std::io::Cursor::new(&bytes[..]))
                 .with_guessed_format()
                 .map_err(|e| bad(e.to_string()))?;
+            use ::image::ImageFormat::{Jpeg, Png, Tiff};
             match reader.format() {
-                Some(::image::ImageFormat::Png | ::image::ImageFormat::Jpeg) => {}
+                Some(Png | Jpeg | Tiff) => {}
                 Some(f) => {
                     return Err(bad(format!(
-                        "is {f:?}; material textures are read from PNG or JPEG"
+                        "is {f:?}; material textures are read from PNG, JPEG, TIFF or OpenEXR"
                     )))
                 }
-                None => return Err(bad("is neither PNG nor JPEG".into())),
+                None => return Err(bad("is not PNG, JPEG, TIFF or OpenEXR".into())),
             }
             let mut limits = Limits::default();
             limits.max_image_width = Some(MAX_TEXTURE_DIMENSION);
@@ -422,6 +437,57 @@ impl ColorMap {
             sampler: texture.sampler,
             transform: texture.transform,
             name: name.clone(),
+        })
+    }
+
+    /// An OpenEXR texture file: its first flat layer's R, G and B (else Y, else its first
+    /// channel, as grey), linear unless the texture says sRGB. The header is checked before
+    /// any pixel (the sides, the texel count, what its bytes can expand to); a NaN or
+    /// infinite texel is an error.
+    fn load_exr(path: &Path, texture: &TextureRef) -> Result<ColorMap> {
+        use crate::load::image::{check_exr_size, exr_flat_header, exr_rgb_channels};
+        let header = exr_flat_header(path)?;
+        let (w, h) = (header.layer_size.width(), header.layer_size.height());
+        let side = MAX_TEXTURE_DIMENSION as usize;
+        if w == 0 || h == 0 || w > side || h > side || (w * h) as u64 > MAX_TEXTURE_TEXELS {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "is {w}x{h} texels; a texture's sides must be 1..={side} and its texels at \
+                     most {MAX_TEXTURE_TEXELS} (downsample it)"
+                ),
+            ));
+        }
+        check_exr_size(path, &header)?;
+        let names = exr_rgb_channels(path, &header, "the texture")?;
+        let (w, h, planes) = crate::load::image::read_exr_channels(path, &names, "the texture")?;
+        let channel = |k: usize| &planes[k.min(planes.len() - 1)];
+        let decode: fn(f32) -> f32 = match texture.color_space {
+            ColorSpace::Srgb => srgb_to_linear,
+            ColorSpace::Raw | ColorSpace::Auto => |x| x,
+        };
+        let mut texels = Vec::with_capacity(w * h);
+        for i in 0..w * h {
+            let c = Vec3::new(channel(0)[i], channel(1)[i], channel(2)[i]);
+            if !c.is_finite() {
+                return Err(Error::invalid(
+                    path,
+                    format!(
+                        "texel ({}, {}) is {c}, not a number",
+                        i % w,
+                        i / w
+                    ),
+                ));
+            }
+            texels.push(Vec3::from_array(c.to_array().map(decode)));
+        }
+        Ok(ColorMap {
+            width: w as u32,
+            height: h as u32,
+            texels,
+            sampler: texture.sampler,
+            transform: texture.transform,
+            name: texture.name.clone(),
         })
     }
 
@@ -744,6 +810,61 @@ mod tests {
             .map(|c| (*c - want).abs().max_element())
             .fold(0.0, f32::max);
         assert!(worst < 0.02, "{worst}");
+    }
+
+    #[test]
+    fn openexr_and_tiff_textures_decode_as_stored() {
+        let dir = std::env::temp_dir().join(format!("pb-texture-formats-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let t = |path: &Path, color_space| TextureRef {
+            name: path.file_name().unwrap().to_string_lossy().into_owned(),
+            data: TextureData::File(path.into()),
+            sampler: Sampler::default(),
+            tex_coord: 0,
+            transform: UvTransform::IDENTITY,
+            color_space,
+        };
+        // A 2 x 1 float EXR: values outside 0..1 (a tangent-space normal's -0.25, an emission
+        // of 2) are kept as stored; `Auto` (USD's default) and `Raw` read it linear, `Srgb`
+        // decodes it.
+        let exr = dir.join("n.exr");
+        let data = [0.5, -0.25, 2.0, 0.0, 0.25, 1.0]; // R G B of texel 0, then texel 1
+        crate::render::output::write_exr(&exr, 2, 1, &["R", "G", "B"], &data).unwrap();
+        for space in [ColorSpace::Auto, ColorSpace::Raw] {
+            let m = ColorMap::load(Path::new("a.usda"), &t(&exr, space), TextureSlot::Normal)
+                .unwrap();
+            assert_eq!((m.width, m.height), (2, 1));
+            assert_eq!(m.texels, [Vec3::new(0.5, -0.25, 2.0), Vec3::new(0.0, 0.25, 1.0)]);
+        }
+        let m = ColorMap::load(Path::new("a.usda"), &t(&exr, ColorSpace::Srgb), TextureSlot::BaseColor)
+            .unwrap();
+        assert_eq!(m.texels[0].x, srgb_to_linear(0.5));
+        // Inside the asset file it cannot be read by path: an error that says so.
+        let embedded = TextureRef {
+            data: TextureData::Embedded(std::fs::read(&exr).unwrap()),
+            ..t(&exr, ColorSpace::Raw)
+        };
+        let e = ColorMap::load(Path::new("a.glb"), &embedded, TextureSlot::Emission)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("OpenEXR") && e.contains("--no-emission"), "{e}");
+        // A NaN texel is an error naming the texel.
+        let nan = dir.join("nan.exr");
+        let bad = [0.5, f32::NAN, 0.0, 0.0, 0.0, 0.0];
+        crate::render::output::write_exr(&nan, 2, 1, &["R", "G", "B"], &bad).unwrap();
+        let e = ColorMap::load(Path::new("a.usda"), &t(&nan, ColorSpace::Raw), TextureSlot::BaseColor)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("texel (0, 0)") && e.contains("nan.exr"), "{e}");
+        // A 16-bit TIFF keeps its codes over 65535 as data.
+        let tif = dir.join("r.tif");
+        ::image::ImageBuffer::<::image::Rgb<u16>, _>::from_pixel(3, 2, ::image::Rgb([65535, 32768, 0]))
+            .save(&tif)
+            .unwrap();
+        let m = ColorMap::load(Path::new("a.usda"), &t(&tif, ColorSpace::Auto), TextureSlot::Roughness)
+            .unwrap();
+        assert_eq!((m.width, m.height), (3, 2));
+        assert_eq!(m.texels[5], Vec3::new(1.0, 32768.0 / 65535.0, 0.0));
     }
 
     #[test]

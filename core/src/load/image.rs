@@ -139,6 +139,35 @@ pub(crate) fn read_exr_channels(
     Ok((w, h, planes))
 }
 
+/// The colour channels of an EXR header to read as red, green and blue: `R`, `G`, `B` (or
+/// `layer.R`, …), else `Y`, else the first channel (one name: grey). `what` names the image
+/// for the error of a file without channels ("the environment").
+pub(crate) fn exr_rgb_channels(
+    path: &Path,
+    header: &exr::meta::header::Header,
+    what: &str,
+) -> Result<Vec<String>> {
+    let names: Vec<String> = (header.channels.list.iter())
+        .map(|c| c.name.to_string())
+        .collect();
+    let find = |n: &str| {
+        names
+            .iter()
+            .position(|c| c == n || c.ends_with(&format!(".{n}")))
+    };
+    let picked: Vec<usize> = match (find("R"), find("G"), find("B")) {
+        (Some(r), Some(g), Some(b)) => vec![r, g, b],
+        _ if names.is_empty() => {
+            return Err(Error::invalid(
+                path,
+                format!("has no channels (write {what} as R, G, B or Y)"),
+            ))
+        }
+        _ => vec![find("Y").unwrap_or(0)],
+    };
+    Ok(picked.into_iter().map(|i| names[i].clone()).collect())
+}
+
 /// The header of an EXR's first flat layer (the one `first_valid_layer` decodes), read
 /// before any pixel.
 pub(crate) fn exr_flat_header(path: &Path) -> Result<exr::meta::header::Header> {

@@ -355,25 +355,7 @@ impl EnvMap {
         let (w, h) = (header.layer_size.width(), header.layer_size.height());
         check_env_sides(path, w, h)?;
         crate::load::image::check_exr_size(path, &header)?;
-        let names: Vec<String> = (header.channels.list.iter())
-            .map(|c| c.name.to_string())
-            .collect();
-        let find = |n: &str| {
-            names
-                .iter()
-                .position(|c| c == n || c.ends_with(&format!(".{n}")))
-        };
-        let picked: Vec<usize> = match (find("R"), find("G"), find("B")) {
-            (Some(r), Some(g), Some(b)) => vec![r, g, b],
-            _ if names.is_empty() => {
-                return Err(Error::invalid(
-                    path,
-                    "has no channels (write the environment as R, G, B or Y)",
-                ))
-            }
-            _ => vec![find("Y").unwrap_or(0)],
-        };
-        let picked: Vec<String> = picked.into_iter().map(|i| names[i].clone()).collect();
+        let picked = crate::load::image::exr_rgb_channels(path, &header, "the environment")?;
         let (w, h, planes) =
             crate::load::image::read_exr_channels(path, &picked, "the environment")?;
         check_env_sides(path, w, h)?;
