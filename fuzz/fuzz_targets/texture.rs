@@ -1,4 +1,4 @@
-//! bytes → an embedded material texture (USD's `auto` colour space) → `texture::ColorMap::load` (PNG or JPEG through
+//! bytes → an embedded material texture (USD's `auto` colour space) → `texture::ColorMap::load` (PNG, JPEG or TIFF through
 //! the `image` crate, with the dimension and allocation limits): any input is a clean `Err` or
 //! a map that keeps its invariants (one texel per pixel, each finite and in [0, 1], and a
 //! finite sample at any UV); a panic, abort or runaway allocation is a bug.
