@@ -284,6 +284,22 @@ pub struct ColorMap {
     pub name: String,
 }
 
+/// The largest texel magnitude a float texture may hold: blends of two stay finite.
+const MAX_TEXEL: f32 = 1e30;
+
+/// Why the first texel of `texels` (rows of `width`) that is not a number, or past
+/// `MAX_TEXEL`, cannot be shaded with, if there is one.
+fn out_of_range_texel(texels: &[Vec3], width: u32) -> Option<String> {
+    let i = texels
+        .iter()
+        .position(|c| !c.is_finite() || c.abs().max_element() > MAX_TEXEL)?;
+    let (x, y) = (i as u32 % width, i as u32 / width);
+    Some(format!(
+        "texel ({x}, {y}) is {}, not a number or past ±{MAX_TEXEL:e}",
+        texels[i]
+    ))
+}
+
 /// The first bytes of an OpenEXR file.
 const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 
@@ -430,6 +446,10 @@ impl ColorMap {
                 .map(|p| Vec3::from_array(p.0.map(decode)))
                 .collect()
         };
+        // A float TIFF may hold anything.
+        if let Some(why) = out_of_range_texel(&texels, width) {
+            return Err(bad(why));
+        }
         Ok(ColorMap {
             width,
             height,
@@ -466,20 +486,11 @@ impl ColorMap {
             ColorSpace::Srgb => srgb_to_linear,
             ColorSpace::Raw | ColorSpace::Auto => |x| x,
         };
-        let mut texels = Vec::with_capacity(w * h);
-        for i in 0..w * h {
-            let c = Vec3::new(channel(0)[i], channel(1)[i], channel(2)[i]);
-            if !c.is_finite() {
-                return Err(Error::invalid(
-                    path,
-                    format!(
-                        "texel ({}, {}) is {c}, not a number",
-                        i % w,
-                        i / w
-                    ),
-                ));
-            }
-            texels.push(Vec3::from_array(c.to_array().map(decode)));
+        let texels: Vec<Vec3> = (0..w * h)
+            .map(|i| Vec3::new(channel(0)[i], channel(1)[i], channel(2)[i]).map(decode))
+            .collect();
+        if let Some(why) = out_of_range_texel(&texels, w as u32) {
+            return Err(Error::invalid(path, why));
         }
         Ok(ColorMap {
             width: w as u32,
@@ -831,13 +842,20 @@ mod tests {
         let data = [0.5, -0.25, 2.0, 0.0, 0.25, 1.0]; // R G B of texel 0, then texel 1
         crate::render::output::write_exr(&exr, 2, 1, &["R", "G", "B"], &data).unwrap();
         for space in [ColorSpace::Auto, ColorSpace::Raw] {
-            let m = ColorMap::load(Path::new("a.usda"), &t(&exr, space), TextureSlot::Normal)
-                .unwrap();
+            let m =
+                ColorMap::load(Path::new("a.usda"), &t(&exr, space), TextureSlot::Normal).unwrap();
             assert_eq!((m.width, m.height), (2, 1));
-            assert_eq!(m.texels, [Vec3::new(0.5, -0.25, 2.0), Vec3::new(0.0, 0.25, 1.0)]);
+            assert_eq!(
+                m.texels,
+                [Vec3::new(0.5, -0.25, 2.0), Vec3::new(0.0, 0.25, 1.0)]
+            );
         }
-        let m = ColorMap::load(Path::new("a.usda"), &t(&exr, ColorSpace::Srgb), TextureSlot::BaseColor)
-            .unwrap();
+        let m = ColorMap::load(
+            Path::new("a.usda"),
+            &t(&exr, ColorSpace::Srgb),
+            TextureSlot::BaseColor,
+        )
+        .unwrap();
         assert_eq!(m.texels[0].x, srgb_to_linear(0.5));
         // Inside the asset file it cannot be read by path: an error that says so.
         let embedded = TextureRef {
@@ -852,17 +870,29 @@ mod tests {
         let nan = dir.join("nan.exr");
         let bad = [0.5, f32::NAN, 0.0, 0.0, 0.0, 0.0];
         crate::render::output::write_exr(&nan, 2, 1, &["R", "G", "B"], &bad).unwrap();
-        let e = ColorMap::load(Path::new("a.usda"), &t(&nan, ColorSpace::Raw), TextureSlot::BaseColor)
-            .unwrap_err()
-            .to_string();
+        let e = ColorMap::load(
+            Path::new("a.usda"),
+            &t(&nan, ColorSpace::Raw),
+            TextureSlot::BaseColor,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("texel (0, 0)") && e.contains("nan.exr"), "{e}");
         // A 16-bit TIFF keeps its codes over 65535 as data.
         let tif = dir.join("r.tif");
-        ::image::ImageBuffer::<::image::Rgb<u16>, _>::from_pixel(3, 2, ::image::Rgb([65535, 32768, 0]))
-            .save(&tif)
-            .unwrap();
-        let m = ColorMap::load(Path::new("a.usda"), &t(&tif, ColorSpace::Auto), TextureSlot::Roughness)
-            .unwrap();
+        ::image::ImageBuffer::<::image::Rgb<u16>, _>::from_pixel(
+            3,
+            2,
+            ::image::Rgb([65535, 32768, 0]),
+        )
+        .save(&tif)
+        .unwrap();
+        let m = ColorMap::load(
+            Path::new("a.usda"),
+            &t(&tif, ColorSpace::Auto),
+            TextureSlot::Roughness,
+        )
+        .unwrap();
         assert_eq!((m.width, m.height), (3, 2));
         assert_eq!(m.texels[5], Vec3::new(1.0, 32768.0 / 65535.0, 0.0));
     }
