@@ -1,6 +1,6 @@
-// texture.wgsl — the materials and their base-colour, roughness, metallic and normal textures,
-// the mirror of core/src/texture.rs (`ColorMap`), of `BeautyScene::material_at` and
-// `shade_hit`, and of core/src/tangent.rs (`frame_at`). A texture is
+// texture.wgsl — the materials and their base-colour, roughness, metallic, normal and emission
+// textures, the mirror of core/src/texture.rs (`ColorMap`), of `BeautyScene::material_at`,
+// `emission_at` and `shade_hit`, and of core/src/tangent.rs (`frame_at`). A texture is
 // linear RGB, 3 floats per texel, or (packed) one word of 8-bit codes per texel and the CPU's
 // table of their values, sRGB or raw (gpu::beauty::TextureLayout), rows top to bottom, stored
 // in `texture_texels` (from its `offset`), sampled with the height map's texel conventions and
