@@ -240,7 +240,8 @@ fn texture_ref(
 
 /// `Gltf::from_slice`, but gltf-json 1.4's validation indexes a primitive's POSITION
 /// accessor before checking the index (a panic on `"POSITION": 0` with no accessors, found
-/// by fuzzing; see docs/fuzzing.md): parse without validation, check that index, then validate.
+/// by fuzzing; see docs/fuzzing.md): parse without validation, check that index and each
+/// image's source, then validate.
 fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
     let invalid = |what: String| {
         Error::invalid(
@@ -266,6 +267,21 @@ fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
                     )));
                 }
             }
+        }
+    }
+    // gltf 1.4's `Image::source` unwraps the image's URI where it has no buffer view, and its
+    // MIME type where it has one (a panic on an image with neither, found by fuzzing).
+    for (i, image) in root.images.iter().enumerate() {
+        match (&image.buffer_view, &image.uri, &image.mime_type) {
+            (Some(_), _, None) => {
+                return Err(invalid(format!(
+                    "image {i} is in a buffer view but has no mimeType"
+                )))
+            }
+            (None, None, _) => {
+                return Err(invalid(format!("image {i} has neither a uri nor a bufferView")))
+            }
+            _ => {}
         }
     }
     ::gltf::Gltf::from_slice(bytes).map_err(|e| invalid(e.to_string()))

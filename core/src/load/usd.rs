@@ -195,8 +195,9 @@ fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Res
 }
 
 /// Refuse a text layer nested deeper than `MAX_USDA_NESTING` (strings and comments skipped),
-/// with square brackets nested deeper than `MAX_USDA_ARRAY_NESTING`, or with a prim whose
-/// name is not an identifier or whose quotes do not close on its line.
+/// with square brackets nested deeper than `MAX_USDA_ARRAY_NESTING`, with a prim whose name
+/// is not an identifier or whose quotes do not close on its line, or with a path `<…>` that
+/// does not close on its line or holds what no path does.
 /// Binary layers (`PXR-USDC`) are not scanned.
 fn check_nesting(path: &Path) -> Result<()> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
@@ -246,6 +247,36 @@ fn check_nesting(path: &Path) -> Result<()> {
                 if matches!(word, b"def" | b"over" | b"class") {
                     check_prim_name(path, &bytes, &mut i, line)?;
                 }
+                continue;
+            }
+            b'<' => {
+                // A path `<…>` closes on its line and holds path characters only: openusd took
+                // a relationship target that ran on (`</rooint3f[] points = [(-1, …` over a
+                // dozen lines) for path syntax and recursed without end (a stack overflow).
+                let start = i + 1;
+                let end = bytes[start..]
+                    .iter()
+                    .position(|&b| b == b'>' || b == b'\n')
+                    .map(|k| start + k)
+                    .filter(|&e| bytes[e] == b'>');
+                let bad = match end {
+                    None => Some("its angle brackets are not closed on its line"),
+                    Some(e) => bytes[start..e]
+                        .iter()
+                        .any(|&b| {
+                            !(b.is_ascii_alphanumeric() || b >= 0x80 || b"_/.:[]{}=-".contains(&b))
+                        })
+                        .then_some("it holds characters no path has"),
+                };
+                if let Some(why) = bad {
+                    return Err(Error::invalid(
+                        path,
+                        format!(
+                            "line {line}: a path (`<…>`): {why}; the file is corrupt (re-export it)"
+                        ),
+                    ));
+                }
+                i = end.unwrap_or(i) + 1;
                 continue;
             }
             b @ (b'{' | b'(' | b'[') => {

@@ -1294,6 +1294,34 @@ fn a_prim_name_whose_quotes_run_past_its_line_is_an_error() {
     );
 }
 
+#[test]
+fn a_path_that_runs_past_its_line_is_an_error() {
+    // Found by fuzzing a Blender export: a relationship target's `<` whose `>` came a dozen
+    // lines later sent openusd's instancing into endless recursion, a stack overflow.
+    let d = dir("path-lines");
+    let overflow = include_str!("../../../fuzz/corpus/usda/stack-overflow-path-across-lines");
+    for (name, text, line, why) in [
+        ("overflow.usda", overflow, "line 30", "not closed on its line"),
+        (
+            "spaces.usda",
+            "#usda 1.0\n\ndef Mesh \"M\"\n{\n    rel material:binding = </A B>\n}\n",
+            "line 5",
+            "characters no path has",
+        ),
+    ] {
+        let e = load_mesh(&write(&d, name, text), &MeshOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(name) && e.contains(line) && e.contains(why), "{e}");
+    }
+    // Paths with targets, variant selections and namespaces pass.
+    let fine = quad_with_cameras("Y", "")
+        .replace("def Mesh \"M\"\n{", "def Mesh \"M\"\n{\n    rel a:b = [</M.c[/d].e>, </M{v=x}>]");
+    assert!(fine.contains("rel a:b"), "{fine}");
+    let m = load_mesh(&write(&d, "fine.usda", &fine), &MeshOptions::default()).unwrap();
+    assert_eq!(m.triangle_count(), 2);
+}
+
 /// A quad in the z = 0 plane and the given camera prims after it.
 fn quad_with_cameras(up: &str, cameras: &str) -> String {
     layer(
