@@ -1,17 +1,20 @@
 //! The beauty pass: a progressive path tracer over any intersector. Lighting: the environment
 //! (`env`) and an optional directional key light; material: `shading::Material` (Lambert +
-//! GGX, mirror below `MIRROR_ROUGHNESS`), one per material of the asset, its base colour times
-//! an optional colour texture at the hit's UV (`BeautyScene::material_at`); `bounces` surface
-//! events; next-event estimation of
-//! the environment combined with BSDF sampling by MIS (power heuristic); the key light is a
-//! delta light, sampled only by shadow rays. An optional shadow-catcher ground plane at the
-//! asset's lowest point records how much light the asset takes away (alpha), nothing else.
+//! GGX, mirror below `MIRROR_ROUGHNESS`), one per material of the asset, its base colour,
+//! roughness and metallic times optional textures at the hit's UV (`BeautyScene::material_at`),
+//! its shading normal bent by an optional normal map (`shade_hit`), and an optional glow
+//! (`emission_at`, met by camera and BSDF rays, not sampled as a light); `bounces` surface
+//! events; next-event estimation of the environment and the key light (a direction, or a disc
+//! that BSDF samples meet too) combined with BSDF sampling by MIS (power heuristic). An optional
+//! shadow-catcher ground plane at the asset's lowest point records how much light the asset
+//! takes away (alpha), nothing else.
 //!
 //! Samples are rendered in passes (sample 0 of every pixel, then sample 1, ...) and every
 //! random number is `rng::random(pixel, sample, dimension, purpose, seed)`, so the image is the
 //! same for any thread count and a run of N samples is the first N of a longer run. Secondary
 //! rays are not traced when nothing needs them: no shadow rays without a light to sample, and
-//! the last bounce's BSDF ray only asks whether it escapes to the environment (`occluded`).
+//! the last bounce's BSDF ray only asks whether it escapes to the environment (`occluded`),
+//! unless some material glows (then it asks what it meets).
 //!
 //! Output: linear, premultiplied RGBA for the EXR (background alpha 0, RGB 0; shadow catcher
 //! RGB 0, alpha = shadow), and a preview composited over the visible environment, filmic
