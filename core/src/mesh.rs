@@ -277,6 +277,7 @@ mod tests {
             tex_coord: 0,
             transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Raw,
+            scale_bias: None,
         };
         let channel = |name| {
             Some(ChannelRef {

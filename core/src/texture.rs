@@ -217,6 +217,9 @@ pub struct TextureRef {
     /// How the file transforms its UVs for this texture (`KHR_texture_transform`, `-o`/`-s`).
     pub transform: UvTransform,
     pub color_space: ColorSpace,
+    /// Per channel, a scale and a bias applied to the decoded texels, `texel · scale + bias`
+    /// (USD's `UsdUVTexture` `inputs:scale` and `inputs:bias`); `None`: as decoded.
+    pub scale_bias: Option<([f32; 3], [f32; 3])>,
 }
 
 /// A tangent-space normal map: the normal in the tangent frame (`tangent::frame_at`: x along
@@ -282,6 +285,17 @@ pub struct ColorMap {
     /// Applied to a UV before it is sampled (`TextureRef::transform`).
     pub transform: UvTransform,
     pub name: String,
+}
+
+/// `texels` times a texture's per-channel scale plus its bias (`TextureRef::scale_bias`).
+fn scaled(mut texels: Vec<Vec3>, scale_bias: Option<([f32; 3], [f32; 3])>) -> Vec<Vec3> {
+    if let Some((scale, bias)) = scale_bias {
+        let (scale, bias) = (Vec3::from_array(scale), Vec3::from_array(bias));
+        for t in &mut texels {
+            *t = *t * scale + bias;
+        }
+    }
+    texels
 }
 
 /// The largest texel magnitude a float texture may hold: blends of two stay finite.
@@ -446,7 +460,8 @@ impl ColorMap {
                 .map(|p| Vec3::from_array(p.0.map(decode)))
                 .collect()
         };
-        // A float TIFF may hold anything.
+        // A float TIFF may hold anything, and so may any texel past a scale and bias.
+        let texels = scaled(texels, texture.scale_bias);
         if let Some(why) = out_of_range_texel(&texels, width) {
             return Err(bad(why));
         }
@@ -489,6 +504,7 @@ impl ColorMap {
         let texels: Vec<Vec3> = (0..w * h)
             .map(|i| Vec3::new(channel(0)[i], channel(1)[i], channel(2)[i]).map(decode))
             .collect();
+        let texels = scaled(texels, texture.scale_bias);
         if let Some(why) = out_of_range_texel(&texels, w as u32) {
             return Err(Error::invalid(path, why));
         }
@@ -675,6 +691,7 @@ mod tests {
             tex_coord: 0,
             transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Srgb,
+            scale_bias: None,
         };
         let m = ColorMap::load(Path::new("a.gltf"), &t, TextureSlot::BaseColor).unwrap();
         assert_eq!((m.width, m.height), (2, 2));
@@ -767,6 +784,7 @@ mod tests {
                 tex_coord: 0,
                 transform: UvTransform::IDENTITY,
                 color_space,
+                scale_bias: None,
             };
             ColorMap::load(Path::new("a.glb"), &t, TextureSlot::Roughness)
                 .unwrap()
@@ -811,6 +829,7 @@ mod tests {
             tex_coord: 0,
             transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Srgb,
+            scale_bias: None,
         };
         let m = ColorMap::load(Path::new("a.glb"), &t, TextureSlot::BaseColor).unwrap();
         assert_eq!((m.width, m.height), (16, 8));
@@ -834,6 +853,7 @@ mod tests {
             tex_coord: 0,
             transform: UvTransform::IDENTITY,
             color_space,
+            scale_bias: None,
         };
         // A 2 x 1 float EXR: values outside 0..1 (a tangent-space normal's -0.25, an emission
         // of 2) are kept as stored; `Auto` (USD's default) and `Raw` read it linear, `Srgb`
@@ -857,6 +877,16 @@ mod tests {
         )
         .unwrap();
         assert_eq!(m.texels[0].x, srgb_to_linear(0.5));
+        // A scale and bias (USD's) apply per channel to the decoded texels, EXR or not.
+        let inverted = TextureRef {
+            scale_bias: Some(([1.0, -2.0, 1.0], [0.0, 1.0, 0.5])),
+            ..t(&exr, ColorSpace::Raw)
+        };
+        let m = ColorMap::load(Path::new("a.usda"), &inverted, TextureSlot::Roughness).unwrap();
+        assert_eq!(
+            m.texels,
+            [Vec3::new(0.5, 1.5, 2.5), Vec3::new(0.0, 0.5, 1.5)]
+        );
         // Inside the asset file it cannot be read by path: an error that says so.
         let embedded = TextureRef {
             data: TextureData::Embedded(std::fs::read(&exr).unwrap()),
@@ -895,6 +925,12 @@ mod tests {
         .unwrap();
         assert_eq!((m.width, m.height), (3, 2));
         assert_eq!(m.texels[5], Vec3::new(1.0, 32768.0 / 65535.0, 0.0));
+        let tif_inverted = TextureRef {
+            scale_bias: Some(([-1.0; 3], [1.0; 3])),
+            ..t(&tif, ColorSpace::Raw)
+        };
+        let m = ColorMap::load(Path::new("a.usda"), &tif_inverted, TextureSlot::Roughness).unwrap();
+        assert_eq!(m.texels[0], Vec3::new(0.0, 1.0 - 32768.0 / 65535.0, 1.0));
     }
 
     #[test]
@@ -906,6 +942,7 @@ mod tests {
             tex_coord: 0,
             transform: UvTransform::IDENTITY,
             color_space: ColorSpace::Srgb,
+            scale_bias: None,
         };
         let cases = [
             t(TextureData::Embedded(b"not an image".to_vec())),

@@ -218,6 +218,7 @@ fn load_texture(bytes: &[u8]) -> prismbake::Result<prismbake::texture::ColorMap>
             tex_coord: 0,
             transform: Default::default(),
             color_space: ColorSpace::Auto,
+            scale_bias: None,
         },
         TextureSlot::BaseColor,
     )

@@ -34,6 +34,7 @@ fuzz_target!(|data: &[u8]| {
         transform: Default::default(),
         // sRGB for an 8-bit colour image, raw for grey or 16-bit ones: both decoders' paths.
         color_space: ColorSpace::Auto,
+        scale_bias: None,
     };
     let Ok(mut map) = ColorMap::load(Path::new("fuzz.glb"), &tref, TextureSlot::BaseColor) else {
         return;

@@ -235,6 +235,7 @@ fn texture_ref(
         tex_coord: transform.and_then(|t| t.1).unwrap_or(tex_coord),
         transform: transform.map_or(UvTransform::IDENTITY, |t| t.0),
         color_space,
+        scale_bias: None,
     })
 }
 
@@ -279,7 +280,9 @@ fn parse_gltf(path: &Path, bytes: &[u8]) -> Result<::gltf::Gltf> {
                 )))
             }
             (None, None, _) => {
-                return Err(invalid(format!("image {i} has neither a uri nor a bufferView")))
+                return Err(invalid(format!(
+                    "image {i} has neither a uri nor a bufferView"
+                )))
             }
             _ => {}
         }

@@ -172,6 +172,7 @@ fn mtl_map<'a>(
         tex_coord: 0,
         transform,
         color_space,
+        scale_bias: None,
     };
     Ok(MtlMap {
         texture,

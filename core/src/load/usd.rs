@@ -1708,21 +1708,26 @@ fn uv_texture(
             _ => TexWrap::Repeat,
         })
     };
-    // A normal map applies them (`normal_map`).
-    let applied: &[(&str, f64)] = match what {
-        "normal" => &[],
-        _ => &[("scale", 1.0), ("bias", 0.0)],
-    };
-    for &(name, identity) in applied {
-        let v = input_value(path, stage, tex, name)?;
-        if v.as_ref()
-            .and_then(vec4)
-            .is_some_and(|v| v[..3].iter().any(|&x| x != identity))
-        {
-            warn(
-                path,
-                &format!("{tex}: the {what} texture's inputs:{name} is not applied"),
-            );
+    // `texel · scale + bias` per channel, applied when the texture is decoded; a normal map
+    // applies its own (`normal_map`).
+    let mut scale_bias = ([1.0f32; 3], [0.0f32; 3]);
+    if what != "normal" {
+        for (k, name) in ["scale", "bias"].into_iter().enumerate() {
+            if let Some(v) = input_value(path, stage, tex, name)? {
+                let v = vec4(&v).ok_or_else(|| {
+                    prim_err(
+                        path,
+                        tex,
+                        format!("inputs:{name} is {}, expected float4", kind(&v)),
+                    )
+                })?;
+                let v = [v[0] as f32, v[1] as f32, v[2] as f32];
+                if k == 0 {
+                    scale_bias.0 = v;
+                } else {
+                    scale_bias.1 = v;
+                }
+            }
         }
     }
     Ok(Some(TextureRef {
@@ -1743,6 +1748,7 @@ fn uv_texture(
             Some("sRGB") => ColorSpace::Srgb,
             _ => ColorSpace::Auto,
         },
+        scale_bias: (scale_bias != ([1.0; 3], [0.0; 3])).then_some(scale_bias),
     }))
 }
 

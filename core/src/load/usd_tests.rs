@@ -466,6 +466,8 @@ fn preview_surface_materials_are_read_per_mesh() {
                 uniform token info:id = "UsdUVTexture"
                 asset inputs:file = @./tex/orm.png@
                 token inputs:sourceColorSpace = "raw"
+                float4 inputs:scale = (1, -1, 1, 1)
+                float4 inputs:bias = (0, 1, 0, 0)
                 float2 inputs:st.connect = </A/Looks/Stone/Turn.outputs:result>
                 float outputs:g
             }}
@@ -546,6 +548,13 @@ fn preview_surface_materials_are_read_per_mesh() {
     let r = stone.roughness_texture.as_ref().unwrap();
     assert_eq!((r.texture.name.as_str(), r.channel), ("orm.png", 1));
     assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
+    // Its scale and bias (green inverted: a glossiness map read as roughness) are applied
+    // when it is decoded; the albedo has none.
+    assert_eq!(
+        r.texture.scale_bias,
+        Some(([1.0, -1.0, 1.0], [0.0, 1.0, 0.0]))
+    );
+    assert_eq!(t.scale_bias, None);
     // Read through two UsdTransform2d's, the one nearer the reader first.
     let tile = crate::texture::UvTransform::usd([2.0, 3.0], 0.0, [0.0; 2]);
     let turn = crate::texture::UvTransform::usd([1.0; 2], 90.0, [0.25, 0.5]);
@@ -1301,7 +1310,12 @@ fn a_path_that_runs_past_its_line_is_an_error() {
     let d = dir("path-lines");
     let overflow = include_str!("../../../fuzz/corpus/usda/stack-overflow-path-across-lines");
     for (name, text, line, why) in [
-        ("overflow.usda", overflow, "line 30", "not closed on its line"),
+        (
+            "overflow.usda",
+            overflow,
+            "line 30",
+            "not closed on its line",
+        ),
         (
             "spaces.usda",
             "#usda 1.0\n\ndef Mesh \"M\"\n{\n    rel material:binding = </A B>\n}\n",
@@ -1312,11 +1326,16 @@ fn a_path_that_runs_past_its_line_is_an_error() {
         let e = load_mesh(&write(&d, name, text), &MeshOptions::default())
             .unwrap_err()
             .to_string();
-        assert!(e.contains(name) && e.contains(line) && e.contains(why), "{e}");
+        assert!(
+            e.contains(name) && e.contains(line) && e.contains(why),
+            "{e}"
+        );
     }
     // Paths with targets, variant selections and namespaces pass.
-    let fine = quad_with_cameras("Y", "")
-        .replace("def Mesh \"M\"\n{", "def Mesh \"M\"\n{\n    rel a:b = [</M.c[/d].e>, </M{v=x}>]");
+    let fine = quad_with_cameras("Y", "").replace(
+        "def Mesh \"M\"\n{",
+        "def Mesh \"M\"\n{\n    rel a:b = [</M.c[/d].e>, </M{v=x}>]",
+    );
     assert!(fine.contains("rel a:b"), "{fine}");
     let m = load_mesh(&write(&d, "fine.usda", &fine), &MeshOptions::default()).unwrap();
     assert_eq!(m.triangle_count(), 2);
