@@ -150,6 +150,28 @@ fn is_identifier(s: &str) -> bool {
         && s.chars().all(|c| c.is_alphanumeric() || c == '_')
 }
 
+/// Whether `p` (between a path's `<` and `>`) is made of path characters only: identifier
+/// characters, `/ . : -`, variant selections `{set=name}` (not nested), and balanced
+/// `[ ]` around target paths. A stray `}` (`</…/Image_Text}re.outputs:rgb>`, found by
+/// fuzzing) sent openusd's instancing into endless recursion, as a path running past its
+/// line did.
+fn is_path_text(p: &[u8]) -> bool {
+    let (mut squares, mut brace) = (0usize, false);
+    for &c in p {
+        match c {
+            b'{' if !brace => brace = true,
+            b'}' if brace => brace = false,
+            b'[' => squares += 1,
+            b']' if squares > 0 => squares -= 1,
+            b'=' if brace => {}
+            b'_' | b'/' | b'.' | b':' | b'-' => {}
+            c if c.is_ascii_alphanumeric() || c >= 0x80 => {}
+            _ => return false,
+        }
+    }
+    !brace && squares == 0
+}
+
 /// After `def` / `over` / `class` at `i`: skip an optional type name; a quoted prim name must
 /// be an identifier (letters, digits and `_`, not starting with a digit; UTF-8 letters allowed).
 fn check_prim_name(path: &Path, bytes: &[u8], i: &mut usize, line: usize) -> Result<()> {
@@ -261,12 +283,8 @@ fn check_nesting(path: &Path) -> Result<()> {
                     .filter(|&e| bytes[e] == b'>');
                 let bad = match end {
                     None => Some("its angle brackets are not closed on its line"),
-                    Some(e) => bytes[start..e]
-                        .iter()
-                        .any(|&b| {
-                            !(b.is_ascii_alphanumeric() || b >= 0x80 || b"_/.:[]{}=-".contains(&b))
-                        })
-                        .then_some("it holds characters no path has"),
+                    Some(e) => (!is_path_text(&bytes[start..e]))
+                        .then_some("it holds characters no path has, or unbalanced { } [ ]"),
                 };
                 if let Some(why) = bad {
                     return Err(Error::invalid(

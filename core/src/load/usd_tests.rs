@@ -1322,6 +1322,12 @@ fn a_path_that_runs_past_its_line_is_an_error() {
             "line 5",
             "characters no path has",
         ),
+        (
+            "brace.usda",
+            "#usda 1.0\n\ndef Mesh \"M\"\n{\n    rel material:binding = </A/Image_Text}re.outputs:rgb>\n}\n",
+            "line 5",
+            "unbalanced",
+        ),
     ] {
         let e = load_mesh(&write(&d, name, text), &MeshOptions::default())
             .unwrap_err()
