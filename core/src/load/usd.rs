@@ -150,6 +150,62 @@ fn is_identifier(s: &str) -> bool {
         && s.chars().all(|c| c.is_alphanumeric() || c == '_')
 }
 
+/// A relationship target or connection `target` of property `at`, if it is a path the reader
+/// can follow: prim names that are identifiers from the root (with variant selections), then
+/// at most a property name (identifiers joined by `:`). A mangled one (`/root/…/Mappinp/*hh…`, spaces, `*` and NULs
+/// in it: the text parser and the pre-check disagreed on where a string ended) sent openusd's
+/// instancing into endless recursion when its prim was asked for (found by fuzzing).
+fn checked_target(path: &Path, at: &sdf::Path, target: sdf::Path) -> Result<sdf::Path> {
+    let text = target.as_str();
+    let (prim, prop) = match text.rsplit_once('/') {
+        Some((head, last)) => match last.split_once('.') {
+            Some((name, prop)) => (format!("{head}/{name}"), Some(prop)),
+            None => (text.to_string(), None),
+        },
+        None => (text.to_string(), None),
+    };
+    // A prim name, then any variant selections `{set=name}`.
+    let component = |c: &str| {
+        let (name, mut rest) = c.split_once('{').map_or((c, ""), |(n, r)| (n, r));
+        if !is_identifier(name) {
+            return false;
+        }
+        while !rest.is_empty() {
+            let Some((sel, after)) = rest.split_once('}') else {
+                return false;
+            };
+            let Some((set, choice)) = sel.split_once('=') else {
+                return false;
+            };
+            if !is_identifier(set) || !(choice.is_empty() || is_identifier(choice)) {
+                return false;
+            }
+            rest = after.strip_prefix('{').unwrap_or(after);
+            if !after.is_empty() && !after.starts_with('{') {
+                return false;
+            }
+        }
+        true
+    };
+    let prim_ok = prim
+        .strip_prefix('/')
+        .is_some_and(|p| p.split('/').all(component));
+    let prop_ok = prop.is_none_or(|p| p.split(':').all(is_identifier));
+    if prim_ok && prop_ok {
+        return Ok(target);
+    }
+    let shown: String = text.chars().take(80).collect();
+    Err(prim_err(
+        path,
+        at,
+        format!(
+            "targets \"{}\", which is not a path of prim names (letters, digits and _) and a \
+             property name; the file is corrupt (re-export it)",
+            shown.escape_debug()
+        ),
+    ))
+}
+
 /// Whether `p` (between a path's `<` and `>`) is made of path characters only: identifier
 /// characters, `/ . : -`, variant selections `{set=name}` (not nested), and balanced
 /// `[ ]` around target paths. A stray `}` (`</…/Image_Text}re.outputs:rgb>`, found by
@@ -242,7 +298,9 @@ fn check_nesting(path: &Path) -> Result<()> {
                 continue;
             }
             q @ (b'"' | b'\'') => {
-                // A string, single or triple quoted; backslash escapes the next byte.
+                // A string, single or triple quoted; backslash escapes the next byte. A single
+                // quoted one ends at its line's end (no valid one holds a newline): one that
+                // ran on hid a mutated path's `<` from the checks below (found by fuzzing).
                 let triple = bytes[i..].starts_with(&[q, q, q]);
                 i += if triple { 3 } else { 1 };
                 while i < bytes.len() {
@@ -251,6 +309,9 @@ fn check_nesting(path: &Path) -> Result<()> {
                         continue;
                     }
                     if bytes[i] == b'\n' {
+                        if !triple {
+                            break;
+                        }
                         line += 1;
                     }
                     if bytes[i] == q && (!triple || bytes[i..].starts_with(&[q, q, q])) {
@@ -1255,7 +1316,7 @@ fn bound_material(path: &Path, stage: &Stage, prim: &sdf::Path) -> Result<Option
                 .targets()
                 .map_err(|e| usd_err(path, &rp, e))?;
             if let Some(t) = targets.into_iter().next() {
-                return Ok(Some(t));
+                return checked_target(path, &rp, t).map(Some);
             }
         }
         p = cur.parent();
@@ -1284,6 +1345,7 @@ fn connected_output(
         let Some(target) = conns.into_iter().next() else {
             return Ok(None);
         };
+        let target = checked_target(path, &cur, target)?;
         let Some((prim, prop)) = target.split_property() else {
             return Err(prim_err(
                 path,
@@ -1319,7 +1381,7 @@ fn input_value(
             .connections()
             .map_err(|e| usd_err(path, &cur, e))?;
         match conns.into_iter().next() {
-            Some(t) => cur = t,
+            Some(t) => cur = checked_target(path, &cur, t)?,
             None => return attr_value(path, stage, &cur),
         }
     }

@@ -1441,3 +1441,55 @@ fn a_usd_camera_that_cannot_be_rendered_through_is_left_out() {
         assert_eq!(m.triangle_count(), 2, "{body}");
     }
 }
+
+#[test]
+fn targets_must_be_paths_of_prim_and_property_names() {
+    let at = sdf::Path::new("/M.rel").unwrap();
+    let p = std::path::Path::new("a.usda");
+    for good in ["/A/B", "/A/B.outputs:rgb", "/A{v=x}/B.c", "/A{v=}{w=y}"] {
+        let t = sdf::Path::new(good).unwrap();
+        assert!(super::checked_target(p, &at, t).is_ok(), "{good}");
+    }
+    // Those openusd's own parser lets through (as a mangled text layer's targets did).
+    let mut refused = 0;
+    for bad in ["/A/B}c", "/A/*x", "/A/B C", "/A{v}/B", "/A/B.c d"] {
+        let Ok(t) = sdf::Path::new(bad) else { continue };
+        let e = super::checked_target(p, &at, t).unwrap_err().to_string();
+        assert!(
+            e.contains("/M.rel") && e.contains("not a path of prim names"),
+            "{e}"
+        );
+        refused += 1;
+    }
+    assert!(refused >= 2, "only {refused} of the bad paths parse");
+    // A relative connection in a text layer is anchored where it is authored, and followed.
+    let d = dir("relative-target");
+    let text = layer(
+        "Y",
+        r#"def Mesh "M" (
+    prepend apiSchemas = ["MaterialBindingAPI"]
+)
+{
+    int[] faceVertexCounts = [3]
+    int[] faceVertexIndices = [0, 1, 2]
+    point3f[] points = [(0, 0, 0), (1, 0, 0), (0, 1, 0)]
+    rel material:binding = <../Looks/Red>
+}
+def Scope "Looks"
+{
+    def Material "Red"
+    {
+        token outputs:surface.connect = <Surf.outputs:surface>
+        def Shader "Surf"
+        {
+            uniform token info:id = "UsdPreviewSurface"
+            color3f inputs:diffuseColor = (1, 0, 0)
+            token outputs:surface
+        }
+    }
+}"#,
+    );
+    let m = load_mesh(&write(&d, "a.usda", &text), &MeshOptions::default()).unwrap();
+    assert_eq!(m.materials.len(), 1, "{:?}", m.materials);
+    assert_eq!(m.materials[0].base_color, [1.0, 0.0, 0.0, 1.0]);
+}
