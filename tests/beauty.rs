@@ -1543,6 +1543,15 @@ fn a_materials_index_of_refraction_sets_its_reflectance() {
             "{device}: blue {blue}"
         );
     }
+    // `inspect` states each material's reflectance.
+    let info = run(&["inspect", s(&square), "--disp", s(&map)]);
+    info.assert_success();
+    assert!(
+        info.stdout.contains("metallic 0, specular 0.11111")
+            && info.stdout.contains("metallic 0, specular 0.04"),
+        "{}",
+        info.stdout
+    );
     let (f0, red, blue) = render("override", &["--specular", "0.2"]);
     assert_eq!(f0, [0.2; 2]);
     assert!(

@@ -495,6 +495,7 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
             m.base_color,
             m.roughness,
             m.metallic,
+            m.specular,
             m.emission,
             [
                 m.texture.as_deref(),
@@ -504,10 +505,7 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
                 m.emission_texture.as_deref(),
             ],
         );
-        eprintln!(
-            "beauty material '{}' ({} prisms): {what}, specular {}",
-            m.name, m.prisms, m.specular
-        );
+        eprintln!("beauty material '{}' ({} prisms): {what}", m.name, m.prisms);
     }
     if let Some(d) = &summary.denoiser {
         eprintln!("beauty denoised with {d}");

@@ -467,6 +467,8 @@ pub struct MaterialInfo {
     /// The same for `metallic`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metallic_texture: Option<String>,
+    /// The dielectric reflectance F0 its index of refraction gives, else the default.
+    pub specular: f32,
     /// "name, strength 1": the normal map.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_texture: Option<String>,
@@ -499,6 +501,9 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             base_color: [m.base_color[0], m.base_color[1], m.base_color[2]],
             roughness: m.roughness,
             metallic: m.metallic,
+            specular: m
+                .specular
+                .unwrap_or(crate::render::lookdev::DEFAULT_SPECULAR),
             texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
             roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
             metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
@@ -522,6 +527,7 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
             base_color: crate::render::lookdev::DEFAULT_BASE_COLOR.to_array(),
             roughness: crate::render::lookdev::DEFAULT_ROUGHNESS,
             metallic: crate::render::lookdev::DEFAULT_METALLIC,
+            specular: crate::render::lookdev::DEFAULT_SPECULAR,
             texture: None,
             roughness_texture: None,
             metallic_texture: None,
@@ -564,6 +570,7 @@ impl InspectInfo {
                 m.base_color,
                 m.roughness,
                 m.metallic,
+                m.specular,
                 m.emission,
                 [
                     m.texture.as_deref(),

@@ -242,13 +242,14 @@ pub struct MaterialSummary {
 }
 
 /// A material for people: "base colour (r, g, b) x texture T, roughness R x texture U,
-/// metallic M, normal map N, emission (r, g, b) x texture E" (the render's summary lines,
+/// metallic M, specular S, normal map N, emission (r, g, b) x texture E" (the render's summary lines,
 /// `inspect`): each factor with the texture that multiplies it, if any, then the normal map
 /// and the emission, if any. `textures`: base colour, roughness, metallic, normal, emission.
 pub fn describe_material(
     base_color: [f32; 3],
     roughness: f32,
     metallic: f32,
+    specular: f32,
     emission: Option<[f32; 3]>,
     textures: [Option<&str>; 5],
 ) -> String {
@@ -260,7 +261,8 @@ pub fn describe_material(
         format!(", emission ({r}, {g}, {b}){te}")
     });
     format!(
-        "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}{normal}{glow}"
+        "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}, \
+         specular {specular}{normal}{glow}"
     )
 }
 
