@@ -1357,6 +1357,13 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
         "{}",
         o.stderr
     );
+    // `validate`'s textures check says the same.
+    let report = run(&["validate", s(&square), "--disp", s(&map), "--format", "json"]);
+    assert!(
+        report.stdout.contains("textures") && report.stdout.contains("is a grey image"),
+        "{}",
+        report.stdout
+    );
     close(left, flat, "grey left");
     close(right, flat, "grey right");
 }
