@@ -1358,7 +1358,14 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
         o.stderr
     );
     // `validate`'s textures check says the same.
-    let report = run(&["validate", s(&square), "--disp", s(&map), "--format", "json"]);
+    let report = run(&[
+        "validate",
+        s(&square),
+        "--disp",
+        s(&map),
+        "--format",
+        "json",
+    ]);
     assert!(
         report.stdout.contains("textures") && report.stdout.contains("is a grey image"),
         "{}",
