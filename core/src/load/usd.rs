@@ -1455,16 +1455,7 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
         ));
     };
     let four = |name: &str, default: [f64; 4]| -> Result<[f64; 4]> {
-        Ok(match input_value(path, stage, &tex, name)? {
-            None => default,
-            Some(v) => vec4(&v).ok_or_else(|| {
-                prim_err(
-                    path,
-                    &tex,
-                    format!("inputs:{name} is {}, expected float4", kind(&v)),
-                )
-            })?,
-        })
+        Ok(typed_input(path, stage, &tex, name, vec4, "float4")?.unwrap_or(default))
     };
     let scale = four("scale", [1.0; 4])?[channel];
     let bias = four("bias", [0.0; 4])?[channel];
@@ -1680,20 +1671,7 @@ fn normal_map(
     let Some(texture) = uv_texture(path, stage, &tex, uv_name, "normal")? else {
         return Ok(None);
     };
-    let mut scale_bias = [[1.0f32; 3], [0.0; 3]];
-    for (k, name) in ["scale", "bias"].iter().enumerate() {
-        if let Some(v) = input_value(path, stage, &tex, name)? {
-            let v = vec4(&v).ok_or_else(|| {
-                prim_err(
-                    path,
-                    &tex,
-                    format!("inputs:{name} is {}, expected float4", kind(&v)),
-                )
-            })?;
-            scale_bias[k] = [v[0] as f32, v[1] as f32, v[2] as f32];
-        }
-    }
-    let [scale, bias] = scale_bias;
+    let (scale, bias) = texture_scale_bias(path, stage, &tex)?;
     if scale == [1.0; 3] && bias == [0.0; 3] {
         warn(
             path,
@@ -1740,27 +1718,10 @@ fn uv_texture(
             break;
         }
         let float2 = |name: &str, default: [f32; 2]| -> Result<[f32; 2]> {
-            Ok(match input_value(path, stage, &node, name)? {
-                None => default,
-                Some(v) => vec2(&v).ok_or_else(|| {
-                    prim_err(
-                        path,
-                        &node,
-                        format!("inputs:{name} is {}, expected float2", kind(&v)),
-                    )
-                })?,
-            })
+            Ok(typed_input(path, stage, &node, name, vec2, "float2")?.unwrap_or(default))
         };
-        let rotation = match input_value(path, stage, &node, "rotation")? {
-            None => 0.0,
-            Some(v) => scalar(&v).ok_or_else(|| {
-                prim_err(
-                    path,
-                    &node,
-                    format!("inputs:rotation is {}, expected float", kind(&v)),
-                )
-            })? as f32,
-        };
+        let rotation =
+            typed_input(path, stage, &node, "rotation", scalar, "float")?.unwrap_or(0.0) as f32;
         let step = UvTransform::usd(
             float2("scale", [1.0; 2])?,
             rotation,
@@ -1790,26 +1751,10 @@ fn uv_texture(
     };
     // `texel · scale + bias` per channel, applied when the texture is decoded; a normal map
     // applies its own (`normal_map`).
-    let mut scale_bias = ([1.0f32; 3], [0.0f32; 3]);
-    if what != "normal" {
-        for (k, name) in ["scale", "bias"].into_iter().enumerate() {
-            if let Some(v) = input_value(path, stage, tex, name)? {
-                let v = vec4(&v).ok_or_else(|| {
-                    prim_err(
-                        path,
-                        tex,
-                        format!("inputs:{name} is {}, expected float4", kind(&v)),
-                    )
-                })?;
-                let v = [v[0] as f32, v[1] as f32, v[2] as f32];
-                if k == 0 {
-                    scale_bias.0 = v;
-                } else {
-                    scale_bias.1 = v;
-                }
-            }
-        }
-    }
+    let scale_bias = match what {
+        "normal" => ([1.0; 3], [0.0; 3]),
+        _ => texture_scale_bias(path, stage, tex)?,
+    };
     Ok(Some(TextureRef {
         name: file.file_name().map_or_else(
             || file.display().to_string(),
@@ -1830,6 +1775,38 @@ fn uv_texture(
         },
         scale_bias: (scale_bias != ([1.0; 3], [0.0; 3])).then_some(scale_bias),
     }))
+}
+
+/// Input `name` of `shader` converted by `conv` (`want`: the type for the error, "float4"),
+/// `None` where it is not authored; a value of another type is an error naming the input.
+fn typed_input<T>(
+    path: &Path,
+    stage: &Stage,
+    shader: &sdf::Path,
+    name: &str,
+    conv: fn(&Value) -> Option<T>,
+    want: &str,
+) -> Result<Option<T>> {
+    match input_value(path, stage, shader, name)? {
+        None => Ok(None),
+        Some(v) => conv(&v).map(Some).ok_or_else(|| {
+            prim_err(
+                path,
+                shader,
+                format!("inputs:{name} is {}, expected {want}", kind(&v)),
+            )
+        }),
+    }
+}
+
+/// A `UsdUVTexture`'s `inputs:scale` and `inputs:bias` for its r, g and b (1 and 0 where
+/// unauthored).
+fn texture_scale_bias(path: &Path, stage: &Stage, tex: &sdf::Path) -> Result<([f32; 3], [f32; 3])> {
+    let rgb = |name: &str, default: f32| -> Result<[f32; 3]> {
+        Ok(typed_input(path, stage, tex, name, vec4, "float4")?
+            .map_or([default; 3], |v| [v[0] as f32, v[1] as f32, v[2] as f32]))
+    };
+    Ok((rgb("scale", 1.0)?, rgb("bias", 0.0)?))
 }
 
 /// A `UsdUVTexture`'s `inputs:file` (an asset path or a string), resolved; `None` when unset
