@@ -847,6 +847,38 @@ fn square_gltf(dir: &Path, materials: [u32; 2], rest: &str) -> PathBuf {
     path
 }
 
+/// `render SQUARE` head on (the camera 5 units along +Z, 30° across), a 32² beauty of `spp`
+/// samples, displaced by the example fish scales times `scale`, `--json`, into `out`; then
+/// `extra`.
+fn render_square(square: &Path, scale: &str, spp: &str, out: &Path, extra: &[&str]) -> Output {
+    let map = example("maps/scales_256.png");
+    let mut args = vec![
+        "render",
+        s(square),
+        "--disp",
+        s(&map),
+        "--scale",
+        scale,
+        "--res",
+        "32x32",
+        "--spp",
+        spp,
+        "--aov",
+        "beauty",
+        "--camera-from",
+        "0,0,5",
+        "--camera-to",
+        "0,0,0",
+        "--fov",
+        "30",
+        "--json",
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    run(&args)
+}
+
 /// The square (`square_gltf`) with a red material on its first triangle, a blue one on its
 /// second.
 fn two_material_square(dir: &Path) -> PathBuf {
@@ -867,31 +899,7 @@ fn each_gltf_material_shades_its_own_triangles() {
     let square = two_material_square(&dir);
     for device in ["cpu", "gpu"] {
         let out = dir.join(device);
-        let o = run(&[
-            "render",
-            s(&square),
-            "--disp",
-            s(&example("maps/scales_256.png")),
-            "--scale",
-            "0.02",
-            "--res",
-            "32x32",
-            "--spp",
-            "2",
-            "--aov",
-            "beauty",
-            "--camera-from",
-            "0,0,5",
-            "--camera-to",
-            "0,0,0",
-            "--fov",
-            "30",
-            "--device",
-            device,
-            "--json",
-            "-o",
-            s(&out),
-        ]);
+        let o = render_square(&square, "0.02", "2", &out, &["--device", device]);
         o.assert_success();
         let names: Vec<(String, u64)> = o.json()["materials"]
             .as_array()
@@ -1126,38 +1134,10 @@ fn left_right_luminance(path: &Path) -> (f32, f32) {
 fn a_metallic_roughness_texture_sets_roughness_and_metallic_per_texel() {
     let dir = temp_dir("metallic-roughness");
     let square = metallic_roughness_square(&dir);
-    let map = example("maps/scales_256.png");
     let render = |name: &str, extra: &[&str]| {
-        let mut args = vec![
-            "render",
-            s(&square),
-            "--disp",
-            s(&map),
-            "--scale",
-            "0.002",
-            "--res",
-            "32x32",
-            "--spp",
-            "4",
-            "--aov",
-            "beauty",
-            "--camera-from",
-            "0,0,5",
-            "--camera-to",
-            "0,0,0",
-            "--fov",
-            "30",
-            "--env-intensity",
-            "0",
-            "--key-light",
-            "30,40,3",
-            "--json",
-            "-o",
-        ];
         let out = dir.join(name);
-        args.push(s(&out));
-        args.extend_from_slice(extra);
-        let o = run(&args);
+        let lights = ["--env-intensity", "0", "--key-light", "30,40,3"];
+        let o = render_square(&square, "0.002", "4", &out, &[&lights[..], extra].concat());
         (o, out.join("beauty.exr"))
     };
     let mut lit = vec![];
@@ -1278,25 +1258,7 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
     let map = example("maps/scales_256.png");
     let render = |square: &Path, name: &str, extra: &[&str]| {
         let out = dir.join(name);
-        let mut args = vec![
-            "render",
-            s(square),
-            "--disp",
-            s(&map),
-            "--scale",
-            "0",
-            "--res",
-            "32x32",
-            "--spp",
-            "2",
-            "--aov",
-            "beauty",
-            "--camera-from",
-            "0,0,5",
-            "--camera-to",
-            "0,0,0",
-            "--fov",
-            "30",
+        let lights = [
             "--env-intensity",
             "0",
             "--key-light",
@@ -1305,12 +1267,8 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
             "0",
             "--bounces",
             "1",
-            "--json",
-            "-o",
-            s(&out),
         ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
+        let o = render_square(square, "0", "2", &out, &[&lights[..], extra].concat());
         o.assert_success();
         let (left, right) = left_right_luminance(&out.join("beauty.exr"));
         (o, left, right)
@@ -1404,36 +1362,10 @@ fn glowing_square(dir: &Path) -> PathBuf {
 fn an_emissive_material_glows_by_its_factor_strength_and_texture() {
     let dir = temp_dir("emission");
     let square = glowing_square(&dir);
-    let map = example("maps/scales_256.png");
     let render = |name: &str, extra: &[&str]| {
         let out = dir.join(name);
-        let mut args = vec![
-            "render",
-            s(&square),
-            "--disp",
-            s(&map),
-            "--scale",
-            "0.002",
-            "--res",
-            "32x32",
-            "--spp",
-            "2",
-            "--aov",
-            "beauty",
-            "--camera-from",
-            "0,0,5",
-            "--camera-to",
-            "0,0,0",
-            "--fov",
-            "30",
-            "--env-intensity",
-            "0",
-            "--json",
-            "-o",
-            s(&out),
-        ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
+        let dark = ["--env-intensity", "0"];
+        let o = render_square(&square, "0.002", "2", &out, &[&dark[..], extra].concat());
         o.assert_success();
         (o, read_rgba(&out.join("beauty.exr")))
     };
@@ -1500,25 +1432,7 @@ fn a_materials_index_of_refraction_sets_its_reflectance() {
     let map = example("maps/scales_256.png");
     let render = |name: &str, extra: &[&str]| {
         let out = dir.join(name);
-        let mut args = vec![
-            "render",
-            s(&square),
-            "--disp",
-            s(&map),
-            "--scale",
-            "0",
-            "--res",
-            "32x32",
-            "--spp",
-            "2",
-            "--aov",
-            "beauty",
-            "--camera-from",
-            "0,0,5",
-            "--camera-to",
-            "0,0,0",
-            "--fov",
-            "30",
+        let mirrors = [
             "--env",
             s(&sky),
             "--base-color",
@@ -1527,12 +1441,8 @@ fn a_materials_index_of_refraction_sets_its_reflectance() {
             "0",
             "--bounces",
             "1",
-            "--json",
-            "-o",
-            s(&out),
         ];
-        args.extend_from_slice(extra);
-        let o = run(&args);
+        let o = render_square(&square, "0", "2", &out, &[&mirrors[..], extra].concat());
         o.assert_success();
         let f0: Vec<f64> = o.json()["materials"]
             .as_array()
