@@ -215,3 +215,107 @@ fn bad_render_input() {
     ])
     .assert_error(&["file"]);
 }
+
+/// `--camera NAME` renders through that camera of the scene file: a flat quad seen head-on
+/// from USD cameras 3 and 7 units away has those depths at the image centre, whichever is
+/// picked by path or by name, the first being the default. A name the file lacks, or
+/// `--camera` on a prism table (which keeps no cameras), fails naming the choices, and
+/// writes nothing.
+#[test]
+fn camera_picks_one_of_the_scene_files_cameras_by_name() {
+    let dir = temp_dir("render-camera");
+    let usda = dir.join("quad.usda");
+    let camera = |name: &str, z: f32| {
+        format!(
+            "def Camera \"{name}\"\n{{\n    double3 xformOp:translate = (0, 0, {z})\n    \
+             uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
+        )
+    };
+    std::fs::write(
+        &usda,
+        format!(
+            "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
+             def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
+             int[] faceVertexIndices = [0, 1, 2, 3]\n    \
+             point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
+             texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
+             interpolation = \"vertex\"\n    )\n}}\n{}{}",
+            camera("Near", 3.0),
+            camera("Far", 7.0)
+        ),
+    )
+    .unwrap();
+    let map = dir.join("flat.exr");
+    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let centre_depth = |pick: Option<&str>| {
+        let out = dir.join(format!(
+            "out-{}",
+            pick.unwrap_or("default").replace('/', "_")
+        ));
+        let mut args = vec![
+            "render",
+            s(&usda),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0.1",
+            "--midlevel",
+            "0.5",
+            "--res",
+            "9x9",
+            "--aov",
+            "depth",
+            "-o",
+            s(&out),
+        ];
+        if let Some(name) = pick {
+            args.extend(["--camera", name]);
+        }
+        run(&args).assert_success();
+        let [depth] = read_channels(&out.join("depth.exr"), ["Y"]);
+        depth[4 * 9 + 4]
+    };
+    for (pick, want) in [
+        (None, 3.0),
+        (Some("Near"), 3.0),
+        (Some("/Far"), 7.0),
+        (Some("Far"), 7.0),
+    ] {
+        let got = centre_depth(pick);
+        assert!(
+            (got - want).abs() < 1e-3,
+            "--camera {pick:?}: depth {got}, want {want}"
+        );
+    }
+
+    let out = dir.join("rejected");
+    run(&[
+        "render",
+        s(&usda),
+        "--disp",
+        s(&map),
+        "--camera",
+        "Side",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["quad.usda", "no camera named 'Side'", "'/Near', '/Far'"]);
+    let table = dir.join("quad.prisms");
+    run(&["bake", s(&usda), "--disp", s(&map), "-o", s(&table)]).assert_success();
+    run(&[
+        "render",
+        s(&table),
+        "--disp",
+        s(&map),
+        "--camera",
+        "Near",
+        "-o",
+        s(&out),
+    ])
+    .assert_error(&["quad.prisms", "keeps no cameras"]);
+    assert_eq!(
+        files_in(&out),
+        Vec::<String>::new(),
+        "nothing written for a rejected camera"
+    );
+}

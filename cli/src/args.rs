@@ -83,6 +83,11 @@ pub struct RenderArgs {
     /// Only frames A-B (inclusive) of the turntable; identical to the same frames of a full run.
     #[arg(long, value_name = "A-B", value_parser = parse_range)]
     pub frames: Option<(u32, u32)>,
+    /// Render through the scene file's camera of this name (a glTF camera node's or camera's
+    /// name, `node #N`, a USD camera's prim path or name; default: the file's first camera).
+    /// `--camera-from`, `--camera-to` and `--fov` still override its parts.
+    #[arg(long, value_name = "NAME")]
+    pub camera: Option<String>,
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub camera_from: Option<[f32; 3]>,
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]

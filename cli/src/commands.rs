@@ -422,6 +422,7 @@ fn render_job_for(
         },
         frames: a.frames,
         camera: CameraOverride {
+            name: a.camera.clone(),
             from: a.camera_from.map(Vec3::from),
             to: a.camera_to.map(Vec3::from),
             fov_deg: a.fov,

@@ -47,7 +47,7 @@ fn intersect(c: &mut Criterion) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/sphere/sphere.glb");
     let spec = asset::resolve(&root, &Overrides::default()).expect("examples/sphere resolves");
     let prepared = asset::prepare(&spec, &RepairOptions::default()).expect("examples/sphere bakes");
-    let cam = match &prepared.mesh.camera {
+    let cam = match prepared.mesh.cameras.first().map(|c| &c.camera) {
         Some(c) => Camera::from_scene(c),
         None => {
             let (lo, hi) = prepared.table.bounds();

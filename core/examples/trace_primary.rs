@@ -78,7 +78,7 @@ fn main() {
     let which = args.get(3).map(String::as_str).unwrap_or("both");
     let spec = asset::resolve(&asset_path, &Overrides::default()).expect("asset resolves");
     let prepared = asset::prepare(&spec, &RepairOptions::default()).expect("asset bakes");
-    let cam = match &prepared.mesh.camera {
+    let cam = match prepared.mesh.cameras.first().map(|c| &c.camera) {
         Some(c) => Camera::from_scene(c),
         None => {
             let (lo, hi) = prepared.table.bounds();

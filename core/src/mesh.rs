@@ -16,7 +16,7 @@ pub enum UpAxis {
     Z,
 }
 
-/// A camera found in the scene file (glTF perspective camera), in world space.
+/// A camera found in the scene file (a glTF or USD perspective camera), in world space.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct SceneCamera {
     pub from: Vec3,
@@ -24,6 +24,16 @@ pub struct SceneCamera {
     pub up: Vec3,
     /// Vertical field of view in degrees.
     pub yfov_deg: f32,
+}
+
+/// A scene camera with the names `--camera` finds it by.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NamedCamera {
+    /// The first is the one messages show (a glTF node's name, else `node #N`; a USD prim's
+    /// path); the others also pick it (glTF: `node #N` and the camera's own name; USD: the
+    /// prim's name).
+    pub names: Vec<String>,
+    pub camera: SceneCamera,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -39,7 +49,8 @@ pub struct BaseMesh {
     pub face_flags: Vec<u8>,
     pub source: PathBuf,
     pub up_axis: Option<UpAxis>,
-    pub camera: Option<SceneCamera>,
+    /// The file's perspective cameras that can be rendered through, in file order.
+    pub cameras: Vec<NamedCamera>,
     /// True when the file carried no UVs at all (every UV is then zero).
     pub missing_uvs: bool,
     /// The file's materials (glTF's metallic-roughness), in its order.
@@ -194,6 +205,62 @@ pub const FACE_INSERTED: u8 = 1;
 pub const FACE_UV_DEGENERATE: u8 = 2;
 
 impl BaseMesh {
+    /// The scene camera `--camera NAME` picks (any of a camera's `names`), else the file's
+    /// first; `None` when the file has none. A name no camera has, or several have, is an
+    /// error listing the file's cameras.
+    pub fn pick_camera(&self, name: Option<&str>) -> crate::error::Result<Option<SceneCamera>> {
+        let Some(name) = name else {
+            return Ok(self.cameras.first().map(|c| c.camera));
+        };
+        let found: Vec<&NamedCamera> = self
+            .cameras
+            .iter()
+            .filter(|c| c.names.iter().any(|n| n == name))
+            .collect();
+        match found[..] {
+            [one] => Ok(Some(one.camera)),
+            [] => Err(crate::error::Error::invalid(
+                &self.source,
+                format!(
+                    "has no camera named '{name}' that can be rendered through; {} (pass one of \
+                     them to --camera, or leave --camera out)",
+                    self.camera_list()
+                ),
+            )),
+            _ => Err(crate::error::Error::invalid(
+                &self.source,
+                format!(
+                    "has {} cameras named '{name}': {} (pass another of the names of the one you \
+                     mean)",
+                    found.len(),
+                    found
+                        .iter()
+                        .map(|c| c
+                            .names
+                            .iter()
+                            .map(|n| format!("'{n}'"))
+                            .collect::<Vec<_>>()
+                            .join(" or "))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                ),
+            )),
+        }
+    }
+
+    /// "its cameras: 'A', 'B'" or "it has no perspective camera", for messages.
+    pub fn camera_list(&self) -> String {
+        if self.cameras.is_empty() {
+            return "it has no perspective camera".into();
+        }
+        let names: Vec<String> = self
+            .cameras
+            .iter()
+            .map(|c| format!("'{}'", c.names[0]))
+            .collect();
+        format!("its cameras: {}", names.join(", "))
+    }
+
     /// Triangle `t`'s material: an index into `materials`, or `materials.len()` for none.
     pub fn face_material(&self, t: usize) -> u32 {
         let none = self.materials.len() as u32;

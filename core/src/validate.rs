@@ -435,6 +435,9 @@ pub struct InspectInfo {
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
     pub camera: bool,
+    /// The file's perspective cameras, by the name messages show (the first is rendered
+    /// unless `--camera` names another).
+    pub cameras: Vec<String>,
     pub sharp_corners: usize,
     pub crease_edges: usize,
     pub inverted_corners: usize,
@@ -547,7 +550,12 @@ impl InspectInfo {
             if self.has_uvs { "present" } else { "MISSING" }, self.uv_sets,
             self.uv_min[0], self.uv_min[1], self.uv_max[0], self.uv_max[1], 100.0 * self.uv_faces_inside_unit_square,
             self.bounds_min[0], self.bounds_min[1], self.bounds_min[2], self.bounds_max[0], self.bounds_max[1], self.bounds_max[2],
-            if self.camera { "yes (from the file)" } else { "none (framing from bounds)" },
+            if self.cameras.is_empty() {
+                "none (framing from bounds)".to_string()
+            } else {
+                let names: Vec<String> = self.cameras.iter().map(|n| format!("'{n}'")).collect();
+                format!("{} (the first is rendered unless --camera names another)", names.join(", "))
+            },
             self.sharp_corners, self.crease_edges, self.inverted_corners, self.zero_area_faces,
             self.triangles_after_repair, self.vertices_after_repair,
             self.estimated_table_bytes, self.estimated_table_bytes as f32 / self.triangles_after_repair.max(1) as f32,
@@ -669,7 +677,8 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         uv_faces_inside_unit_square: inside as f32 / mesh.triangle_count().max(1) as f32,
         bounds_min: lo.to_array(),
         bounds_max: hi.to_array(),
-        camera: mesh.camera.is_some(),
+        camera: !mesh.cameras.is_empty(),
+        cameras: mesh.cameras.iter().map(|c| c.names[0].clone()).collect(),
         sharp_corners: report.sharp_corners.len(),
         crease_edges: report.crease_edges.len(),
         inverted_corners: report.inverted_corners.len(),

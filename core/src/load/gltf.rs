@@ -36,7 +36,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             ..Default::default()
         },
         visited: vec![false; doc.nodes().len()],
-        camera: None,
+        cameras: vec![],
         any_uv_missing: false,
         materials: doc.materials().len(),
     };
@@ -99,8 +99,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     if mesh.materials.is_empty() {
         mesh.group_material.clear();
     }
-    if let Some((world, yfov)) = loader.camera {
-        super::attach_camera(&mut mesh, world, yfov);
+    for (names, world, yfov) in loader.cameras {
+        super::attach_camera(&mut mesh, names, world, yfov);
     }
     Ok(mesh)
 }
@@ -456,8 +456,9 @@ struct Loader<'p> {
     buffers: Vec<Vec<u8>>,
     mesh: BaseMesh,
     visited: Vec<bool>,
-    /// World transform and vertical FOV (radians) of the first perspective camera.
-    camera: Option<(Mat4, f32)>,
+    /// Names, world transform and vertical FOV (radians) of each perspective camera, in the
+    /// order the scene's nodes are visited.
+    cameras: Vec<(Vec<String>, Mat4, f32)>,
     any_uv_missing: bool,
     /// The file's material count: the index of "no material".
     materials: usize,
@@ -477,8 +478,20 @@ impl Loader<'_> {
         }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if let Some(cam) = node.camera() {
-            if let ::gltf::camera::Projection::Perspective(p) = cam.projection() {
-                self.camera.get_or_insert((world, p.yfov()));
+            let index = format!("node #{i}");
+            let names: Vec<String> = [node.name(), Some(&index), cam.name()]
+                .into_iter()
+                .flatten()
+                .map(str::to_string)
+                .collect();
+            match cam.projection() {
+                ::gltf::camera::Projection::Perspective(p) => {
+                    self.cameras.push((names, world, p.yfov()))
+                }
+                ::gltf::camera::Projection::Orthographic(_) => self.warn(&format!(
+                    "camera '{}' is orthographic: only perspective cameras are read",
+                    names[0]
+                )),
             }
         }
         if let Some(mesh) = node.mesh() {

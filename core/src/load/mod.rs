@@ -12,7 +12,7 @@ mod usdc_check;
 
 use crate::error::{Error, Result};
 use crate::heightmap::{HeightMap, Wrap};
-use crate::mesh::{BaseMesh, SceneCamera};
+use crate::mesh::{BaseMesh, NamedCamera, SceneCamera};
 use glam::{Mat4, Vec3};
 use std::path::Path;
 
@@ -71,17 +71,21 @@ fn scene_camera(mesh: &BaseMesh, world: Mat4, yfov: f32) -> SceneCamera {
     }
 }
 
-/// Give `mesh` the scene camera at `world` with vertical field of view `yfov` (radians), once
-/// its geometry is loaded; one that cannot be rendered through is left out with a warning.
-pub(crate) fn attach_camera(mesh: &mut BaseMesh, world: Mat4, yfov: f32) {
+/// Add to `mesh`'s cameras the scene camera `names` at `world` with vertical field of view
+/// `yfov` (radians), once its geometry is loaded; one that cannot be rendered through is left
+/// out with a warning.
+pub(crate) fn attach_camera(mesh: &mut BaseMesh, mut names: Vec<String>, world: Mat4, yfov: f32) {
     let camera = scene_camera(mesh, world, yfov);
+    let mut seen = std::collections::HashSet::new();
+    names.retain(|n| seen.insert(n.clone()));
     match camera_fault(&camera) {
-        None => mesh.camera = Some(camera),
+        None => mesh.cameras.push(NamedCamera { names, camera }),
         // Such a camera renders a degenerate or flipped picture (a yfov of 0 sends every
         // ray one way, a negative one turns the image over): framed from the bounds instead.
         Some(fault) => eprintln!(
-            "warning: {}: its camera {fault}: ignored, the view is framed from the bounds (fix the camera, or set the view with --camera-from, --camera-to and --fov)",
-            mesh.source.display()
+            "warning: {}: its camera '{}' {fault}: ignored (fix the camera; without another, the view is framed from the bounds, or set it with --camera-from, --camera-to and --fov)",
+            mesh.source.display(),
+            names[0]
         ),
     }
 }

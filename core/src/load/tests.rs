@@ -681,12 +681,72 @@ fn gltf_perspective_camera_becomes_the_scene_camera() {
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}}],
     });
     let m = load_gltf_doc(&dir, "cam.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
-    let cam = m.camera.expect("camera");
+    let cam = m.pick_camera(None).unwrap().expect("camera");
     assert!(approx(cam.from, Vec3::new(0.0, 0.0, 5.0)));
     // Bounds centre (0.5, 0.5, 0) projected on the -Z view axis: 5 units ahead.
     assert!(approx(cam.to, Vec3::ZERO), "{}", cam.to);
     assert!(approx(cam.up, Vec3::Y));
     assert!((cam.yfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
+    assert_eq!(
+        m.cameras[0].names,
+        ["node #1"],
+        "an unnamed node and camera"
+    );
+}
+
+/// Every perspective camera is kept, in the order the scene's nodes are visited, under its
+/// node's name, `node #N` and its camera's name; `--camera` picks any of them by one of those,
+/// the first is the default, and a name that is missing or shared is an error listing them.
+/// An orthographic camera is left out.
+#[test]
+fn gltf_cameras_are_picked_by_node_or_camera_name() {
+    let dir = temp_dir("gltf-cameras");
+    let mut doc = GltfDoc::default();
+    let a_pos = doc.floats(&TRI, 3);
+    let rest = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1, 2, 3, 4]}],
+        "nodes": [
+            {"mesh": 0},
+            {"name": "Wide", "camera": 0, "translation": [0.0, 0.0, 5.0]},
+            {"name": "Close", "camera": 1, "translation": [0.0, 0.0, 2.0]},
+            {"name": "Top", "camera": 2, "translation": [0.0, 0.0, 9.0]},
+            {"name": "Close", "camera": 0, "translation": [0.0, 0.0, 3.0]},
+        ],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
+        "cameras": [
+            {"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}},
+            {"name": "macro", "type": "perspective", "perspective": {"yfov": 0.2, "znear": 0.1}},
+            {"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}},
+        ],
+    });
+    let m = load_gltf_doc(&dir, "cams.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+    let names: Vec<&str> = m.cameras.iter().map(|c| c.names[0].as_str()).collect();
+    assert_eq!(
+        names,
+        ["Wide", "Close", "Close"],
+        "the orthographic one left out"
+    );
+    let z = |name: Option<&str>| m.pick_camera(name).map(|c| c.expect("a camera").from.z);
+    assert_eq!(z(None).unwrap(), 5.0, "the first is the default");
+    assert_eq!(z(Some("Wide")).unwrap(), 5.0);
+    assert_eq!(z(Some("macro")).unwrap(), 2.0, "by the camera's own name");
+    assert_eq!(z(Some("node #4")).unwrap(), 3.0, "by the node's index");
+    let shared = z(Some("Close")).unwrap_err().to_string();
+    assert!(
+        shared.contains("cams.gltf") && shared.contains("2 cameras named 'Close'"),
+        "{shared}"
+    );
+    assert!(
+        shared.contains("'node #2'") && shared.contains("'node #4'"),
+        "{shared}"
+    );
+    let missing = z(Some("Top")).unwrap_err().to_string();
+    assert!(
+        missing.contains("no camera named 'Top'")
+            && missing.contains("its cameras: 'Wide', 'Close', 'Close'"),
+        "{missing}"
+    );
 }
 
 /// A camera `--fov` would refuse (a yfov of 0 sends every ray one way, a negative one turns
@@ -710,7 +770,7 @@ fn a_gltf_camera_that_cannot_be_rendered_through_is_left_out() {
         });
         let name = format!("cam{i}.gltf");
         let m = load_gltf_doc(&dir, &name, &doc, &rest, &MeshOptions::default()).unwrap();
-        assert!(m.camera.is_none(), "yfov {yfov}, z {z}: {:?}", m.camera);
+        assert!(m.cameras.is_empty(), "yfov {yfov}, z {z}: {:?}", m.cameras);
     }
 }
 

@@ -62,7 +62,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             },
             any_uv_missing: false,
             material_paths: vec![],
-            camera: None,
+            cameras: vec![],
         };
         let root = stage.prim(sdf::Path::abs_root());
         for child in children(path, &root)? {
@@ -71,8 +71,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         let mut mesh = loader.mesh;
         mesh.missing_uvs = loader.any_uv_missing;
         mesh.face_flags = vec![0; mesh.triangles.len()];
-        if let Some((world, yfov)) = loader.camera {
-            super::attach_camera(&mut mesh, world.as_mat4(), yfov);
+        for (names, world, yfov) in loader.cameras {
+            super::attach_camera(&mut mesh, names, world.as_mat4(), yfov);
         }
         Ok(mesh)
     })
@@ -772,8 +772,9 @@ struct Loader<'a> {
     /// The material prim of each of `mesh.materials` (a material bound to several meshes is
     /// read once).
     material_paths: Vec<sdf::Path>,
-    /// World transform and vertical field of view (radians) of the first perspective camera.
-    camera: Option<(DMat4, f32)>,
+    /// Names (path, prim name), world transform and vertical field of view (radians) of each
+    /// perspective camera, in the stage's order.
+    cameras: Vec<(Vec<String>, DMat4, f32)>,
 }
 
 /// A primvar expanded to one value per face corner.
@@ -795,7 +796,7 @@ impl Loader<'_> {
         let world = if reset { local } else { parent * local };
         match type_name(prim).as_str() {
             "Mesh" => self.mesh_prim(prim, world)?,
-            "Camera" if self.camera.is_none() => self.camera_prim(prim, world)?,
+            "Camera" => self.camera_prim(prim, world)?,
             _ => {}
         }
         for child in children(self.path, prim)? {
@@ -817,7 +818,7 @@ impl Loader<'_> {
             warn(
                 self.path,
                 &format!(
-                    "camera {} is {}: only perspective cameras are read, the view is framed from the bounds",
+                    "camera {} is {}: only perspective cameras are read; left out",
                     prim.path(),
                     projection.unwrap_or_default()
                 ),
@@ -837,14 +838,16 @@ impl Loader<'_> {
             warn(
                 self.path,
                 &format!(
-                    "camera {}: focalLength or verticalAperture is not a number; the view is framed from the bounds (re-export)",
+                    "camera {}: focalLength or verticalAperture is not a number; left out (re-export)",
                     prim.path()
                 ),
             );
             return Ok(());
         };
         let yfov = 2.0 * (aperture / (2.0 * focal)).atan();
-        self.camera = Some((world, yfov as f32));
+        let path = prim.path().to_string();
+        let name = path.rsplit('/').next().unwrap_or_default().to_string();
+        self.cameras.push((vec![path, name], world, yfov as f32));
         Ok(())
     }
 

@@ -1364,8 +1364,8 @@ fn quad_with_cameras(up: &str, cameras: &str) -> String {
 }
 
 /// A UsdGeomCamera becomes the scene camera: its transform places it (looking down its
-/// local −Z, +Y up), `verticalAperture` over `focalLength` is its field of view, and the
-/// first of two is the one taken.
+/// local −Z, +Y up), `verticalAperture` over `focalLength` is its field of view; of two, the
+/// first is the default and either is picked by its path or its name.
 #[test]
 fn a_usd_perspective_camera_becomes_the_scene_camera() {
     let d = dir("camera");
@@ -1388,7 +1388,19 @@ def Camera "Second"
 }"#;
     let p = write(&d, "shot.usda", &quad_with_cameras("Y", cameras));
     let m = load_mesh(&p, &MeshOptions::default()).unwrap();
-    let cam = m.camera.expect("the first camera");
+    let cam = m.pick_camera(None).unwrap().expect("the first camera");
+    for name in ["/Rig/Shot", "Shot"] {
+        assert_eq!(m.pick_camera(Some(name)).unwrap(), Some(cam), "{name}");
+    }
+    for name in ["/Second", "Second"] {
+        let second = m.pick_camera(Some(name)).unwrap().expect(name);
+        assert_eq!(second.from, Vec3::new(0.0, 0.0, 9.0), "{name}");
+    }
+    let e = m.pick_camera(Some("Rig")).unwrap_err().to_string();
+    assert!(
+        e.contains("shot.usda") && e.contains("its cameras: '/Rig/Shot', '/Second'"),
+        "{e}"
+    );
     assert!(
         (cam.from - Vec3::new(0.0, 0.0, 5.0)).length() < 1e-5,
         "{}",
@@ -1413,7 +1425,8 @@ def Camera "Second"
     );
     let cam = load_mesh(&p, &MeshOptions::default())
         .unwrap()
-        .camera
+        .pick_camera(None)
+        .unwrap()
         .unwrap();
     let want = 2.0 * (15.2908f32 / 100.0).atan().to_degrees();
     assert!((cam.yfov_deg - want).abs() < 1e-3, "{}", cam.yfov_deg);
@@ -1437,7 +1450,7 @@ fn a_usd_camera_that_cannot_be_rendered_through_is_left_out() {
         let cameras = format!("def Camera \"C\"\n{{\n    {body}\n}}");
         let p = write(&d, &format!("c{i}.usda"), &quad_with_cameras("Y", &cameras));
         let m = load_mesh(&p, &MeshOptions::default()).unwrap();
-        assert!(m.camera.is_none(), "{body}: {:?}", m.camera);
+        assert!(m.cameras.is_empty(), "{body}: {:?}", m.cameras);
         assert_eq!(m.triangle_count(), 2, "{body}");
     }
 }

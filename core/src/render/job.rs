@@ -120,6 +120,8 @@ pub enum Input {
 /// Camera overrides from the command line.
 #[derive(Clone, Debug, Default)]
 pub struct CameraOverride {
+    /// `--camera NAME`: which of the scene file's cameras (`BaseMesh::pick_camera`).
+    pub name: Option<String>,
     pub from: Option<Vec3>,
     pub to: Option<Vec3>,
     pub fov_deg: Option<f32>,
@@ -216,6 +218,15 @@ impl RenderJob {
                 )));
             }
         }
+        if let (Some(name), Input::Table { path, .. }) = (&self.camera.name, &self.input) {
+            return Err(Error::invalid(
+                path,
+                format!(
+                    "--camera {name}: a prism table keeps no cameras (render the mesh file it \
+                     was baked from, or set the view with --camera-from, --camera-to and --fov)"
+                ),
+            ));
+        }
         for v in [self.camera.from, self.camera.to].into_iter().flatten() {
             if !v.is_finite() {
                 return Err(Error::Param(
@@ -276,7 +287,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
         Input::Asset(spec) => {
             let p = asset::prepare(spec, repair)?;
             Ok(Loaded {
-                scene_camera: p.mesh.camera,
+                scene_camera: p.mesh.pick_camera(None)?,
                 up_axis: p.mesh.up_axis.unwrap_or_default(),
                 table: p.table,
                 map: p.map,

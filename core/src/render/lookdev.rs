@@ -709,7 +709,8 @@ fn load_cached(
     };
     let (mesh, map) = asset::load(spec)?;
     let materials = asset_materials(&mesh, spec, job, opts)?;
-    let (scene_camera, up_axis) = (mesh.camera, mesh.up_axis.unwrap_or_default());
+    let scene_camera = mesh.pick_camera(job.camera.name.as_deref())?;
+    let up_axis = mesh.up_axis.unwrap_or_default();
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
         None => None,
