@@ -492,20 +492,7 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
         );
     }
     for m in &summary.materials {
-        let what = prismbake::render::lookdev::describe_material(
-            m.base_color,
-            m.roughness,
-            m.metallic,
-            m.specular,
-            m.emission,
-            [
-                m.texture.as_deref(),
-                m.roughness_texture.as_deref(),
-                m.metallic_texture.as_deref(),
-                m.normal_texture.as_deref(),
-                m.emission_texture.as_deref(),
-            ],
-        );
+        let what = m.material.describe();
         eprintln!("beauty material '{}' ({} prisms): {what}", m.name, m.prisms);
     }
     if let Some(d) = &summary.denoiser {

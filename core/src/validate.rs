@@ -15,7 +15,8 @@ use crate::load;
 use crate::mesh::BaseMesh;
 use crate::prism_file;
 use crate::render::lookdev::{
-    check_material_values, grey_normal_map, texture_notes, texture_readable, LookdevOptions,
+    self, check_material_values, grey_normal_map, texture_notes, texture_readable, LookdevOptions,
+    MaterialDescription,
 };
 use crate::repair::{self, RepairOptions, RepairReport};
 use crate::report::{AssetReport, Check};
@@ -458,29 +459,9 @@ pub struct InspectInfo {
 pub struct MaterialInfo {
     pub name: String,
     pub triangles: usize,
-    pub base_color: [f32; 3],
-    pub roughness: f32,
-    pub metallic: f32,
-    /// The base-colour texture's name (not decoded here: `validate`'s `textures` check does).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub texture: Option<String>,
-    /// "name, channel g": the texture channel that multiplies `roughness`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub roughness_texture: Option<String>,
-    /// The same for `metallic`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub metallic_texture: Option<String>,
-    /// The dielectric reflectance F0 its index of refraction gives, else the default.
-    pub specular: f32,
-    /// "name, strength 1": the normal map.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub normal_texture: Option<String>,
-    /// Emitted radiance; absent where it is black.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub emission: Option<[f32; 3]>,
-    /// The emission texture's name.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub emission_texture: Option<String>,
+    /// Textures by file name (not decoded here: `validate`'s `textures` check does).
+    #[serde(flatten)]
+    pub material: MaterialDescription,
 }
 
 /// "orm.png, channel g".
@@ -501,25 +482,25 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
         .map(|(m, &triangles)| MaterialInfo {
             name: m.name.clone(),
             triangles,
-            base_color: [m.base_color[0], m.base_color[1], m.base_color[2]],
-            roughness: m.roughness,
-            metallic: m.metallic,
-            specular: m
-                .specular
-                .unwrap_or(crate::render::lookdev::DEFAULT_SPECULAR),
-            texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
-            roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
-            metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
-            normal_texture: m
-                .normal_texture
-                .as_ref()
-                .map(|n| format!("{}, {}", n.texture.name, n.describe_mapping())),
-            emission: (m.emission != [0.0; 3]).then_some(m.emission),
-            emission_texture: m
-                .emission_texture
-                .as_ref()
-                .filter(|_| m.emission != [0.0; 3])
-                .map(|t| t.name.clone()),
+            material: MaterialDescription {
+                base_color: [m.base_color[0], m.base_color[1], m.base_color[2]],
+                roughness: m.roughness,
+                metallic: m.metallic,
+                specular: m.specular.unwrap_or(lookdev::DEFAULT_SPECULAR),
+                texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
+                roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
+                metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
+                normal_texture: m
+                    .normal_texture
+                    .as_ref()
+                    .map(|n| format!("{}, {}", n.texture.name, n.describe_mapping())),
+                emission: (m.emission != [0.0; 3]).then_some(m.emission),
+                emission_texture: m
+                    .emission_texture
+                    .as_ref()
+                    .filter(|_| m.emission != [0.0; 3])
+                    .map(|t| t.name.clone()),
+            },
         })
         .collect();
     let none = count[mesh.materials.len()];
@@ -527,16 +508,18 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
         out.push(MaterialInfo {
             name: "default".into(),
             triangles: none,
-            base_color: crate::render::lookdev::DEFAULT_BASE_COLOR.to_array(),
-            roughness: crate::render::lookdev::DEFAULT_ROUGHNESS,
-            metallic: crate::render::lookdev::DEFAULT_METALLIC,
-            specular: crate::render::lookdev::DEFAULT_SPECULAR,
-            texture: None,
-            roughness_texture: None,
-            metallic_texture: None,
-            normal_texture: None,
-            emission: None,
-            emission_texture: None,
+            material: MaterialDescription {
+                base_color: lookdev::DEFAULT_BASE_COLOR.to_array(),
+                roughness: lookdev::DEFAULT_ROUGHNESS,
+                metallic: lookdev::DEFAULT_METALLIC,
+                specular: lookdev::DEFAULT_SPECULAR,
+                texture: None,
+                roughness_texture: None,
+                metallic_texture: None,
+                normal_texture: None,
+                emission: None,
+                emission_texture: None,
+            },
         });
     }
     out
@@ -574,20 +557,7 @@ impl InspectInfo {
             None => s.push_str(&format!("seams     {} UV seam edges\n", self.seam_edges)),
         }
         for m in &self.materials {
-            let what = crate::render::lookdev::describe_material(
-                m.base_color,
-                m.roughness,
-                m.metallic,
-                m.specular,
-                m.emission,
-                [
-                    m.texture.as_deref(),
-                    m.roughness_texture.as_deref(),
-                    m.metallic_texture.as_deref(),
-                    m.normal_texture.as_deref(),
-                    m.emission_texture.as_deref(),
-                ],
-            );
+            let what = m.material.describe();
             s.push_str(&format!(
                 "material  '{}': {} triangles, {what}\n",
                 m.name, m.triangles

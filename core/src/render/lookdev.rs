@@ -207,30 +207,39 @@ pub struct LookdevSummary {
     pub materials: Vec<MaterialSummary>,
 }
 
-/// A material of the beauty as a summary states it: its factors, from the command line or
-/// the asset, the base-colour texture it read, and how many prisms have it.
+/// A material of the beauty as a summary states it: its name, how many prisms have it and
+/// what it is.
 #[derive(Clone, Debug, Serialize)]
 pub struct MaterialSummary {
     /// The asset's name for it, or "default" (triangles without a material).
     pub name: String,
     pub prisms: usize,
+    #[serde(flatten)]
+    pub material: MaterialDescription,
+}
+
+/// A material's factors, each with the texture that multiplies it, as the render's summary
+/// and `inspect` state them (the render names decoded textures by `ColorMap::describe`,
+/// "rock_albedo, 256x256, repeat/repeat, bilinear"; `inspect` by their file names).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MaterialDescription {
     pub base_color: [f32; 3],
     pub roughness: f32,
     pub metallic: f32,
+    /// The dielectric reflectance F0.
     pub specular: f32,
-    /// "rock_albedo, 256x256, repeat/repeat, bilinear" (`ColorMap::describe`), multiplied into
-    /// `base_color`; absent without one.
+    /// The texture multiplied into `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
-    /// "rock_orm, 256x256, repeat/repeat, bilinear, channel g": the texture channel multiplied
-    /// into `roughness`; absent without one.
+    /// "rock_orm, ..., channel g": the texture channel multiplied into `roughness`; absent
+    /// without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub roughness_texture: Option<String>,
     /// The same for `metallic`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub metallic_texture: Option<String>,
-    /// "rock_normal, 256x256, repeat/repeat, bilinear, strength 1": the normal map that bends
-    /// the shading normal; absent without one.
+    /// "rock_normal, ..., strength 1": the normal map that bends the shading normal; absent
+    /// without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub normal_texture: Option<String>,
     /// Emitted radiance, linear RGB; absent for a material that does not glow.
@@ -241,29 +250,34 @@ pub struct MaterialSummary {
     pub emission_texture: Option<String>,
 }
 
-/// A material for people: "base colour (r, g, b) x texture T, roughness R x texture U,
-/// metallic M, specular S, normal map N, emission (r, g, b) x texture E" (the render's summary lines,
-/// `inspect`): each factor with the texture that multiplies it, if any, then the normal map
-/// and the emission, if any. `textures`: base colour, roughness, metallic, normal, emission.
-pub fn describe_material(
-    base_color: [f32; 3],
-    roughness: f32,
-    metallic: f32,
-    specular: f32,
-    emission: Option<[f32; 3]>,
-    textures: [Option<&str>; 5],
-) -> String {
-    let [r, g, b] = base_color;
-    let [tc, tr, tm, _, te] =
-        textures.map(|t| t.map_or(String::new(), |t| format!(" x texture {t}")));
-    let normal = textures[3].map_or(String::new(), |t| format!(", normal map {t}"));
-    let glow = emission.map_or(String::new(), |[r, g, b]| {
-        format!(", emission ({r}, {g}, {b}){te}")
-    });
-    format!(
-        "base colour ({r}, {g}, {b}){tc}, roughness {roughness}{tr}, metallic {metallic}{tm}, \
-         specular {specular}{normal}{glow}"
-    )
+impl MaterialDescription {
+    /// For people: "base colour (r, g, b) x texture T, roughness R x texture U, metallic M,
+    /// specular S, normal map N, emission (r, g, b) x texture E": each factor with the texture
+    /// that multiplies it, if any, then the normal map and the emission, if any.
+    pub fn describe(&self) -> String {
+        let [r, g, b] = self.base_color;
+        let times = |t: &Option<String>| {
+            t.as_ref()
+                .map_or(String::new(), |t| format!(" x texture {t}"))
+        };
+        let normal =
+            (self.normal_texture.as_ref()).map_or(String::new(), |t| format!(", normal map {t}"));
+        let glow = self.emission.map_or(String::new(), |[r, g, b]| {
+            format!(
+                ", emission ({r}, {g}, {b}){}",
+                times(&self.emission_texture)
+            )
+        });
+        format!(
+            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{normal}{glow}",
+            times(&self.texture),
+            self.roughness,
+            times(&self.roughness_texture),
+            self.metallic,
+            times(&self.metallic_texture),
+            self.specular,
+        )
+    }
 }
 
 /// "name, W x H, wrapS/wrapT, filter, channel g" of a texture channel of `scene`.
@@ -290,24 +304,23 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
         .map(|((m, a), prisms)| MaterialSummary {
             name: a.name.clone(),
             prisms,
-            base_color: m.material.base_color.to_array(),
-            roughness: m.material.roughness,
-            metallic: m.material.metallic,
-            specular: m.material.specular,
-            texture: m.texture.map(|t| scene.textures[t as usize].describe()),
-            roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
-            metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
-            emission: (m.emission != Vec3::ZERO).then(|| m.emission.to_array()),
-            emission_texture: m
-                .emission_texture
-                .filter(|_| m.emission != Vec3::ZERO)
-                .map(|t| scene.textures[t as usize].describe()),
-            normal_texture: m
-                .normal_texture
-                .zip(a.normal_mapping.as_deref())
-                .map(|(n, how)| {
-                    format!("{}, {how}", scene.textures[n.texture as usize].describe())
-                }),
+            material: MaterialDescription {
+                base_color: m.material.base_color.to_array(),
+                roughness: m.material.roughness,
+                metallic: m.material.metallic,
+                specular: m.material.specular,
+                texture: m.texture.map(|t| scene.textures[t as usize].describe()),
+                roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
+                metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
+                emission: (m.emission != Vec3::ZERO).then(|| m.emission.to_array()),
+                emission_texture: m
+                    .emission_texture
+                    .filter(|_| m.emission != Vec3::ZERO)
+                    .map(|t| scene.textures[t as usize].describe()),
+                normal_texture: m.normal_texture.zip(a.normal_mapping.as_deref()).map(
+                    |(n, how)| format!("{}, {how}", scene.textures[n.texture as usize].describe()),
+                ),
+            },
         })
         .collect()
 }
