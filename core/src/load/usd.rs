@@ -442,10 +442,20 @@ fn up_axis(stage: &Stage) -> UpAxis {
 /// `check_prim_name`.
 fn children(path: &Path, prim: &Prim) -> Result<Vec<Prim>> {
     let kids = prim.children().map_err(|e| usd_err(path, prim.path(), e))?;
+    let parent = prim.path().as_str();
     for kid in &kids {
         let full = kid.path().as_str();
-        let name = full.rsplit('/').next().unwrap_or(full);
-        if !is_identifier(name) || !full.starts_with(prim.path().as_str()) {
+        // Exactly the parent's path, `/` and a name: a corrupt binary layer can state a
+        // child path with more levels in it ("/spuiA}/ad" under the root), on which openusd's
+        // instancing queries recurse without end.
+        let name = full
+            .strip_prefix(parent)
+            .and_then(|rest| match parent {
+                "/" => Some(rest),
+                _ => rest.strip_prefix('/'),
+            })
+            .unwrap_or(full);
+        if !is_identifier(name) {
             let shown: String = full.chars().take(80).collect();
             return Err(prim_err(
                 path,

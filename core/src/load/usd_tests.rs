@@ -1155,6 +1155,15 @@ fn a_binary_prim_name_that_is_not_an_identifier_is_an_error() {
     )
     .unwrap();
     both_walks_refuse(&p, &["name.usdc", "\"/;-)\"", "not a USD identifier"]);
+    // A child of the root whose path has two levels ("/spuiA}/ad"): its last part is an
+    // identifier, but the part between is not, and openusd's instancing recursed on it too.
+    let p = d.join("path.usdc");
+    std::fs::write(
+        &p,
+        include_bytes!("../../../fuzz/corpus/usdc/overflow-child-path"),
+    )
+    .unwrap();
+    both_walks_refuse(&p, &["path.usdc", "\"/spuiA}/ad\"", "not a USD identifier"]);
 }
 
 /// A fuzzed binary layer lists a property named `nor}als` on its mesh. `Prim::attributes`
