@@ -74,7 +74,7 @@ fn env_to_world(d: vec3f) -> vec3f {
 
 // env::env_dir_to_uv.
 fn env_dir_to_uv(d: vec3f) -> vec2f {
-    let u = 0.5 + atan2(d.x, -d.z) * (0.5 * FRAC_1_PI);
+    let u = 0.5 + atan2(d.z, d.x) * (0.5 * FRAC_1_PI);
     let v = acos(clamp(d.y, -1.0, 1.0)) * FRAC_1_PI;
     return vec2f(u, v);
 }
@@ -83,7 +83,7 @@ fn env_dir_to_uv(d: vec3f) -> vec2f {
 fn env_uv_to_dir(uv: vec2f) -> vec3f {
     let phi = (uv.x - 0.5) * 2.0 * PI;
     let theta = uv.y * PI;
-    return vec3f(sin(theta) * sin(phi), cos(theta), -sin(theta) * cos(phi));
+    return vec3f(sin(theta) * cos(phi), cos(theta), sin(theta) * sin(phi));
 }
 
 // A finite texel coordinate for i32(): NaN → 0 (Rust's `as i64`), huge values clamped

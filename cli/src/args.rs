@@ -149,11 +149,12 @@ pub struct RenderArgs {
 /// Beauty settings: lights, material, bounces, ground.
 #[derive(Args, Debug, Clone)]
 pub struct LookArgs {
-    /// Equirectangular HDR environment (.exr, or Radiance .hdr); default: a neutral built-in
-    /// sky.
+    /// Equirectangular HDR environment (.exr, or Radiance .hdr), oriented as Blender's world
+    /// texture (the image's centre faces +X); default: a neutral built-in sky.
     #[arg(long, value_name = "MAP.exr|MAP.hdr")]
     pub env: Option<PathBuf>,
-    /// Rotate the environment about the up axis (degrees).
+    /// Rotate the environment about the up axis (degrees, counter-clockwise seen from above;
+    /// -90 gives OpenEXR's latitude-longitude orientation, that of a USD DomeLight).
     #[arg(
         long,
         value_name = "DEG",

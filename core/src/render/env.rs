@@ -5,8 +5,14 @@
 //!
 //! Lighting reads texels nearest-neighbour so that radiance and `env_pdf` are constant over
 //! the same texel; the camera's view of the background reads them bilinearly (`env_radiance_smooth`).
-//! The env frame is Y-up: `u` = 0.5 + atan2(x, −z)/2π, `v` = θ/π with v = 0 at the zenith
-//! (row 0 of the image); Z-up assets map world (x, y, z) → env (x, z, −y).
+//! The env frame is Y-up: `u` = 0.5 + atan2(z, x)/2π, `v` = θ/π with v = 0 at the zenith
+//! (row 0 of the image); Z-up assets map world (x, y, z) → env (x, z, −y). That is Blender's
+//! orientation (Cycles' `direction_to_equirectangular` on the same asset imported there, glTF's
+//! +Y becoming Blender's +Z): the image's centre column faces +X, its quarter column −Z
+//! (glTF's forward, Blender's +Y), its three-quarter column +Z. An HDRI lights an asset here as
+//! it does in Blender (`examples/scripts/compare_cycles_beauty.py` measures it). The OpenEXR
+//! latitude-longitude convention, which USD's `DomeLight` follows, puts +Z at the centre: it is
+//! this one turned by `--env-rotate -90`.
 
 use super::shading::{luminance, PI};
 use crate::error::{Error, Result};
@@ -87,7 +93,7 @@ pub fn env_to_world(d: Vec3, f: EnvFrame) -> Vec3 {
 /// Env-frame direction → equirect (u, v) in [0, 1]².
 #[inline]
 pub fn env_dir_to_uv(d: Vec3) -> Vec2 {
-    let u = 0.5 + d.x.atan2(-d.z) * (0.5 * std::f32::consts::FRAC_1_PI);
+    let u = 0.5 + d.z.atan2(d.x) * (0.5 * std::f32::consts::FRAC_1_PI);
     let v = d.y.clamp(-1.0, 1.0).acos() * std::f32::consts::FRAC_1_PI;
     Vec2::new(u, v)
 }
@@ -97,9 +103,9 @@ pub fn env_uv_to_dir(uv: Vec2) -> Vec3 {
     let phi = (uv.x - 0.5) * 2.0 * PI;
     let theta = uv.y * PI;
     Vec3::new(
-        theta.sin() * phi.sin(),
+        theta.sin() * phi.cos(),
         theta.cos(),
-        -theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
     )
 }
 
@@ -587,6 +593,51 @@ mod tests {
         }
         // Zenith is the asset's up axis.
         assert!((env_to_world(Vec3::Y, frames()[1]) - Vec3::Z).length() < 1e-6);
+    }
+
+    /// The orientation is Blender's: in a glTF's Y-up frame (Blender's X, Z, −Y) the image's
+    /// centre column faces +X, its quarter column −Z, its three-quarter column +Z, its top row
+    /// the zenith; a Z-up asset's frame is Blender's own, the same directions. Turned by −90°,
+    /// it is OpenEXR's latitude-longitude map (USD's `DomeLight`): +Z at the centre, +X at the
+    /// quarter. `examples/scripts/compare_cycles_beauty.py` checks the first against Cycles.
+    #[test]
+    fn the_map_is_oriented_as_in_blender() {
+        let u_of = |d: Vec3, f: EnvFrame| env_dir_to_uv(world_to_env(d, f));
+        let y_up = EnvFrame {
+            z_up: false,
+            rotation: 0.0,
+        };
+        let z_up = EnvFrame {
+            z_up: true,
+            rotation: 0.0,
+        };
+        for (d_gltf, d_blender, u) in [
+            (Vec3::X, Vec3::X, 0.5),
+            (Vec3::NEG_Z, Vec3::Y, 0.25),
+            (Vec3::Z, Vec3::NEG_Y, 0.75),
+        ] {
+            for (got, f) in [
+                (u_of(d_gltf, y_up), "glTF"),
+                (u_of(d_blender, z_up), "Blender"),
+            ] {
+                assert!(
+                    (got - Vec2::new(u, 0.5)).length() < 1e-6,
+                    "{f} {d_gltf}: {got}"
+                );
+            }
+        }
+        assert!(
+            u_of(Vec3::Y, y_up).y < 1e-6 && u_of(Vec3::Z, z_up).y < 1e-6,
+            "the zenith"
+        );
+        let exr = EnvFrame {
+            z_up: false,
+            rotation: (-90f32).to_radians(),
+        };
+        for (d, u) in [(Vec3::Z, 0.5), (Vec3::X, 0.25), (Vec3::NEG_X, 0.75)] {
+            let got = u_of(d, exr).x.rem_euclid(1.0);
+            assert!((got - u).abs() < 1e-6, "OpenEXR {d}: {got}");
+        }
     }
 
     /// A frame turned by `a` about the up axis maps the turned direction where the frame
