@@ -193,25 +193,68 @@ def test_a_blender_camera_frames_the_usd_as_it_frames_the_gltf(run, tmp_path):
     assert mismatch(gltf, framed) > 0.05, "control: the scene camera changes the picture"
 
 
-MR_SCRIPT = textwrap.dedent(
+# Blender's default plane (2 x 2, at the origin, its UVs the unit square) for the material
+# tests: each test's script adds a material to `ob`, then `blender_plane` exports it. In the
+# script, `halves(name, left, right)` saves an 8 x 8 PNG `<out>_<name>.png`, one RGBA colour
+# on its left half and another on its right, and returns the image.
+PLANE_PREAMBLE = textwrap.dedent(
     """
-    import sys, bpy
+    import math, sys, bpy
     out = sys.argv[1]
     bpy.ops.wm.read_factory_settings(use_empty=True)
     bpy.ops.mesh.primitive_plane_add(size=2.0)
     ob = bpy.context.active_object
+
+    def halves(name, left, right, non_color=False):
+        img = bpy.data.images.new(name, 8, 8, alpha=False)
+        img.pixels[:] = [c for y in range(8) for x in range(8) for c in (left if x < 4 else right)]
+        img.filepath_raw = out + "_" + name + ".png"
+        img.file_format = "PNG"
+        img.save()
+        if non_color:
+            img.colorspace_settings.name = "Non-Color"
+        return img
+    """
+)
+EXPORTERS = {
+    "usda": 'bpy.ops.wm.usd_export(filepath=out + ".usda")',
+    "glb": 'bpy.ops.export_scene.gltf(filepath=out + ".glb")',
+    "obj": 'bpy.ops.wm.obj_export(filepath=out + ".obj")',
+}
+# The same view of the plane in either frame (Blender's Z-up; glTF's and OBJ's Y-up).
+PLANE_CAMERAS = {"glb": "0,5,0.5", "usda": "0,-0.5,5", "obj": "0,5,0.5"}
+
+
+def blender_plane(tmp_path, script, *formats):
+    """Run the plane preamble, `script` and the exporters of `formats` in Blender; the files'
+    common path without extension."""
+    base = tmp_path / "plane"
+    body = PLANE_PREAMBLE + script + "\n".join(EXPORTERS[f] for f in formats) + "\n"
+    proc = subprocess.run(
+        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
+        input=body, capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return base
+
+
+def render_plane(run, base, ext, out, *flags, scale="0", spp="2"):
+    """The plane's beauty, 32 x 32, head-on: (the summary's JSON, the RGBA pixels)."""
+    proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", scale,
+               "--aov", "beauty", "--res", "32x32", "--spp", spp, "--camera-from",
+               PLANE_CAMERAS[ext], "--camera-to", "0,0,0", "--fov", "30", "--json", "-o", out,
+               *flags, check=0)
+    with OpenEXR.File(str(out / "beauty.exr")) as f:
+        rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+    return json.loads(proc.stdout), proc.stderr, rgba
+
+
+
+MR_SCRIPT = textwrap.dedent(
+    """
     # 8 x 8 texels: red unused (glTF's occlusion), green the roughness, blue the metallic;
     # the left half a rough dielectric, the right half a smooth metal.
-    img = bpy.data.images.new("orm", 8, 8, alpha=False)
-    px = []
-    for y in range(8):
-        for x in range(8):
-            px += [1.0, 1.0, 0.0, 1.0] if x < 4 else [0.0, 0.08, 1.0, 1.0]
-    img.pixels[:] = px
-    img.filepath_raw = out + "_orm.png"
-    img.file_format = "PNG"
-    img.save()
-    img.colorspace_settings.name = "Non-Color"
+    img = halves("orm", [1.0, 1.0, 0.0, 1.0], [0.0, 0.08, 1.0, 1.0], non_color=True)
     mat = bpy.data.materials.new("HalfMetal")
     mat.use_nodes = True
     nt = mat.node_tree
@@ -224,8 +267,6 @@ MR_SCRIPT = textwrap.dedent(
     nt.links.new(sep.outputs["Green"], bsdf.inputs["Roughness"])
     nt.links.new(sep.outputs["Blue"], bsdf.inputs["Metallic"])
     ob.data.materials.append(mat)
-    bpy.ops.wm.usd_export(filepath=out + ".usda")
-    bpy.ops.export_scene.gltf(filepath=out + ".glb")
     """
 )
 
@@ -235,26 +276,15 @@ def test_blender_roughness_and_metallic_textures_shade_from_gltf_and_usd_alike(r
     (glTF: a metallicRoughnessTexture; USD: a raw UsdUVTexture's `g` and `b` outputs) renders
     its rough dielectric half lit and its smooth metal half dark under a key light, and the
     same beauty from either file."""
-    base = tmp_path / "plane"
-    proc = subprocess.run(
-        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
-        input=MR_SCRIPT, capture_output=True, text=True, timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    base = blender_plane(tmp_path, MR_SCRIPT, "usda", "glb")
     images = {}
-    # The same view of the plane in either frame (Blender's Z-up, glTF's Y-up).
-    for ext, camera in (("glb", "0,5,0.5"), ("usda", "0,-0.5,5")):
-        out = tmp_path / ext
-        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0.001",
-                   "--aov", "beauty", "--res", "32x32", "--spp", "4", "--camera-from", camera,
-                   "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0",
-                   "--key-light", "30,40,3", "--json", "-o", out, check=0)
-        (m,) = json.loads(proc.stdout)["materials"]
+    for ext in ("glb", "usda"):
+        summary, _, rgba = render_plane(run, base, ext, tmp_path / ext, "--env-intensity", "0",
+                                        "--key-light", "30,40,3", scale="0.001", spp="4")
+        (m,) = summary["materials"]
         assert (m["roughness"], m["metallic"]) == (1.0, 1.0), m
         assert m["roughness_texture"].endswith("8x8, repeat/repeat, bilinear, channel g"), m
         assert m["metallic_texture"].endswith("8x8, repeat/repeat, bilinear, channel b"), m
-        with OpenEXR.File(str(out / "beauty.exr")) as f:
-            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
         lum = rgba[..., :3] @ [0.2126, 0.7152, 0.0722]
         left, right = lum[10:22, 6:12].mean(), lum[10:22, 20:26].mean()
         assert left > 0.1 and left > 10 * right, (ext, left, right)
@@ -264,25 +294,11 @@ def test_blender_roughness_and_metallic_textures_shade_from_gltf_and_usd_alike(r
 
 NM_SCRIPT = textwrap.dedent(
     """
-    import math, sys, bpy
-    out = sys.argv[1]
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.mesh.primitive_plane_add(size=2.0)
-    ob = bpy.context.active_object
     # 8 x 8 tangent-space normals: the left half tilted 20 degrees towards -u, the right half
     # towards +u (the plane's u runs along +x).
-    img = bpy.data.images.new("tilt", 8, 8, alpha=False)
     s, c = math.sin(math.radians(20)), math.cos(math.radians(20))
-    px = []
-    for y in range(8):
-        for x in range(8):
-            t = -s if x < 4 else s
-            px += [(t + 1) / 2, 0.5, (c + 1) / 2, 1.0]
-    img.pixels[:] = px
-    img.filepath_raw = out + "_normal.png"
-    img.file_format = "PNG"
-    img.save()
-    img.colorspace_settings.name = "Non-Color"
+    img = halves("normal", [(1 - s) / 2, 0.5, (c + 1) / 2, 1.0], [(1 + s) / 2, 0.5, (c + 1) / 2, 1.0],
+                 non_color=True)
     mat = bpy.data.materials.new("Tilted")
     mat.use_nodes = True
     nt = mat.node_tree
@@ -295,9 +311,6 @@ NM_SCRIPT = textwrap.dedent(
     nt.links.new(tex.outputs["Color"], nmap.inputs["Color"])
     nt.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
     ob.data.materials.append(mat)
-    bpy.ops.wm.usd_export(filepath=out + ".usda")
-    bpy.ops.export_scene.gltf(filepath=out + ".glb")
-    bpy.ops.wm.obj_export(filepath=out + ".obj")
     """
 )
 
@@ -308,35 +321,19 @@ def test_blender_normal_maps_shade_from_gltf_usd_and_obj_alike(run, tmp_path):
     a key light 60 degrees off the plane's normal, the half tilted 20 degrees towards it is
     lit by about cos 40 / cos 80 times the other half, and the three files render the same
     beauty; --no-normal-maps shades both halves alike."""
-    base = tmp_path / "plane"
-    proc = subprocess.run(
-        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
-        input=NM_SCRIPT, capture_output=True, text=True, timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    base = blender_plane(tmp_path, NM_SCRIPT, "usda", "glb", "obj")
     images = {}
-    # The same view of the plane in either frame (Blender's Z-up, glTF's and OBJ's Y-up).
-    cameras = {"glb": "0,5,0.5", "usda": "0,-0.5,5", "obj": "0,5,0.5"}
-    for ext, camera in cameras.items():
-        out = tmp_path / ext
-        args = ["render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
-                "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
-                "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0", "--bounces",
-                "1", "--specular", "0", "--key-light", "90,30,3", "--json", "-o", out]
-        proc = run(*args, check=0)
-        (m,) = json.loads(proc.stdout)["materials"]
+    lights = ("--env-intensity", "0", "--bounces", "1", "--specular", "0", "--key-light", "90,30,3")
+    for ext in PLANE_CAMERAS:
+        summary, _, rgba = render_plane(run, base, ext, tmp_path / ext, *lights)
+        (m,) = summary["materials"]
         assert m["normal_texture"].endswith("8x8, repeat/repeat, bilinear, strength 1"), (ext, m)
-        with OpenEXR.File(str(out / "beauty.exr")) as f:
-            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
         lum = rgba[..., :3] @ [0.2126, 0.7152, 0.0722]
         left, right = lum[10:22, 6:12].mean(), lum[10:22, 20:26].mean()
         assert 3.5 * left < right < 5.5 * left, (ext, left, right)
         images[ext] = rgba
         if ext == "glb":
-            flat_out = tmp_path / "flat"
-            run(*args[:-1], flat_out, "--no-normal-maps", check=0)
-            with OpenEXR.File(str(flat_out / "beauty.exr")) as f:
-                flat = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+            _, _, flat = render_plane(run, base, ext, tmp_path / "flat", *lights, "--no-normal-maps")
             lum = flat[..., :3] @ [0.2126, 0.7152, 0.0722]
             left, right = lum[10:22, 6:12].mean(), lum[10:22, 20:26].mean()
             assert abs(left - right) < 1e-3 * right, (left, right)
@@ -346,11 +343,6 @@ def test_blender_normal_maps_shade_from_gltf_usd_and_obj_alike(run, tmp_path):
 
 EMISSION_SCRIPT = textwrap.dedent(
     """
-    import sys, bpy
-    out = sys.argv[1]
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.mesh.primitive_plane_add(size=2.0)
-    ob = bpy.context.active_object
     mat = bpy.data.materials.new("Lamp")
     mat.use_nodes = True
     bsdf = mat.node_tree.nodes["Principled BSDF"]
@@ -358,9 +350,6 @@ EMISSION_SCRIPT = textwrap.dedent(
     bsdf.inputs["Emission Color"].default_value = (1.0, 0.5, 0.25, 1)
     bsdf.inputs["Emission Strength"].default_value = 2.0
     ob.data.materials.append(mat)
-    bpy.ops.wm.usd_export(filepath=out + ".usda")
-    bpy.ops.export_scene.gltf(filepath=out + ".glb")
-    bpy.ops.wm.obj_export(filepath=out + ".obj")
     """
 )
 
@@ -369,43 +358,18 @@ def test_blender_emission_glows_from_gltf_usd_and_obj_alike(run, tmp_path):
     """A Principled BSDF's Emission (colour (1, 0.5, 0.25), strength 2) exported to .glb
     (emissiveFactor and KHR_materials_emissive_strength), .usda (emissiveColor) and .obj (Ke)
     renders, in the dark, a black plane of radiance (2, 1, 0.5) from each."""
-    base = tmp_path / "plane"
-    proc = subprocess.run(
-        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
-        input=EMISSION_SCRIPT, capture_output=True, text=True, timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    cameras = {"glb": "0,5,0.5", "usda": "0,-0.5,5", "obj": "0,5,0.5"}
-    for ext, camera in cameras.items():
-        out = tmp_path / ext
-        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
-                   "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
-                   "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0", "--json",
-                   "-o", out, check=0)
-        (m,) = json.loads(proc.stdout)["materials"]
+    base = blender_plane(tmp_path, EMISSION_SCRIPT, "usda", "glb", "obj")
+    for ext in PLANE_CAMERAS:
+        summary, _, rgba = render_plane(run, base, ext, tmp_path / ext, "--env-intensity", "0")
+        (m,) = summary["materials"]
         assert m["emission"] == pytest.approx([2.0, 1.0, 0.5]), (ext, m)
-        with OpenEXR.File(str(out / "beauty.exr")) as f:
-            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
         assert np.allclose(rgba[10:22, 10:22, :3].mean(axis=(0, 1)), [2.0, 1.0, 0.5], atol=1e-4), ext
 
 
 MAPPING_SCRIPT = textwrap.dedent(
     """
-    import math, sys, bpy
-    out = sys.argv[1]
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.mesh.primitive_plane_add(size=2.0)
-    ob = bpy.context.active_object
     # 8 x 8 texels, red on the left half, blue on the right.
-    img = bpy.data.images.new("halves", 8, 8, alpha=False)
-    px = []
-    for y in range(8):
-        for x in range(8):
-            px += [1.0, 0.2, 0.1, 1.0] if x < 4 else [0.1, 0.3, 1.0, 1.0]
-    img.pixels[:] = px
-    img.filepath_raw = out + "_color.png"
-    img.file_format = "PNG"
-    img.save()
+    img = halves("color", [1.0, 0.2, 0.1, 1.0], [0.1, 0.3, 1.0, 1.0])
     mat = bpy.data.materials.new("Mapped")
     mat.use_nodes = True
     nt = mat.node_tree
@@ -421,8 +385,6 @@ MAPPING_SCRIPT = textwrap.dedent(
     nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     nt.links.new(tex.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
     ob.data.materials.append(mat)
-    bpy.ops.wm.usd_export(filepath=out + ".usda")
-    bpy.ops.export_scene.gltf(filepath=out + ".glb")
     """
 )
 
@@ -432,23 +394,13 @@ def test_blender_mapping_node_reads_the_same_from_gltf_and_usd(run, tmp_path):
     writes as glTF's KHR_texture_transform and as a USD UsdTransform2d, renders the same
     beauty from either file: the transformed texture (turned stripes), not the image as it
     lies."""
-    base = tmp_path / "plane"
-    proc = subprocess.run(
-        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
-        input=MAPPING_SCRIPT, capture_output=True, text=True, timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    base = blender_plane(tmp_path, MAPPING_SCRIPT, "usda", "glb")
     assert "UsdTransform2d" in base.with_suffix(".usda").read_text()
     images = {}
-    for ext, camera in (("glb", "0,5,0.5"), ("usda", "0,-0.5,5")):
-        out = tmp_path / ext
-        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
-                   "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
-                   "--camera-to", "0,0,0", "--fov", "30", "--env-intensity", "0",
-                   "--key-light", "30,60,3", "--json", "-o", out, check=0)
-        assert "warning" not in proc.stderr, proc.stderr
-        with OpenEXR.File(str(out / "beauty.exr")) as f:
-            images[ext] = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
+    for ext in ("glb", "usda"):
+        _, stderr, images[ext] = render_plane(run, base, ext, tmp_path / ext, "--env-intensity",
+                                              "0", "--key-light", "30,60,3")
+        assert "warning" not in stderr, stderr
     # Turned a quarter, the halves run across the image's rows: red and blue alternate down
     # its middle column, where the image as it lies would be one colour.
     column = images["usda"][6:26, 16, :3]
@@ -458,11 +410,6 @@ def test_blender_mapping_node_reads_the_same_from_gltf_and_usd(run, tmp_path):
 
 SUBSETS_SCRIPT = textwrap.dedent(
     """
-    import sys, bpy
-    out = sys.argv[1]
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.mesh.primitive_plane_add(size=2.0)
-    ob = bpy.context.active_object
     bpy.ops.object.mode_set(mode="EDIT")
     bpy.ops.mesh.subdivide(number_cuts=1)
     bpy.ops.object.mode_set(mode="OBJECT")
@@ -474,8 +421,6 @@ SUBSETS_SCRIPT = textwrap.dedent(
     # The faces right of x = 0 take the second material.
     for poly in ob.data.polygons:
         poly.material_index = 1 if poly.center.x > 0 else 0
-    bpy.ops.wm.usd_export(filepath=out + ".usda")
-    bpy.ops.export_scene.gltf(filepath=out + ".glb")
     """
 )
 
@@ -484,23 +429,13 @@ def test_blender_material_slots_shade_their_faces_from_gltf_and_usd_alike(run, t
     """A Blender mesh with two material slots (glTF: a primitive each; USD: GeomSubsets of
     family materialBind, each with its binding) shades its left faces red and its right faces
     blue from either file, the same beauty."""
-    base = tmp_path / "plane"
-    proc = subprocess.run(
-        [sys.executable, "-c", "import sys; exec(sys.stdin.read())", str(base)],
-        input=SUBSETS_SCRIPT, capture_output=True, text=True, timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    base = blender_plane(tmp_path, SUBSETS_SCRIPT, "usda", "glb")
     assert "GeomSubset" in base.with_suffix(".usda").read_text()
     images = {}
-    for ext, camera in (("glb", "0,5,0.5"), ("usda", "0,-0.5,5")):
-        out = tmp_path / ext
-        proc = run("render", base.with_suffix(f".{ext}"), "--disp", MAP, "--scale", "0",
-                   "--aov", "beauty", "--res", "32x32", "--spp", "2", "--camera-from", camera,
-                   "--camera-to", "0,0,0", "--fov", "30", "--json", "-o", out, check=0)
-        prisms = sorted(m["prisms"] for m in json.loads(proc.stdout)["materials"])
+    for ext in ("glb", "usda"):
+        summary, _, rgba = render_plane(run, base, ext, tmp_path / ext)
+        prisms = sorted(m["prisms"] for m in summary["materials"])
         assert prisms == [4, 4], (ext, prisms)
-        with OpenEXR.File(str(out / "beauty.exr")) as f:
-            rgba = np.asarray(f.channels()["RGBA"].pixels, dtype=np.float64)
         left, right = rgba[10:22, 6:12, :3].mean(axis=(0, 1)), rgba[10:22, 20:26, :3].mean(axis=(0, 1))
         assert left[0] > 4 * left[2] and right[2] > 4 * right[0], (ext, left, right)
         images[ext] = rgba
