@@ -31,8 +31,9 @@ use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
 
-/// Most segments along one base edge (and so across one face). A 4096² grid is ~8 M
-/// micro-triangles per base face; anything finer is a unit error, not a request.
+/// Most segments along one base edge (and so across one face). A 4096² grid is ~33 M
+/// micro-triangles per base face (1.7 GB with their records); anything finer is a unit
+/// error, not a request.
 pub const MAX_SEGMENTS: u32 = 4096;
 
 /// The tessellated surface. Vertex order: the base vertices (same indices as the table), then
@@ -77,12 +78,15 @@ fn edge_key(a: u32, b: u32) -> (u32, u32) {
 }
 
 /// `k ·` the length of edge a–b in texels, or `k ·` its normals' turn over `TURN_PER_SEGMENT`
-/// where that is more, unclamped. UV-degenerate edges (zero length in UV)
-/// fall back to the length of their displaced image over the prism's world texel size: the
-/// base edge's length plus the prism's largest `|D|` times the turn of the normal along it
+/// where that is more, unclamped. A UV-degenerate edge (zero length in UV) reads one texel
+/// all along, so its displaced image is the base edge pushed out by one height along the
+/// turning normal: straight where the normals agree, and otherwise an arc of the prism's
+/// largest `|D|` times the normal's turn, which it follows at the prism's world texel size
 /// (as `bake::inserted_texel_world` measures a crease strip), so that a strip's rung, a
-/// zero-length edge whose normals differ, follows the rounded edge's arc instead of one
-/// chord of it.
+/// zero-length edge whose normals differ, is that arc instead of one chord of it. The base
+/// edge's own length does not count: a long edge of a strip whose UVs meet is one straight
+/// segment, and counting it at a rung-sized texel (a micrometre) asked for 4096 segments, a
+/// 4096² grid of 1.8 GB for one face of a three-triangle mesh (the `pipeline` fuzz target).
 fn edge_segments_wanted(
     table: &PrismTable,
     map: &HeightMap,
@@ -99,9 +103,7 @@ fn edge_segments_wanted(
     } else if p.texel_world > 0.0 {
         let reach = p.d_min.abs().max(p.d_max.abs());
         let (a, b) = (a as usize, b as usize);
-        let world = (table.positions[b] - table.positions[a]).length()
-            + reach * (table.normals[b] - table.normals[a]).length();
-        world / p.texel_world
+        reach * (table.normals[b] - table.normals[a]).length() / p.texel_world
     } else {
         0.0
     };

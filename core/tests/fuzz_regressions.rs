@@ -87,7 +87,7 @@ fn prism_table_every_truncation_of_a_baked_table_fails_cleanly() {
     }
 }
 
-fn replay_files(target: &str, ext: &str, load: impl Fn(&Path)) {
+fn replay_files(target: &str, ext: &str, mut load: impl FnMut(&Path)) {
     for (i, (_, bytes)) in corpus(target).into_iter().enumerate() {
         load(&scratch(&format!("{target}-{i}.{ext}"), &bytes));
     }
@@ -98,6 +98,55 @@ fn obj_corpus_loads_or_fails_cleanly() {
     replay_files("obj", "obj", |p| {
         drop(load::load_mesh(p, &MeshOptions::default()))
     });
+}
+
+/// The `pipeline` target's check (load, repair, bake, PDM and reference traces of a fuzzed
+/// OBJ), over its corpus.
+#[path = "../../fuzz/fuzz_targets/pipeline_check.rs"]
+mod pipeline_check;
+
+#[test]
+fn pipeline_corpus_traces_true_hits() {
+    let mut hits = Vec::new();
+    replay_files("pipeline", "obj", |p| hits.push(pipeline_check::check(p)));
+    // The hand-made seeds (a quad, a cube, slivers, a fold, huge and tiny triangles, a
+    // tetrahedron) load and are hit: the replay traces, it does not only load.
+    let seeds = corpus("pipeline")
+        .iter()
+        .zip(&hits)
+        .filter(|((p, _), _)| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("seed-")
+        })
+        .map(|(_, &h)| h)
+        .collect::<Vec<_>>();
+    assert!(
+        seeds.len() >= 6 && seeds.iter().filter(|&&h| h > 0).count() >= 5,
+        "{seeds:?}"
+    );
+}
+
+/// Found by the `pipeline` target: three triangles whose UVs meet (two corners share one),
+/// folded, so repair inserts a crease strip whose rung turns the normal by 0.04°. Its texel
+/// size, a quarter of that rung's arc, was 6 µm, and the reference's tessellation counted the
+/// strip's 1.4-long edge, whose UVs meet, at that rate: 4096 segments, a 4096² grid, a 1.8 GB
+/// allocation (an out-of-memory abort in the fuzzer). An edge whose UVs meet is now counted by
+/// its normals' arc alone (`tessellate::edge_segments_wanted`).
+#[test]
+fn an_edge_whose_uvs_meet_is_not_tessellated_at_a_rungs_texel_size() {
+    let bytes = include_bytes!("../../fuzz/corpus/pipeline/oom-degenerate-uv");
+    let path = scratch("oom-degenerate-uv.obj", bytes);
+    let scene = pipeline_check::scene(&path).expect("the mesh loads");
+    let mesh = prismbake::tessellate::tessellate(&scene.surface(), 2.0);
+    assert!(
+        mesh.triangle_count() < 10_000,
+        "{} micro-triangles",
+        mesh.triangle_count()
+    );
+    assert_eq!(mesh.capped_edges, 0);
+    assert!(pipeline_check::check(&path) > 0, "it is traced and hit");
 }
 
 #[test]
