@@ -87,6 +87,10 @@ fn edge_key(a: u32, b: u32) -> (u32, u32) {
 /// edge's own length does not count: a long edge of a strip whose UVs meet is one straight
 /// segment, and counting it at a rung-sized texel (a micrometre) asked for 4096 segments, a
 /// 4096² grid of 1.8 GB for one face of a three-triangle mesh (the `pipeline` fuzz target).
+/// Nor does an arc take more than `MAX_ARC_TEXELS` texels: a strip's texel is a quarter of
+/// its narrowest rung's arc (`bake::STRIP_TEXELS_PER_RUNG`), and a rung that barely turns
+/// (10⁻⁸ rad) made every other rung's arc hundreds of millions of texels long, the same
+/// 4096² grid.
 fn edge_segments_wanted(
     table: &PrismTable,
     map: &HeightMap,
@@ -103,13 +107,21 @@ fn edge_segments_wanted(
     } else if p.texel_world > 0.0 {
         let reach = p.d_min.abs().max(p.d_max.abs());
         let (a, b) = (a as usize, b as usize);
-        reach * (table.normals[b] - table.normals[a]).length() / p.texel_world
+        let arc = reach * (table.normals[b] - table.normals[a]).length();
+        arc / p.texel_world.max(arc / MAX_ARC_TEXELS)
     } else {
         0.0
     };
     let turn = normal_turn(table.normals[a as usize], table.normals[b as usize]);
     (k * texels).max(k * turn / TURN_PER_SEGMENT).ceil()
 }
+
+/// The most texels a UV-degenerate edge's arc is counted as (`edge_segments_wanted`): 16
+/// times the four a strip's narrowest rung spans, so that the rungs of a strip whose turns
+/// differ that much are tessellated as finely as before the cap (the rock's reference keeps
+/// its size, 30 730 B a triangle, and PDM's errors against it), and one that barely turns
+/// cannot ask for millions.
+pub const MAX_ARC_TEXELS: f32 = 64.0;
 
 /// At `k = 1`, the most a base edge's normal turns per segment (`k` divides it): the chord
 /// of a displaced arc of radius `|D|` turning by `θ` lies `|D| θ²/8` inside it, so a crease

@@ -128,25 +128,41 @@ fn pipeline_corpus_traces_true_hits() {
     );
 }
 
-/// Found by the `pipeline` target: three triangles whose UVs meet (two corners share one),
-/// folded, so repair inserts a crease strip whose rung turns the normal by 0.04°. Its texel
-/// size, a quarter of that rung's arc, was 6 µm, and the reference's tessellation counted the
-/// strip's 1.4-long edge, whose UVs meet, at that rate: 4096 segments, a 4096² grid, a 1.8 GB
-/// allocation (an out-of-memory abort in the fuzzer). An edge whose UVs meet is now counted by
-/// its normals' arc alone (`tessellate::edge_segments_wanted`).
+/// Found by the `pipeline` target, two ways to one 4096² grid (the segment cap) in the
+/// reference's tessellation of a tiny mesh:
+/// * three triangles whose UVs meet (two corners of one share a UV), folded, so that repair
+///   inserts a crease strip whose rung turns the normal by 0.04°. Its texel size, a quarter
+///   of that rung's arc, was 6 µm, and the strip's 1.4-long edge, whose UVs meet, was counted
+///   at that rate: 50.9 M micro-triangles, a 1.8 GB allocation (an out-of-memory abort);
+/// * a cube with a vertex pulled out to x = 71 and UVs to v = 8: a strip with one rung that
+///   barely turns (a texel of 8 nm) and others at 90°, each counted at 10⁸ texels (a timeout
+///   in the fuzzer, 11.7 GB and past two minutes for `render --method reference`; 0.8 s and
+///   247 MB now).
+///
+/// An edge whose UVs meet is now counted by its normals' arc alone, at most 64 texels of it
+/// (`tessellate::edge_segments_wanted`, `MAX_ARC_TEXELS`).
 #[test]
 fn an_edge_whose_uvs_meet_is_not_tessellated_at_a_rungs_texel_size() {
-    let bytes = include_bytes!("../../fuzz/corpus/pipeline/oom-degenerate-uv");
-    let path = scratch("oom-degenerate-uv.obj", bytes);
-    let scene = pipeline_check::scene(&path).expect("the mesh loads");
-    let mesh = prismbake::tessellate::tessellate(&scene.surface(), 2.0);
-    assert!(
-        mesh.triangle_count() < 10_000,
-        "{} micro-triangles",
-        mesh.triangle_count()
-    );
-    assert_eq!(mesh.capped_edges, 0);
-    assert!(pipeline_check::check(&path) > 0, "it is traced and hit");
+    for (name, bytes) in [
+        (
+            "oom-degenerate-uv",
+            &include_bytes!("../../fuzz/corpus/pipeline/oom-degenerate-uv")[..],
+        ),
+        (
+            "timeout-sliver-cube",
+            &include_bytes!("../../fuzz/corpus/pipeline/timeout-sliver-cube")[..],
+        ),
+    ] {
+        let path = scratch(&format!("{name}.obj"), bytes);
+        let scene = pipeline_check::scene(&path).expect("the mesh loads");
+        let mesh = prismbake::tessellate::tessellate(&scene.surface(), 2.0);
+        let n = mesh.triangle_count();
+        // 6 609 and 656 633 now (the sliver cube's UVs cross 64 texels); a capped grid alone
+        // is 33.5 M.
+        assert!(n < 2_000_000, "{name}: {n} micro-triangles");
+        assert_eq!(mesh.capped_edges, 0, "{name}");
+        assert!(pipeline_check::check(&path) > 0, "{name} is traced and hit");
+    }
 }
 
 #[test]
