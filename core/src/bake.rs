@@ -194,13 +194,27 @@ pub fn footprint_range(map: &HeightMap, uv: &[Vec2; 3]) -> (f32, f32) {
     let ymin = p.iter().map(|q| q.y).fold(f32::INFINITY, f32::min);
     let ymax = p.iter().map(|q| q.y).fold(f32::NEG_INFINITY, f32::max);
     let row_lo = (ymin - 0.5).floor() as i64;
-    let row_hi = (ymax - 0.5).floor() as i64 + 1;
+    let row_hi = ((ymax - 0.5).floor() as i64).saturating_add(1);
     // A footprint covering the whole map (or more) in both directions reads everything.
     let (w, h) = (map.width as f32, map.height as f32);
     let xmin = p.iter().map(|q| q.x).fold(f32::INFINITY, f32::min);
     let xmax = p.iter().map(|q| q.x).fold(f32::NEG_INFINITY, f32::max);
     if (xmax - xmin) >= w + 1.0 && (ymax - ymin) >= h + 1.0 {
         return map.value_range();
+    }
+    // Rows past 64 of the map's heights: the bands repeat it (or, clamped, read its edge
+    // rows), so every row over the triangle's whole column extent is a superset of what they
+    // read, found without walking them: a UV of 10¹⁹ was 10²⁰ bands (the `pipeline` fuzz
+    // target's hang). Below that the exact walk stays (tables do not change).
+    if row_hi.saturating_sub(row_lo) > 64 * map.height as i64 + 2 {
+        let c0 = (xmin - 0.5).floor() as i64;
+        let c1 = ((xmax - 0.5).floor() as i64).saturating_add(1);
+        let (wi, hi) = (map.width as i64, map.height as i64);
+        let (c0, c1) = match map.wrap {
+            Wrap::Clamp => (c0.clamp(0, wi - 1), c1.clamp(0, wi - 1)),
+            Wrap::Repeat => (c0, c1),
+        };
+        return map.texel_range(c0, c1, 0, hi - 1);
     }
     let mut lo = f32::INFINITY;
     let mut hi = f32::NEG_INFINITY;
@@ -601,6 +615,35 @@ mod tests {
                     "case {case} ({wrap:?}, {}x{}): sample {s} at {p} outside [{lo}, {hi}] for {uv:?}",
                     map.width,
                     map.height
+                );
+            }
+        }
+    }
+
+    /// A footprint many map heights tall but narrow is not walked band by band (a UV of
+    /// 10¹⁹ was 10²⁰ bands, a hang): it takes every row over its column extent, a superset
+    /// that still holds every sample, for both wraps.
+    #[test]
+    fn a_footprint_many_maps_tall_is_bounded_without_walking_it() {
+        let mut rng = Rng(0x7a11);
+        for wrap in [Wrap::Repeat, Wrap::Clamp] {
+            let map = random_map(&mut rng, wrap);
+            let uv = [
+                Vec2::new(0.3, 0.2),
+                Vec2::new(0.35, 0.2),
+                Vec2::new(0.3, 1e7),
+            ];
+            let t0 = std::time::Instant::now();
+            let (lo, hi) = footprint_range(&map, &uv);
+            assert!(
+                t0.elapsed().as_secs_f32() < 1.0,
+                "{wrap:?}: walked the bands"
+            );
+            for (_, p) in samples(&mut rng, &uv) {
+                let s = map.sample(p);
+                assert!(
+                    s >= lo - 1e-6 && s <= hi + 1e-6,
+                    "{wrap:?}: {s} at {p} outside [{lo}, {hi}]"
                 );
             }
         }

@@ -235,5 +235,21 @@ pub fn check_mesh(mesh: &BaseMesh) -> Result<()> {
             ));
         }
     }
+    if let Some(v) = mesh.uvs.iter().position(|t| t.abs().max_element() > MAX_UV) {
+        let t = mesh.uvs[v];
+        return Err(Error::invalid(
+            path,
+            format!(
+                "vertex {v} has the UV ({}, {}), past ±{MAX_UV}: single precision cannot address \
+                 a texel that far out (the UVs are corrupt or wildly tiled; re-export them)",
+                t.x, t.y
+            ),
+        ));
+    }
     Ok(())
 }
+
+/// The largest |u| or |v| a mesh may have. Past it a 256² map's texel coordinates are
+/// 1.7 × 10⁷ and up, where f32 no longer resolves a texel; real tiling stays far below
+/// (UDIM tiles reach 10). A fuzzed UV of 2 × 10¹⁹ made the bake walk 10²⁰ texel rows.
+pub const MAX_UV: f32 = 65536.0;

@@ -1245,6 +1245,12 @@ fn obj_bad_contents_are_errors() {
         ("faceless.obj", tri.to_string(), "zero triangles"),
         ("word.obj", format!("{tri}v 1 x 0\n"), "'x' is not a number"),
         ("twocorner.obj", format!("{tri}f 1 2\n"), "at least 3"),
+        // A UV past ±65536 (the `pipeline` fuzz target's 2 × 10¹⁹ hung the bake).
+        (
+            "far-uv.obj",
+            format!("{tri}vt 0 0\nvt 1 1e19\nf 1/1 2/2 3/1\n"),
+            "vertex 1 has the UV (1, 10000000000000000000), past ±65536",
+        ),
     ] {
         let path = dir.join(name);
         std::fs::write(&path, text).unwrap();
