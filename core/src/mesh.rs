@@ -204,6 +204,15 @@ pub const FACE_INSERTED: u8 = 1;
 /// A triangle whose UV area is (nearly) zero: the map is sampled along a line across it.
 pub const FACE_UV_DEGENERATE: u8 = 2;
 
+/// `'a', 'b'`: names quoted for a message, joined by `sep`.
+fn quoted<S: AsRef<str>>(names: impl IntoIterator<Item = S>, sep: &str) -> String {
+    let names: Vec<String> = names
+        .into_iter()
+        .map(|n| format!("'{}'", n.as_ref()))
+        .collect();
+    names.join(sep)
+}
+
 impl BaseMesh {
     /// The scene camera `--camera NAME` picks (any of a camera's `names`), else the file's
     /// first; `None` when the file has none. A name no camera has, or several have, is an
@@ -221,11 +230,17 @@ impl BaseMesh {
             [one] => Ok(Some(one.camera)),
             [] => Err(crate::error::Error::invalid(
                 &self.source,
-                format!(
-                    "has no camera named '{name}' that can be rendered through; {} (pass one of \
-                     them to --camera, or leave --camera out)",
-                    self.camera_list()
-                ),
+                match self.cameras.is_empty() {
+                    true => format!(
+                        "has no perspective camera to pick '{name}' from (leave --camera out: \
+                         the view is then framed from the bounds)"
+                    ),
+                    false => format!(
+                        "has no camera named '{name}' that can be rendered through; its \
+                         cameras: {} (pass one of them to --camera, or leave --camera out)",
+                        quoted(self.cameras.iter().map(|c| &c.names[0]), ", ")
+                    ),
+                },
             )),
             _ => Err(crate::error::Error::invalid(
                 &self.source,
@@ -235,30 +250,12 @@ impl BaseMesh {
                     found.len(),
                     found
                         .iter()
-                        .map(|c| c
-                            .names
-                            .iter()
-                            .map(|n| format!("'{n}'"))
-                            .collect::<Vec<_>>()
-                            .join(" or "))
+                        .map(|c| quoted(&c.names, " or "))
                         .collect::<Vec<_>>()
                         .join("; ")
                 ),
             )),
         }
-    }
-
-    /// "its cameras: 'A', 'B'" or "it has no perspective camera", for messages.
-    pub fn camera_list(&self) -> String {
-        if self.cameras.is_empty() {
-            return "it has no perspective camera".into();
-        }
-        let names: Vec<String> = self
-            .cameras
-            .iter()
-            .map(|c| format!("'{}'", c.names[0]))
-            .collect();
-        format!("its cameras: {}", names.join(", "))
     }
 
     /// Triangle `t`'s material: an index into `materials`, or `materials.len()` for none.
