@@ -73,6 +73,13 @@ fn surface_point(g: PrismGeom, disp: PrismDisplacement, b: vec3f) -> SurfacePoin
     if (all(ns == vec3f(0.0))) {
         ns = mh;
     }
+    if (all(ns == vec3f(0.0))) {
+        ns = ng;
+    }
+    if (all(ns == vec3f(0.0))) {
+        // A zero-area base face whose corner normals cancel here: any unit normal.
+        ns = vec3f(0.0, 0.0, 1.0);
+    }
     if (dot(ns, mh) < 0.0 && dot(ns, ng) < 0.0) {
         ns = -ns;
     }
@@ -83,7 +90,11 @@ fn surface_point(g: PrismGeom, disp: PrismDisplacement, b: vec3f) -> SurfacePoin
     if (sl > TINY_LEN) {
         smooth_n = s * (1.0 / sl);
     }
-    return SurfacePoint(p + mh * d, uv, d, ns, smooth_n, mh);
+    var base = mh;
+    if (all(mh == vec3f(0.0))) {
+        base = ns;
+    }
+    return SurfacePoint(p + mh * d, uv, d, ns, smooth_n, base);
 }
 
 // canonical::project_to_prism: solve P(b) + λ m(b) = x for (b, λ) from a starting guess.

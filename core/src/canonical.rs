@@ -118,6 +118,15 @@ pub fn surface_point(g: &PrismGeom, disp: &PrismDisplacement, b: Vec3) -> Surfac
     if ns == Vec3::ZERO {
         ns = mh;
     }
+    if ns == Vec3::ZERO {
+        ns = ng;
+    }
+    if ns == Vec3::ZERO {
+        // A zero-area base face whose corner normals cancel here (the `pipeline` fuzz target:
+        // a face with a corner twice): no direction is the surface's, and any unit one keeps
+        // the hit record's normals unit.
+        ns = Vec3::Z;
+    }
     if ns.dot(mh) < 0.0 && ns.dot(ng) < 0.0 {
         ns = -ns;
     }
@@ -128,7 +137,7 @@ pub fn surface_point(g: &PrismGeom, disp: &PrismDisplacement, b: Vec3) -> Surfac
         displacement: d,
         geometric_normal: ns,
         smooth_normal: smooth,
-        base_normal: mh,
+        base_normal: if mh == Vec3::ZERO { ns } else { mh },
     }
 }
 
