@@ -218,7 +218,8 @@ fn bad_render_input() {
 
 /// `--camera NAME` renders through that camera of the scene file: a flat quad seen head-on
 /// from USD cameras 3 and 7 units away has those depths at the image centre, whichever is
-/// picked by path or by name, the first being the default. A name the file lacks, or
+/// picked by path or by name, the first being the default; the summary names the camera and
+/// the flags that override it. A name the file lacks, or
 /// `--camera` on a prism table (which keeps no cameras), fails naming the choices, and
 /// writes nothing.
 #[test]
@@ -271,23 +272,46 @@ fn camera_picks_one_of_the_scene_files_cameras_by_name() {
         if let Some(name) = pick {
             args.extend(["--camera", name]);
         }
-        run(&args).assert_success();
+        args.push("--json");
+        let summary = run(&args).assert_success().json();
         let [depth] = read_channels(&out.join("depth.exr"), ["Y"]);
-        depth[4 * 9 + 4]
+        (
+            depth[4 * 9 + 4],
+            summary["camera"].as_str().unwrap().to_string(),
+        )
     };
-    for (pick, want) in [
-        (None, 3.0),
-        (Some("Near"), 3.0),
-        (Some("/Far"), 7.0),
-        (Some("Far"), 7.0),
+    for (pick, want, said) in [
+        (None, 3.0, "the file's camera '/Near'"),
+        (Some("Near"), 3.0, "the file's camera '/Near'"),
+        (Some("/Far"), 7.0, "the file's camera '/Far'"),
+        (Some("Far"), 7.0, "the file's camera '/Far'"),
     ] {
-        let got = centre_depth(pick);
+        let (got, camera) = centre_depth(pick);
+        assert_eq!(camera, said, "--camera {pick:?}");
         assert!(
             (got - want).abs() < 1e-3,
             "--camera {pick:?}: depth {got}, want {want}"
         );
     }
 
+    let summary = run(&[
+        "render",
+        s(&usda),
+        "--disp",
+        s(&map),
+        "--res",
+        "4x4",
+        "--aov",
+        "mask",
+        "--fov",
+        "30",
+        "--json",
+        "-o",
+        s(&dir.join("fov")),
+    ])
+    .assert_success()
+    .json();
+    assert_eq!(summary["camera"], "the file's camera '/Near', with --fov");
     let out = dir.join("rejected");
     run(&[
         "render",

@@ -218,8 +218,16 @@ impl BaseMesh {
     /// first; `None` when the file has none. A name no camera has, or several have, is an
     /// error listing the file's cameras.
     pub fn pick_camera(&self, name: Option<&str>) -> crate::error::Result<Option<SceneCamera>> {
+        Ok(self.pick_named_camera(name)?.map(|c| c.camera))
+    }
+
+    /// `pick_camera`, with the camera's names.
+    pub fn pick_named_camera(
+        &self,
+        name: Option<&str>,
+    ) -> crate::error::Result<Option<&NamedCamera>> {
         let Some(name) = name else {
-            return Ok(self.cameras.first().map(|c| c.camera));
+            return Ok(self.cameras.first());
         };
         let found: Vec<&NamedCamera> = self
             .cameras
@@ -227,7 +235,7 @@ impl BaseMesh {
             .filter(|c| c.names.iter().any(|n| n == name))
             .collect();
         match found[..] {
-            [one] => Ok(Some(one.camera)),
+            [one] => Ok(Some(one)),
             [] => Err(crate::error::Error::invalid(
                 &self.source,
                 match self.cameras.is_empty() {

@@ -8,7 +8,7 @@ use crate::asset::{self, AssetSpec};
 use crate::bake::PrismTable;
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
-use crate::mesh::{SceneCamera, UpAxis};
+use crate::mesh::{NamedCamera, UpAxis};
 use crate::repair::RepairOptions;
 use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
@@ -278,7 +278,8 @@ pub fn prepare_out_dir(dir: &Path) -> Result<()> {
 pub struct Loaded {
     pub table: PrismTable,
     pub map: HeightMap,
-    pub scene_camera: Option<SceneCamera>,
+    /// The scene file's camera the render looks through (`--camera`, else its first).
+    pub scene_camera: Option<NamedCamera>,
     pub up_axis: UpAxis,
 }
 
@@ -287,7 +288,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
         Input::Asset(spec) => {
             let p = asset::prepare(spec, repair)?;
             Ok(Loaded {
-                scene_camera: p.mesh.pick_camera(None)?,
+                scene_camera: p.mesh.pick_named_camera(None)?.cloned(),
                 up_axis: p.mesh.up_axis.unwrap_or_default(),
                 table: p.table,
                 map: p.map,
@@ -309,11 +310,32 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
     }
 }
 
+/// For the summary: where frame 0's camera comes from ("the file's camera 'Camera'", "framed
+/// from the bounds", and which flags override it).
+pub fn describe_camera(loaded: &Loaded, o: &CameraOverride) -> String {
+    let base = match &loaded.scene_camera {
+        Some(c) => format!("the file's camera '{}'", c.names[0]),
+        None => "framed from the bounds".to_string(),
+    };
+    let flags: Vec<&str> = [
+        (o.from.is_some(), "--camera-from"),
+        (o.to.is_some(), "--camera-to"),
+        (o.fov_deg.is_some(), "--fov"),
+    ]
+    .into_iter()
+    .filter_map(|(set, flag)| set.then_some(flag))
+    .collect();
+    match flags.is_empty() {
+        true => base,
+        false => format!("{base}, with {}", flags.join(", ")),
+    }
+}
+
 /// The camera of frame 0: the scene's, else framed from bounds; flags override.
 pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     let fov = o.fov_deg;
     let mut cam = match &loaded.scene_camera {
-        Some(c) => Camera::from_scene(c),
+        Some(c) => Camera::from_scene(&c.camera),
         None => {
             let (lo, hi) = loaded.table.bounds();
             Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect)

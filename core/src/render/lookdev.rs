@@ -194,6 +194,9 @@ pub struct LookdevSummary {
     #[serde(flatten)]
     pub render: RenderSummary,
     pub table_cache: CacheUse,
+    /// Where frame 0's camera comes from: "the file's camera 'Camera'", "framed from the
+    /// bounds", and the flags that override it.
+    pub camera: String,
     /// Beauty rays over all frames; shadow rays by the light they test.
     pub beauty_rays: BeautyCounters,
     pub shadow_rays: u64,
@@ -391,6 +394,8 @@ impl FrameRenderer for CpuFrames<'_> {
 pub struct Session {
     scene: Scene,
     cam0: Camera,
+    /// Where `cam0` comes from (`job::describe_camera`).
+    camera: String,
     up_axis: UpAxis,
     materials: AssetMaterials,
     env: Option<EnvMap>,
@@ -722,7 +727,7 @@ fn load_cached(
     };
     let (mesh, map) = asset::load(spec)?;
     let materials = asset_materials(&mesh, spec, job, opts)?;
-    let scene_camera = mesh.pick_camera(job.camera.name.as_deref())?;
+    let scene_camera = mesh.pick_named_camera(job.camera.name.as_deref())?.cloned();
     let up_axis = mesh.up_axis.unwrap_or_default();
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
@@ -812,6 +817,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         &job.camera,
         job.settings.width as f32 / job.settings.height as f32,
     );
+    let camera = super::job::describe_camera(&loaded, &job.camera);
     let up_axis = loaded.up_axis;
     let env = if job.aovs.contains(&Aov::Beauty) {
         let frame = EnvFrame {
@@ -829,6 +835,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     Ok(Session {
         scene,
         cam0,
+        camera,
         up_axis,
         materials,
         env,
@@ -1085,6 +1092,7 @@ pub fn render_all(
             gpu_fallback: None,
         },
         table_cache: s.cache.clone(),
+        camera: s.camera.clone(),
         beauty_rays: BeautyCounters::default(),
         shadow_rays: 0,
         contact_sheets: vec![],
