@@ -1148,22 +1148,25 @@ fn a_prim_hierarchy_that_never_ends_is_an_error_not_a_stack_overflow() {
 #[test]
 fn a_binary_prim_name_that_is_not_an_identifier_is_an_error() {
     let d = dir("binname");
-    let p = d.join("name.usdc");
-    std::fs::write(
-        &p,
-        include_bytes!("../../../fuzz/corpus/usdc/overflow-prim-name"),
-    )
-    .unwrap();
-    both_walks_refuse(&p, &["name.usdc", "\"/;-)\"", "not a USD identifier"]);
-    // A child of the root whose path has two levels ("/spuiA}/ad"): its last part is an
-    // identifier, but the part between is not, and openusd's instancing recursed on it too.
-    let p = d.join("path.usdc");
-    std::fs::write(
-        &p,
-        include_bytes!("../../../fuzz/corpus/usdc/overflow-child-path"),
-    )
-    .unwrap();
-    both_walks_refuse(&p, &["path.usdc", "\"/spuiA}/ad\"", "not a USD identifier"]);
+    // The second: a child of the root whose path has two levels ("/spuiA}/ad"): its last
+    // part is an identifier, but the part between is not, and openusd's instancing recursed
+    // on it too.
+    for (file, bytes, shown) in [
+        (
+            "name.usdc",
+            &include_bytes!("../../../fuzz/corpus/usdc/overflow-prim-name")[..],
+            "\"/;-)\"",
+        ),
+        (
+            "path.usdc",
+            &include_bytes!("../../../fuzz/corpus/usdc/overflow-child-path")[..],
+            "\"/spuiA}/ad\"",
+        ),
+    ] {
+        let p = d.join(file);
+        std::fs::write(&p, bytes).unwrap();
+        both_walks_refuse(&p, &[file, shown, "not a USD identifier"]);
+    }
 }
 
 /// A fuzzed binary layer lists a property named `nor}als` on its mesh. `Prim::attributes`
