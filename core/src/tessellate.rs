@@ -212,6 +212,41 @@ enum FaceLayout {
     Fan,
 }
 
+impl FaceLayout {
+    /// The face's `n` (its largest edge count) and layout, from its edges' segment counts.
+    fn of(counts: [u32; 3]) -> (u32, FaceLayout) {
+        let n = counts.into_iter().max().unwrap_or(1);
+        let layout = if counts.iter().all(|&c| c == n) {
+            FaceLayout::Grid
+        } else if n == 2 {
+            FaceLayout::Fan
+        } else {
+            FaceLayout::Zipped
+        };
+        (n, layout)
+    }
+
+    fn interior_count(self, n: u32) -> usize {
+        match self {
+            FaceLayout::Fan => 1,
+            _ if n < 3 => 0,
+            _ => (n as usize - 1) * (n as usize - 2) / 2,
+        }
+    }
+
+    /// Micro-triangles `tessellate_face` emits for edge counts `counts` (fewer only where the
+    /// base face repeats a vertex): the grid's `n²`; the inner grid's `(n − 3)²` and, per
+    /// edge, one triangle per outer and per inner segment; a fan's one per boundary segment.
+    fn triangle_count(self, n: u32, counts: [u32; 3]) -> u64 {
+        let (n, sum) = (n as u64, counts.iter().map(|&c| c as u64).sum::<u64>());
+        match self {
+            FaceLayout::Grid => n * n,
+            FaceLayout::Zipped => (n - 3) * (n - 3) + sum + 3 * (n - 3),
+            FaceLayout::Fan => sum,
+        }
+    }
+}
+
 /// Per vertex, the representative of its seam-twin group (the smallest record linked to it
 /// by seams, itself if none); the identity on an open surface.
 fn seam_representatives(surface: &Surface) -> Vec<u32> {
@@ -270,14 +305,7 @@ impl FaceGrid<'_> {
         edges: [(EdgeSplit, bool); 3],
         interior_start: u32,
     ) -> FaceGrid<'_> {
-        let n = edges.iter().map(|(s, _)| s.n).max().unwrap_or(1);
-        let layout = if edges.iter().all(|(s, _)| s.n == n) {
-            FaceLayout::Grid
-        } else if n == 2 {
-            FaceLayout::Fan
-        } else {
-            FaceLayout::Zipped
-        };
+        let (n, layout) = FaceLayout::of(edges.map(|(s, _)| s.n));
         FaceGrid {
             prism,
             corners,
@@ -289,11 +317,7 @@ impl FaceGrid<'_> {
     }
 
     fn interior_count(&self) -> usize {
-        match self.layout {
-            FaceLayout::Fan => 1,
-            _ if self.n < 3 => 0,
-            _ => (self.n as usize - 1) * (self.n as usize - 2) / 2,
-        }
+        self.layout.interior_count(self.n)
     }
 
     /// Point `i` of `n_e` along edge `e`, counted from slot `e`; shared with the other face.
@@ -465,6 +489,50 @@ fn tessellate_face(surface: &Surface, prism: u32, grid: &FaceGrid) -> FaceTess {
     }
 }
 
+/// How large `tessellate_prisms(surface, k, keep)` comes out, from the segment counts alone
+/// (no surface point is evaluated, no mesh allocated): what a caller checks against a memory
+/// budget before asking for the mesh.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TessSize {
+    /// Micro-triangles: exact, but for base faces with a repeated vertex (then fewer).
+    pub triangles: u64,
+    /// Micro-vertices (the base vertices, the kept faces' edge and interior points).
+    pub vertices: u64,
+}
+
+/// Whether prism `i` is tessellated (`keep` as in `tessellate_prisms`).
+fn is_kept(keep: Option<&[bool]>, i: usize) -> bool {
+    keep.is_none_or(|keep| keep.get(i).copied().unwrap_or(false))
+}
+
+/// The size of `tessellate_prisms(surface, k, keep)` (see `TessSize`).
+pub fn tessellation_size(surface: &Surface, k: f32, keep: Option<&[bool]>) -> TessSize {
+    let table = surface.table;
+    let kept = |i: usize| is_kept(keep, i);
+    let rep = seam_representatives(surface);
+    let (counts, _) = edge_segment_counts(table, surface.map, &rep, k);
+    let mut used = std::collections::HashSet::new();
+    let mut size = TessSize {
+        triangles: 0,
+        vertices: table.positions.len() as u64,
+    };
+    for (_, prism) in table.prisms.iter().enumerate().filter(|(i, _)| kept(*i)) {
+        let corners = prism.tri.map(|v| rep[v as usize]);
+        let keys: [(u32, u32); 3] =
+            std::array::from_fn(|e| edge_key(corners[e], corners[(e + 1) % 3]));
+        let ns = keys.map(|key| counts[&key]);
+        let (n, layout) = FaceLayout::of(ns);
+        size.triangles += layout.triangle_count(n, ns);
+        size.vertices += layout.interior_count(n) as u64;
+        for (key, n_e) in keys.into_iter().zip(ns) {
+            if used.insert(key) {
+                size.vertices += n_e as u64 - 1;
+            }
+        }
+    }
+    size
+}
+
 /// Tessellate every prism of `surface` at `k`× the texel rate (see the module doc). The
 /// output does not depend on the thread count. Warns on stderr when an edge needs more than
 /// `MAX_SEGMENTS` segments (the count is also in `capped_edges`).
@@ -478,7 +546,7 @@ pub fn tessellate(surface: &Surface, k: f32) -> TessMesh {
 /// (the bench's leak confirmation). `tri_prism` keeps the table's prism indices.
 pub fn tessellate_prisms(surface: &Surface, k: f32, keep: Option<&[bool]>) -> TessMesh {
     let (table, map) = (surface.table, surface.map);
-    let kept = |i: usize| keep.is_none_or(|keep| keep.get(i).copied().unwrap_or(false));
+    let kept = |i: usize| is_kept(keep, i);
     let rep = seam_representatives(surface);
     let (counts, capped_edges) = edge_segment_counts(table, map, &rep, k);
     if capped_edges > 0 {
@@ -752,6 +820,54 @@ mod tests {
         }
         let (_, capped) = edge_segment_counts(&table, &map, &identity(&table), 1e6);
         assert!(capped > 0);
+    }
+
+    /// The size a budget is checked against is the mesh's, for every layout (k = 0.3 mixes
+    /// fans and zipped faces in), on a subset, and across stitched seams (the examples).
+    #[test]
+    fn the_predicted_size_is_the_meshes() {
+        let size_of = |m: &TessMesh| TessSize {
+            triangles: m.triangle_count() as u64,
+            vertices: m.positions.len() as u64,
+        };
+        let (table, map) = test_sphere_table(2, 32, 0.15);
+        let surface = Surface::open(&table, &map);
+        let keep: Vec<bool> = (0..table.prisms.len()).map(|i| i % 3 == 1).collect();
+        for k in [0.3, 1.0, 2.5, 3.7] {
+            let whole = tessellate(&surface, k);
+            assert_eq!(
+                tessellation_size(&surface, k, None),
+                size_of(&whole),
+                "k = {k}"
+            );
+            let part = tessellate_prisms(&surface, k, Some(&keep));
+            let want = tessellation_size(&surface, k, Some(&keep));
+            assert_eq!(
+                want.triangles,
+                part.triangle_count() as u64,
+                "k = {k}, subset"
+            );
+            // The subset keeps every base vertex and only its own edges' points.
+            assert_eq!(
+                want.vertices,
+                part.positions.len() as u64,
+                "k = {k}, subset"
+            );
+        }
+        let (_, reference) = crate::test_util::example_with_reference("rock/rock.glb");
+        let surface = reference.surface;
+        let rep = seam_representatives(&surface);
+        assert!(
+            (0..rep.len()).any(|v| rep[v] != v as u32),
+            "no seam twins to merge"
+        );
+        for k in [0.5, 1.0] {
+            assert_eq!(
+                tessellation_size(&surface, k, None),
+                size_of(&tessellate(&surface, k)),
+                "rock, k = {k}"
+            );
+        }
     }
 
     #[test]
