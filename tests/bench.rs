@@ -83,23 +83,95 @@ fn bench_runs_every_method_on_the_same_rays() {
 #[test]
 fn bench_refuses_reference_densities_out_of_range_before_writing() {
     let torus = example("torus/torus.obj");
-    for (flag, value) in [
-        ("--confirm-density", "-1"),
-        ("--confirm-density", "1000"),
-        ("--ref-density", "0"),
-        ("--ref-density", "NaN"),
+    for (flag, value, range) in [
+        ("--confirm-density", "-1", "(0, 64]"),
+        ("--confirm-density", "1000", "(0, 64]"),
+        ("--ref-density", "0", "(0, 64]"),
+        ("--ref-density", "NaN", "(0, 64]"),
+        ("--ref-memory", "0", "(0, 1e6]"),
+        ("--ref-memory", "NaN", "(0, 1e6]"),
     ] {
         let out = temp_dir("bench-bad-density");
         let dir = out.join("results");
         // `--flag=value`: clap reads a bare `-1` as an option.
         let arg = format!("{flag}={value}");
         run(&["bench", s(&torus), &arg, "-o", s(&dir)])
-            .assert_error(&[&format!("{flag} {value}"), "(0, 64]"]);
+            .assert_error(&[&format!("{flag} {value}"), range]);
         assert!(
             !dir.exists(),
             "{flag} {value}: the output folder was created"
         );
     }
+}
+
+/// A reference larger than its memory budget is refused before it takes the memory (the
+/// machine would otherwise kill the process, or swap for minutes), naming the asset, its
+/// size and a density that fits; that density renders, and the budget's bytes a
+/// micro-triangle cover what the build took (VmHWM less a render with a tiny reference).
+#[test]
+fn a_reference_over_its_memory_budget_is_refused_with_a_density_that_fits() {
+    let rock = example("rock/rock.glb");
+    let dir = temp_dir("ref-budget");
+    let render = |k: &str, gib: &str| {
+        run(&[
+            "render",
+            s(&rock),
+            "--method",
+            "reference",
+            "--ref-density",
+            k,
+            "--ref-memory",
+            gib,
+            "--aov",
+            "depth",
+            "--res",
+            "16x16",
+            "--json",
+            "-o",
+            s(&dir),
+        ])
+    };
+    let refused = render("8", "0.5");
+    refused.assert_error(&[
+        "rock.glb",
+        "the reference at --ref-density 8 is 3.88 M micro-triangles",
+        "over the 0.50 GiB it may take (--ref-memory",
+    ]);
+    assert!(!dir.join("depth.exr").exists(), "{:?}", files_in(&dir));
+    let after = |text: &str, key: &str| -> f64 {
+        let tail = &text[text.find(key).unwrap_or_else(|| panic!("{key}: {text}")) + key.len()..];
+        let end = tail
+            .find(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .unwrap();
+        tail[..end].parse().unwrap()
+    };
+    let fit = after(&refused.stderr, "; --ref-density ");
+    assert!(fit > 2.0 && fit < 8.0, "{}", refused.stderr);
+    let suggestion = &refused.stderr[refused.stderr.find("; --ref-density").unwrap()..];
+    let predicted = after(suggestion, "M micro-triangles, about ") * (1u64 << 30) as f64;
+    let peak = |out: &Output| out.json()["peak_memory_bytes"].as_u64().unwrap() as f64;
+    let base = peak(render("0.01", "0.5").assert_success());
+    let fits = render(&fit.to_string(), "0.5");
+    let used = peak(fits.assert_success()) - base;
+    assert!(dir.join("depth.exr").exists());
+    assert!(
+        used <= predicted && used >= predicted / 2.0,
+        "k = {fit}: built in {used} bytes, predicted {predicted}"
+    );
+    // bench refuses the same way, before writing its tables.
+    let bench_dir = temp_dir("ref-budget-bench");
+    run(&[
+        "bench",
+        s(&rock),
+        "--ref-density",
+        "8",
+        "--ref-memory",
+        "0.5",
+        "-o",
+        s(&bench_dir),
+    ])
+    .assert_error(&["rock.glb", "--ref-density 8 is", "fits"]);
+    assert!(!bench_dir.join("bench.csv").exists());
 }
 
 #[test]

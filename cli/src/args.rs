@@ -111,6 +111,10 @@ pub struct RenderArgs {
     /// Reference tessellation density, in micro-edges per texel.
     #[arg(long, default_value_t = 2.0)]
     pub ref_density: f32,
+    /// Most memory, in GiB, the reference may take to build; a denser one is refused with
+    /// the density that fits. Default: 80% of the memory available.
+    #[arg(long, value_name = "GIB")]
+    pub ref_memory: Option<f64>,
     /// Nonlinear rays (`--method nonlinear`): arithmetic of the per-prism work, f32 (with
     /// FMA) or f64.
     #[arg(long, default_value = "f32", value_parser = ["f32", "f64"])]
@@ -404,6 +408,10 @@ pub struct BenchArgs {
     pub seams: Vec<String>,
     #[arg(long, default_value_t = 2.0)]
     pub ref_density: f32,
+    /// Most memory, in GiB, the reference may take to build; a denser one is refused with
+    /// the density that fits. Default: 80% of the memory available.
+    #[arg(long, value_name = "GIB")]
+    pub ref_memory: Option<f64>,
     /// Density of the local reference that checks each leak (only the prisms the ray crosses
     /// are tessellated); a leak it does not hit is a fold of the coarser reference's chords.
     /// 0: no check.

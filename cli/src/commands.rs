@@ -396,6 +396,7 @@ fn render_job_for(
                 ..NonlinearOptions::default()
             },
             ref_density: a.ref_density,
+            ref_memory: ref_memory(a.ref_memory)?,
             rmip: RmipOptions {
                 marching_scale: a.marching_scale,
                 resolution: a.rmip_res,
@@ -727,6 +728,17 @@ fn bench_settings(a: &BenchArgs) -> Result<Vec<(String, MethodConfig)>> {
     Ok(settings)
 }
 
+/// `--ref-memory GIB` in bytes (`None`: the default budget).
+fn ref_memory(gib: Option<f64>) -> Result<Option<u64>> {
+    match gib {
+        None => Ok(None),
+        Some(g) if g > 0.0 && g <= 1e6 => Ok(Some((g * (1u64 << 30) as f64) as u64)),
+        Some(g) => Err(Error::Param(format!(
+            "--ref-memory {g}: give the GiB the reference may take to build, in (0, 1e6]"
+        ))),
+    }
+}
+
 fn bench(a: BenchArgs) -> Result<ExitCode> {
     let settings = bench_settings(&a)?;
     let cfg = BenchConfig {
@@ -734,6 +746,7 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         height: a.res.1,
         settings,
         ref_density: a.ref_density,
+        ref_memory: ref_memory(a.ref_memory)?,
         confirm_density: a.confirm_density,
         secondary_rays: a.secondary,
         leak_rays: a.leak_rays,
@@ -784,9 +797,12 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         for &mode in &seam_modes {
             let scene = prismbake::accel::Scene::new(loaded.table.clone(), loaded.map.clone())
                 .with_seam_mode(mode);
-            asset_rows.extend(pool.install(|| {
-                prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}"))
-            }));
+            asset_rows.extend(
+                pool.install(|| {
+                    prismbake::bench::run_bench(&name, &scene, &cam, &cfg, &|m| eprintln!("{m}"))
+                })
+                .map_err(|e| Error::Param(format!("{name}: {e}")))?,
+            );
         }
         let stem = mesh
             .file_stem()

@@ -19,6 +19,7 @@ pub mod repair;
 pub mod report;
 pub mod rng;
 pub mod seam;
+pub mod sysmem;
 pub mod table_cache;
 pub mod tangent;
 pub mod tessellate;

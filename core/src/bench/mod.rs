@@ -17,7 +17,7 @@ use crate::render::camera::Camera;
 use crate::render::job::{make_intersector, Method, MethodConfig};
 use crate::rng::{self, Purpose};
 use crate::seam::SeamMode;
-use crate::trace::reference::{Reference, DEFAULT_ACCEL};
+use crate::trace::reference::{default_budget, Reference, DEFAULT_ACCEL};
 use crate::trace::{Hit, Intersector, Ray, RayContext};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -31,6 +31,9 @@ pub struct BenchConfig {
     /// (label of the setting, config); several settings per method make its curve.
     pub settings: Vec<(String, MethodConfig)>,
     pub ref_density: f32,
+    /// Most bytes the reference may take to build (`--ref-memory`); `None`: 80% of the
+    /// memory available.
+    pub ref_memory: Option<u64>,
     /// Density of the local reference that checks each leak (`RaySet::confirmed`); 0: none.
     pub confirm_density: f32,
     pub secondary_rays: usize,
@@ -358,9 +361,10 @@ pub fn run_bench(
     cam: &Camera,
     cfg: &BenchConfig,
     log: &dyn Fn(&str),
-) -> Vec<BenchRow> {
+) -> Result<Vec<BenchRow>, String> {
     let t = Instant::now();
-    let reference = Reference::new(scene.surface(), cfg.ref_density);
+    let budget = cfg.ref_memory.unwrap_or_else(default_budget);
+    let reference = Reference::within_budget(scene.surface(), cfg.ref_density, budget)?;
     let ref_build = t.elapsed().as_secs_f64();
     let set = make_rays(scene, cam, &reference, cfg);
     let truth = trace_all(&reference, &set.rays, cfg.seed);
@@ -374,10 +378,10 @@ pub fn run_bench(
         .filter(|(_, mc)| mc.method != Method::Reference)
         .map(|(label, mc)| {
             let t = Instant::now();
-            let isect = make_intersector(mc, scene);
-            (label.as_str(), mc.method, isect, t.elapsed().as_secs_f64())
+            let isect = make_intersector(mc, scene)?;
+            Ok((label.as_str(), mc.method, isect, t.elapsed().as_secs_f64()))
         })
-        .collect();
+        .collect::<Result<_, String>>()?;
     let ref_label = format!("k={}", cfg.ref_density);
     let runs: Vec<(&str, Method, &dyn Intersector, f64)> = std::iter::once((
         ref_label.as_str(),
@@ -419,7 +423,7 @@ pub fn run_bench(
             r.depth_err_median_texels
         ));
     }
-    rows
+    Ok(rows)
 }
 
 /// One setting's row from its hits on the timed rays (the leak rays are traced here): errors,
@@ -595,13 +599,14 @@ mod tests {
                 })
                 .collect(),
             ref_density: 2.0,
+            ref_memory: None,
             confirm_density: 8.0,
             secondary_rays: 0,
             leak_rays: 500,
             seed: 3,
             repeats: 2,
         };
-        let rows = run_bench("sphere", &scene, &cam, &cfg, &|_| {});
+        let rows = run_bench("sphere", &scene, &cam, &cfg, &|_| {}).expect("fits");
         let methods: Vec<Method> = rows.iter().map(|r| r.method).collect();
         assert_eq!(
             methods,

@@ -13,7 +13,7 @@ use crate::repair::RepairOptions;
 use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
 use crate::trace::pdm::{Pdm, PdmOptions};
-use crate::trace::reference::Reference;
+use crate::trace::reference::{self, Reference};
 use crate::trace::rmip::{Rmip, RmipOptions};
 use crate::trace::{Intersector, NormalMode};
 use glam::Vec3;
@@ -117,6 +117,16 @@ pub enum Input {
     },
 }
 
+impl Input {
+    /// The file the input names: the asset's mesh, or the prism table.
+    pub fn path(&self) -> &Path {
+        match self {
+            Input::Asset(spec) => &spec.mesh,
+            Input::Table { path, .. } => path,
+        }
+    }
+}
+
 /// Camera overrides from the command line.
 #[derive(Clone, Debug, Default)]
 pub struct CameraOverride {
@@ -135,6 +145,9 @@ pub struct MethodConfig {
     pub pdm: PdmOptions,
     /// Reference tessellation density (micro-edges per texel).
     pub ref_density: f32,
+    /// Most bytes the reference may take to build (`--ref-memory`); `None`: 80% of the
+    /// memory available (`reference::default_budget`).
+    pub ref_memory: Option<u64>,
     pub nonlinear: NonlinearOptions,
     pub rmip: RmipOptions,
     /// How UV seams are traced (stitched by default).
@@ -148,6 +161,7 @@ impl Default for MethodConfig {
             normal_mode: NormalMode::Smooth,
             pdm: PdmOptions::default(),
             ref_density: 2.0,
+            ref_memory: None,
             nonlinear: NonlinearOptions::default(),
             rmip: RmipOptions::default(),
             seams: SeamMode::Stitch,
@@ -407,9 +421,13 @@ pub struct RenderSummary {
     pub gpu_fallback: Option<String>,
 }
 
-/// The intersector a config names, built over `scene`.
-pub fn make_intersector<'s>(cfg: &MethodConfig, scene: &'s Scene) -> Box<dyn Intersector + 's> {
-    match cfg.method {
+/// The intersector a config names, built over `scene`; the reference is refused, with the
+/// density that fits, where it would take more than `cfg.ref_memory`.
+pub fn make_intersector<'s>(
+    cfg: &MethodConfig,
+    scene: &'s Scene,
+) -> std::result::Result<Box<dyn Intersector + 's>, String> {
+    Ok(match cfg.method {
         Method::Pdm => Box::new(Pdm::new(
             scene,
             PdmOptions {
@@ -418,7 +436,8 @@ pub fn make_intersector<'s>(cfg: &MethodConfig, scene: &'s Scene) -> Box<dyn Int
             },
         )),
         Method::Reference => {
-            let mut r = Reference::new(scene.surface(), cfg.ref_density);
+            let budget = cfg.ref_memory.unwrap_or_else(reference::default_budget);
+            let mut r = Reference::within_budget(scene.surface(), cfg.ref_density, budget)?;
             r.normal_mode = cfg.normal_mode;
             Box::new(r)
         }
@@ -436,16 +455,20 @@ pub fn make_intersector<'s>(cfg: &MethodConfig, scene: &'s Scene) -> Box<dyn Int
                 ..cfg.rmip
             },
         )),
-    }
+    })
 }
 
-/// Build the intersector a config names and call `f` with it.
+/// Build the intersector a config names and call `f` with it (an error naming the input
+/// where it cannot be built).
 pub fn with_intersector<R>(
     cfg: &MethodConfig,
     scene: &Scene,
-    f: impl FnOnce(&dyn Intersector) -> R,
-) -> R {
-    f(make_intersector(cfg, scene).as_ref())
+    input: &Input,
+    f: impl FnOnce(&dyn Intersector) -> Result<R>,
+) -> Result<R> {
+    let isect = make_intersector(cfg, scene)
+        .map_err(|e| Error::Param(format!("{}: {e}", input.path().display())))?;
+    f(isect.as_ref())
 }
 
 #[cfg(test)]

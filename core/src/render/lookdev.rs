@@ -208,6 +208,10 @@ pub struct LookdevSummary {
     /// The materials the beauty shaded with, those some prism has; empty without beauty.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub materials: Vec<MaterialSummary>,
+    /// The process's peak resident memory when the last frame was written (Linux `VmHWM`):
+    /// what a farm's memory request must cover. Absent where the system does not say.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peak_memory_bytes: Option<u64>,
 }
 
 /// A material of the beauty as a summary states it: its name, how many prisms have it and
@@ -1101,6 +1105,7 @@ pub fn render_all(
             true => material_summaries(&bscene, &s.materials),
             false => vec![],
         },
+        peak_memory_bytes: None,
     };
     let denoise = s.denoiser.as_ref();
     let mut previews: Vec<(Aov, Vec<Vec<u8>>)> =
@@ -1166,6 +1171,7 @@ pub fn render_all(
             summary.contact_sheets.push(path);
         }
     }
+    summary.peak_memory_bytes = crate::sysmem::peak_resident_bytes();
     Ok(summary)
 }
 
@@ -1178,7 +1184,7 @@ pub fn render_all_cpu(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
     let t0 = std::time::Instant::now();
-    with_intersector(&job.method, &s.scene, |isect| {
+    with_intersector(&job.method, &s.scene, &job.input, |isect| {
         // The intersector's own set-up (PDM's cells, RMIP's pyramid) is set-up time too.
         let build = t0.elapsed().as_secs_f64();
         let mut summary = render_all(job, opts, s, &CpuFrames(isect), progress)?;

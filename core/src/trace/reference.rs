@@ -25,7 +25,7 @@
 
 use super::{Hit, Intersector, NormalMode, Ray, RayContext};
 use crate::canonical::{surface_point, PrismGeom, Surface};
-use crate::tessellate::{tessellate, TessMesh};
+use crate::tessellate::{tessellate, tessellation_size, TessMesh, TessSize};
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::{builder::build_bvh2, Bvh2};
@@ -55,6 +55,69 @@ pub enum AccelKind {
 /// builds ~1.5× slower (260–300 ms vs 165–180 ms at k = 8), which a ground truth can afford.
 pub const DEFAULT_ACCEL: AccelKind = AccelKind::CwBvh;
 
+/// Peak bytes per micro-triangle while `Reference::new` builds: the tessellated mesh, the
+/// padded boxes, obvhs's build and the reordered copies live at once. Measured as the VmHWM of
+/// `render --method reference --aov depth` less that of the same render at k = 0.01 (10–15
+/// MB), over the micro-triangles (2 threads): release: rock k = 8 (3.88 M) 371 B, sphere
+/// k = 1 (4.88 M) 387 B and k = 2 (19.60 M) 377 B, torus k = 2 (13.55 M) 372 B; debug (the
+/// tests'): rock k = 8 388 B, k = 2.7 (0.45 M) 397 B, sphere k = 1 375 B. Set 13% above the
+/// largest.
+pub const BUILD_BYTES_PER_MICRO_TRIANGLE: u64 = 450;
+
+/// The memory budget when none is given: 80% of what the system has available
+/// (`sysmem::available_bytes`), or `FALLBACK_BUDGET` where that cannot be read.
+pub fn default_budget() -> u64 {
+    crate::sysmem::available_bytes().map_or(FALLBACK_BUDGET, |b| b / 5 * 4)
+}
+
+/// The budget where the available memory cannot be read (no `/proc/meminfo`).
+pub const FALLBACK_BUDGET: u64 = 8 << 30;
+
+/// Bytes building a reference of `size` takes at its peak.
+pub fn build_bytes(size: TessSize) -> u64 {
+    size.triangles
+        .saturating_mul(BUILD_BYTES_PER_MICRO_TRIANGLE)
+}
+
+fn gib(bytes: u64) -> f64 {
+    bytes as f64 / (1u64 << 30) as f64
+}
+
+/// Why a reference at `k` does not fit in `budget`, and the density that does (if any).
+fn too_large(surface: &Surface, k: f32, size: TessSize, budget: u64) -> String {
+    let need = build_bytes(size);
+    let mut msg = format!(
+        "the reference at --ref-density {k} is {:.2} M micro-triangles, about {:.2} GiB to \
+         build, over the {:.2} GiB it may take (--ref-memory GIB; by default 80% of the \
+         memory available)",
+        size.triangles as f64 * 1e-6,
+        gib(need),
+        gib(budget),
+    );
+    // The count grows as k² (edge counts are proportional to k): start just under the root of
+    // the ratio, round to two digits, and step down until the exact count fits.
+    let mut fit = k * (budget as f32 / need as f32).sqrt() * 0.98;
+    for _ in 0..64 {
+        let digits = 10f32.powf(1.0 - fit.log10().floor());
+        fit = (fit * digits).floor() / digits;
+        if fit.is_nan() || fit <= 1e-3 {
+            break;
+        }
+        let size = tessellation_size(surface, fit, None);
+        if build_bytes(size) <= budget {
+            msg += &format!(
+                "; --ref-density {fit} fits ({:.2} M micro-triangles, about {:.2} GiB), or \
+                 raise --ref-memory",
+                size.triangles as f64 * 1e-6,
+                gib(build_bytes(size)),
+            );
+            return msg;
+        }
+        fit *= 0.9;
+    }
+    msg + "; no density fits: even one micro-triangle a face is too many (raise --ref-memory)"
+}
+
 enum Accel {
     Bvh2(Bvh2),
     CwBvh(CwBvh),
@@ -78,6 +141,17 @@ pub struct Reference<'a> {
 impl<'a> Reference<'a> {
     pub fn new(surface: Surface<'a>, k: f32) -> Self {
         Self::with_accel(surface, k, DEFAULT_ACCEL)
+    }
+
+    /// `new`, unless building it would take more than `budget` bytes
+    /// (`BUILD_BYTES_PER_MICRO_TRIANGLE`): then a message with the size, the budget and the
+    /// largest density that fits, before any memory is taken.
+    pub fn within_budget(surface: Surface<'a>, k: f32, budget: u64) -> Result<Self, String> {
+        let size = tessellation_size(&surface, k, None);
+        if build_bytes(size) > budget {
+            return Err(too_large(&surface, k, size, budget));
+        }
+        Ok(Self::new(surface, k))
     }
 
     pub fn with_accel(surface: Surface<'a>, k: f32, kind: AccelKind) -> Self {
