@@ -85,6 +85,7 @@ struct PathState {
     step: u32,
     dir: vec3f,
     bounce: u32,
+    // The camera ray's origin until the camera step's event, then where it met the ground.
     ground_p: vec3f,
     flags: u32,
     radiance: vec3f,
@@ -254,10 +255,11 @@ fn in_tile(gid: vec3<u32>) -> bool {
     return gid.x < frame.tile_size.x && gid.y < frame.tile_size.y;
 }
 
-// The sample's camera ray (render_beauty's jittered primary ray), from the direction
-// `new_path` keeps in `dir` until the first surface event (camera_ray's origin and range).
+// The sample's camera ray (render_beauty's jittered primary ray), from the origin and
+// direction `new_path` keeps in `ground_p` and `dir` until the camera step's event
+// (camera_ray's range).
 fn path_camera_ray(s: PathState) -> Ray {
-    return Ray(frame.cam_from, s.dir, 0.0, T_FAR);
+    return Ray(s.ground_p, s.dir, 0.0, T_FAR);
 }
 
 // The three ray slots of a step (indexed by SLOT_*).
@@ -525,7 +527,7 @@ fn no_answer() -> Answer {
 // A new path: the camera step of the pixel's sample.
 fn new_path(px: PixelRef) -> PathState {
     let camera = camera_ray(vec2f(f32(px.x), f32(px.y)) + pixel_jitter(px.ctx.pixel, px.ctx.sample));
-    return PathState(vec3f(1.0), STEP_CAMERA, camera.dir, 0u, vec3f(0.0), 0u,
+    return PathState(vec3f(1.0), STEP_CAMERA, camera.dir, 0u, camera.origin, 0u,
         vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0,
         vec3f(0.0), 0u, 0u, 0u, vec3f(0.0), vec3f(0.0));
 }

@@ -4,14 +4,19 @@
 
 @group(1) @binding(0) var<uniform> frame: Frame;
 
-// The ray through image position `p` in pixels (origin top-left).
+// The ray through image position `p` in pixels (origin top-left): from the camera through
+// the image plane at unit distance, or, orthographic, from that position on the plane through
+// the camera, along the view.
 fn camera_ray(p: vec2f) -> Ray {
     let w = f32(frame.width);
     let h = f32(frame.height);
     let x = (2.0 * p.x / w - 1.0) * frame.tan_half_fov * frame.aspect;
     let y = (1.0 - 2.0 * p.y / h) * frame.tan_half_fov;
-    let dir = normalize(frame.cam_right * x + frame.cam_up * y - frame.cam_back);
-    return Ray(frame.cam_from, dir, 0.0, T_FAR);
+    let offset = frame.cam_right * x + frame.cam_up * y;
+    if (frame.orthographic != 0u) {
+        return Ray(frame.cam_from + offset, -frame.cam_back, 0.0, T_FAR);
+    }
+    return Ray(frame.cam_from, normalize(offset - frame.cam_back), 0.0, T_FAR);
 }
 
 // Sub-pixel position of sample `sample`: the centre for one sample, else the same hashed

@@ -83,6 +83,10 @@ struct Frame {
     refine: u32,
     normal_mode: u32,    // 0 smooth, 1 geometric
     sample_index: u32,   // the one sample a dispatch renders
+    orthographic: u32,   // 1: tan_half_fov is half the view's height (scene units), rays parallel
+    _pad0: u32,          // (a uniform's arrays need a 16-byte stride)
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // GpuAovPixel, 48 bytes: one pixel's AOV sums over the samples rendered so far.

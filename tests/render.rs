@@ -343,3 +343,128 @@ fn camera_picks_one_of_the_scene_files_cameras_by_name() {
         "nothing written for a rejected camera"
     );
 }
+
+/// Orthographic views: a USD camera with `projection = "orthographic"` (its view
+/// `verticalAperture` tenths of a unit tall) sees the flat 2 × 2 quad head-on at one depth
+/// across it and over exactly the pixels its square covers, whatever its distance; `--fov`
+/// renders the same camera as a pinhole (then depth grows off the axis); `--ortho HEIGHT|fit`
+/// makes any view orthographic; a height that is not a positive number, or with `--fov`,
+/// fails before anything is written.
+#[test]
+fn orthographic_cameras_and_ortho_render_parallel_views() {
+    let dir = temp_dir("render-ortho");
+    let usda = dir.join("quad.usda");
+    std::fs::write(
+        &usda,
+        "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
+         def Mesh \"quad\"\n{\n    int[] faceVertexCounts = [4]\n    \
+         int[] faceVertexIndices = [0, 1, 2, 3]\n    \
+         point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
+         texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
+         interpolation = \"vertex\"\n    )\n}\n\
+         def Camera \"Top\"\n{\n    token projection = \"orthographic\"\n    \
+         float verticalAperture = 40\n    double3 xformOp:translate = (0, 0, 3)\n    \
+         uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}\n",
+    )
+    .unwrap();
+    let map = dir.join("flat.exr");
+    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "render",
+            s(&usda),
+            "--disp",
+            s(&map),
+            "--scale",
+            "0.1",
+            "--res",
+            "20x20",
+            "--aov",
+            "mask,depth",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        args.extend(extra);
+        let summary = run(&args).assert_success().json();
+        let [mask] = read_channels(&out.join("mask.exr"), ["Y"]);
+        let [depth] = read_channels(&out.join("depth.exr"), ["Y"]);
+        let hits: Vec<usize> = (0..400).filter(|&i| mask[i] > 0.5).collect();
+        let camera = summary["camera"].as_str().unwrap().to_string();
+        (camera, hits, depth)
+    };
+    // The view is 4 units tall and wide: the quad covers pixels 5..15 of 20 each way.
+    let square: Vec<usize> = (5..15)
+        .flat_map(|y| (5..15).map(move |x| y * 20 + x))
+        .collect();
+    let (camera, hits, depth) = render("file", &[]);
+    assert_eq!(
+        camera,
+        "the file's orthographic camera '/Top' (4 units tall)"
+    );
+    assert_eq!(hits, square);
+    for &i in &hits {
+        assert!(
+            (depth[i] - 3.0).abs() < 1e-4,
+            "pixel {i}: depth {}",
+            depth[i]
+        );
+    }
+    let (camera, hits, depth) = render("fov", &["--fov", "60"]);
+    assert_eq!(
+        camera,
+        "the file's orthographic camera '/Top' (4 units tall), with --fov"
+    );
+    let (centre, corner) = (depth[10 * 20 + 10], depth[hits[0]]);
+    assert!(
+        corner > centre + 0.05,
+        "a pinhole: depth {corner} off the axis, {centre} on it"
+    );
+    // From 6 units further the parallel view is the same picture, 6 units deeper.
+    let (camera, hits, depth) = render("moved", &["--camera-from", "0,0,9", "--ortho", "4"]);
+    assert_eq!(
+        camera,
+        "the file's orthographic camera '/Top' (4 units tall), with --camera-from, --ortho"
+    );
+    assert_eq!(hits, square);
+    assert!((depth[hits[0]] - 9.0).abs() < 1e-4, "{}", depth[hits[0]]);
+    // `fit`: the quad and a 10% margin fill the view: 2 of 2.2 units, 18 of 20 pixels a side.
+    let (camera, hits, _) = render("fit", &["--ortho", "fit"]);
+    assert_eq!(
+        camera,
+        "the file's orthographic camera '/Top' (4 units tall), with --ortho"
+    );
+    assert_eq!(hits.len(), 18 * 18);
+    for (value, needles) in [
+        ("0", vec!["--ortho 0", "positive"]),
+        ("-2", vec!["--ortho -2", "positive"]),
+        ("wide", vec!["--ortho wide", "`fit`"]),
+    ] {
+        let out = dir.join("rejected");
+        run(&[
+            "render",
+            s(&usda),
+            "--disp",
+            s(&map),
+            &format!("--ortho={value}"),
+            "-o",
+            s(&out),
+        ])
+        .assert_error(&needles);
+        assert!(!out.exists(), "--ortho {value}: the output folder was made");
+    }
+    run(&[
+        "render",
+        s(&usda),
+        "--disp",
+        s(&map),
+        "--ortho",
+        "2",
+        "--fov",
+        "30",
+        "-o",
+        s(&dir.join("both")),
+    ])
+    .assert_error(&["--ortho and --fov"]);
+}

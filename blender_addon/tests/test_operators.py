@@ -54,6 +54,29 @@ def test_preview_frames_the_scene_camera(bpy_module, addon, scene):
     assert far.mean() < 0.5 * near.mean()
 
 
+def test_preview_through_an_orthographic_scene_camera(bpy_module, addon, scene):
+    """An orthographic camera previews orthographically: moving it away leaves the object's
+    size alone, and doubling its orthographic scale halves it on each side."""
+    bpy = bpy_module
+    camera = bpy.context.scene.camera.data
+    camera.type = "ORTHO"
+    camera.ortho_scale = 4.0
+
+    def coverage():
+        assert bpy.ops.prismbake.preview() == {"FINISHED"}
+        files = addon.jobs.RESULTS["Sphere"]["preview"].files
+        return exr_channel(next(f for f in files if f.endswith("mask.exr"))).mean()
+
+    near = coverage()
+    assert 0.1 < near < 0.9, near
+    bpy.context.scene.camera.location = (0.0, -12.0, 2.0)
+    far = coverage()
+    assert abs(far - near) < 0.1 * near, (near, far)
+    camera.ortho_scale = 8.0
+    wide = coverage()
+    assert abs(wide - 0.25 * far) < 0.1 * far, (far, wide)
+
+
 def test_preview_rerun_replaces_the_image_and_its_folder(bpy_module, addon, scene):
     bpy = bpy_module
     assert bpy.ops.prismbake.preview() == {"FINISHED"}

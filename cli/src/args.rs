@@ -25,7 +25,7 @@ pub enum Command {
     Validate(ValidateArgs),
     /// Ray trace AOV images (depth, normal, mask, uv, steps) and path-traced beauty of an asset,
     /// a baked table or every asset under a folder.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Repair and bake an asset, then write it as USD: mesh, displacement material, per-face bounds.
     Export(ExportArgs),
     /// Time and error of every method on the same rays; table, CSV, JSON and a PNG plot.
@@ -92,9 +92,14 @@ pub struct RenderArgs {
     pub camera_from: Option<[f32; 3]>,
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub camera_to: Option<[f32; 3]>,
-    /// Vertical field of view in degrees.
+    /// Vertical field of view in degrees (a pinhole view, also through a file's orthographic
+    /// camera).
     #[arg(long)]
     pub fov: Option<f32>,
+    /// An orthographic view, HEIGHT scene units tall, from where the camera is; `fit`: as tall
+    /// as the asset needs (its bounds with a 10% margin).
+    #[arg(long, value_name = "HEIGHT|fit")]
+    pub ortho: Option<String>,
     /// PDM step: `auto` (half a texel), `auto:F` (F texels) or a world-space length.
     #[arg(long, default_value = "auto", allow_hyphen_values = true)]
     pub dt: String,

@@ -30,7 +30,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Inspect(a) => inspect(a),
         Command::Bake(a) => bake(a),
         Command::Validate(a) => validate(a),
-        Command::Render(a) => render(a),
+        Command::Render(a) => render(*a),
         Command::Export(a) => export(a),
         Command::Bench(a) => bench(a),
     }
@@ -427,6 +427,16 @@ fn render_job_for(
             from: a.camera_from.map(Vec3::from),
             to: a.camera_to.map(Vec3::from),
             fov_deg: a.fov,
+            ortho: match a.ortho.as_deref() {
+                None => None,
+                Some("fit") => Some(None),
+                Some(h) => Some(Some(h.parse::<f32>().map_err(|_| {
+                    Error::Param(format!(
+                        "--ortho {h}: give the view's height in scene units, or `fit` to fit \
+                         the asset"
+                    ))
+                })?)),
+            },
         },
         out_dir,
         repair: repair_options(&a.repair)?,

@@ -16,14 +16,25 @@ pub enum UpAxis {
     Z,
 }
 
-/// A camera found in the scene file (a glTF or USD perspective camera), in world space.
+/// How a camera maps the scene to the image.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(tag = "projection", rename_all = "lowercase")]
+pub enum Projection {
+    /// A pinhole with this vertical field of view, in degrees.
+    Perspective { yfov_deg: f32 },
+    /// Parallel rays along the view from a plane through the camera; the view is `height`
+    /// scene units tall (glTF: twice `ymag`; USD: `verticalAperture` / 10; Blender: the
+    /// orthographic scale of a square or portrait image).
+    Orthographic { height: f32 },
+}
+
+/// A camera found in the scene file (a glTF or USD camera), in world space.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct SceneCamera {
     pub from: Vec3,
     pub to: Vec3,
     pub up: Vec3,
-    /// Vertical field of view in degrees.
-    pub yfov_deg: f32,
+    pub projection: Projection,
 }
 
 /// A scene camera with the names `--camera` finds it by.

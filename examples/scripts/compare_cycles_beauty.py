@@ -15,8 +15,10 @@ beauty --env` with `--base-color`, `--roughness`, `--metallic`, `--specular 0.04
 
 Reports, over the asset's pixels (one pixel in from its silhouette, where pixels mix surface
 and sky): each renderer's mean RGB, their ratio, and the mean |difference| relative to the mean
-(Monte Carlo noise included: it shrinks with --spp). prismbake's EXR leaves the background
-transparent and black, so the background is not compared. Needs bpy==5.0.1, OpenEXR and
+(Monte Carlo noise included: it shrinks with --spp); and over the whole image, the fraction of
+pixels one covers and the other does not (alpha over 0.5: the silhouette, so the camera's
+projection). Both EXRs leave the background transparent and black (Cycles' film transparent),
+so the background is not compared. `--extra` passes more flags to prismbake. Needs bpy==5.0.1, OpenEXR and
 numpy (tests/python/requirements.txt). The displacement comes from the asset's sidecar.
 """
 import argparse
@@ -120,7 +122,8 @@ def render_cycles(a, disp, out_exr, env):
     c.sample_clamp_direct = c.sample_clamp_indirect = 0.0
     sc.render.threads_mode = "FIXED"
     sc.render.threads = a.threads
-    sc.render.film_transparent = False
+    # The background's alpha 0 (its light still reaches the asset): the coverage to compare.
+    sc.render.film_transparent = True
     ims = sc.render.image_settings
     if hasattr(ims, "media_type"):
         ims.media_type = "MULTI_LAYER_IMAGE"
@@ -144,6 +147,7 @@ def main():
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--prismbake", default=os.environ.get("PRISMBAKE_BIN", str(ROOT / "target/release/prismbake")))
     ap.add_argument("--keep", help="folder to keep the renders in")
+    ap.add_argument("--extra", default="", help="more prismbake render flags in one string, e.g. \"--fov 30\"")
     a = ap.parse_args()
     sidecar = pathlib.Path(a.asset).with_name(pathlib.Path(a.asset).stem + ".prismbake.toml")
     side = tomllib.loads(sidecar.read_text())
@@ -158,7 +162,8 @@ def main():
                          "--env-rotate", str(a.env_rotate), "--res", f"{a.res}x{a.res}", "--spp", str(a.spp),
                          "--bounces", "4", "--base-color", ",".join(map(str, a.base_color)),
                          "--roughness", str(a.roughness), "--metallic", str(a.metallic), "--specular", "0.04",
-                         "--threads", str(a.threads), "-o", str(out / "pb")], capture_output=True, text=True)
+                         "--threads", str(a.threads), "-o", str(out / "pb"), *a.extra.split()],
+                        capture_output=True, text=True)
     pb_s = time.perf_counter() - t
     if pb.returncode != 0:
         sys.exit(f"prismbake failed:\n{pb.stderr}")
@@ -177,6 +182,8 @@ def main():
         "asset": a.asset, "res": a.res, "spp": a.spp, "roughness": a.roughness, "metallic": a.metallic,
         "env_rotate": a.env_rotate, "cycles_s": round(cycles_s, 2), "prismbake_s": round(pb_s, 2),
         "asset_pixels": int(obj.sum()),
+        # Pixels one renderer covers and the other does not (alpha over 0.5), of all pixels.
+        "mask_mismatch": round(float(np.mean(mask != (cyc[..., 3] > 0.5))), 5),
         "asset_mean_rgb_prismbake": [round(float(x), 4) for x in ours[obj][:, :3].mean(0)],
         "asset_mean_rgb_cycles": [round(float(x), 4) for x in cyc[obj][:, :3].mean(0)],
         "asset_rel_mean_abs_diff": round(rel(ours[obj][:, :3], cyc[obj][:, :3]), 4),

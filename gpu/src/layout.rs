@@ -244,6 +244,12 @@ pub struct GpuFrame {
     pub normal_mode: u32,
     /// The one sample a dispatch renders (both kernels accumulate over dispatches).
     pub sample_index: u32,
+    /// 1: an orthographic view, `tan_half_fov` is half its height in scene units (rays start
+    /// on the plane through `cam_from`, along −`cam_back`); 0: a pinhole.
+    pub orthographic: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// One pixel of AOV sums over the samples rendered so far, 48 bytes (the CPU's per-pixel
@@ -385,7 +391,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuVertex>() == 32);
     assert!(std::mem::size_of::<GpuBvhNode>() == 32);
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
-    assert!(std::mem::size_of::<GpuFrame>() == 112);
+    assert!(std::mem::size_of::<GpuFrame>() == 128);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
     assert!(std::mem::size_of::<GpuLighting>() == 112);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
@@ -476,7 +482,11 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 jitter,
                 refine,
                 normal_mode,
-                sample_index
+                sample_index,
+                orthographic,
+                _pad0,
+                _pad1,
+                _pad2
             }
         ),
         layout!(
@@ -592,6 +602,7 @@ mod tests {
         assert_eq!(offset_of!(GpuFrame, tile_origin), 64);
         assert_eq!(offset_of!(GpuFrame, spp), 80);
         assert_eq!(offset_of!(GpuFrame, jitter), 96);
+        assert_eq!(offset_of!(GpuFrame, orthographic), 112);
         assert_eq!(offset_of!(GpuAovPixel, uv_sum), 16);
         assert_eq!(offset_of!(GpuAovPixel, prism), 32);
         assert_eq!(offset_of!(GpuPrism, texel_world), 32);

@@ -14,27 +14,18 @@ use prismbake::trace::pdm::{Construction, PdmOptions, StepSize};
 use prismbake::trace::NormalMode;
 use rayon::prelude::*;
 
-/// Orthonormal (right, up, back) of the view, computed exactly as `Camera::ray` computes it.
-pub fn camera_basis(cam: &Camera) -> (Vec3, Vec3, Vec3) {
-    let back = (cam.from - cam.to).normalize();
-    let mut right = cam.up.cross(back);
-    if right.length_squared() < 1e-12 {
-        right = back.any_orthonormal_vector();
-    }
-    let right = right.normalize();
-    (right, back.cross(right), back)
-}
-
-/// The per-dispatch uniform for a whole frame (the tile fields are set per tile).
+/// The per-dispatch uniform for a whole frame (the tile fields are set per tile); the view's
+/// basis and extent as `Camera::raster` computes them.
 pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> GpuFrame {
-    let (right, up, back) = camera_basis(cam);
+    let (right, up, back) = cam.basis();
+    let (half, orthographic) = cam.half_extent();
     let (dt_auto, dt_value) = match opts.dt {
         StepSize::Auto(f) => (1, f),
         StepSize::World(w) => (0, w),
     };
     GpuFrame {
         cam_from: cam.from.to_array(),
-        tan_half_fov: (cam.yfov_deg.to_radians() * 0.5).tan(),
+        tan_half_fov: half,
         cam_right: right.to_array(),
         aspect: s.width as f32 / s.height as f32,
         cam_up: up.to_array(),
@@ -54,6 +45,10 @@ pub fn frame_uniform(cam: &Camera, s: &RenderSettings, opts: &PdmOptions) -> Gpu
             NormalMode::Geometric => 1,
         },
         sample_index: 0,
+        orthographic: orthographic as u32,
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
     }
 }
 

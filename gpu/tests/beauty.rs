@@ -338,6 +338,48 @@ fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
     check(rel, &ex, &bscene, &settings, "sky+key+ground");
 }
 
+/// An orthographic view: every camera ray starts at its own place on the camera's plane
+/// (the wavefront keeps it until the camera step's event), over the ground too.
+#[test]
+fn an_orthographic_view_matches_the_cpu() {
+    let rel = "sphere/sphere.glb";
+    let ex = example_scene(rel);
+    let ex = ExampleScene {
+        cam: ex.cam.fit_orthographic(ex.lo, ex.hi, 1.0),
+        ..ex
+    };
+    let env = EnvMap::default_sky(
+        1.0,
+        EnvFrame {
+            z_up: false,
+            rotation: 0.4,
+        },
+    );
+    let (ground, eps) = ground_and_eps(&ex, Vec3::Y);
+    let bscene = BeautyScene {
+        env: &env,
+        env_frame: env.frame,
+        env_lights: true,
+        key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false)),
+        materials: &[SurfaceMaterial::from(Material::default())],
+        textures: &[],
+        tangents: &[],
+        emissive: false,
+        prisms: &ex.scene.table.prisms,
+        ground: Some(ground),
+        bounces: 2,
+        eps,
+        exposure: 1.0,
+    };
+    let settings = RenderSettings {
+        width: 48,
+        height: 48,
+        spp: 2,
+        seed: 3,
+    };
+    check(rel, &ex, &bscene, &settings, "orthographic");
+}
+
 #[test]
 fn materials_and_textures_per_prism_match_the_cpu() {
     // The rock's own base-colour texture (embedded in rock.glb: fish scales, a colour each)

@@ -6,6 +6,7 @@
 //! march, refinement, stitched height, surface normal, jitter) diverges.
 
 use crate::util::{ctx, example_scene};
+use prismbake::render::camera::Projection;
 use prismbake::render::{self, AovImage, RenderSettings};
 use prismbake::trace::pdm::{Pdm, PdmOptions};
 use prismbake_gpu::{render_aovs, render_aovs_walked, AovWalk, GpuScene};
@@ -169,12 +170,56 @@ fn rock_matches_the_cpu_below_lavapipes_loop_cap() {
 /// A frame wider and taller than one dispatch's tile is rendered tile by tile: every pixel
 /// still gets its own ray, random numbers and place in the image (breaks if a tile's origin
 /// or size reaches the kernel wrong, or the read-back puts rows in the wrong place).
+/// An orthographic view (`--ortho`): parallel rays from the camera's plane, on the rock.
+#[test]
+fn an_orthographic_view_matches_the_cpu() {
+    let ex = example_scene("rock/rock.glb");
+    let cam = ex.cam.fit_orthographic(ex.lo, ex.hi, 1.0);
+    let settings = RenderSettings {
+        width: 128,
+        height: 128,
+        spp: 1,
+        seed: 7,
+    };
+    let opts = PdmOptions::default();
+    let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &cam, &settings, &|_| {});
+    let gpu_scene = GpuScene::upload(ctx(), &ex.scene).expect("upload");
+    let gpu = render_aovs(ctx(), &gpu_scene, &cam, &settings, &opts, &|_| {}).expect("gpu render");
+    let a = compare(&cpu, &gpu, |_| true);
+    eprintln!("{}", report("rock 128², orthographic", &a));
+    assert_parity("rock, orthographic", &a, 128 * 128 / 10);
+    // Parallel rays: the depth AOV is the distance from the camera's plane.
+    let (_, _, back) = cam.basis();
+    let nearest = (0..8)
+        .map(|i| {
+            let corner = glam::Vec3::new(
+                if i & 1 == 0 { ex.lo.x } else { ex.hi.x },
+                if i & 2 == 0 { ex.lo.y } else { ex.hi.y },
+                if i & 4 == 0 { ex.lo.z } else { ex.hi.z },
+            );
+            (cam.from - corner).dot(back)
+        })
+        .fold(f32::INFINITY, f32::min);
+    let hit_depths = (0..cpu.mask.len())
+        .filter(|&i| cpu.mask[i] > 0.5)
+        .map(|i| cpu.depth[i]);
+    assert!(
+        hit_depths.clone().all(|d| d >= nearest * 0.99),
+        "a hit nearer than the bounds"
+    );
+}
+
 #[test]
 fn frames_larger_than_a_tile_match_the_cpu() {
     let ex = example_scene("torus/torus.obj");
     // Zoomed in so that the torus crosses into the last tiles.
+    let Projection::Perspective { yfov_deg } = ex.cam.projection else {
+        panic!("the torus is framed through a pinhole");
+    };
     let cam = prismbake::render::camera::Camera {
-        yfov_deg: ex.cam.yfov_deg * 0.5,
+        projection: Projection::Perspective {
+            yfov_deg: yfov_deg * 0.5,
+        },
         ..ex.cam
     };
     let side = ctx().tile() + 24;
@@ -403,16 +448,13 @@ fn centre_rays_hit_where_the_cpu_does(seed: u32, indices: &[usize]) {
 fn rock_leak_ray_as_centre_ray(seed: u32, index: usize) -> (Option<f32>, Option<f32>) {
     let ex = example_scene("rock/rock.glb");
     let ray = prismbake::bench::leak_rays(&ex.scene, index + 1, seed)[index];
-    let cam = prismbake::render::camera::Camera {
-        from: ray.origin,
-        to: ray.origin + ray.dir,
-        up: if ray.dir.y.abs() < 0.9 {
-            glam::Vec3::Y
-        } else {
-            glam::Vec3::X
-        },
-        yfov_deg: 1.0,
+    let up = if ray.dir.y.abs() < 0.9 {
+        glam::Vec3::Y
+    } else {
+        glam::Vec3::X
     };
+    let cam =
+        prismbake::render::camera::Camera::perspective(ray.origin, ray.origin + ray.dir, up, 1.0);
     let settings = RenderSettings {
         width: 1,
         height: 1,

@@ -121,12 +121,7 @@ struct Renders {
 fn render_mode(mode: SeamMode) -> Renders {
     let scene = cube_scene(mode);
     // Three faces and their shared edges and corner in view.
-    let cam = Camera {
-        from: Vec3::new(2.6, 2.1, 3.3),
-        to: Vec3::ZERO,
-        up: Vec3::Y,
-        yfov_deg: 40.0,
-    };
+    let cam = Camera::perspective(Vec3::new(2.6, 2.1, 3.3), Vec3::ZERO, Vec3::Y, 40.0);
     let settings = RenderSettings {
         width: RES,
         height: RES,

@@ -8,7 +8,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
+use crate::mesh::{BaseMesh, MeshMaterial, Projection, UpAxis};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -99,8 +99,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
     if mesh.materials.is_empty() {
         mesh.group_material.clear();
     }
-    for (names, world, yfov) in loader.cameras {
-        super::attach_camera(&mut mesh, names, world, yfov);
+    for (names, world, projection) in loader.cameras {
+        super::attach_camera(&mut mesh, names, world, projection);
     }
     Ok(mesh)
 }
@@ -458,7 +458,7 @@ struct Loader<'p> {
     visited: Vec<bool>,
     /// Names, world transform and vertical FOV (radians) of each perspective camera, in the
     /// order the scene's nodes are visited.
-    cameras: Vec<(Vec<String>, Mat4, f32)>,
+    cameras: Vec<(Vec<String>, Mat4, Projection)>,
     any_uv_missing: bool,
     /// The file's material count: the index of "no material".
     materials: usize,
@@ -484,15 +484,16 @@ impl Loader<'_> {
                 .flatten()
                 .map(str::to_string)
                 .collect();
-            match cam.projection() {
-                ::gltf::camera::Projection::Perspective(p) => {
-                    self.cameras.push((names, world, p.yfov()))
-                }
-                ::gltf::camera::Projection::Orthographic(_) => self.warn(&format!(
-                    "camera '{}' is orthographic: only perspective cameras are read",
-                    names[0]
-                )),
-            }
+            let projection = match cam.projection() {
+                ::gltf::camera::Projection::Perspective(p) => Projection::Perspective {
+                    yfov_deg: p.yfov().to_degrees(),
+                },
+                // `ymag`: half the view's height.
+                ::gltf::camera::Projection::Orthographic(o) => Projection::Orthographic {
+                    height: 2.0 * o.ymag(),
+                },
+            };
+            self.cameras.push((names, world, projection));
         }
         if let Some(mesh) = node.mesh() {
             let node_name = node

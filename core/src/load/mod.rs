@@ -12,7 +12,7 @@ mod usdc_check;
 
 use crate::error::{Error, Result};
 use crate::heightmap::{HeightMap, Wrap};
-use crate::mesh::{BaseMesh, NamedCamera, SceneCamera};
+use crate::mesh::{BaseMesh, NamedCamera, Projection, SceneCamera};
 use glam::{Mat4, Vec3};
 use std::path::Path;
 
@@ -33,15 +33,23 @@ pub struct MapOptions {
 
 /// Why a scene camera cannot be rendered through, if it cannot: a field of view outside what
 /// `--fov` takes (0–179°; glTF requires `yfov` > 0, USD a positive focal length and aperture),
-/// or a position or target that is not finite.
+/// an orthographic view whose height is not a positive number, or a position or target that
+/// is not finite.
 fn camera_fault(c: &SceneCamera) -> Option<String> {
     use crate::render::camera::{usable_fov, MAX_FOV_DEG};
-    if !usable_fov(c.yfov_deg) {
-        return Some(format!(
-            "has a vertical field of view of {}° ({} rad), outside 0–{MAX_FOV_DEG}°",
-            c.yfov_deg,
-            c.yfov_deg.to_radians()
-        ));
+    match c.projection {
+        Projection::Perspective { yfov_deg } if !usable_fov(yfov_deg) => {
+            return Some(format!(
+                "has a vertical field of view of {yfov_deg}° ({} rad), outside 0–{MAX_FOV_DEG}°",
+                yfov_deg.to_radians()
+            ));
+        }
+        Projection::Orthographic { height } if !(height.is_finite() && height > 0.0) => {
+            return Some(format!(
+                "is orthographic with a view {height} units tall (it must be a positive number)"
+            ));
+        }
+        _ => {}
     }
     if !(c.from.is_finite() && c.to.is_finite() && c.up.is_finite()) {
         return Some("is placed at a position that is not finite".into());
@@ -50,32 +58,41 @@ fn camera_fault(c: &SceneCamera) -> Option<String> {
 }
 
 /// Camera looking down its local -Z with local +Y up (glTF's and USD's convention); the target
-/// is the mesh centre projected on the view axis, at least one unit ahead.
-fn scene_camera(mesh: &BaseMesh, world: Mat4, yfov: f32) -> SceneCamera {
+/// is the mesh centre projected on the view axis, at least one unit ahead. An orthographic
+/// view's height (in the camera's own units) is scaled as the transform scales its +Y.
+fn scene_camera(mesh: &BaseMesh, world: Mat4, projection: Projection) -> SceneCamera {
     let from = world.transform_point3(Vec3::ZERO);
     let forward = world
         .transform_vector3(Vec3::NEG_Z)
         .try_normalize()
         .unwrap_or(Vec3::NEG_Z);
-    let up = world
-        .transform_vector3(Vec3::Y)
-        .try_normalize()
-        .unwrap_or(Vec3::Y);
+    let local_up = world.transform_vector3(Vec3::Y);
+    let up = local_up.try_normalize().unwrap_or(Vec3::Y);
     let (lo, hi) = mesh.bounds();
     let distance = ((lo + hi) * 0.5 - from).dot(forward).max(1.0);
     SceneCamera {
         from,
         to: from + forward * distance,
         up,
-        yfov_deg: yfov.to_degrees(),
+        projection: match projection {
+            Projection::Orthographic { height } => Projection::Orthographic {
+                height: height * local_up.length(),
+            },
+            perspective => perspective,
+        },
     }
 }
 
-/// Add to `mesh`'s cameras the scene camera `names` at `world` with vertical field of view
-/// `yfov` (radians), once its geometry is loaded; one that cannot be rendered through is left
-/// out with a warning.
-pub(crate) fn attach_camera(mesh: &mut BaseMesh, mut names: Vec<String>, world: Mat4, yfov: f32) {
-    let camera = scene_camera(mesh, world, yfov);
+/// Add to `mesh`'s cameras the scene camera `names` at `world` with `projection` (an
+/// orthographic height in the camera's own units), once its geometry is loaded; one that
+/// cannot be rendered through is left out with a warning.
+pub(crate) fn attach_camera(
+    mesh: &mut BaseMesh,
+    mut names: Vec<String>,
+    world: Mat4,
+    projection: Projection,
+) {
+    let camera = scene_camera(mesh, world, projection);
     let mut seen = std::collections::HashSet::new();
     names.retain(|n| seen.insert(n.clone()));
     match camera_fault(&camera) {

@@ -3,7 +3,7 @@
 //! file, never as a panic.
 
 use super::{load_height_map, load_mesh, MapOptions, MeshOptions};
-use crate::mesh::BaseMesh;
+use crate::mesh::{BaseMesh, Projection};
 use crate::texture::{Sampler, TexWrap, TextureData, UvTransform};
 use glam::{Vec2, Vec3};
 use serde_json::{json, Value};
@@ -686,7 +686,12 @@ fn gltf_perspective_camera_becomes_the_scene_camera() {
     // Bounds centre (0.5, 0.5, 0) projected on the -Z view axis: 5 units ahead.
     assert!(approx(cam.to, Vec3::ZERO), "{}", cam.to);
     assert!(approx(cam.up, Vec3::Y));
-    assert!((cam.yfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
+    assert_eq!(
+        cam.projection,
+        Projection::Perspective {
+            yfov_deg: 0.5f32.to_degrees()
+        }
+    );
     assert_eq!(
         m.cameras[0].names,
         ["node #1"],
@@ -694,10 +699,10 @@ fn gltf_perspective_camera_becomes_the_scene_camera() {
     );
 }
 
-/// Every perspective camera is kept, in the order the scene's nodes are visited, under its
-/// node's name, `node #N` and its camera's name; `--camera` picks any of them by one of those,
-/// the first is the default, and a name that is missing or shared is an error listing them.
-/// An orthographic camera is left out.
+/// Every camera is kept, in the order the scene's nodes are visited, under its node's name,
+/// `node #N` and its camera's name; `--camera` picks any of them by one of those, the first is
+/// the default, and a name that is missing or shared is an error listing them. An
+/// orthographic camera's view is twice its `ymag` tall, scaled with its node.
 #[test]
 fn gltf_cameras_are_picked_by_node_or_camera_name() {
     let dir = temp_dir("gltf-cameras");
@@ -710,23 +715,21 @@ fn gltf_cameras_are_picked_by_node_or_camera_name() {
             {"mesh": 0},
             {"name": "Wide", "camera": 0, "translation": [0.0, 0.0, 5.0]},
             {"name": "Close", "camera": 1, "translation": [0.0, 0.0, 2.0]},
-            {"name": "Top", "camera": 2, "translation": [0.0, 0.0, 9.0]},
+            {"name": "Top", "camera": 2, "translation": [0.0, 0.0, 9.0], "scale": [3.0, 3.0, 3.0]},
             {"name": "Close", "camera": 0, "translation": [0.0, 0.0, 3.0]},
         ],
         "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
         "cameras": [
             {"type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.1}},
             {"name": "macro", "type": "perspective", "perspective": {"yfov": 0.2, "znear": 0.1}},
-            {"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}},
+            {"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 0.75, "znear": 0.1, "zfar": 10.0}},
         ],
     });
     let m = load_gltf_doc(&dir, "cams.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
     let names: Vec<&str> = m.cameras.iter().map(|c| c.names[0].as_str()).collect();
-    assert_eq!(
-        names,
-        ["Wide", "Close", "Close"],
-        "the orthographic one left out"
-    );
+    assert_eq!(names, ["Wide", "Close", "Top", "Close"]);
+    let top = m.pick_camera(Some("Top")).unwrap().expect("Top");
+    assert_eq!(top.projection, Projection::Orthographic { height: 4.5 });
     let z = |name: Option<&str>| m.pick_camera(name).map(|c| c.expect("a camera").from.z);
     assert_eq!(z(None).unwrap(), 5.0, "the first is the default");
     assert_eq!(z(Some("Wide")).unwrap(), 5.0);
@@ -741,20 +744,34 @@ fn gltf_cameras_are_picked_by_node_or_camera_name() {
         shared.contains("'node #2'") && shared.contains("'node #4'"),
         "{shared}"
     );
-    let missing = z(Some("Top")).unwrap_err().to_string();
+    let missing = z(Some("Side")).unwrap_err().to_string();
     assert!(
-        missing.contains("no camera named 'Top'")
-            && missing.contains("its cameras: 'Wide', 'Close', 'Close'"),
+        missing.contains("no camera named 'Side'")
+            && missing.contains("its cameras: 'Wide', 'Close', 'Top', 'Close'"),
         "{missing}"
     );
 }
 
 /// A camera `--fov` would refuse (a yfov of 0 sends every ray one way, a negative one turns
-/// the picture over, one past 179° folds it) or placed at an infinite position is left out,
-/// with a warning, and the view is framed from the bounds; the mesh still loads.
+/// the picture over, one past 179° folds it), an orthographic one of no or negative height,
+/// or one placed at an infinite position is left out, with a warning, and the view is framed
+/// from the bounds; the mesh still loads.
 #[test]
 fn a_gltf_camera_that_cannot_be_rendered_through_is_left_out() {
     let dir = temp_dir("gltf-bad-camera");
+    for ymag in [0.0, -1.0] {
+        let mut doc = GltfDoc::default();
+        let a_pos = doc.floats(&TRI, 3);
+        let rest = json!({
+            "scene": 0,
+            "scenes": [{"nodes": [0, 1]}],
+            "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 5.0]}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
+            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": ymag, "znear": 0.1, "zfar": 10.0}}],
+        });
+        let m = load_gltf_doc(&dir, "ortho.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
+        assert!(m.cameras.is_empty(), "ymag {ymag}: {:?}", m.cameras);
+    }
     for (i, (yfov, z)) in [(0.0, 5.0), (-0.5, 5.0), (3.2, 5.0), (0.5, 1e39)]
         .into_iter()
         .enumerate()

@@ -21,7 +21,7 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
-use crate::mesh::{BaseMesh, MeshMaterial, UpAxis, MAX_MATERIALS};
+use crate::mesh::{BaseMesh, MeshMaterial, Projection, UpAxis, MAX_MATERIALS};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -71,8 +71,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         let mut mesh = loader.mesh;
         mesh.missing_uvs = loader.any_uv_missing;
         mesh.face_flags = vec![0; mesh.triangles.len()];
-        for (names, world, yfov) in loader.cameras {
-            super::attach_camera(&mut mesh, names, world.as_mat4(), yfov);
+        for (names, world, projection) in loader.cameras {
+            super::attach_camera(&mut mesh, names, world.as_mat4(), projection);
         }
         Ok(mesh)
     })
@@ -784,7 +784,7 @@ struct Loader<'a> {
     material_paths: Vec<sdf::Path>,
     /// Names (path, prim name), world transform and vertical field of view (radians) of each
     /// perspective camera, in the stage's order.
-    cameras: Vec<(Vec<String>, DMat4, f32)>,
+    cameras: Vec<(Vec<String>, DMat4, Projection)>,
 }
 
 /// A primvar expanded to one value per face corner.
@@ -818,17 +818,19 @@ impl Loader<'_> {
     /// A `Camera` prim (UsdGeomCamera): looking down its local −Z with +Y up, as glTF's; the
     /// vertical field of view from `verticalAperture` and `focalLength` (both in the same
     /// tenths of a scene unit, so their ratio is the field of view; USD's defaults 15.2908 and
-    /// 50 where not authored). An orthographic camera is left out with a warning, and so is
-    /// one whose values are not numbers; a field of view that cannot be rendered through is
-    /// left out by `attach_camera`.
+    /// 50 where not authored); an orthographic camera's view is `verticalAperture` tenths of
+    /// a scene unit tall. A camera of another projection is left out with a warning, and so
+    /// is one whose values are not numbers; a view that cannot be rendered through is left
+    /// out by `attach_camera`.
     fn camera_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
         let projection = value(self.path, prim, "projection")?;
         let projection = projection.as_ref().and_then(|v| v.as_str());
-        if projection.is_some_and(|p| p != "perspective") {
+        let orthographic = projection == Some("orthographic");
+        if projection.is_some_and(|p| p != "perspective") && !orthographic {
             warn(
                 self.path,
                 &format!(
-                    "camera {} is {}: only perspective cameras are read; left out",
+                    "camera {} is {}: only perspective and orthographic cameras are read; left out",
                     prim.path(),
                     projection.unwrap_or_default()
                 ),
@@ -854,10 +856,17 @@ impl Loader<'_> {
             );
             return Ok(());
         };
-        let yfov = 2.0 * (aperture / (2.0 * focal)).atan();
+        let projection = match orthographic {
+            true => Projection::Orthographic {
+                height: (aperture / 10.0) as f32,
+            },
+            false => Projection::Perspective {
+                yfov_deg: (2.0 * (aperture / (2.0 * focal)).atan()).to_degrees() as f32,
+            },
+        };
         let path = prim.path().to_string();
         let name = path.rsplit('/').next().unwrap_or_default().to_string();
-        self.cameras.push((vec![path, name], world, yfov as f32));
+        self.cameras.push((vec![path, name], world, projection));
         Ok(())
     }
 

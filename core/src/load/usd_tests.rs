@@ -1423,11 +1423,7 @@ def Camera "Second"
     assert!((dir - Vec3::NEG_X).length() < 1e-5, "{dir}");
     assert!((cam.up - Vec3::Y).length() < 1e-5, "{}", cam.up);
     let want = 2.0 * (12.0f32 / 35.0).atan().to_degrees();
-    assert!(
-        (cam.yfov_deg - want).abs() < 1e-3,
-        "{} against {want}",
-        cam.yfov_deg
-    );
+    assert_yfov(&cam, want);
 
     // Not authored: USD's defaults (15.2908 over 50, 17.4°).
     let p = write(
@@ -1440,18 +1436,44 @@ def Camera "Second"
         .pick_camera(None)
         .unwrap()
         .unwrap();
-    let want = 2.0 * (15.2908f32 / 100.0).atan().to_degrees();
-    assert!((cam.yfov_deg - want).abs() < 1e-3, "{}", cam.yfov_deg);
+    assert_yfov(&cam, 2.0 * (15.2908f32 / 100.0).atan().to_degrees());
+
+    // Orthographic: the view is verticalAperture tenths of a scene unit tall, scaled with
+    // the prim (USD's default aperture where not authored).
+    for (body, want) in [
+        ("token projection = \"orthographic\"\n    float verticalAperture = 25", 2.5),
+        ("token projection = \"orthographic\"\n    double3 xformOp:scale = (2, 2, 2)\n    uniform token[] xformOpOrder = [\"xformOp:scale\"]", 3.05816),
+    ] {
+        let cameras = format!("def Camera \"C\"\n{{\n    {body}\n}}");
+        let p = write(&d, "ortho.usda", &quad_with_cameras("Y", &cameras));
+        let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+        let cam = m.pick_camera(None).unwrap().expect(body);
+        let Projection::Orthographic { height } = cam.projection else {
+            panic!("{body}: {:?}", cam.projection);
+        };
+        assert!((height - want).abs() < 1e-4, "{body}: {height}");
+    }
 }
 
-/// A camera that cannot be rendered through is left out, the mesh still loads: an
-/// orthographic one, one with a focal length of 0 (a field of view of 180°) or a negative
-/// one (an image turned over), and one whose focal length is not a number.
+fn assert_yfov(cam: &crate::mesh::SceneCamera, want: f32) {
+    match cam.projection {
+        Projection::Perspective { yfov_deg } => {
+            assert!((yfov_deg - want).abs() < 1e-3, "{yfov_deg} against {want}")
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+/// A camera that cannot be rendered through is left out, the mesh still loads: one of a
+/// projection USD does not define, one with a focal length of 0 (a field of view of 180°) or
+/// a negative one (an image turned over), one whose focal length is not a number, and an
+/// orthographic one with no height.
 #[test]
 fn a_usd_camera_that_cannot_be_rendered_through_is_left_out() {
     let d = dir("bad-camera");
     for (i, body) in [
-        "token projection = \"orthographic\"",
+        "token projection = \"fisheye\"",
+        "token projection = \"orthographic\"\n    float verticalAperture = 0",
         "float focalLength = 0",
         "float focalLength = -35",
         "string focalLength = \"wide\"",

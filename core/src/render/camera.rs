@@ -1,6 +1,8 @@
-//! Pinhole camera: from a scene file's camera, from explicit from/to/fov, or framed from the
-//! asset's bounds; turntables orbit it around the up axis through the look-at point.
+//! The view: a pinhole or an orthographic camera, from a scene file's camera, from explicit
+//! from/to/fov, or framed from the asset's bounds; turntables orbit it around the up axis
+//! through the look-at point.
 
+pub use crate::mesh::Projection;
 use crate::mesh::{SceneCamera, UpAxis};
 use crate::trace::Ray;
 use glam::{Quat, Vec2, Vec3};
@@ -20,8 +22,7 @@ pub struct Camera {
     pub from: Vec3,
     pub to: Vec3,
     pub up: Vec3,
-    /// Vertical field of view, degrees.
-    pub yfov_deg: f32,
+    pub projection: Projection,
 }
 
 impl Camera {
@@ -30,7 +31,47 @@ impl Camera {
             from: c.from,
             to: c.to,
             up: c.up,
-            yfov_deg: c.yfov_deg,
+            projection: c.projection,
+        }
+    }
+
+    /// A pinhole camera with vertical field of view `yfov_deg`.
+    pub fn perspective(from: Vec3, to: Vec3, up: Vec3, yfov_deg: f32) -> Self {
+        Camera {
+            from,
+            to,
+            up,
+            projection: Projection::Perspective { yfov_deg },
+        }
+    }
+
+    /// The height an orthographic view from this camera's place needs to hold the box
+    /// `lo`–`hi` (all eight corners, with a 10% margin, at image aspect `aspect`), and the
+    /// camera moved back along its view, where needed, so that the box lies ahead of it (an
+    /// orthographic ray starts on the plane through the camera).
+    pub fn fit_orthographic(&self, lo: Vec3, hi: Vec3, aspect: f32) -> Self {
+        let (right, up, back) = self.basis();
+        let (mut half, mut ahead) = (0.0f32, f32::INFINITY);
+        for i in 0..8 {
+            let corner = Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            ) - self.from;
+            half = half
+                .max(corner.dot(up).abs())
+                .max(corner.dot(right).abs() / aspect);
+            ahead = ahead.min(-corner.dot(back));
+        }
+        let margin = 0.1 * (hi - lo).length();
+        let pull = (margin - ahead).max(0.0);
+        Camera {
+            from: self.from + back * pull,
+            to: self.to + back * pull,
+            projection: Projection::Orthographic {
+                height: (2.2 * half).max(f32::MIN_POSITIVE),
+            },
+            ..*self
         }
     }
 
@@ -43,12 +84,7 @@ impl Camera {
             UpAxis::Z => (Vec3::Z, -Vec3::Y),
         };
         let dir = (front + up * 0.35).normalize();
-        let mut cam = Camera {
-            from: centre + dir,
-            to: centre,
-            up,
-            yfov_deg,
-        };
+        let mut cam = Camera::perspective(centre + dir, centre, up, yfov_deg);
         let (right, cam_up, back) = cam.basis();
         let tan_y = (yfov_deg.to_radians() * 0.5).tan() / 1.1;
         let tan_x = tan_y * aspect;
@@ -85,7 +121,7 @@ impl Camera {
     }
 
     /// Orthonormal basis (right, up, back) of the view.
-    fn basis(&self) -> (Vec3, Vec3, Vec3) {
+    pub fn basis(&self) -> (Vec3, Vec3, Vec3) {
         let back = (self.from - self.to).normalize();
         let mut right = self.up.cross(back);
         if right.length_squared() < 1e-12 {
@@ -105,15 +141,26 @@ impl Camera {
     /// shares.
     pub fn raster(&self, w: u32, h: u32) -> Raster {
         let (right, up, back) = self.basis();
+        let (half, orthographic) = self.half_extent();
         Raster {
             from: self.from,
             right,
             up,
             back,
-            tan: (self.yfov_deg.to_radians() * 0.5).tan(),
+            half,
+            orthographic,
             aspect: w as f32 / h as f32,
             w: w as f32,
             h: h as f32,
+        }
+    }
+
+    /// Half the view's height: at unit distance for a pinhole (the tangent of half its field
+    /// of view), in scene units for an orthographic view (then `true`).
+    pub fn half_extent(&self) -> (f32, bool) {
+        match self.projection {
+            Projection::Perspective { yfov_deg } => ((yfov_deg.to_radians() * 0.5).tan(), false),
+            Projection::Orthographic { height } => (0.5 * height, true),
         }
     }
 }
@@ -125,22 +172,27 @@ pub struct Raster {
     right: Vec3,
     up: Vec3,
     back: Vec3,
-    tan: f32,
+    /// `Camera::half_extent`.
+    half: f32,
+    orthographic: bool,
     aspect: f32,
     w: f32,
     h: f32,
 }
 
 impl Raster {
-    /// The ray through image position `p` in pixels (origin top-left).
+    /// The ray through image position `p` in pixels (origin top-left): from the camera
+    /// through the image plane at unit distance, or, orthographic, from that position on the
+    /// plane through the camera, along the view.
     #[inline]
     pub fn ray(&self, p: Vec2) -> Ray {
-        let x = (2.0 * p.x / self.w - 1.0) * self.tan * self.aspect;
-        let y = (1.0 - 2.0 * p.y / self.h) * self.tan;
-        Ray::new(
-            self.from,
-            (self.right * x + self.up * y - self.back).normalize(),
-        )
+        let x = (2.0 * p.x / self.w - 1.0) * self.half * self.aspect;
+        let y = (1.0 - 2.0 * p.y / self.h) * self.half;
+        let offset = self.right * x + self.up * y;
+        match self.orthographic {
+            true => Ray::new(self.from + offset, -self.back),
+            false => Ray::new(self.from, (offset - self.back).normalize()),
+        }
     }
 }
 
@@ -150,12 +202,7 @@ mod tests {
 
     #[test]
     fn centre_ray_looks_at_target_and_turntable_orbits() {
-        let c = Camera {
-            from: Vec3::new(0.0, 0.0, 5.0),
-            to: Vec3::ZERO,
-            up: Vec3::Y,
-            yfov_deg: 40.0,
-        };
+        let c = Camera::perspective(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 40.0);
         let r = c.ray(Vec2::new(50.0, 50.0), 100, 100);
         assert!((r.dir - -Vec3::Z).length() < 1e-6);
         let q = c.orbit(Vec3::Y, std::f32::consts::FRAC_PI_2);
@@ -176,12 +223,7 @@ mod tests {
         let from = Vec3::new(0.0, 3.0, 4.0);
         let back = from.normalize();
         let right = Vec3::Y.cross(back).normalize();
-        let c = Camera {
-            from,
-            to: Vec3::ZERO,
-            up: back.cross(right),
-            yfov_deg: 40.0,
-        };
+        let c = Camera::perspective(from, Vec3::ZERO, back.cross(right), 40.0);
         assert!(c.up.y < 0.9, "the camera's up leans: {}", c.up);
         let centre = |c: &Camera| c.ray(Vec2::new(50.0, 50.0), 100, 100).dir;
         for k in 1..8 {
@@ -201,6 +243,58 @@ mod tests {
                 q.up.dot(q.from - q.to).abs() < 1e-4,
                 "frame {k}: up off the view"
             );
+        }
+    }
+
+    /// Orthographic rays are parallel to the view and start on the plane through the camera,
+    /// spread over the view's height (and its width at the image's aspect); a pinhole's
+    /// arithmetic is unchanged (the GPU mirrors both).
+    #[test]
+    fn orthographic_rays_are_parallel_and_span_the_views_height() {
+        let c = Camera {
+            projection: Projection::Orthographic { height: 3.0 },
+            ..Camera::perspective(Vec3::new(0.0, 0.0, 5.0), Vec3::ZERO, Vec3::Y, 40.0)
+        };
+        let (w, h) = (200, 100);
+        let centre = c.ray(Vec2::new(100.0, 50.0), w, h);
+        assert_eq!((centre.origin, centre.dir), (c.from, Vec3::NEG_Z));
+        let corner = c.ray(Vec2::new(0.0, 0.0), w, h);
+        assert_eq!(corner.dir, Vec3::NEG_Z);
+        assert!((corner.origin - Vec3::new(-3.0, 1.5, 5.0)).length() < 1e-6);
+        let bottom = c.ray(Vec2::new(200.0, 100.0), w, h);
+        assert!((bottom.origin - Vec3::new(3.0, -1.5, 5.0)).length() < 1e-6);
+    }
+
+    /// `--ortho fit`: every corner of the box inside the view with the 10% margin, whatever
+    /// the aspect, and ahead of the plane the rays start from, even from a camera placed
+    /// inside the box (moved back along its view, still looking the same way).
+    #[test]
+    fn an_orthographic_fit_holds_the_bounds_ahead_of_the_camera() {
+        let (lo, hi) = (Vec3::new(-1.0, -0.2, -3.0), Vec3::new(1.0, 0.2, 3.0));
+        for from in [Vec3::new(0.5, 2.0, 6.0), Vec3::new(0.0, 0.0, 1.0)] {
+            for aspect in [1.0f32, 2.0, 0.5] {
+                let start = Camera::perspective(from, Vec3::ZERO, Vec3::Y, 40.0);
+                let c = start.fit_orthographic(lo, hi, aspect);
+                let Projection::Orthographic { height } = c.projection else {
+                    panic!("{c:?}");
+                };
+                assert_eq!(c.basis(), start.basis(), "the view turned");
+                let (right, up, back) = c.basis();
+                for i in 0..8 {
+                    let p = Vec3::new(
+                        if i & 1 == 0 { lo.x } else { hi.x },
+                        if i & 2 == 0 { lo.y } else { hi.y },
+                        if i & 4 == 0 { lo.z } else { hi.z },
+                    ) - c.from;
+                    assert!(-p.dot(back) > 0.0, "{from} corner {i} behind the camera");
+                    let x = p.dot(right) / (0.5 * height * aspect);
+                    let y = p.dot(up) / (0.5 * height);
+                    assert!(
+                        x.abs() <= 1.0 / 1.1 + 1e-4 && y.abs() <= 1.0 / 1.1 + 1e-4,
+                        "{from} aspect {aspect} corner {i}: {x} {y}"
+                    );
+                }
+            }
         }
     }
 

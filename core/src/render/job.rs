@@ -1,7 +1,7 @@
 //! A render job: input (mesh + map, or a baked table), method, camera, frames, AOVs, output
 //! folder — validated up front, then run frame by frame.
 
-use super::camera::Camera;
+use super::camera::{Camera, Projection};
 use super::{Aov, RenderSettings};
 use crate::accel::Scene;
 use crate::asset::{self, AssetSpec};
@@ -134,7 +134,11 @@ pub struct CameraOverride {
     pub name: Option<String>,
     pub from: Option<Vec3>,
     pub to: Option<Vec3>,
+    /// `--fov`: a pinhole with this field of view (an orthographic file camera too).
     pub fov_deg: Option<f32>,
+    /// `--ortho HEIGHT|fit`: an orthographic view this tall, or (`Some(None)`, `fit`) as
+    /// tall as the asset's bounds need from where the camera is.
+    pub ortho: Option<Option<f32>>,
 }
 
 /// A method and every method's knobs (each method reads its own).
@@ -232,6 +236,19 @@ impl RenderJob {
                 )));
             }
         }
+        if let Some(Some(h)) = self.camera.ortho {
+            if !(h.is_finite() && h > 0.0) {
+                return Err(Error::Param(format!(
+                    "--ortho {h}: the view's height must be a positive number of scene units \
+                     (or `--ortho fit` to fit the asset)"
+                )));
+            }
+        }
+        if self.camera.ortho.is_some() && self.camera.fov_deg.is_some() {
+            return Err(Error::Param(
+                "--ortho and --fov: an orthographic view has no field of view (give one)".into(),
+            ));
+        }
         if let (Some(name), Input::Table { path, .. }) = (&self.camera.name, &self.input) {
             return Err(Error::invalid(
                 path,
@@ -328,13 +345,20 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
 /// from the bounds", and which flags override it).
 pub fn describe_camera(loaded: &Loaded, o: &CameraOverride) -> String {
     let base = match &loaded.scene_camera {
-        Some(c) => format!("the file's camera '{}'", c.names[0]),
+        Some(c) => match c.camera.projection {
+            Projection::Perspective { .. } => format!("the file's camera '{}'", c.names[0]),
+            Projection::Orthographic { height } => format!(
+                "the file's orthographic camera '{}' ({height} units tall)",
+                c.names[0]
+            ),
+        },
         None => "framed from the bounds".to_string(),
     };
     let flags: Vec<&str> = [
         (o.from.is_some(), "--camera-from"),
         (o.to.is_some(), "--camera-to"),
         (o.fov_deg.is_some(), "--fov"),
+        (o.ortho.is_some(), "--ortho"),
     ]
     .into_iter()
     .filter_map(|(set, flag)| set.then_some(flag))
@@ -345,15 +369,14 @@ pub fn describe_camera(loaded: &Loaded, o: &CameraOverride) -> String {
     }
 }
 
-/// The camera of frame 0: the scene's, else framed from bounds; flags override.
+/// The camera of frame 0: the scene's, else framed from bounds; flags override (`--ortho`
+/// without a height fits the bounds from wherever the camera ends up).
 pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     let fov = o.fov_deg;
+    let (lo, hi) = loaded.table.bounds();
     let mut cam = match &loaded.scene_camera {
         Some(c) => Camera::from_scene(&c.camera),
-        None => {
-            let (lo, hi) = loaded.table.bounds();
-            Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect)
-        }
+        None => Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect),
     };
     if let Some(f) = o.from {
         cam.from = f;
@@ -361,8 +384,13 @@ pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     if let Some(t) = o.to {
         cam.to = t;
     }
-    if let Some(f) = fov {
-        cam.yfov_deg = f;
+    if let Some(yfov_deg) = fov {
+        cam.projection = Projection::Perspective { yfov_deg };
+    }
+    match o.ortho {
+        Some(Some(height)) => cam.projection = Projection::Orthographic { height },
+        Some(None) => cam = cam.fit_orthographic(lo, hi, aspect),
+        None => {}
     }
     cam
 }
@@ -482,12 +510,12 @@ mod tests {
     fn turntable_modes_turn_the_camera_or_the_lights_about_the_assets_up() {
         let from = Vec3::new(0.0, 2.0, 4.0);
         let back = from.normalize();
-        let cam = Camera {
+        let cam = Camera::perspective(
             from,
-            to: Vec3::ZERO,
-            up: back.cross(Vec3::Y.cross(back).normalize()),
-            yfov_deg: 40.0,
-        };
+            Vec3::ZERO,
+            back.cross(Vec3::Y.cross(back).normalize()),
+            40.0,
+        );
         let quarter = std::f32::consts::FRAC_PI_2;
         for (mode, moves, turn) in [
             (TurntableMode::Asset, true, quarter),

@@ -409,12 +409,7 @@ fn seam_safe_map_renders_identically_open_and_stitched() {
         );
         let open =
             Scene::new(scene.table.clone(), scene.map.clone()).with_seam_mode(SeamMode::Open);
-        let cam = Camera {
-            from: Vec3::new(2.6, 2.1, 3.3),
-            to: Vec3::ZERO,
-            up: Vec3::Y,
-            yfov_deg: 45.0,
-        };
+        let cam = Camera::perspective(Vec3::new(2.6, 2.1, 3.3), Vec3::ZERO, Vec3::Y, 45.0);
         let settings = RenderSettings {
             width: 64,
             height: 64,
