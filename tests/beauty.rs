@@ -1574,3 +1574,97 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
         );
     }
 }
+
+/// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it):
+/// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
+/// dome whose texture is missing fails naming the file, the dome and the texture.
+#[test]
+fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
+    let dir = temp_dir("dome");
+    let scene = |dome: &str| {
+        format!(
+            "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
+             def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
+             int[] faceVertexIndices = [0, 1, 2, 3]\n    \
+             point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
+             texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
+             interpolation = \"vertex\"\n    )\n}}\n\
+             def DomeLight \"Sky\"\n{{\n    {dome}\n}}\n"
+        )
+    };
+    let red = dir.join("red.usda");
+    std::fs::write(
+        &red,
+        scene("float inputs:intensity = 3\n    color3f inputs:color = (1, 0, 0)"),
+    )
+    .unwrap();
+    let map = dir.join("flat.exr");
+    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let grey = dir.join("grey.exr");
+    write_constant_env(&grey, 1.0);
+    let render = |usda: &Path, name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "render",
+            s(usda),
+            "--disp",
+            s(&map),
+            "--aov",
+            "beauty",
+            "--res",
+            "12x12",
+            "--spp",
+            "4",
+            "--base-color",
+            "1,1,1",
+            "--camera-from",
+            "0,0,3",
+            "--camera-to",
+            "0,0,0",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        args.extend(extra);
+        let o = run(&args);
+        (o, out.join("beauty.exr"))
+    };
+    let info = run(&["inspect", s(&red), "--disp", s(&map), "--json"])
+        .assert_success()
+        .json();
+    assert_eq!(info["dome_light"], "'/Sky' (no texture)");
+    let (o, exr) = render(&red, "red", &[]);
+    let said = o.assert_success().json()["environment"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert_eq!(
+        said,
+        "the file's dome light '/Sky' (no texture, tint 3, 0, 0, turned 0°)"
+    );
+    let centre = read_rgba(&exr)[6 * 12 + 6];
+    assert!(
+        centre[0] > 0.5 && centre[1] == 0.0 && centre[2] == 0.0,
+        "{centre:?}"
+    );
+    let (o, exr) = render(&red, "env", &["--env", s(&grey)]);
+    let said = o.assert_success().json()["environment"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(said.starts_with("--env "), "{said}");
+    let centre = read_rgba(&exr)[6 * 12 + 6];
+    assert!(
+        centre[1] > 0.1 && (centre[0] - centre[1]).abs() < 1e-3,
+        "{centre:?}"
+    );
+    let missing = dir.join("missing.usda");
+    std::fs::write(
+        &missing,
+        scene("asset inputs:texture:file = @nowhere/sky.exr@"),
+    )
+    .unwrap();
+    let (o, exr) = render(&missing, "missing", &[]);
+    o.assert_error(&["missing.usda", "dome light /Sky", "nowhere/sky.exr"]);
+    assert!(!exr.exists());
+}

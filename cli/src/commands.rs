@@ -469,6 +469,9 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
         CacheUse::Off => {}
     }
     eprintln!("camera: {}", summary.camera);
+    if let Some(env) = &summary.environment {
+        eprintln!("environment: {env}");
+    }
     for f in &summary.render.frames {
         eprintln!(
             "{}frame: {:.3} s (trace {:.3} s{}, {}files {:.3} s), {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",

@@ -37,6 +37,22 @@ pub struct SceneCamera {
     pub projection: Projection,
 }
 
+/// A USD `DomeLight` (or `DomeLight_1`): the environment a beauty lights with where `--env` is
+/// not given.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneDome {
+    /// The prim's path.
+    pub name: String,
+    /// Its latitude-longitude texture (`inputs:texture:file`), resolved; `None`: a dome of
+    /// constant colour.
+    pub texture: Option<PathBuf>,
+    /// `inputs:color × inputs:intensity × 2^inputs:exposure`, linear RGB.
+    pub tint: [f32; 3],
+    /// Its turn about the stage's up axis from OpenEXR's latitude-longitude orientation (the
+    /// dome's default), degrees, counter-clockwise seen from above.
+    pub turn_deg: f32,
+}
+
 /// A scene camera with the names `--camera` finds it by.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedCamera {
@@ -62,6 +78,8 @@ pub struct BaseMesh {
     pub up_axis: Option<UpAxis>,
     /// The file's perspective cameras that can be rendered through, in file order.
     pub cameras: Vec<NamedCamera>,
+    /// The scene file's dome light (USD), the first if there are several.
+    pub dome: Option<SceneDome>,
     /// True when the file carried no UVs at all (every UV is then zero).
     pub missing_uvs: bool,
     /// The file's materials (glTF's metallic-roughness), in its order.

@@ -436,9 +436,13 @@ pub struct InspectInfo {
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
     pub camera: bool,
-    /// The file's perspective cameras, by the name messages show (the first is rendered
-    /// unless `--camera` names another).
+    /// The file's cameras, by the name messages show (the first is rendered unless
+    /// `--camera` names another).
     pub cameras: Vec<String>,
+    /// The file's dome light (USD) the beauty lights with unless `--env` is given: its prim
+    /// path and texture.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub dome_light: Option<String>,
     pub sharp_corners: usize,
     pub crease_edges: usize,
     pub inverted_corners: usize,
@@ -543,6 +547,11 @@ impl InspectInfo {
             self.triangles_after_repair, self.vertices_after_repair,
             self.estimated_table_bytes, self.estimated_table_bytes as f32 / self.triangles_after_repair.max(1) as f32,
         );
+        if let Some(d) = &self.dome_light {
+            s.push_str(&format!(
+                "dome      {d} (lights the beauty unless --env is given)\n"
+            ));
+        }
         if let Some(m) = &self.map {
             s.push_str(&format!(
                 "map       {} {}x{} channel {}, values {:.4} .. {:.4}, displacement {:.5} .. {:.5}\n",
@@ -649,6 +658,10 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         bounds_max: hi.to_array(),
         camera: !mesh.cameras.is_empty(),
         cameras: mesh.cameras.iter().map(|c| c.names[0].clone()).collect(),
+        dome_light: mesh.dome.as_ref().map(|d| match &d.texture {
+            Some(t) => format!("'{}' ({})", d.name, t.display()),
+            None => format!("'{}' (no texture)", d.name),
+        }),
         sharp_corners: report.sharp_corners.len(),
         crease_edges: report.crease_edges.len(),
         inverted_corners: report.inverted_corners.len(),

@@ -631,3 +631,65 @@ def test_export_refuses_other_extensions(run, blender_sphere, tmp_path):
     proc = run("export", blender_sphere / "sphere.usdc", "--usd", tmp_path / "x.usdc")
     assert proc.returncode == 2 and ".usda" in proc.stderr
     assert not (tmp_path / "x.usdc").exists()
+
+
+BLENDER_DOME = textwrap.dedent(
+    """
+    import json, math, sys, bpy
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+    bpy.ops.wm.usd_import(filepath=sys.argv[1], import_lights=True, create_world_material=True)
+    nodes = bpy.context.scene.world.node_tree.nodes
+    tint = next(n for n in nodes if n.type == "VECT_MATH").inputs[1].default_value
+    strength = next(n for n in nodes if n.type == "BACKGROUND").inputs["Strength"].default_value
+    turn = next(n for n in nodes if n.type == "MAPPING").inputs["Rotation"].default_value[2]
+    image = next(n for n in nodes if n.type == "TEX_ENVIRONMENT").image.filepath
+    print("RESULT " + json.dumps({"tint": [c * strength for c in tint], "turn": math.degrees(turn),
+                                  "image": image}))
+    """
+)
+
+
+def test_a_dome_light_lights_the_beauty_as_blender_imports_it(run, tmp_path):
+    """A `UsdLux.DomeLight` written by usd-core (texture, colour, intensity, exposure, turned
+    30° about the up axis) is the beauty's environment; Blender's own USD importer makes of it
+    a world whose texture is tinted by the same colour × strength (but for the exposure, which
+    it leaves out) and turned the same way:
+    its mapping turns lookups by 90° − the dome's turn (Blender's centre column faces +X,
+    OpenEXR's +Z, and Blender's Z-up is the stage's Y-up)."""
+    sky = tmp_path / "sky.exr"
+    sky.write_bytes((ROOT / "examples" / "maps" / "bumps_512.exr").read_bytes())
+    path = tmp_path / "dome.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    quad = UsdGeom.Mesh.Define(stage, "/Quad")
+    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    quad.CreateFaceVertexCountsAttr([4])
+    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    from pxr import UsdLux
+    dome = UsdLux.DomeLight.Define(stage, "/Lights/Sky")
+    dome.CreateTextureFileAttr(Sdf.AssetPath("sky.exr"))
+    dome.CreateIntensityAttr(2.0)
+    dome.CreateExposureAttr(1.0)
+    dome.CreateColorAttr(Gf.Vec3f(1.0, 0.5, 0.25))
+    UsdGeom.Xformable(dome.GetPrim()).AddRotateYOp().Set(30.0)
+    stage.GetRootLayer().Save()
+
+    proc = run("render", path, "--disp", MAP, "--scale", "0.05", "--aov", "beauty", "--res", "8x8",
+               "--spp", "1", "--json", "-o", tmp_path / "out", check=0)
+    said = json.loads(proc.stdout)["environment"]
+    assert said.startswith("the file's dome light '/Lights/Sky' (") and str(sky) in said, said
+    tint = [float(x) for x in said.split("tint ")[1].split(", turned")[0].split(", ")]
+    turn = float(said.split("turned ")[1].rstrip("°)"))
+    assert tint == [4.0, 2.0, 1.0] and abs(turn - 30.0) < 1e-3, said
+
+    blender = subprocess.run([sys.executable, "-c", BLENDER_DOME, str(path)], capture_output=True,
+                             text=True, timeout=300)
+    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
+    assert line, blender.stderr[-2000:]
+    theirs = json.loads(line[len("RESULT "):])
+    assert pathlib.Path(theirs["image"]).resolve() == sky.resolve(), theirs
+    # Blender 5.0's importer leaves `inputs:exposure` out (UsdLux scales by 2^exposure).
+    assert np.allclose(np.array(theirs["tint"]) * 2.0, tint, rtol=1e-4), (theirs, tint)
+    assert abs((theirs["turn"] - (90.0 - turn) + 180.0) % 360.0 - 180.0) < 0.01, (theirs, turn)

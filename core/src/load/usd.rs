@@ -21,7 +21,7 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
-use crate::mesh::{BaseMesh, MeshMaterial, Projection, UpAxis, MAX_MATERIALS};
+use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneDome, UpAxis, MAX_MATERIALS};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -827,6 +827,7 @@ impl Loader<'_> {
         match type_name(prim).as_str() {
             "Mesh" => self.mesh_prim(prim, world)?,
             "Camera" => self.camera_prim(prim, world)?,
+            t @ ("DomeLight" | "DomeLight_1") => self.dome_prim(prim, world, t == "DomeLight_1")?,
             _ => {}
         }
         for child in children(self.path, prim)? {
@@ -887,6 +888,112 @@ impl Loader<'_> {
         let path = prim.path().to_string();
         let name = path.rsplit('/').next().unwrap_or_default().to_string();
         self.cameras.push((vec![path, name], world, projection));
+        Ok(())
+    }
+
+    /// A `DomeLight` (or `DomeLight_1`): its texture, tint and turn about the stage's up axis
+    /// (`SceneDome`); the first one lights the beauty, a later one is left out with a warning.
+    /// The dome's default orientation is OpenEXR's latitude-longitude map with its pole on +Y
+    /// (`DomeLight_1`: on the stage's up axis, its `poleAxis` fallback `scene`); a transform
+    /// that tilts the pole off the stage's up axis keeps only its turn about it, with a
+    /// warning, and a texture in another parameterisation leaves the dome out.
+    fn dome_prim(&mut self, prim: &Prim, world: DMat4, v1: bool) -> Result<()> {
+        let (path, at) = (self.path, prim.path().clone());
+        if let Some(first) = &self.mesh.dome {
+            warn(
+                path,
+                &format!(
+                    "{at}: a second dome light; the first, {}, lights the beauty",
+                    first.name
+                ),
+            );
+            return Ok(());
+        }
+        let number = |name: &str, default: f64| -> Result<f64> {
+            match input_value(path, self.stage, &at, name)? {
+                None => Ok(default),
+                Some(v) => scalar(&v).filter(|x| x.is_finite()).ok_or_else(|| {
+                    prim_err(
+                        path,
+                        &at,
+                        format!(
+                            "inputs:{name} is {}, expected a number (re-export)",
+                            kind(&v)
+                        ),
+                    )
+                }),
+            }
+        };
+        let intensity = number("intensity", 1.0)? * number("exposure", 0.0)?.exp2();
+        let color = match input_value(path, self.stage, &at, "color")? {
+            None => DVec3::ONE,
+            Some(v) => vec3(&v).filter(|c| c.is_finite()).ok_or_else(|| {
+                prim_err(
+                    path,
+                    &at,
+                    format!("inputs:color is {}, expected color3f (re-export)", kind(&v)),
+                )
+            })?,
+        };
+        let format = token_input(path, self.stage, &at, "texture:format")?;
+        if let Some(f) = format
+            .as_deref()
+            .filter(|f| !matches!(*f, "automatic" | "latlong"))
+        {
+            warn(
+                path,
+                &format!(
+                    "{at}: the dome's texture is {f}; only latitude-longitude maps are read, so \
+                     the dome is left out (convert it to latlong, or give --env)"
+                ),
+            );
+            return Ok(());
+        }
+        let texture = match input_value(path, self.stage, &at, "texture:file")? {
+            Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => Some(resolve_asset(
+                path,
+                self.stage,
+                &at,
+                "inputs:texture:file",
+                &a,
+            )),
+            _ => None,
+        };
+        // The dome's own frame in the stage's Y-up terms (a Z-up stage's (x, z, −y)): its
+        // pole and the direction its map's centre faces.
+        let pole_axis = match v1 {
+            true => value(path, prim, "poleAxis")?.and_then(|v| v.as_str().map(str::to_string)),
+            false => None,
+        };
+        let z_up = self.mesh.up_axis == Some(UpAxis::Z);
+        let lift = match (v1, pole_axis.as_deref().unwrap_or("scene")) {
+            (true, "Z") | (true, "scene") if z_up => DMat4::from_rotation_x(90f64.to_radians()),
+            (true, "Z") => DMat4::from_rotation_x(90f64.to_radians()),
+            _ => DMat4::IDENTITY,
+        };
+        let to_frame = |d: DVec3| if z_up { DVec3::new(d.x, d.z, -d.y) } else { d };
+        let m = world * lift;
+        let pole = to_frame(m.transform_vector3(DVec3::Y)).normalize_or_zero();
+        let centre = to_frame(m.transform_vector3(DVec3::Z));
+        let tilt = pole.dot(DVec3::Y).clamp(-1.0, 1.0).acos().to_degrees();
+        if tilt > 1.0 {
+            warn(
+                path,
+                &format!(
+                    "{at}: the dome's pole is tilted {tilt:.0}° from the stage's up axis; only its \
+                     turn about the up axis is used (align it, e.g. DomeLight_1 with poleAxis \
+                     \"scene\")"
+                ),
+            );
+        }
+        let turn_deg = centre.x.atan2(centre.z).to_degrees() as f32;
+        let tint = (color * intensity).as_vec3().to_array();
+        self.mesh.dome = Some(SceneDome {
+            name: at.to_string(),
+            texture,
+            tint,
+            turn_deg: if turn_deg.is_finite() { turn_deg } else { 0.0 },
+        });
         Ok(())
     }
 
@@ -1856,17 +1963,27 @@ fn texture_scale_bias(path: &Path, stage: &Stage, tex: &sdf::Path) -> Result<([f
 fn texture_file(path: &Path, stage: &Stage, tex: &sdf::Path) -> Result<Option<PathBuf>> {
     Ok(match input_value(path, stage, tex, "file")? {
         Some(Value::AssetPath(a)) if !a.asset_path().is_empty() => {
-            Some(resolve_asset(path, stage, tex, &a))
+            Some(resolve_asset(path, stage, tex, "inputs:file", &a))
         }
-        Some(Value::String(s)) if !s.is_empty() => {
-            Some(resolve_asset(path, stage, tex, &sdf::AssetPath::new(s)))
-        }
+        Some(Value::String(s)) if !s.is_empty() => Some(resolve_asset(
+            path,
+            stage,
+            tex,
+            "inputs:file",
+            &sdf::AssetPath::new(s),
+        )),
         _ => None,
     })
 }
 
 /// An asset path, resolved by openusd if it did, else relative to the layer that authored it.
-fn resolve_asset(path: &Path, stage: &Stage, tex: &sdf::Path, a: &sdf::AssetPath) -> PathBuf {
+fn resolve_asset(
+    path: &Path,
+    stage: &Stage,
+    tex: &sdf::Path,
+    property: &str,
+    a: &sdf::AssetPath,
+) -> PathBuf {
     if let Some(r) = a.resolved_path().filter(|r| !r.is_empty()) {
         return PathBuf::from(r);
     }
@@ -1874,7 +1991,7 @@ fn resolve_asset(path: &Path, stage: &Stage, tex: &sdf::Path, a: &sdf::AssetPath
     if rel.is_absolute() {
         return rel;
     }
-    let layer_dir = property_path(path, tex, "inputs:file")
+    let layer_dir = property_path(path, tex, property)
         .ok()
         .and_then(|p| stage.attribute(p).property_stack().ok())
         .and_then(|s| s.into_iter().next())

@@ -846,7 +846,8 @@ fn square_brackets_nested_in_square_brackets_are_an_error() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("string.usda") && e.contains("line 3: a string's quotes are not closed on its line"),
+        e.contains("string.usda")
+            && e.contains("line 3: a string's quotes are not closed on its line"),
         "{e}"
     );
 }
@@ -1563,4 +1564,60 @@ def Scope "Looks"
     let m = load_mesh(&write(&d, "a.usda", &text), &MeshOptions::default()).unwrap();
     assert_eq!(m.materials.len(), 1, "{:?}", m.materials);
     assert_eq!(m.materials[0].base_color, [1.0, 0.0, 0.0, 1.0]);
+}
+
+/// A `DomeLight` becomes the scene's dome: its texture resolved against the layer, its colour
+/// × intensity × 2^exposure, and its turn about the stage's up axis (+Y turned 30° about Y in a
+/// Y-up stage; in a Z-up stage a `DomeLight_1`, whose pole follows the stage, turned about Z,
+/// or a `DomeLight` lifted onto +Z by a quarter turn about X); the second dome is left out, a
+/// dome of another parameterisation too, and a value that is not a number is an error.
+#[test]
+fn a_dome_light_becomes_the_scenes_environment() {
+    let d = dir("dome");
+    let dome = |ty: &str, body: &str| format!("def {ty} \"Sky\"\n{{\n    {body}\n}}\n");
+    let rotate = |x: f32, y: f32, z: f32| {
+        format!(
+            "float3 xformOp:rotateXYZ = ({x}, {y}, {z})\n    \
+             uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]"
+        )
+    };
+    let load = |name: &str, up: &str, domes: &str| {
+        let p = write(&d, name, &quad_with_cameras(up, domes));
+        load_mesh(&p, &MeshOptions::default()).map(|m| m.dome)
+    };
+    let body = format!(
+        "asset inputs:texture:file = @maps/sky.exr@\n    float inputs:intensity = 2\n    \
+         float inputs:exposure = 1\n    color3f inputs:color = (1, 0.5, 0.25)\n    {}",
+        rotate(0.0, 30.0, 0.0)
+    );
+    let two = dome("DomeLight", &body) + &dome("DomeLight", "").replace("Sky", "Other");
+    let got = load("y.usda", "Y", &two).unwrap().expect("a dome");
+    assert_eq!(got.name, "/Sky");
+    assert_eq!(got.texture, Some(d.join("maps/sky.exr")));
+    assert_eq!(got.tint, [4.0, 2.0, 1.0]);
+    assert!((got.turn_deg - 30.0).abs() < 1e-3, "{}", got.turn_deg);
+    for (ty, xform) in [
+        ("DomeLight_1", rotate(0.0, 0.0, 30.0)),
+        ("DomeLight", rotate(90.0, 0.0, 30.0)),
+    ] {
+        let got = load("z.usda", "Z", &dome(ty, &xform)).unwrap().expect(ty);
+        assert_eq!((got.texture, got.tint), (None, [1.0; 3]), "{ty}");
+        assert!((got.turn_deg - 30.0).abs() < 1e-3, "{ty}: {}", got.turn_deg);
+    }
+    let mirrored = dome(
+        "DomeLight",
+        "token inputs:texture:format = \"mirroredBall\"",
+    );
+    assert_eq!(load("ball.usda", "Y", &mirrored).unwrap(), None);
+    let e = load(
+        "bad.usda",
+        "Y",
+        &dome("DomeLight", "string inputs:intensity = \"hot\""),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("bad.usda") && e.contains("/Sky") && e.contains("inputs:intensity"),
+        "{e}"
+    );
 }

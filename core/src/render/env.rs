@@ -63,6 +63,14 @@ impl EnvFrame {
             ..self
         }
     }
+
+    /// The frame of a USD dome light's map turned `turn_deg` about the up axis (`SceneDome`):
+    /// OpenEXR's latitude-longitude orientation, which is this frame's turned by −90°, turned
+    /// again as the dome's prim turns it. Its map's centre faces +Z turned by `turn_deg` (a
+    /// Z-up stage's dome, pole lifted onto +Z: −Y turned).
+    pub fn dome(self, turn_deg: f32) -> Self {
+        self.turned((turn_deg - 90.0).to_radians())
+    }
 }
 
 /// A direction drawn from the map and its solid-angle density.
@@ -300,7 +308,17 @@ impl EnvMap {
         EnvMap::new(w, h, texels, frame)
     }
 
-    /// A constant-radiance environment (furnace tests).
+    /// The map with every texel times `tint` (a USD dome light's colour and intensity), its
+    /// sampling tables rebuilt.
+    pub fn tinted(self, tint: Vec3) -> Self {
+        if tint == Vec3::ONE {
+            return self;
+        }
+        let texels = self.texels.iter().map(|&t| t * tint).collect();
+        EnvMap::new(self.width, self.height, texels, self.frame)
+    }
+
+    /// A constant-radiance environment (furnace tests, a dome light without a texture).
     pub fn constant(radiance: Vec3, frame: EnvFrame) -> Self {
         EnvMap::new(8, 4, vec![radiance; 32], frame)
     }
@@ -637,6 +655,40 @@ mod tests {
         for (d, u) in [(Vec3::Z, 0.5), (Vec3::X, 0.25), (Vec3::NEG_X, 0.75)] {
             let got = u_of(d, exr).x.rem_euclid(1.0);
             assert!((got - u).abs() < 1e-6, "OpenEXR {d}: {got}");
+        }
+    }
+
+    /// A dome light's map (one bright texel at its centre) faces the direction the dome's
+    /// turn takes OpenEXR's centre to: +Z turned about +Y in a Y-up stage, −Y (the centre once
+    /// the pole is lifted onto +Z) turned about +Z in a Z-up one; a quarter turn further is
+    /// dark. The turn is counter-clockwise seen from above, as USD's rotations are.
+    #[test]
+    fn a_dome_lights_map_faces_where_its_turn_takes_openexrs_centre() {
+        let (w, h) = (64u32, 32u32);
+        let mut texels = vec![Vec3::splat(0.01); (w * h) as usize];
+        for y in h / 2 - 1..h / 2 + 1 {
+            for x in w / 2 - 1..w / 2 + 1 {
+                texels[(y * w + x) as usize] = Vec3::splat(100.0);
+            }
+        }
+        for (z_up, centre, up) in [(false, Vec3::Z, Vec3::Y), (true, Vec3::NEG_Y, Vec3::Z)] {
+            let base = EnvFrame {
+                z_up,
+                rotation: 0.0,
+            };
+            for turn in [0.0f32, 30.0, -135.0] {
+                let frame = base.dome(turn);
+                let env = EnvMap::new(w, h, texels.clone(), frame);
+                let at = |deg: f32| {
+                    let d = glam::Quat::from_axis_angle(up, deg.to_radians()) * centre;
+                    env_radiance(&env, frame, d).x
+                };
+                assert!(at(turn) > 50.0, "z_up {z_up}, turn {turn}: {}", at(turn));
+                assert!(
+                    at(turn + 90.0) < 1.0 && at(turn - 90.0) < 1.0,
+                    "z_up {z_up}, turn {turn}"
+                );
+            }
         }
     }
 

@@ -8,7 +8,7 @@ use crate::asset::{self, AssetSpec};
 use crate::bake::PrismTable;
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
-use crate::mesh::{NamedCamera, UpAxis};
+use crate::mesh::{NamedCamera, SceneDome, UpAxis};
 use crate::repair::RepairOptions;
 use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
@@ -311,6 +311,8 @@ pub struct Loaded {
     pub map: HeightMap,
     /// The scene file's camera the render looks through (`--camera`, else its first).
     pub scene_camera: Option<NamedCamera>,
+    /// The scene file's dome light (USD): the beauty's environment where `--env` is not given.
+    pub dome: Option<SceneDome>,
     pub up_axis: UpAxis,
 }
 
@@ -320,6 +322,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
             let p = asset::prepare(spec, repair)?;
             Ok(Loaded {
                 scene_camera: p.mesh.pick_named_camera(None)?.cloned(),
+                dome: p.mesh.dome.clone(),
                 up_axis: p.mesh.up_axis.unwrap_or_default(),
                 table: p.table,
                 map: p.map,
@@ -335,6 +338,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
                 table,
                 map,
                 scene_camera: None,
+                dome: None,
                 up_axis: UpAxis::Y,
             })
         }

@@ -197,6 +197,10 @@ pub struct LookdevSummary {
     /// Where frame 0's camera comes from: "the file's camera 'Camera'", "framed from the
     /// bounds", and the flags that override it.
     pub camera: String,
+    /// The beauty's environment: "--env PATH", "the file's dome light '/Lights/Dome' (…)" or
+    /// "the built-in sky"; absent without beauty.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub environment: Option<String>,
     /// Beauty rays over all frames; shadow rays by the light they test.
     pub beauty_rays: BeautyCounters,
     pub shadow_rays: u64,
@@ -403,6 +407,8 @@ pub struct Session {
     up_axis: UpAxis,
     materials: AssetMaterials,
     env: Option<EnvMap>,
+    /// Where `env` comes from (`describe_environment`).
+    environment: Option<String>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
@@ -732,6 +738,7 @@ fn load_cached(
     let (mesh, map) = asset::load(spec)?;
     let materials = asset_materials(&mesh, spec, job, opts)?;
     let scene_camera = mesh.pick_named_camera(job.camera.name.as_deref())?.cloned();
+    let dome = mesh.dome.clone();
     let up_axis = mesh.up_axis.unwrap_or_default();
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
@@ -744,6 +751,7 @@ fn load_cached(
                     table,
                     map,
                     scene_camera,
+                    dome,
                     up_axis,
                 },
                 materials,
@@ -774,6 +782,7 @@ fn load_cached(
             table,
             map,
             scene_camera,
+            dome,
             up_axis,
         },
         materials,
@@ -823,17 +832,12 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
     );
     let camera = super::job::describe_camera(&loaded, &job.camera);
     let up_axis = loaded.up_axis;
-    let env = if job.aovs.contains(&Aov::Beauty) {
-        let frame = EnvFrame {
-            z_up: up_axis == UpAxis::Z,
-            rotation: opts.env_rotate_deg.to_radians(),
-        };
-        Some(match &opts.env {
-            Some(p) => EnvMap::load(p, opts.env_intensity, frame)?,
-            None => EnvMap::default_sky(opts.env_intensity, frame),
-        })
-    } else {
-        None
+    let (env, environment) = match job.aovs.contains(&Aov::Beauty) {
+        true => {
+            let (env, said) = environment(opts, &loaded, job.input.path())?;
+            (Some(env), Some(said))
+        }
+        false => (None, None),
     };
     let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
     Ok(Session {
@@ -843,9 +847,52 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         up_axis,
         materials,
         env,
+        environment,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
         cache,
+    })
+}
+
+/// The beauty's environment and what the summary says of it: `--env`, else the scene file's
+/// dome light (its texture or colour, tinted, turned from OpenEXR's orientation as its prim
+/// turns it, then by `--env-rotate`, and scaled by `--env-intensity`), else the built-in sky.
+fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<(EnvMap, String)> {
+    let frame = EnvFrame {
+        z_up: loaded.up_axis == UpAxis::Z,
+        rotation: opts.env_rotate_deg.to_radians(),
+    };
+    let k = opts.env_intensity;
+    Ok(match (&opts.env, &loaded.dome) {
+        (Some(p), _) => (EnvMap::load(p, k, frame)?, format!("--env {}", p.display())),
+        (None, Some(dome)) => {
+            let frame = frame.dome(dome.turn_deg);
+            let tint = Vec3::from(dome.tint);
+            let env = match &dome.texture {
+                Some(t) => EnvMap::load(t, k, frame)
+                    .map_err(|e| {
+                        Error::invalid(
+                            source,
+                            format!(
+                                "dome light {}: its texture: {e} (fix the texture, or give --env)",
+                                dome.name
+                            ),
+                        )
+                    })?
+                    .tinted(tint),
+                None => EnvMap::constant(tint * k, frame),
+            };
+            let what = match &dome.texture {
+                Some(t) => format!("{}", t.display()),
+                None => "no texture".into(),
+            };
+            let said = format!(
+                "the file's dome light '{}' ({what}, tint {}, {}, {}, turned {}°)",
+                dome.name, tint.x, tint.y, tint.z, dome.turn_deg
+            );
+            (env, said)
+        }
+        (None, None) => (EnvMap::default_sky(k, frame), "the built-in sky".into()),
     })
 }
 
@@ -1097,6 +1144,7 @@ pub fn render_all(
         },
         table_cache: s.cache.clone(),
         camera: s.camera.clone(),
+        environment: s.environment.clone(),
         beauty_rays: BeautyCounters::default(),
         shadow_rays: 0,
         contact_sheets: vec![],
