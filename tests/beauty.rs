@@ -1577,7 +1577,8 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 
 /// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it):
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
-/// dome whose texture is missing fails naming the file, the dome and the texture.
+/// dome whose texture is missing fails naming the file, the dome and the texture. Its
+/// `DistantLight` is the key light where `--key-light` is not given.
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
@@ -1658,6 +1659,22 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
         centre[1] > 0.1 && (centre[0] - centre[1]).abs() < 1e-3,
         "{centre:?}"
     );
+    // A distant light is the key light unless --key-light is given: its shadow rays are cast.
+    let sunny = dir.join("sunny.usda");
+    let sun = "def DistantLight \"Sun\"\n{\n    float inputs:intensity = 2\n    \
+               bool inputs:normalize = 1\n    \
+               float3 xformOp:rotateXYZ = (-60, 0, 0)\n    \
+               uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]\n}\n";
+    std::fs::write(&sunny, scene("float inputs:intensity = 0.5") + sun).unwrap();
+    let (o, _) = render(&sunny, "sun", &[]);
+    let summary = o.assert_success().json();
+    assert_eq!(
+        summary["key_light"],
+        "the file's distant light '/Sun' (azimuth 0.0°, elevation 60.0°, irradiance 2, 0.53° across)"
+    );
+    assert!(summary["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
+    let (o, _) = render(&sunny, "own-key", &["--key-light", "0,30,1"]);
+    assert_eq!(o.assert_success().json()["key_light"], "--key-light");
     let missing = dir.join("missing.usda");
     std::fs::write(
         &missing,

@@ -53,6 +53,20 @@ pub struct SceneDome {
     pub turn_deg: f32,
 }
 
+/// A USD `DistantLight`: the beauty's key light where `--key-light` is not given.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneSun {
+    /// The prim's path.
+    pub name: String,
+    /// `--key-light`'s azimuth, elevation (degrees, towards the light: the prim's +Z, as it
+    /// shines down its −Z) and irradiance (`inputs:intensity × 2^inputs:exposure`, times the
+    /// disc's solid angle unless `inputs:normalize`, times the luminance of `inputs:color`:
+    /// the key light is white).
+    pub key: [f32; 3],
+    /// Its angular diameter (`inputs:angle`, USD's default 0.53°), `--key-angle`'s.
+    pub angle_deg: f32,
+}
+
 /// A scene camera with the names `--camera` finds it by.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NamedCamera {
@@ -80,6 +94,8 @@ pub struct BaseMesh {
     pub cameras: Vec<NamedCamera>,
     /// The scene file's dome light (USD), the first if there are several.
     pub dome: Option<SceneDome>,
+    /// The scene file's distant light (USD), the first if there are several.
+    pub sun: Option<SceneSun>,
     /// True when the file carried no UVs at all (every UV is then zero).
     pub missing_uvs: bool,
     /// The file's materials (glTF's metallic-roughness), in its order.

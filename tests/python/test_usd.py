@@ -643,19 +643,24 @@ BLENDER_DOME = textwrap.dedent(
     strength = next(n for n in nodes if n.type == "BACKGROUND").inputs["Strength"].default_value
     turn = next(n for n in nodes if n.type == "MAPPING").inputs["Rotation"].default_value[2]
     image = next(n for n in nodes if n.type == "TEX_ENVIRONMENT").image.filepath
+    sun = next(o for o in bpy.context.scene.objects if o.type == "LIGHT" and o.data.type == "SUN")
+    toward = list(sun.matrix_world.col[2][:3])
     print("RESULT " + json.dumps({"tint": [c * strength for c in tint], "turn": math.degrees(turn),
-                                  "image": image}))
+                                  "image": image, "sun_toward": toward, "sun_energy": sun.data.energy,
+                                  "sun_angle": math.degrees(sun.data.angle)}))
     """
 )
 
 
-def test_a_dome_light_lights_the_beauty_as_blender_imports_it(run, tmp_path):
+def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     """A `UsdLux.DomeLight` written by usd-core (texture, colour, intensity, exposure, turned
     30° about the up axis) is the beauty's environment; Blender's own USD importer makes of it
     a world whose texture is tinted by the same colour × strength (but for the exposure, which
     it leaves out) and turned the same way:
     its mapping turns lookups by 90° − the dome's turn (Blender's centre column faces +X,
-    OpenEXR's +Z, and Blender's Z-up is the stage's Y-up)."""
+    OpenEXR's +Z, and Blender's Z-up is the stage's Y-up). A `DistantLight` beside it is the
+    key light, pointing where Blender's sun points (its width and strength are not UsdLux's in
+    Blender: see below)."""
     sky = tmp_path / "sky.exr"
     sky.write_bytes((ROOT / "examples" / "maps" / "bumps_512.exr").read_bytes())
     path = tmp_path / "dome.usda"
@@ -674,11 +679,17 @@ def test_a_dome_light_lights_the_beauty_as_blender_imports_it(run, tmp_path):
     dome.CreateExposureAttr(1.0)
     dome.CreateColorAttr(Gf.Vec3f(1.0, 0.5, 0.25))
     UsdGeom.Xformable(dome.GetPrim()).AddRotateYOp().Set(30.0)
+    sun = UsdLux.DistantLight.Define(stage, "/Lights/Sun")
+    sun.CreateIntensityAttr(3.0)
+    sun.CreateAngleAttr(4.0)
+    sun.CreateNormalizeAttr(True)
+    UsdGeom.Xformable(sun.GetPrim()).AddRotateXYZOp().Set(Gf.Vec3f(-50.0, 20.0, 0.0))
     stage.GetRootLayer().Save()
 
     proc = run("render", path, "--disp", MAP, "--scale", "0.05", "--aov", "beauty", "--res", "8x8",
                "--spp", "1", "--json", "-o", tmp_path / "out", check=0)
-    said = json.loads(proc.stdout)["environment"]
+    summary = json.loads(proc.stdout)
+    said = summary["environment"]
     assert said.startswith("the file's dome light '/Lights/Sky' (") and str(sky) in said, said
     tint = [float(x) for x in said.split("tint ")[1].split(", turned")[0].split(", ")]
     turn = float(said.split("turned ")[1].rstrip("°)"))
@@ -693,3 +704,18 @@ def test_a_dome_light_lights_the_beauty_as_blender_imports_it(run, tmp_path):
     # Blender 5.0's importer leaves `inputs:exposure` out (UsdLux scales by 2^exposure).
     assert np.allclose(np.array(theirs["tint"]) * 2.0, tint, rtol=1e-4), (theirs, tint)
     assert abs((theirs["turn"] - (90.0 - turn) + 180.0) % 360.0 - 180.0) < 0.01, (theirs, turn)
+
+    # The distant light: the same direction (ours in the stage's Y-up terms, Blender's Z-up:
+    # (x, y, z) -> (x, -z, y)), irradiance and angle.
+    key = summary["key_light"]
+    assert key.startswith("the file's distant light '/Lights/Sun' ("), key
+    az = np.radians(float(key.split("azimuth ")[1].split("°")[0]))
+    el = np.radians(float(key.split("elevation ")[1].split("°")[0]))
+    ours = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])
+    blender_toward = np.array(theirs["sun_toward"]) / np.linalg.norm(theirs["sun_toward"])
+    assert np.allclose([ours[0], -ours[2], ours[1]], blender_toward, atol=2e-3), (key, theirs)
+    # UsdLux's angle is the disc's diameter, and normalized, the intensity is the irradiance.
+    # Blender 5.0's importer makes a sun twice as wide (it reads the angle as a radius) and 4 ×
+    # as strong whatever `normalize` says: only ours is held to UsdLux's here.
+    assert "4° across" in key and "irradiance 3," in key, key
+    assert abs(theirs["sun_angle"] - 8.0) < 1e-3 and abs(theirs["sun_energy"] - 12.0) < 1e-4, theirs

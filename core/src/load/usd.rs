@@ -21,7 +21,7 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
-use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneDome, UpAxis, MAX_MATERIALS};
+use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneDome, SceneSun, UpAxis, MAX_MATERIALS};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -828,6 +828,7 @@ impl Loader<'_> {
             "Mesh" => self.mesh_prim(prim, world)?,
             "Camera" => self.camera_prim(prim, world)?,
             t @ ("DomeLight" | "DomeLight_1") => self.dome_prim(prim, world, t == "DomeLight_1")?,
+            "DistantLight" => self.sun_prim(prim, world)?,
             _ => {}
         }
         for child in children(self.path, prim)? {
@@ -909,32 +910,7 @@ impl Loader<'_> {
             );
             return Ok(());
         }
-        let number = |name: &str, default: f64| -> Result<f64> {
-            match input_value(path, self.stage, &at, name)? {
-                None => Ok(default),
-                Some(v) => scalar(&v).filter(|x| x.is_finite()).ok_or_else(|| {
-                    prim_err(
-                        path,
-                        &at,
-                        format!(
-                            "inputs:{name} is {}, expected a number (re-export)",
-                            kind(&v)
-                        ),
-                    )
-                }),
-            }
-        };
-        let intensity = number("intensity", 1.0)? * number("exposure", 0.0)?.exp2();
-        let color = match input_value(path, self.stage, &at, "color")? {
-            None => DVec3::ONE,
-            Some(v) => vec3(&v).filter(|c| c.is_finite()).ok_or_else(|| {
-                prim_err(
-                    path,
-                    &at,
-                    format!("inputs:color is {}, expected color3f (re-export)", kind(&v)),
-                )
-            })?,
-        };
+        let (intensity, color) = self.light_power(&at, 1.0)?;
         let format = token_input(path, self.stage, &at, "texture:format")?;
         if let Some(f) = format
             .as_deref()
@@ -995,6 +971,121 @@ impl Loader<'_> {
             turn_deg: if turn_deg.is_finite() { turn_deg } else { 0.0 },
         });
         Ok(())
+    }
+
+    /// A `DistantLight`: the key light (`SceneSun`), pointing where the prim's transform turns
+    /// its −Z; the first one is read, a later one is left out with a warning. UsdLux's
+    /// `intensity` (fallback 50 000 for this light) is the disc's luminance: its irradiance is
+    /// that times the disc's solid angle, `2π(1 − cos(angle/2))` (3.4 for the fallbacks, a
+    /// sun's), unless `inputs:normalize` makes the intensity the irradiance itself, as a light
+    /// of no angle has it too.
+    fn sun_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
+        let (path, at) = (self.path, prim.path().clone());
+        if let Some(first) = &self.mesh.sun {
+            let first = &first.name;
+            warn(
+                path,
+                &format!("{at}: a second distant light; the first, {first}, is the key light"),
+            );
+            return Ok(());
+        }
+        let (intensity, color) = self.light_power(&at, 50_000.0)?;
+        let luminance = color.dot(DVec3::new(0.2126, 0.7152, 0.0722));
+        if (color - DVec3::splat(color.x)).abs().max_element() > 1e-6 {
+            warn(
+                path,
+                &format!(
+                    "{at}: the key light is white: its colour ({}, {}, {}) only scales it, by \
+                     its luminance {luminance:.3}",
+                    color.x, color.y, color.z
+                ),
+            );
+        }
+        let angle = match input_value(path, self.stage, &at, "angle")? {
+            None => 0.53,
+            Some(v) => scalar(&v)
+                .filter(|x| x.is_finite() && *x >= 0.0)
+                .ok_or_else(|| {
+                    let what = format!(
+                        "inputs:angle is {}, expected degrees >= 0 (re-export)",
+                        kind(&v)
+                    );
+                    prim_err(path, &at, what)
+                })?,
+        };
+        let normalize = matches!(
+            input_value(path, self.stage, &at, "normalize")?,
+            Some(Value::Bool(true))
+        );
+        let solid_angle = std::f64::consts::TAU * (1.0 - (0.5 * angle).to_radians().cos());
+        let irradiance = match normalize || angle == 0.0 {
+            true => intensity,
+            false => intensity * solid_angle,
+        };
+        let toward = self
+            .to_frame(world.transform_vector3(DVec3::Z))
+            .normalize_or_zero();
+        if toward == DVec3::ZERO {
+            warn(
+                path,
+                &format!("{at}: its transform collapses its direction; left out"),
+            );
+            return Ok(());
+        }
+        let elevation = toward.y.clamp(-1.0, 1.0).asin().to_degrees();
+        let azimuth = toward.x.atan2(toward.z).to_degrees();
+        let max = crate::render::lookdev::MAX_KEY_ANGLE_DEG as f64;
+        self.mesh.sun = Some(SceneSun {
+            name: at.to_string(),
+            key: [
+                azimuth as f32,
+                elevation as f32,
+                (irradiance * luminance.max(0.0)) as f32,
+            ],
+            angle_deg: angle.min(max) as f32,
+        });
+        Ok(())
+    }
+
+    /// A light's `inputs:intensity × 2^inputs:exposure` and `inputs:color` (UsdLux's
+    /// fallbacks `intensity`, 0 and white); a value that is not a number is an error naming
+    /// it.
+    fn light_power(&self, at: &sdf::Path, intensity: f64) -> Result<(f64, DVec3)> {
+        let path = self.path;
+        let number = |name: &str, default: f64| -> Result<f64> {
+            match input_value(path, self.stage, at, name)? {
+                None => Ok(default),
+                Some(v) => scalar(&v).filter(|x| x.is_finite()).ok_or_else(|| {
+                    let what = format!(
+                        "inputs:{name} is {}, expected a number (re-export)",
+                        kind(&v)
+                    );
+                    prim_err(path, at, what)
+                }),
+            }
+        };
+        let intensity = number("intensity", intensity)? * number("exposure", 0.0)?.exp2();
+        let color = match input_value(path, self.stage, at, "color")? {
+            None => DVec3::ONE,
+            Some(v) => vec3(&v).filter(|c| c.is_finite()).ok_or_else(|| {
+                let what = format!("inputs:color is {}, expected color3f (re-export)", kind(&v));
+                prim_err(path, at, what)
+            })?,
+        };
+        Ok((intensity, color))
+    }
+
+    fn z_up(&self) -> bool {
+        self.mesh.up_axis == Some(UpAxis::Z)
+    }
+
+    /// A world direction in the stage's Y-up terms (a Z-up stage's (x, z, −y)): the frame the
+    /// environment and `--key-light`'s angles are in.
+    fn to_frame(&self, d: DVec3) -> DVec3 {
+        match self.z_up() {
+            true => DVec3::new(d.x, d.z, -d.y),
+            false => d,
+        }
     }
 
     fn array<T>(

@@ -1621,3 +1621,61 @@ fn a_dome_light_becomes_the_scenes_environment() {
         "{e}"
     );
 }
+
+/// A `DistantLight` becomes the key light: towards its +Z as its transform turns it (45° up
+/// and a quarter turn: azimuth 90°, +X), its irradiance `intensity × 2^exposure` (normalized)
+/// or that times the disc's solid angle (UsdLux's fallbacks: 50 000 × 6.7 × 10⁻⁵ sr for a
+/// 0.53° sun), its angle; in a Z-up stage the same angles from the same light turned into
+/// Z-up.
+#[test]
+fn a_distant_light_becomes_the_key_light() {
+    let d = dir("sun");
+    let sun = |up: &str, rotate: &str| {
+        let light = format!(
+            "def DistantLight \"Sun\"\n{{\n    float inputs:intensity = 3\n    \
+             float inputs:exposure = 1\n    float inputs:angle = 2\n    \
+             bool inputs:normalize = 1\n    \
+             float3 xformOp:rotateXYZ = {rotate}\n    \
+             uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]\n}}\n"
+        );
+        let p = write(&d, &format!("{up}.usda"), &quad_with_cameras(up, &light));
+        load_mesh(&p, &MeshOptions::default())
+            .unwrap()
+            .sun
+            .expect("a sun")
+    };
+    for (up, rotate) in [("Y", "(-45, 90, 0)"), ("Z", "(45, 0, 90)")] {
+        let got = sun(up, rotate);
+        assert_eq!(got.name, "/Sun");
+        let [az, el, irradiance] = got.key;
+        assert!(
+            (az - 90.0).abs() < 1e-3 && (el - 45.0).abs() < 1e-3,
+            "{up}: {:?}",
+            got.key
+        );
+        assert!(
+            (irradiance - 6.0).abs() < 1e-5 && got.angle_deg == 2.0,
+            "{up}: {got:?}"
+        );
+    }
+    let p = write(
+        &d,
+        "fallback.usda",
+        &quad_with_cameras("Y", "def DistantLight \"Sun\"\n{\n}\n"),
+    );
+    let got = load_mesh(&p, &MeshOptions::default())
+        .unwrap()
+        .sun
+        .expect("a sun");
+    let want = 50_000.0 * std::f64::consts::TAU * (1.0 - 0.265f64.to_radians().cos());
+    let irradiance = got.key[2] as f64;
+    assert!(
+        (irradiance - want).abs() < 1e-5 * want && (want - 3.36).abs() < 0.01,
+        "{got:?}"
+    );
+    assert_eq!(
+        (got.key[1], got.angle_deg),
+        (0.0, 0.53),
+        "along −Z: on the horizon"
+    );
+}

@@ -8,7 +8,7 @@ use crate::asset::{self, AssetSpec};
 use crate::bake::PrismTable;
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
-use crate::mesh::{NamedCamera, SceneDome, UpAxis};
+use crate::mesh::{NamedCamera, SceneDome, SceneSun, UpAxis};
 use crate::repair::RepairOptions;
 use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
@@ -313,6 +313,8 @@ pub struct Loaded {
     pub scene_camera: Option<NamedCamera>,
     /// The scene file's dome light (USD): the beauty's environment where `--env` is not given.
     pub dome: Option<SceneDome>,
+    /// The scene file's distant light (USD): the key light where `--key-light` is not given.
+    pub sun: Option<SceneSun>,
     pub up_axis: UpAxis,
 }
 
@@ -323,6 +325,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
             Ok(Loaded {
                 scene_camera: p.mesh.pick_named_camera(None)?.cloned(),
                 dome: p.mesh.dome.clone(),
+                sun: p.mesh.sun.clone(),
                 up_axis: p.mesh.up_axis.unwrap_or_default(),
                 table: p.table,
                 map: p.map,
@@ -339,6 +342,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
                 map,
                 scene_camera: None,
                 dome: None,
+                sun: None,
                 up_axis: UpAxis::Y,
             })
         }

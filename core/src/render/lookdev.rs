@@ -30,7 +30,7 @@ use crate::bake::{self, BakeOptions, RebakeStats};
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
 use crate::load::{self, MapOptions};
-use crate::mesh::{MeshMaterial, UpAxis};
+use crate::mesh::{MeshMaterial, SceneSun, UpAxis};
 use crate::repair;
 use crate::table_cache;
 use crate::texture::{ColorMap, TextureRef, TextureSlot};
@@ -201,6 +201,10 @@ pub struct LookdevSummary {
     /// "the built-in sky"; absent without beauty.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub environment: Option<String>,
+    /// The beauty's key light: "--key-light" or "the file's distant light '/Sun' (…)";
+    /// absent without one (or without beauty).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub key_light: Option<String>,
     /// Beauty rays over all frames; shadow rays by the light they test.
     pub beauty_rays: BeautyCounters,
     pub shadow_rays: u64,
@@ -407,8 +411,12 @@ pub struct Session {
     up_axis: UpAxis,
     materials: AssetMaterials,
     env: Option<EnvMap>,
-    /// Where `env` comes from (`describe_environment`).
+    /// Where `env` comes from (`environment`).
     environment: Option<String>,
+    /// The key light: (azimuth°, elevation°, irradiance, angular diameter°) from
+    /// `--key-light` and `--key-angle`, else the scene file's distant light; and what the
+    /// summary says of it.
+    key: Option<([f32; 4], String)>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
@@ -738,7 +746,7 @@ fn load_cached(
     let (mesh, map) = asset::load(spec)?;
     let materials = asset_materials(&mesh, spec, job, opts)?;
     let scene_camera = mesh.pick_named_camera(job.camera.name.as_deref())?.cloned();
-    let dome = mesh.dome.clone();
+    let (dome, sun) = (mesh.dome.clone(), mesh.sun.clone());
     let up_axis = mesh.up_axis.unwrap_or_default();
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
@@ -752,6 +760,7 @@ fn load_cached(
                     map,
                     scene_camera,
                     dome,
+                    sun,
                     up_axis,
                 },
                 materials,
@@ -783,6 +792,7 @@ fn load_cached(
             map,
             scene_camera,
             dome,
+            sun,
             up_axis,
         },
         materials,
@@ -839,6 +849,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         }
         false => (None, None),
     };
+    let sun = loaded.sun;
     let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
     Ok(Session {
         scene,
@@ -848,6 +859,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         materials,
         env,
         environment,
+        key: key_light(opts, &sun),
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
         cache,
@@ -894,6 +906,23 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
         }
         (None, None) => (EnvMap::default_sky(k, frame), "the built-in sky".into()),
     })
+}
+
+/// The key light: `--key-light` (with `--key-angle`), else the scene file's distant light.
+fn key_light(opts: &LookdevOptions, sun: &Option<SceneSun>) -> Option<([f32; 4], String)> {
+    match (opts.key_light, sun) {
+        (Some([az, el, i]), _) => Some(([az, el, i, opts.key_angle_deg], "--key-light".into())),
+        (None, Some(s)) => {
+            let [az, el, i] = s.key;
+            let said = format!(
+                "the file's distant light '{}' (azimuth {az:.1}°, elevation {el:.1}°, \
+                 irradiance {i}, {}° across)",
+                s.name, s.angle_deg
+            );
+            Some(([az, el, i, s.angle_deg], said))
+        }
+        (None, None) => None,
+    }
 }
 
 fn up_vector(up: UpAxis) -> Vec3 {
@@ -1111,8 +1140,8 @@ pub fn render_all(
         env,
         env_frame: env.frame,
         env_lights: env.total_weight > 0.0,
-        key: opts.key_light.map(|[az, el, i]| {
-            KeyLight::from_angles(az, el, i, s.up_axis == UpAxis::Z).with_angle(opts.key_angle_deg)
+        key: s.key.as_ref().map(|([az, el, i, angle], _)| {
+            KeyLight::from_angles(*az, *el, *i, s.up_axis == UpAxis::Z).with_angle(*angle)
         }),
         materials: &materials,
         emissive: materials.iter().any(|m| m.emission != Vec3::ZERO),
@@ -1145,6 +1174,11 @@ pub fn render_all(
         table_cache: s.cache.clone(),
         camera: s.camera.clone(),
         environment: s.environment.clone(),
+        key_light: s
+            .key
+            .as_ref()
+            .filter(|_| want_beauty)
+            .map(|(_, said)| said.clone()),
         beauty_rays: BeautyCounters::default(),
         shadow_rays: 0,
         contact_sheets: vec![],
