@@ -166,3 +166,59 @@ fn a_base_colour_texture_that_does_not_decode_fails_the_textures_check() {
         "{t}"
     );
 }
+
+/// A USD dome light lights the beauty, so its texture is checked with the materials': a
+/// missing one fails the `textures` check naming the dome and the file, one that decodes
+/// passes with its size.
+#[test]
+fn a_dome_lights_texture_is_in_the_textures_check() {
+    let dir = temp_dir("validate-dome");
+    let map = dir.join("flat.exr");
+    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let sky = dir.join("sky.exr");
+    let ch = |name| (name, vec![1.0f32; 16 * 8]);
+    write_exr(&sky, 16, 8, vec![ch("R"), ch("G"), ch("B")], false);
+    let textures = |texture: &str| {
+        let usda = dir.join(format!("{texture}.usda"));
+        std::fs::write(
+            &usda,
+            format!(
+                "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
+                 def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
+                 int[] faceVertexIndices = [0, 1, 2, 3]\n    \
+                 point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
+                 texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
+                 interpolation = \"vertex\"\n    )\n}}\n\
+                 def DomeLight \"Sky\"\n{{\n    asset inputs:texture:file = @{texture}@\n}}\n"
+            ),
+        )
+        .unwrap();
+        let r = run(&["validate", s(&usda), "--disp", s(&map), "--format", "json"]);
+        let j = r.json();
+        let check = j["assets"][0]["checks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|c| c["name"] == "textures")
+            .cloned()
+            .expect("a textures check");
+        (r.code, check)
+    };
+    let (code, t) = textures("sky.exr");
+    assert_eq!(t["status"], "pass", "{t}");
+    assert!(
+        t["message"]
+            .as_str()
+            .unwrap()
+            .contains("dome light /Sky: '")
+            && t["message"].as_str().unwrap().contains("sky.exr' 16x8"),
+        "{t} (exit {code})"
+    );
+    let (code, t) = textures("gone.exr");
+    assert_eq!((code, t["status"].as_str().unwrap()), (1, "fail"), "{t}");
+    let msg = t["message"].as_str().unwrap();
+    assert!(
+        msg.contains("dome light /Sky: its texture") && msg.contains("gone.exr"),
+        "{msg}"
+    );
+}

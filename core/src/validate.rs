@@ -14,6 +14,7 @@ use crate::heightmap::{HeightMap, Wrap};
 use crate::load;
 use crate::mesh::BaseMesh;
 use crate::prism_file;
+use crate::render::env::{EnvFrame, EnvMap};
 use crate::render::lookdev::{
     self, check_material_values, grey_normal_map, texture_notes, texture_readable, LookdevOptions,
     MaterialDescription,
@@ -124,7 +125,8 @@ pub fn validate_asset(mesh_path: &Path, flags: &Overrides, ropts: &RepairOptions
 /// The materials the beauty shades with: their values must be numbers (a NaN or infinite base
 /// colour, roughness or metallic fails), and each texture the beauty reads must decode (a
 /// missing file, a corrupt or unsupported image fails); one it does not read (another UV set,
-/// a texture transform) is a warning.
+/// a texture transform) is a warning. So must the USD dome light's texture, which lights the
+/// beauty (a render without `--env` would fail on it).
 fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
     let mut read = vec![];
     let mut failures = vec![];
@@ -156,6 +158,26 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
             }
         }
     }
+    if let Some((dome, texture)) = mesh
+        .dome
+        .as_ref()
+        .and_then(|d| Some((d, d.texture.as_ref()?)))
+    {
+        let frame = EnvFrame {
+            z_up: false,
+            rotation: 0.0,
+        };
+        match EnvMap::load(texture, 1.0, frame) {
+            Ok(env) => read.push(format!(
+                "dome light {}: '{}' {}x{}",
+                dome.name,
+                texture.display(),
+                env.width,
+                env.height
+            )),
+            Err(e) => failures.push(format!("dome light {}: its texture: {e}", dome.name)),
+        }
+    }
     if !failures.is_empty() {
         return Check::fail("textures", failures.join("; "));
     }
@@ -163,10 +185,10 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
         return Check::warn("textures", warnings.join("; "));
     }
     match read.len() {
-        0 => Check::pass("textures", "no material textures"),
+        0 => Check::pass("textures", "no textures"),
         n => Check::pass(
             "textures",
-            format!("{n} material texture(s) decode: {}", read.join(", ")),
+            format!("{n} texture(s) decode: {}", read.join(", ")),
         ),
     }
 }
