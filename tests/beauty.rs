@@ -1670,7 +1670,7 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let summary = o.assert_success().json();
     assert_eq!(
         summary["key_light"],
-        "the file's distant light '/Sun' (azimuth 0.0°, elevation 60.0°, irradiance 2, 0.53° across)"
+        "the file's directional light '/Sun' (azimuth 0.0°, elevation 60.0°, irradiance 2, 0.53° across)"
     );
     assert!(summary["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
     let (o, _) = render(&sunny, "own-key", &["--key-light", "0,30,1"]);

@@ -53,10 +53,11 @@ pub struct SceneDome {
     pub turn_deg: f32,
 }
 
-/// A USD `DistantLight`: the beauty's key light where `--key-light` is not given.
+/// A directional light (a USD `DistantLight`, a glTF `KHR_lights_punctual` directional light):
+/// the beauty's key light where `--key-light` is not given.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneSun {
-    /// The prim's path.
+    /// The USD prim's path, or the glTF node's name (else `node #N`).
     pub name: String,
     /// `--key-light`'s azimuth, elevation (degrees, towards the light: the prim's +Z, as it
     /// shines down its −Z) and irradiance (`inputs:intensity × 2^inputs:exposure`, times the
@@ -94,7 +95,7 @@ pub struct BaseMesh {
     pub cameras: Vec<NamedCamera>,
     /// The scene file's dome light (USD), the first if there are several.
     pub dome: Option<SceneDome>,
-    /// The scene file's distant light (USD), the first if there are several.
+    /// The scene file's directional light (USD, glTF), the first if there are several.
     pub sun: Option<SceneSun>,
     /// True when the file carried no UVs at all (every UV is then zero).
     pub missing_uvs: bool,

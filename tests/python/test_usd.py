@@ -708,7 +708,7 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     # The distant light: the same direction (ours in the stage's Y-up terms, Blender's Z-up:
     # (x, y, z) -> (x, -z, y)), irradiance and angle.
     key = summary["key_light"]
-    assert key.startswith("the file's distant light '/Lights/Sun' ("), key
+    assert key.startswith("the file's directional light '/Lights/Sun' ("), key
     az = np.radians(float(key.split("azimuth ")[1].split("°")[0]))
     el = np.radians(float(key.split("elevation ")[1].split("°")[0]))
     ours = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])

@@ -8,7 +8,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, Projection, UpAxis};
+use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneSun, UpAxis};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -456,8 +456,8 @@ struct Loader<'p> {
     buffers: Vec<Vec<u8>>,
     mesh: BaseMesh,
     visited: Vec<bool>,
-    /// Names, world transform and vertical FOV (radians) of each perspective camera, in the
-    /// order the scene's nodes are visited.
+    /// Names, world transform and projection of each camera, in the order the scene's nodes
+    /// are visited.
     cameras: Vec<(Vec<String>, Mat4, Projection)>,
     any_uv_missing: bool,
     /// The file's material count: the index of "no material".
@@ -495,6 +495,9 @@ impl Loader<'_> {
             };
             self.cameras.push((names, world, projection));
         }
+        if let Some(light) = node.light() {
+            self.light(&node, &light, world);
+        }
         if let Some(mesh) = node.mesh() {
             let node_name = node
                 .name()
@@ -511,6 +514,56 @@ impl Loader<'_> {
             self.visit(child, world)?;
         }
         Ok(())
+    }
+
+    /// A `KHR_lights_punctual` light: the first directional one is the key light
+    /// (`SceneSun`): towards its node's +Z (it shines down −Z), its intensity in lux over 683
+    /// lm/W (as Blender imports it: a sun of that many W/m²) times its colour's luminance, and
+    /// Blender's default sun width, 0.526°. Point and spot lights are not read (a warning).
+    fn light(
+        &mut self,
+        node: &::gltf::Node,
+        light: &::gltf::khr_lights_punctual::Light,
+        world: Mat4,
+    ) {
+        use ::gltf::khr_lights_punctual::Kind;
+        let name = node
+            .name()
+            .or(light.name())
+            .map_or_else(|| format!("node #{}", node.index()), str::to_string);
+        if !matches!(light.kind(), Kind::Directional) {
+            self.warn(&format!("light '{name}' is a point or spot light: only directional lights are read (the key light)"));
+            return;
+        }
+        if let Some(first) = &self.mesh.sun {
+            let first = &first.name;
+            self.warn(&format!("light '{name}': a second directional light; the first, '{first}', is the key light"));
+            return;
+        }
+        let toward = world.transform_vector3(Vec3::Z).normalize_or_zero();
+        let [r, g, b] = light.color();
+        let luminance = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+        let irradiance = light.intensity() / 683.0 * luminance;
+        if toward == Vec3::ZERO || !(irradiance.is_finite() && irradiance >= 0.0) {
+            self.warn(&format!(
+                "light '{name}': its direction or intensity is not usable; left out"
+            ));
+            return;
+        }
+        if (r - g).abs().max((g - b).abs()) > 1e-6 {
+            self.warn(&format!(
+                "light '{name}': the key light is white: its colour ({r}, {g}, {b}) only scales it, by its luminance {luminance:.3}"
+            ));
+        }
+        self.mesh.sun = Some(SceneSun {
+            name,
+            key: [
+                toward.x.atan2(toward.z).to_degrees(),
+                toward.y.clamp(-1.0, 1.0).asin().to_degrees(),
+                irradiance,
+            ],
+            angle_deg: 0.526,
+        });
     }
 
     fn warn(&self, what: &str) {

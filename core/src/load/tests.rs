@@ -752,6 +752,47 @@ fn gltf_cameras_are_picked_by_node_or_camera_name() {
     );
 }
 
+/// A `KHR_lights_punctual` directional light is the key light: towards its node's +Z (turned
+/// 45° up: elevation 45°, azimuth 0, toward +Z), lux / 683 as Blender imports it, times its
+/// colour's luminance; a point light before it is left out, a second directional light too,
+/// and a light of an unknown type is an error, not a panic.
+#[test]
+fn a_gltf_directional_light_is_the_key_light() {
+    let dir = temp_dir("gltf-light");
+    let lights = |types: [&str; 3]| {
+        let mut doc = GltfDoc::default();
+        let a_pos = doc.floats(&TRI, 3);
+        let light = |t: &str, i: f32| json!({"type": t, "intensity": i, "color": [1.0, 1.0, 1.0]});
+        let rest = json!({
+            "extensionsUsed": ["KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [
+                light(types[0], 10.0), light(types[1], 1366.0), light(types[2], 5.0),
+            ]}},
+            "scene": 0,
+            "scenes": [{"nodes": [0, 1, 2, 3]}],
+            "nodes": [
+                {"mesh": 0},
+                {"name": "Bulb", "extensions": {"KHR_lights_punctual": {"light": 0}}},
+                {"name": "Sun", "rotation": [-0.38268343, 0.0, 0.0, 0.92387953],
+                 "extensions": {"KHR_lights_punctual": {"light": 1}}},
+                {"name": "Moon", "extensions": {"KHR_lights_punctual": {"light": 2}}},
+            ],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
+        });
+        load_gltf_doc(&dir, "lights.gltf", &doc, &rest, &MeshOptions::default())
+    };
+    let m = lights(["point", "directional", "directional"]).unwrap();
+    let sun = m.sun.expect("the key light");
+    assert_eq!(sun.name, "Sun");
+    let [az, el, irradiance] = sun.key;
+    assert!(az.abs() < 1e-3 && (el - 45.0).abs() < 1e-3, "{:?}", sun.key);
+    assert!((irradiance - 2.0).abs() < 1e-5, "{irradiance}");
+    let e = lights(["point", "flashlight", "directional"])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("lights.gltf"), "{e}");
+}
+
 /// A camera `--fov` would refuse (a yfov of 0 sends every ray one way, a negative one turns
 /// the picture over, one past 179° folds it), an orthographic one of no or negative height,
 /// or one placed at an infinite position is left out, with a warning, and the view is framed

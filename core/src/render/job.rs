@@ -313,7 +313,7 @@ pub struct Loaded {
     pub scene_camera: Option<NamedCamera>,
     /// The scene file's dome light (USD): the beauty's environment where `--env` is not given.
     pub dome: Option<SceneDome>,
-    /// The scene file's distant light (USD): the key light where `--key-light` is not given.
+    /// The scene file's directional light: the key light where `--key-light` is not given.
     pub sun: Option<SceneSun>,
     pub up_axis: UpAxis,
 }

@@ -201,7 +201,7 @@ pub struct LookdevSummary {
     /// "the built-in sky"; absent without beauty.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub environment: Option<String>,
-    /// The beauty's key light: "--key-light" or "the file's distant light '/Sun' (…)";
+    /// The beauty's key light: "--key-light" or "the file's directional light '/Sun' (…)";
     /// absent without one (or without beauty).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub key_light: Option<String>,
@@ -414,7 +414,7 @@ pub struct Session {
     /// Where `env` comes from (`environment`).
     environment: Option<String>,
     /// The key light: (azimuth°, elevation°, irradiance, angular diameter°) from
-    /// `--key-light` and `--key-angle`, else the scene file's distant light; and what the
+    /// `--key-light` and `--key-angle`, else the scene file's directional light (USD `DistantLight`, glTF `KHR_lights_punctual`); and what the
     /// summary says of it.
     key: Option<([f32; 4], String)>,
     denoiser: Option<Denoiser>,
@@ -908,14 +908,14 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
     })
 }
 
-/// The key light: `--key-light` (with `--key-angle`), else the scene file's distant light.
+/// The key light: `--key-light` (with `--key-angle`), else the scene file's directional light.
 fn key_light(opts: &LookdevOptions, sun: &Option<SceneSun>) -> Option<([f32; 4], String)> {
     match (opts.key_light, sun) {
         (Some([az, el, i]), _) => Some(([az, el, i, opts.key_angle_deg], "--key-light".into())),
         (None, Some(s)) => {
             let [az, el, i] = s.key;
             let said = format!(
-                "the file's distant light '{}' (azimuth {az:.1}°, elevation {el:.1}°, \
+                "the file's directional light '{}' (azimuth {az:.1}°, elevation {el:.1}°, \
                  irradiance {i}, {}° across)",
                 s.name, s.angle_deg
             );

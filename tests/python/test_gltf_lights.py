@@ -1,0 +1,82 @@
+"""A glTF's `KHR_lights_punctual` directional light is the beauty's key light, as Blender's own
+glTF importer makes it a sun: the same direction, strength (lux / 683, W/m²) and width."""
+import json
+import pathlib
+import struct
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+
+BLENDER = textwrap.dedent(
+    """
+    import json, math, sys, bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=sys.argv[1])
+    sun = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
+    print("RESULT " + json.dumps({"type": sun.data.type, "energy": sun.data.energy,
+                                  "angle": math.degrees(sun.data.angle),
+                                  "toward": list(sun.matrix_world.col[2][:3])}))
+    """
+)
+
+
+def sphere_with_a_sun(tmp_path, lux, rotation):
+    """The example sphere with a directional light on a node turned by `rotation` (a
+    quaternion), and a sidecar naming the example's map."""
+    glb = (ROOT / "examples" / "sphere" / "sphere.glb").read_bytes()
+    n = struct.unpack("<I", glb[12:16])[0]
+    doc = json.loads(glb[20:20 + n])
+    doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
+    doc.setdefault("extensions", {})["KHR_lights_punctual"] = {
+        "lights": [{"type": "directional", "intensity": lux, "color": [1.0, 1.0, 1.0], "name": "Sun"}]}
+    doc["nodes"].append({"name": "SunNode", "rotation": rotation,
+                         "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    rest = glb[20 + n:]
+    out = tmp_path / "sunny.glb"
+    out.write_bytes(struct.pack("<III", 0x46546C67, 2, 20 + len(text) + len(rest))
+                    + struct.pack("<II", len(text), 0x4E4F534A) + text + rest)
+    side = (ROOT / "examples" / "sphere" / "sphere.prismbake.toml").read_text()
+    side = side.replace('"../maps/', '"' + str(ROOT / "examples" / "maps") + "/")
+    (tmp_path / "sunny.prismbake.toml").write_text(side)
+    return out
+
+
+def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_path):
+    # Turned 40° about +Y after 30° down about +X: azimuth 40°, elevation 30°.
+    q = (np.array([0, np.sin(np.radians(20)), 0, np.cos(np.radians(20))]),
+         np.array([np.sin(np.radians(-15)), 0, 0, np.cos(np.radians(-15))]))
+    (x1, y1, z1, w1), (x2, y2, z2, w2) = q
+    rotation = [w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2, w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2]
+    asset = sphere_with_a_sun(tmp_path, 2049.0, rotation)
+    proc = run("render", asset, "--aov", "beauty", "--res", "8x8", "--spp", "1", "--json",
+               "-o", tmp_path / "out", check=0)
+    summary = json.loads(proc.stdout)
+    key = summary["key_light"]
+    assert key.startswith("the file's directional light 'SunNode' ("), key
+    az = float(key.split("azimuth ")[1].split("°")[0])
+    el = float(key.split("elevation ")[1].split("°")[0])
+    irradiance = float(key.split("irradiance ")[1].split(",")[0])
+    assert abs(az - 40.0) < 0.1 and abs(el - 30.0) < 0.1, key
+    assert summary["beauty_rays"]["key_shadow_rays"] > 0, summary
+
+    blender = subprocess.run([sys.executable, "-c", BLENDER, str(asset)], capture_output=True, text=True,
+                             timeout=300)
+    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
+    assert line, blender.stderr[-2000:]
+    theirs = json.loads(line[len("RESULT "):])
+    assert theirs["type"] == "SUN", theirs
+    assert abs(theirs["energy"] - irradiance) < 1e-3 * irradiance and abs(irradiance - 3.0) < 1e-3, (key, theirs)
+    assert f"{theirs['angle']:.3f}" == "0.526" and "0.526° across" in key, (key, theirs)
+    a, e = np.radians(az), np.radians(el)
+    ours = np.array([np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)])
+    toward = np.array(theirs["toward"]) / np.linalg.norm(theirs["toward"])
+    # Blender is Z-up: glTF (x, y, z) is Blender (x, -z, y).
+    assert np.allclose([ours[0], -ours[2], ours[1]], toward, atol=2e-3), (key, theirs)
