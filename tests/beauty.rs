@@ -1675,6 +1675,9 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     assert!(summary["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
     let (o, _) = render(&sunny, "own-key", &["--key-light", "0,30,1"]);
     assert_eq!(o.assert_success().json()["key_light"], "--key-light");
+    let (o, _) = render(&sunny, "wider", &["--key-angle", "5"]);
+    let said = o.assert_success().json()["key_light"].to_string();
+    assert!(said.ends_with("irradiance 2, 5° across)\""), "{said}");
     let missing = dir.join("missing.usda");
     std::fs::write(
         &missing,

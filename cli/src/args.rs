@@ -159,7 +159,8 @@ pub struct RenderArgs {
 #[derive(Args, Debug, Clone)]
 pub struct LookArgs {
     /// Equirectangular HDR environment (.exr, or Radiance .hdr), oriented as Blender's world
-    /// texture (the image's centre faces +X); default: a neutral built-in sky.
+    /// texture (the image's centre faces +X); default: a USD file's `DomeLight`, else a
+    /// neutral built-in sky.
     #[arg(long, value_name = "MAP.exr|MAP.hdr")]
     pub env: Option<PathBuf>,
     /// Rotate the environment about the up axis (degrees, counter-clockwise seen from above;
@@ -175,11 +176,13 @@ pub struct LookArgs {
     #[arg(long, value_name = "K", default_value_t = 1.0)]
     pub env_intensity: f32,
     /// Directional key light with shadows: azimuth and elevation in degrees (azimuth 0 = the
-    /// camera's side, 90 = +X), and its irradiance.
+    /// camera's side, 90 = +X), and its irradiance. Default: the scene file's directional
+    /// light (a USD `DistantLight`, a glTF `KHR_lights_punctual` one), else none.
     #[arg(long, value_name = "AZ,EL,INTENSITY", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub key_light: Option<[f32; 3]>,
     /// The key light's angular diameter in degrees (0 = point-like, hard shadows; the sun is
     /// about 0.5; a few degrees soften the displacement's self-shadowing as an overcast sun).
+    /// Default: 0 for `--key-light`, the file's own for its light.
     #[arg(long, value_name = "DEG", default_value_t = 0.0)]
     pub key_angle: f32,
     /// Base colour (linear R,G,B in [0, 1]), in place of the glTF material's colour and

@@ -161,11 +161,6 @@ impl LookdevOptions {
                 self.key_angle_deg
             )));
         }
-        if self.key_angle_deg > 0.0 && self.key_light.is_none() {
-            return Err(Error::Param(
-                "--key-angle needs --key-light AZ,EL,INTENSITY (the light it widens)".into(),
-            ));
-        }
         if let Some(c) = self.base_color {
             if !(c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0) {
                 return Err(Error::Param(
@@ -859,7 +854,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         materials,
         env,
         environment,
-        key: key_light(opts, &sun),
+        key: key_light(opts, &sun)?,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
         cache,
@@ -908,21 +903,34 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
     })
 }
 
-/// The key light: `--key-light` (with `--key-angle`), else the scene file's directional light.
-fn key_light(opts: &LookdevOptions, sun: &Option<SceneSun>) -> Option<([f32; 4], String)> {
-    match (opts.key_light, sun) {
+/// The key light: `--key-light` (with `--key-angle`), else the scene file's directional light
+/// (as wide as `--key-angle` where it is given, else its own width); `--key-angle` without
+/// either is an error.
+fn key_light(opts: &LookdevOptions, sun: &Option<SceneSun>) -> Result<Option<([f32; 4], String)>> {
+    Ok(match (opts.key_light, sun) {
         (Some([az, el, i]), _) => Some(([az, el, i, opts.key_angle_deg], "--key-light".into())),
         (None, Some(s)) => {
             let [az, el, i] = s.key;
+            let angle = match opts.key_angle_deg > 0.0 {
+                true => opts.key_angle_deg,
+                false => s.angle_deg,
+            };
             let said = format!(
                 "the file's directional light '{}' (azimuth {az:.1}°, elevation {el:.1}°, \
-                 irradiance {i}, {}° across)",
-                s.name, s.angle_deg
+                 irradiance {i}, {angle}° across)",
+                s.name
             );
-            Some(([az, el, i, s.angle_deg], said))
+            Some(([az, el, i, angle], said))
+        }
+        (None, None) if opts.key_angle_deg > 0.0 => {
+            return Err(Error::Param(
+                "--key-angle needs --key-light AZ,EL,INTENSITY or a directional light in the \
+                 scene file (the light it widens)"
+                    .into(),
+            ))
         }
         (None, None) => None,
-    }
+    })
 }
 
 fn up_vector(up: UpAxis) -> Vec3 {
