@@ -1678,6 +1678,12 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let (o, _) = render(&sunny, "wider", &["--key-angle", "5"]);
     let said = o.assert_success().json()["key_light"].to_string();
     assert!(said.ends_with("irradiance 2, 5° across)\""), "{said}");
+    // A dome whose radiance sums past f32's range fails, naming it, before anything is traced.
+    let blinding = dir.join("blinding.usda");
+    std::fs::write(&blinding, scene("float inputs:intensity = 1e38")).unwrap();
+    let (o, exr) = render(&blinding, "blinding", &[]);
+    o.assert_error(&["blinding.usda", "dome light /Sky", "past f32's range"]);
+    assert!(!exr.exists());
     let missing = dir.join("missing.usda");
     std::fs::write(
         &missing,

@@ -964,6 +964,17 @@ impl Loader<'_> {
         }
         let turn_deg = centre.x.atan2(centre.z).to_degrees() as f32;
         let tint = (color * intensity).as_vec3().to_array();
+        if !tint.iter().all(|c| c.is_finite() && *c >= 0.0) {
+            warn(
+                path,
+                &format!(
+                    "{at}: its colour × intensity × 2^exposure is ({}, {}, {}), not a radiance \
+                     (finite, not negative); the dome is left out (fix the light)",
+                    tint[0], tint[1], tint[2]
+                ),
+            );
+            return Ok(());
+        }
         self.mesh.dome = Some(SceneDome {
             name: at.to_string(),
             texture,
@@ -1032,16 +1043,23 @@ impl Loader<'_> {
             );
             return Ok(());
         }
+        let irradiance = (irradiance * luminance) as f32;
+        if !(irradiance.is_finite() && irradiance >= 0.0) {
+            warn(
+                path,
+                &format!(
+                    "{at}: its irradiance comes to {irradiance}, not a finite, non-negative \
+                     number; left out (fix its intensity, exposure or colour)"
+                ),
+            );
+            return Ok(());
+        }
         let elevation = toward.y.clamp(-1.0, 1.0).asin().to_degrees();
         let azimuth = toward.x.atan2(toward.z).to_degrees();
         let max = crate::render::lookdev::MAX_KEY_ANGLE_DEG as f64;
         self.mesh.sun = Some(SceneSun {
             name: at.to_string(),
-            key: [
-                azimuth as f32,
-                elevation as f32,
-                (irradiance * luminance.max(0.0)) as f32,
-            ],
+            key: [azimuth as f32, elevation as f32, irradiance],
             angle_deg: angle.min(max) as f32,
         });
         Ok(())

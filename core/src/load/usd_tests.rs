@@ -1609,6 +1609,11 @@ fn a_dome_light_becomes_the_scenes_environment() {
         "token inputs:texture:format = \"mirroredBall\"",
     );
     assert_eq!(load("ball.usda", "Y", &mirrored).unwrap(), None);
+    // A negative radiance, or one past f32's range, is no dome (a warning).
+    for body in ["float inputs:intensity = -2", "float inputs:exposure = 200"] {
+        let domes = dome("DomeLight", body);
+        assert_eq!(load("dark.usda", "Y", &domes).unwrap(), None, "{body}");
+    }
     let e = load(
         "bad.usda",
         "Y",
@@ -1678,4 +1683,13 @@ fn a_distant_light_becomes_the_key_light() {
         (0.0, 0.53),
         "along −Z: on the horizon"
     );
+    for (i, body) in ["float inputs:intensity = -2", "float inputs:exposure = 200"]
+        .into_iter()
+        .enumerate()
+    {
+        let text = format!("def DistantLight \"Sun\"\n{{\n    {body}\n}}\n");
+        let p = write(&d, &format!("bad{i}.usda"), &quad_with_cameras("Y", &text));
+        let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+        assert_eq!(m.sun, None, "{body}");
+    }
 }

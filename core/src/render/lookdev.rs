@@ -409,8 +409,8 @@ pub struct Session {
     /// Where `env` comes from (`environment`).
     environment: Option<String>,
     /// The key light: (azimuth°, elevation°, irradiance, angular diameter°) from
-    /// `--key-light` and `--key-angle`, else the scene file's directional light (USD `DistantLight`, glTF `KHR_lights_punctual`); and what the
-    /// summary says of it.
+    /// `--key-light` and `--key-angle`, else the scene file's directional light (a USD
+    /// `DistantLight`, a glTF `KHR_lights_punctual` one); and what the summary says of it.
     key: Option<([f32; 4], String)>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
@@ -889,6 +889,16 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
                     .tinted(tint),
                 None => EnvMap::constant(tint * k, frame),
             };
+            if !env.total_weight.is_finite() {
+                return Err(Error::invalid(
+                    source,
+                    format!(
+                        "dome light {}: its radiance (tint {tint} × --env-intensity {k}) sums past \
+                         f32's range (lower its intensity or exposure)",
+                        dome.name
+                    ),
+                ));
+            }
             let what = match &dome.texture {
                 Some(t) => format!("{}", t.display()),
                 None => "no texture".into(),

@@ -144,8 +144,9 @@ impl<'a> Reference<'a> {
     }
 
     /// `new`, unless building it would take more than `budget` bytes
-    /// (`BUILD_BYTES_PER_MICRO_TRIANGLE`): then a message with the size, the budget and the
-    /// largest density that fits, before any memory is taken.
+    /// (`BUILD_BYTES_PER_MICRO_TRIANGLE`): then a message with the size, the budget and a
+    /// density that fits (the count's k² scaling, rounded down to two digits and checked),
+    /// before any memory is taken.
     pub fn within_budget(surface: Surface<'a>, k: f32, budget: u64) -> Result<Self, String> {
         let size = tessellation_size(&surface, k, None);
         if build_bytes(size) > budget {
