@@ -1575,7 +1575,8 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
     }
 }
 
-/// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it):
+/// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it,
+/// and the directional light):
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
 /// dome whose texture is missing fails naming the file, the dome and the texture. Its
 /// `DistantLight` is the key light where `--key-light` is not given.
@@ -1666,6 +1667,13 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
                float3 xformOp:rotateXYZ = (-60, 0, 0)\n    \
                uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]\n}\n";
     std::fs::write(&sunny, scene("float inputs:intensity = 0.5") + sun).unwrap();
+    let info = run(&["inspect", s(&sunny), "--disp", s(&map), "--json"])
+        .assert_success()
+        .json();
+    assert_eq!(
+        info["directional_light"],
+        "'/Sun' (azimuth 0.0°, elevation 60.0°, irradiance 2, 0.53° across)"
+    );
     let (o, _) = render(&sunny, "sun", &[]);
     let summary = o.assert_success().json();
     assert_eq!(

@@ -465,6 +465,10 @@ pub struct InspectInfo {
     /// path and texture.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub dome_light: Option<String>,
+    /// The file's directional light (a USD `DistantLight`, a glTF `KHR_lights_punctual` one),
+    /// the key light unless `--key-light` is given: its name and `--key-light`'s terms.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub directional_light: Option<String>,
     pub sharp_corners: usize,
     pub crease_edges: usize,
     pub inverted_corners: usize,
@@ -574,6 +578,11 @@ impl InspectInfo {
                 "dome      {d} (lights the beauty unless --env is given)\n"
             ));
         }
+        if let Some(d) = &self.directional_light {
+            s.push_str(&format!(
+                "key       {d} (the key light unless --key-light is given)\n"
+            ));
+        }
         if let Some(m) = &self.map {
             s.push_str(&format!(
                 "map       {} {}x{} channel {}, values {:.4} .. {:.4}, displacement {:.5} .. {:.5}\n",
@@ -680,6 +689,13 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         bounds_max: hi.to_array(),
         camera: !mesh.cameras.is_empty(),
         cameras: mesh.cameras.iter().map(|c| c.names[0].clone()).collect(),
+        directional_light: mesh.sun.as_ref().map(|l| {
+            let [az, el, irradiance] = l.key;
+            format!(
+                "'{}' (azimuth {az:.1}°, elevation {el:.1}°, irradiance {irradiance}, {}° across)",
+                l.name, l.angle_deg
+            )
+        }),
         dome_light: mesh.dome.as_ref().map(|d| match &d.texture {
             Some(t) => format!("'{}' ({})", d.name, t.display()),
             None => format!("'{}' (no texture)", d.name),
