@@ -941,16 +941,19 @@ impl Loader<'_> {
             true => value(path, prim, "poleAxis")?.and_then(|v| v.as_str().map(str::to_string)),
             false => None,
         };
-        let z_up = self.mesh.up_axis == Some(UpAxis::Z);
         let lift = match (v1, pole_axis.as_deref().unwrap_or("scene")) {
-            (true, "Z") | (true, "scene") if z_up => DMat4::from_rotation_x(90f64.to_radians()),
-            (true, "Z") => DMat4::from_rotation_x(90f64.to_radians()),
-            _ => DMat4::IDENTITY,
+            (true, "Z") => true,
+            (true, "scene") => self.z_up(),
+            _ => false,
         };
-        let to_frame = |d: DVec3| if z_up { DVec3::new(d.x, d.z, -d.y) } else { d };
-        let m = world * lift;
-        let pole = to_frame(m.transform_vector3(DVec3::Y)).normalize_or_zero();
-        let centre = to_frame(m.transform_vector3(DVec3::Z));
+        let m = match lift {
+            true => world * DMat4::from_rotation_x(90f64.to_radians()),
+            false => world,
+        };
+        let pole = self
+            .to_frame(m.transform_vector3(DVec3::Y))
+            .normalize_or_zero();
+        let centre = self.to_frame(m.transform_vector3(DVec3::Z));
         let tilt = pole.dot(DVec3::Y).clamp(-1.0, 1.0).acos().to_degrees();
         if tilt > 1.0 {
             warn(
