@@ -1579,7 +1579,8 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 /// and the directional light):
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
 /// dome whose texture is missing fails naming the file, the dome and the texture. Its
-/// `DistantLight` is the key light where `--key-light` is not given.
+/// `DistantLight` is the key light where `--key-light` is not given; `--no-scene-lights`
+/// leaves both out.
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
@@ -1683,6 +1684,11 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     assert!(summary["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
     let (o, _) = render(&sunny, "own-key", &["--key-light", "0,30,1"]);
     assert_eq!(o.assert_success().json()["key_light"], "--key-light");
+    // --no-scene-lights: the standard rig, neither of the file's lights.
+    let (o, _) = render(&sunny, "rig", &["--no-scene-lights"]);
+    let summary = o.assert_success().json();
+    assert_eq!(summary["environment"], "the built-in sky");
+    assert!(summary["key_light"].is_null(), "{summary}");
     let (o, _) = render(&sunny, "wider", &["--key-angle", "5"]);
     let said = o.assert_success().json()["key_light"].to_string();
     assert!(said.ends_with("irradiance 2, 5° across)\""), "{said}");

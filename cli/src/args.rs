@@ -204,6 +204,10 @@ pub struct LookArgs {
     /// emissiveColor, .mtl Ke / map_Ke).
     #[arg(long)]
     pub no_emission: bool,
+    /// Light with the flags and defaults only, not the scene file's dome and directional
+    /// lights (a standard lookdev rig for every asset).
+    #[arg(long)]
+    pub no_scene_lights: bool,
     /// Dielectric reflectance at normal incidence of every material (0.04 ≈ IOR 1.5; 0 = pure
     /// diffuse); default: each material's from its index of refraction (glTF KHR_materials_ior
     /// and KHR_materials_specular, USD ior, .mtl Ni), else 0.04.

@@ -351,6 +351,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         metallic: l.metallic,
         normal_maps: !l.no_normal_maps,
         emission: !l.no_emission,
+        scene_lights: !l.no_scene_lights,
         specular: l.specular,
         bounces: l.bounces,
         ground: l.ground,

@@ -69,6 +69,9 @@ pub struct LookdevOptions {
     pub normal_maps: bool,
     /// Let the materials glow (`--no-emission`: false).
     pub emission: bool,
+    /// Light with the scene file's dome and directional lights where the flags leave the
+    /// environment and the key light to it (`--no-scene-lights`: false).
+    pub scene_lights: bool,
     /// The dielectric reflectance F0 of every material (`--specular`); `None`: each
     /// material's own (its file's index of refraction), else `DEFAULT_SPECULAR`.
     pub specular: Option<f32>,
@@ -97,6 +100,7 @@ impl Default for LookdevOptions {
             metallic: None,
             normal_maps: true,
             emission: true,
+            scene_lights: true,
             specular: None,
             bounces: 2,
             ground: false,
@@ -741,7 +745,10 @@ fn load_cached(
     let (mesh, map) = asset::load(spec)?;
     let materials = asset_materials(&mesh, spec, job, opts)?;
     let scene_camera = mesh.pick_named_camera(job.camera.name.as_deref())?.cloned();
-    let (dome, sun) = (mesh.dome.clone(), mesh.sun.clone());
+    let (dome, sun) = match opts.scene_lights {
+        true => (mesh.dome.clone(), mesh.sun.clone()),
+        false => (None, None),
+    };
     let up_axis = mesh.up_axis.unwrap_or_default();
     let hash = match &opts.cache_dir {
         Some(_) => Some(asset::input_hash(spec, &job.repair)?),
