@@ -26,6 +26,7 @@ use prismbake::render::beauty::{
     beauty_preview, render_beauty, scene_epsilon, BeautyImage, BeautyScene, Ground, KeyLight,
     SurfaceMaterial,
 };
+use prismbake::render::camera::Camera;
 use prismbake::render::env::{EnvFrame, EnvMap};
 use prismbake::render::shading::{luminance, Material};
 use prismbake::render::RenderSettings;
@@ -297,55 +298,21 @@ fn preview_agrees(rel: &str, label: &str, gpu: &BeautyImage) {
     );
 }
 
-#[test]
-fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
-    // The lookdev default: built-in sky, a soft key light with shadow rays, the shadow
-    // catcher, Lambert + GGX (roughness 0.5), two bounces.
+/// The sphere under the lookdev default: the built-in sky, `key` with its shadow rays, the
+/// shadow catcher, Lambert + GGX (roughness 0.5), two bounces, seen through `view`'s camera
+/// (given the example, framed through a pinhole).
+fn sphere_under_the_sky(
+    view: impl FnOnce(&ExampleScene) -> Camera,
+    key: KeyLight,
+    exposure: f32,
+    settings: RenderSettings,
+    label: &str,
+) {
     let rel = "sphere/sphere.glb";
     let ex = example_scene(rel);
     assert_eq!(ex.up_axis, UpAxis::Y);
-    let env = EnvMap::default_sky(
-        1.0,
-        EnvFrame {
-            z_up: false,
-            rotation: 0.4,
-        },
-    );
-    let (ground, eps) = ground_and_eps(&ex, Vec3::Y);
-    let bscene = BeautyScene {
-        env: &env,
-        env_frame: env.frame,
-        env_lights: true,
-        // A disc 6° across: its shadow rays draw their directions (KeyLight::sample_dir).
-        key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false).with_angle(6.0)),
-        materials: &[SurfaceMaterial::from(Material::default())],
-        textures: &[],
-        tangents: &[],
-        emissive: false,
-        prisms: &ex.scene.table.prisms,
-        ground: Some(ground),
-        bounces: 2,
-        eps,
-        // Half a stop up: the GPU's preview must take it as the host's does.
-        exposure: 1.5,
-    };
-    let settings = RenderSettings {
-        width: 64,
-        height: 64,
-        spp: 4,
-        seed: 7,
-    };
-    check(rel, &ex, &bscene, &settings, "sky+key+ground");
-}
-
-/// An orthographic view: every camera ray starts at its own place on the camera's plane
-/// (the wavefront keeps it until the camera step's event), over the ground too.
-#[test]
-fn an_orthographic_view_matches_the_cpu() {
-    let rel = "sphere/sphere.glb";
-    let ex = example_scene(rel);
     let ex = ExampleScene {
-        cam: ex.cam.fit_orthographic(ex.lo, ex.hi, 1.0),
+        cam: view(&ex),
         ..ex
     };
     let env = EnvMap::default_sky(
@@ -360,7 +327,7 @@ fn an_orthographic_view_matches_the_cpu() {
         env: &env,
         env_frame: env.frame,
         env_lights: true,
-        key: Some(KeyLight::from_angles(40.0, 50.0, 3.0, false)),
+        key: Some(key),
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
         tangents: &[],
@@ -369,15 +336,45 @@ fn an_orthographic_view_matches_the_cpu() {
         ground: Some(ground),
         bounces: 2,
         eps,
-        exposure: 1.0,
+        exposure,
     };
-    let settings = RenderSettings {
-        width: 48,
-        height: 48,
-        spp: 2,
-        seed: 3,
-    };
-    check(rel, &ex, &bscene, &settings, "orthographic");
+    check(rel, &ex, &bscene, &settings, label);
+}
+
+#[test]
+fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
+    sphere_under_the_sky(
+        |ex| ex.cam,
+        // A disc 6° across: its shadow rays draw their directions (KeyLight::sample_dir).
+        KeyLight::from_angles(40.0, 50.0, 3.0, false).with_angle(6.0),
+        // Half a stop up: the GPU's preview must take it as the host's does.
+        1.5,
+        RenderSettings {
+            width: 64,
+            height: 64,
+            spp: 4,
+            seed: 7,
+        },
+        "sky+key+ground",
+    );
+}
+
+/// An orthographic view: every camera ray starts at its own place on the camera's plane
+/// (the wavefront keeps it until the camera step's event), over the ground too.
+#[test]
+fn an_orthographic_view_matches_the_cpu() {
+    sphere_under_the_sky(
+        |ex| ex.cam.fit_orthographic(ex.lo, ex.hi, 1.0),
+        KeyLight::from_angles(40.0, 50.0, 3.0, false),
+        1.0,
+        RenderSettings {
+            width: 48,
+            height: 48,
+            spp: 2,
+            seed: 3,
+        },
+        "orthographic",
+    );
 }
 
 #[test]

@@ -71,6 +71,19 @@ pub fn report(what: &str, a: &Agreement) -> String {
     )
 }
 
+/// The same frame on the CPU (`Pdm`) and on the GPU.
+pub fn render_both(
+    scene: &prismbake::accel::Scene,
+    cam: &prismbake::render::camera::Camera,
+    settings: &RenderSettings,
+    opts: &PdmOptions,
+) -> (AovImage, AovImage) {
+    let cpu = render::render_aovs(&Pdm::new(scene, *opts), cam, settings, &|_| {});
+    let gpu_scene = GpuScene::upload(ctx(), scene).expect("upload");
+    let gpu = render_aovs(ctx(), &gpu_scene, cam, settings, opts, &|_| {}).expect("gpu render");
+    (cpu, gpu)
+}
+
 fn check_asset(rel: &str, spp: u32) {
     check_asset_with(rel, spp, PdmOptions::default(), true);
 }
@@ -86,9 +99,7 @@ fn check_asset_with(rel: &str, spp: u32, opts: PdmOptions, strict_stitched: bool
         spp,
         seed: 7,
     };
-    let cpu = render::render_aovs(&Pdm::new(scene, opts), cam, &settings, &|_| {});
-    let gpu_scene = GpuScene::upload(ctx(), scene).expect("upload");
-    let gpu = render_aovs(ctx(), &gpu_scene, cam, &settings, &opts, &|_| {}).expect("gpu render");
+    let (cpu, gpu) = render_both(scene, cam, &settings, &opts);
     let a = compare(&cpu, &gpu, |_| true);
     eprintln!("{}", report(&format!("{rel} 128² spp {spp}"), &a));
     // Reported apart: pixels on prisms with stitch data (next to UV seams the CPU traces the
@@ -182,23 +193,15 @@ fn an_orthographic_view_matches_the_cpu() {
         seed: 7,
     };
     let opts = PdmOptions::default();
-    let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &cam, &settings, &|_| {});
-    let gpu_scene = GpuScene::upload(ctx(), &ex.scene).expect("upload");
-    let gpu = render_aovs(ctx(), &gpu_scene, &cam, &settings, &opts, &|_| {}).expect("gpu render");
+    let (cpu, gpu) = render_both(&ex.scene, &cam, &settings, &opts);
     let a = compare(&cpu, &gpu, |_| true);
     eprintln!("{}", report("rock 128², orthographic", &a));
     assert_parity("rock, orthographic", &a, 128 * 128 / 10);
     // Parallel rays: the depth AOV is the distance from the camera's plane.
     let (_, _, back) = cam.basis();
-    let nearest = (0..8)
-        .map(|i| {
-            let corner = glam::Vec3::new(
-                if i & 1 == 0 { ex.lo.x } else { ex.hi.x },
-                if i & 2 == 0 { ex.lo.y } else { ex.hi.y },
-                if i & 4 == 0 { ex.lo.z } else { ex.hi.z },
-            );
-            (cam.from - corner).dot(back)
-        })
+    let nearest = prismbake::render::camera::box_corners(ex.lo, ex.hi)
+        .map(|corner| (cam.from - corner).dot(back))
+        .into_iter()
         .fold(f32::INFINITY, f32::min);
     let hit_depths = (0..cpu.mask.len())
         .filter(|&i| cpu.mask[i] > 0.5)
@@ -231,9 +234,7 @@ fn frames_larger_than_a_tile_match_the_cpu() {
         seed: 7,
     };
     let opts = PdmOptions::default();
-    let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &cam, &settings, &|_| {});
-    let gpu_scene = GpuScene::upload(ctx(), &ex.scene).expect("upload");
-    let gpu = render_aovs(ctx(), &gpu_scene, &cam, &settings, &opts, &|_| {}).expect("gpu render");
+    let (cpu, gpu) = render_both(&ex.scene, &cam, &settings, &opts);
     let a = compare(&cpu, &gpu, |_| true);
     eprintln!(
         "{}",
@@ -462,9 +463,7 @@ fn rock_leak_ray_as_centre_ray(seed: u32, index: usize) -> (Option<f32>, Option<
         seed: 0,
     };
     let opts = PdmOptions::default();
-    let cpu = render::render_aovs(&Pdm::new(&ex.scene, opts), &cam, &settings, &|_| {});
-    let gpu_scene = GpuScene::upload(ctx(), &ex.scene).expect("upload");
-    let gpu = render_aovs(ctx(), &gpu_scene, &cam, &settings, &opts, &|_| {}).expect("render");
+    let (cpu, gpu) = render_both(&ex.scene, &cam, &settings, &opts);
     let depth = |mask: f32, depth: f32| (mask > 0.5).then_some(depth);
     (
         depth(cpu.mask[0], cpu.depth[0]),

@@ -17,6 +17,18 @@ pub fn usable_fov(deg: f32) -> bool {
     deg > 0.0 && deg < MAX_FOV_DEG
 }
 
+/// The eight corners of the box `lo`–`hi` (corner `i` takes `hi` on the axes of its set bits:
+/// x 1, y 2, z 4).
+pub fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     pub from: Vec3,
@@ -52,12 +64,8 @@ impl Camera {
     pub fn fit_orthographic(&self, lo: Vec3, hi: Vec3, aspect: f32) -> Self {
         let (right, up, back) = self.basis();
         let (mut half, mut ahead) = (0.0f32, f32::INFINITY);
-        for i in 0..8 {
-            let corner = Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            ) - self.from;
+        for corner in box_corners(lo, hi) {
+            let corner = corner - self.from;
             half = half
                 .max(corner.dot(up).abs())
                 .max(corner.dot(right).abs() / aspect);
@@ -89,12 +97,8 @@ impl Camera {
         let tan_y = (yfov_deg.to_radians() * 0.5).tan() / 1.1;
         let tan_x = tan_y * aspect;
         let mut dist = 1e-6f32;
-        for i in 0..8 {
-            let corner = Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            ) - centre;
+        for corner in box_corners(lo, hi) {
+            let corner = corner - centre;
             let z = corner.dot(back);
             dist = dist
                 .max(z + corner.dot(right).abs() / tan_x)
@@ -280,12 +284,8 @@ mod tests {
                 };
                 assert_eq!(c.basis(), start.basis(), "the view turned");
                 let (right, up, back) = c.basis();
-                for i in 0..8 {
-                    let p = Vec3::new(
-                        if i & 1 == 0 { lo.x } else { hi.x },
-                        if i & 2 == 0 { lo.y } else { hi.y },
-                        if i & 4 == 0 { lo.z } else { hi.z },
-                    ) - c.from;
+                for (i, corner) in box_corners(lo, hi).into_iter().enumerate() {
+                    let p = corner - c.from;
                     assert!(-p.dot(back) > 0.0, "{from} corner {i} behind the camera");
                     let x = p.dot(right) / (0.5 * height * aspect);
                     let y = p.dot(up) / (0.5 * height);
@@ -302,22 +302,13 @@ mod tests {
     fn framing_contains_the_bounds() {
         // Every corner of the box projects inside the image (with the 10% margin) for a wide
         // and a tall image; breaks if the framing ignores the aspect ratio or a corner.
+        let (lo, hi) = (Vec3::new(-1.0, -0.2, -3.0), Vec3::new(1.0, 0.2, 3.0));
         for aspect in [1.0f32, 2.0, 0.5] {
-            let c = Camera::frame_bounds(
-                Vec3::new(-1.0, -0.2, -3.0),
-                Vec3::new(1.0, 0.2, 3.0),
-                UpAxis::Y,
-                40.0,
-                aspect,
-            );
+            let c = Camera::frame_bounds(lo, hi, UpAxis::Y, 40.0, aspect);
             let (right, up, back) = c.basis();
             let tan_y = (20f32).to_radians().tan();
-            for i in 0..8 {
-                let p = Vec3::new(
-                    if i & 1 == 0 { -1.0 } else { 1.0 },
-                    if i & 2 == 0 { -0.2 } else { 0.2 },
-                    if i & 4 == 0 { -3.0 } else { 3.0 },
-                ) - c.from;
+            for (i, corner) in box_corners(lo, hi).into_iter().enumerate() {
+                let p = corner - c.from;
                 let depth = -p.dot(back);
                 assert!(depth > 0.0);
                 let x = p.dot(right) / (depth * tan_y * aspect);
