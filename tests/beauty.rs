@@ -10,12 +10,6 @@ fn read(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
 
-/// A constant-radiance equirect EXR.
-fn write_constant_env(path: &Path, radiance: f32) {
-    let ch = |name| (name, vec![radiance; 16 * 8]);
-    write_exr(path, 16, 8, vec![ch("R"), ch("G"), ch("B")], false);
-}
-
 #[test]
 fn beauty_is_the_same_for_one_and_two_threads() {
     let (a, b) = (temp_dir("beauty-t1"), temp_dir("beauty-t2"));
@@ -1584,25 +1578,14 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
-    let scene = |dome: &str| {
-        format!(
-            "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
-             def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
-             int[] faceVertexIndices = [0, 1, 2, 3]\n    \
-             point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
-             texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
-             interpolation = \"vertex\"\n    )\n}}\n\
-             def DomeLight \"Sky\"\n{{\n    {dome}\n}}\n"
-        )
-    };
+    let scene = |dome: &str| quad_usda(&format!("def DomeLight \"Sky\"\n{{\n    {dome}\n}}\n"));
     let red = dir.join("red.usda");
     std::fs::write(
         &red,
         scene("float inputs:intensity = 3\n    color3f inputs:color = (1, 0, 0)"),
     )
     .unwrap();
-    let map = dir.join("flat.exr");
-    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let map = write_flat_map(&dir);
     let grey = dir.join("grey.exr");
     write_constant_env(&grey, 1.0);
     let render = |usda: &Path, name: &str, extra: &[&str]| {

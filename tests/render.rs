@@ -234,20 +234,10 @@ fn camera_picks_one_of_the_scene_files_cameras_by_name() {
     };
     std::fs::write(
         &usda,
-        format!(
-            "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
-             def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
-             int[] faceVertexIndices = [0, 1, 2, 3]\n    \
-             point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
-             texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
-             interpolation = \"vertex\"\n    )\n}}\n{}{}",
-            camera("Near", 3.0),
-            camera("Far", 7.0)
-        ),
+        quad_usda(&(camera("Near", 3.0) + &camera("Far", 7.0))),
     )
     .unwrap();
-    let map = dir.join("flat.exr");
-    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let map = write_flat_map(&dir);
     let centre_depth = |pick: Option<&str>| {
         let out = dir.join(format!(
             "out-{}",
@@ -356,19 +346,14 @@ fn orthographic_cameras_and_ortho_render_parallel_views() {
     let usda = dir.join("quad.usda");
     std::fs::write(
         &usda,
-        "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
-         def Mesh \"quad\"\n{\n    int[] faceVertexCounts = [4]\n    \
-         int[] faceVertexIndices = [0, 1, 2, 3]\n    \
-         point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
-         texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
-         interpolation = \"vertex\"\n    )\n}\n\
-         def Camera \"Top\"\n{\n    token projection = \"orthographic\"\n    \
-         float verticalAperture = 40\n    double3 xformOp:translate = (0, 0, 3)\n    \
-         uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}\n",
+        quad_usda(
+            "def Camera \"Top\"\n{\n    token projection = \"orthographic\"\n    \
+             float verticalAperture = 40\n    double3 xformOp:translate = (0, 0, 3)\n    \
+             uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}\n",
+        ),
     )
     .unwrap();
-    let map = dir.join("flat.exr");
-    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    let map = write_flat_map(&dir);
     let render = |name: &str, extra: &[&str]| {
         let out = dir.join(name);
         let mut args = vec![

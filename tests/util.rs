@@ -149,6 +149,32 @@ pub fn files_in(dir: &Path) -> Vec<String> {
     v
 }
 
+/// A constant-radiance equirect EXR.
+pub fn write_constant_env(path: &Path, radiance: f32) {
+    let ch = |name| (name, vec![radiance; 16 * 8]);
+    write_exr(path, 16, 8, vec![ch("R"), ch("G"), ch("B")], false);
+}
+
+/// `DIR/flat.exr`: a 4 × 4 height map at the midlevel everywhere (no displacement).
+pub fn write_flat_map(dir: &Path) -> PathBuf {
+    let map = dir.join("flat.exr");
+    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
+    map
+}
+
+/// A Y-up USD text layer: a flat 2 × 2 quad (corners ±1 in x and y, UVs over the unit
+/// square) and then `prims`.
+pub fn quad_usda(prims: &str) -> String {
+    format!(
+        "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
+         def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
+         int[] faceVertexIndices = [0, 1, 2, 3]\n    \
+         point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
+         texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
+         interpolation = \"vertex\"\n    )\n}}\n{prims}"
+    )
+}
+
 /// Write a one-layer f32 EXR of `width` × `height` pixels: each channel by name, its pixels in
 /// row order; `compressed` takes RLE (runs of equal values stay small on disk).
 pub fn write_exr(

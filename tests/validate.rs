@@ -173,26 +173,13 @@ fn a_base_colour_texture_that_does_not_decode_fails_the_textures_check() {
 #[test]
 fn a_dome_lights_texture_is_in_the_textures_check() {
     let dir = temp_dir("validate-dome");
-    let map = dir.join("flat.exr");
-    write_exr(&map, 4, 4, vec![("Y", vec![0.5; 16])], false);
-    let sky = dir.join("sky.exr");
-    let ch = |name| (name, vec![1.0f32; 16 * 8]);
-    write_exr(&sky, 16, 8, vec![ch("R"), ch("G"), ch("B")], false);
+    let map = write_flat_map(&dir);
+    write_constant_env(&dir.join("sky.exr"), 1.0);
     let textures = |texture: &str| {
         let usda = dir.join(format!("{texture}.usda"));
-        std::fs::write(
-            &usda,
-            format!(
-                "#usda 1.0\n(\n    upAxis = \"Y\"\n)\n\
-                 def Mesh \"quad\"\n{{\n    int[] faceVertexCounts = [4]\n    \
-                 int[] faceVertexIndices = [0, 1, 2, 3]\n    \
-                 point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]\n    \
-                 texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (\n        \
-                 interpolation = \"vertex\"\n    )\n}}\n\
-                 def DomeLight \"Sky\"\n{{\n    asset inputs:texture:file = @{texture}@\n}}\n"
-            ),
-        )
-        .unwrap();
+        let dome =
+            format!("def DomeLight \"Sky\"\n{{\n    asset inputs:texture:file = @{texture}@\n}}\n");
+        std::fs::write(&usda, quad_usda(&dome)).unwrap();
         let r = run(&["validate", s(&usda), "--disp", s(&map), "--format", "json"]);
         let j = r.json();
         let check = j["assets"][0]["checks"]
