@@ -1,6 +1,8 @@
 """Shared fixtures for the Python tests: the prismbake binary built by `cargo test`."""
+import json
 import os
 import pathlib
+import struct
 import subprocess
 
 import pytest
@@ -29,3 +31,25 @@ def run(prismbake):
 @pytest.fixture
 def examples():
     return ROOT / "examples"
+
+
+@pytest.fixture
+def edited_sphere(tmp_path):
+    """`edit(name, change)`: a copy of the example sphere as `tmp_path/NAME.glb` with its glTF
+    JSON changed by `change(doc)`, and a sidecar naming the example's map."""
+    def edit(name, change):
+        glb = (ROOT / "examples" / "sphere" / "sphere.glb").read_bytes()
+        n = struct.unpack("<I", glb[12:16])[0]
+        doc = json.loads(glb[20:20 + n])
+        change(doc)
+        text = json.dumps(doc).encode()
+        text += b" " * (-len(text) % 4)
+        rest = glb[20 + n:]
+        out = tmp_path / f"{name}.glb"
+        out.write_bytes(struct.pack("<III", 0x46546C67, 2, 20 + len(text) + len(rest))
+                        + struct.pack("<II", len(text), 0x4E4F534A) + text + rest)
+        side = (ROOT / "examples" / "sphere" / "sphere.prismbake.toml").read_text()
+        side = side.replace('"../maps/', '"' + str(ROOT / "examples" / "maps") + "/")
+        (tmp_path / f"{name}.prismbake.toml").write_text(side)
+        return out
+    return edit

@@ -8,7 +8,6 @@ silhouettes must agree as closely as through the perspective one, and a pinhole'
 full size."""
 import json
 import pathlib
-import struct
 import subprocess
 import sys
 
@@ -34,28 +33,11 @@ def test_the_beauty_agrees_with_cycles_under_the_same_hdri(prismbake, tmp_path):
     assert max(abs(r - 1) for r in turned["asset_mean_ratio"]) > 0.15, turned
 
 
-def orthographic_sphere(tmp_path, ymag):
-    """The example sphere with its camera made orthographic (`ymag`: half the view's height),
-    and a sidecar naming the example's map."""
-    glb = (ROOT / "examples" / "sphere" / "sphere.glb").read_bytes()
-    n = struct.unpack("<I", glb[12:16])[0]
-    doc = json.loads(glb[20:20 + n])
-    doc["cameras"][0] = {"name": "Camera", "type": "orthographic",
-                         "orthographic": {"xmag": ymag, "ymag": ymag, "znear": 0.05, "zfar": 100.0}}
-    text = json.dumps(doc).encode()
-    text += b" " * (-len(text) % 4)
-    rest = glb[20 + n:]
-    out = tmp_path / "ortho.glb"
-    out.write_bytes(struct.pack("<III", 0x46546C67, 2, 20 + len(text) + len(rest))
-                    + struct.pack("<II", len(text), 0x4E4F534A) + text + rest)
-    side = (ROOT / "examples" / "sphere" / "sphere.prismbake.toml").read_text()
-    side = side.replace('"../maps/', '"' + str(ROOT / "examples" / "maps") + "/")
-    (tmp_path / "ortho.prismbake.toml").write_text(side)
-    return out
-
-
-def test_an_orthographic_camera_frames_the_asset_as_in_cycles(prismbake, tmp_path):
-    asset = orthographic_sphere(tmp_path, 1.3)
+def test_an_orthographic_camera_frames_the_asset_as_in_cycles(prismbake, tmp_path, edited_sphere):
+    def orthographic(doc):
+        doc["cameras"][0] = {"name": "Camera", "type": "orthographic",
+                             "orthographic": {"xmag": 1.3, "ymag": 1.3, "znear": 0.05, "zfar": 100.0}}
+    asset = edited_sphere("ortho", orthographic)
     same = compare(prismbake, tmp_path, asset=asset)
     assert same["mask_mismatch"] < 0.01, same
     for ratio in same["asset_mean_ratio"]:

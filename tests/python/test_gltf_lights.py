@@ -1,15 +1,12 @@
 """A glTF's `KHR_lights_punctual` directional light is the beauty's key light, as Blender's own
 glTF importer makes it a sun: the same direction, strength (lux / 683, W/m²) and width."""
 import json
-import pathlib
-import struct
 import subprocess
 import sys
 import textwrap
 
 import numpy as np
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 BLENDER = textwrap.dedent(
     """
@@ -24,38 +21,21 @@ BLENDER = textwrap.dedent(
 )
 
 
-def sphere_with_a_sun(tmp_path, lux, rotation):
-    """The example sphere with a directional light on a node turned by `rotation` (a
-    quaternion), and a sidecar naming the example's map."""
-    glb = (ROOT / "examples" / "sphere" / "sphere.glb").read_bytes()
-    n = struct.unpack("<I", glb[12:16])[0]
-    doc = json.loads(glb[20:20 + n])
-    doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
-    doc.setdefault("extensions", {})["KHR_lights_punctual"] = {
-        "lights": [{"type": "directional", "intensity": lux, "color": [1.0, 1.0, 1.0], "name": "Sun"}]}
-    doc["nodes"].append({"name": "SunNode", "rotation": rotation,
-                         "extensions": {"KHR_lights_punctual": {"light": 0}}})
-    doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
-    text = json.dumps(doc).encode()
-    text += b" " * (-len(text) % 4)
-    rest = glb[20 + n:]
-    out = tmp_path / "sunny.glb"
-    out.write_bytes(struct.pack("<III", 0x46546C67, 2, 20 + len(text) + len(rest))
-                    + struct.pack("<II", len(text), 0x4E4F534A) + text + rest)
-    side = (ROOT / "examples" / "sphere" / "sphere.prismbake.toml").read_text()
-    side = side.replace('"../maps/', '"' + str(ROOT / "examples" / "maps") + "/")
-    (tmp_path / "sunny.prismbake.toml").write_text(side)
-    return out
-
-
-def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_path):
+def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_path, edited_sphere):
     # Turned 40° about +Y after 30° down about +X: azimuth 40°, elevation 30°.
     q = (np.array([0, np.sin(np.radians(20)), 0, np.cos(np.radians(20))]),
          np.array([np.sin(np.radians(-15)), 0, 0, np.cos(np.radians(-15))]))
     (x1, y1, z1, w1), (x2, y2, z2, w2) = q
     rotation = [w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2, w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
                 w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2, w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2]
-    asset = sphere_with_a_sun(tmp_path, 2049.0, rotation)
+    def add_a_sun(doc):
+        doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
+        doc.setdefault("extensions", {})["KHR_lights_punctual"] = {
+            "lights": [{"type": "directional", "intensity": 2049.0, "color": [1.0, 1.0, 1.0], "name": "Sun"}]}
+        doc["nodes"].append({"name": "SunNode", "rotation": rotation,
+                             "extensions": {"KHR_lights_punctual": {"light": 0}}})
+        doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
+    asset = edited_sphere("sunny", add_a_sun)
     proc = run("render", asset, "--aov", "beauty", "--res", "8x8", "--spp", "1", "--json",
                "-o", tmp_path / "out", check=0)
     summary = json.loads(proc.stdout)
