@@ -542,7 +542,7 @@ impl Loader<'_> {
         }
         let toward = world.transform_vector3(Vec3::Z).normalize_or_zero();
         let [r, g, b] = light.color();
-        let luminance = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+        let luminance = crate::render::shading::luminance(Vec3::new(r, g, b));
         let irradiance = light.intensity() / 683.0 * luminance;
         if toward == Vec3::ZERO || !(irradiance.is_finite() && irradiance >= 0.0) {
             self.warn(&format!(

@@ -1004,7 +1004,7 @@ impl Loader<'_> {
             return Ok(());
         }
         let (intensity, color) = self.light_power(&at, 50_000.0)?;
-        let luminance = color.dot(DVec3::new(0.2126, 0.7152, 0.0722));
+        let luminance = crate::render::shading::luminance(color.as_vec3()) as f64;
         if (color - DVec3::splat(color.x)).abs().max_element() > 1e-6 {
             warn(
                 path,

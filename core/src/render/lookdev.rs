@@ -882,9 +882,9 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
         (None, Some(dome)) => {
             let frame = frame.dome(dome.turn_deg);
             let tint = Vec3::from(dome.tint);
-            let env = match &dome.texture {
-                Some(t) => EnvMap::load(t, k, frame)
-                    .map_err(|e| {
+            let (env, what) = match &dome.texture {
+                Some(t) => {
+                    let env = EnvMap::load(t, k, frame).map_err(|e| {
                         Error::invalid(
                             source,
                             format!(
@@ -892,9 +892,10 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
                                 dome.name
                             ),
                         )
-                    })?
-                    .tinted(tint),
-                None => EnvMap::constant(tint * k, frame),
+                    })?;
+                    (env.tinted(tint), t.display().to_string())
+                }
+                None => (EnvMap::constant(tint * k, frame), "no texture".into()),
             };
             if !env.total_weight.is_finite() {
                 return Err(Error::invalid(
@@ -906,10 +907,6 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
                     ),
                 ));
             }
-            let what = match &dome.texture {
-                Some(t) => format!("{}", t.display()),
-                None => "no texture".into(),
-            };
             let said = format!(
                 "the file's dome light '{}' ({what}, tint {}, {}, {}, turned {}°)",
                 dome.name, tint.x, tint.y, tint.z, dome.turn_deg
