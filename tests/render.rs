@@ -1,6 +1,7 @@
 //! `render` end to end: files, determinism across threads, turntables and frame ranges, bad input.
 
 use crate::util::*;
+use std::path::Path;
 
 fn read(path: &std::path::Path) -> Vec<u8> {
     std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -146,6 +147,125 @@ fn renders_a_baked_table() {
     assert_frame_times(&summary.json(), false);
 }
 
+/// A table keeps the geometry; a render of it reads the rest from the mesh it was baked from
+/// (found from the table's folder): the rock's table, baked into another folder, renders the
+/// same beauty as the rock, its textured material included. Where the mesh has gone, or
+/// changed, a warning says so and the default material shades it.
+#[test]
+fn a_baked_table_renders_with_its_meshs_materials() {
+    let dir = temp_dir("render-table-materials");
+    let rock = dir.join("rock.glb");
+    std::fs::copy(example("rock/rock.glb"), &rock).unwrap();
+    let map = example("maps/scales_256.png");
+    let table = dir.join("tables/rock.prisms");
+    run(&["bake", s(&rock), "--disp", s(&map), "-o", s(&table)]).assert_success();
+    let info = run(&["inspect", s(&table), "--json"])
+        .assert_success()
+        .json();
+    assert_eq!(info["mesh"], "../rock.glb", "{info}");
+    assert!(
+        info["mesh_scene"].as_str().unwrap().starts_with("read"),
+        "{info}"
+    );
+    let beauty = |input: &Path, name: &str| {
+        let out = dir.join(name);
+        let mut args = vec!["render", s(input), "--res", "24x24", "--spp", "2"];
+        args.extend(["--aov", "beauty", "--json", "-o", s(&out)]);
+        if input == rock.as_path() {
+            args.extend(["--disp", s(&map)]);
+        }
+        let o = run(&args);
+        o.assert_success();
+        (read_rgba(&out.join("beauty.exr")), o)
+    };
+    let (from_mesh, _) = beauty(&rock, "mesh");
+    let (from_table, o) = beauty(&table, "table");
+    assert_eq!(
+        from_table, from_mesh,
+        "the table's beauty differs from the mesh's"
+    );
+    assert_eq!(o.json()["materials"][0]["name"], "rock_mat", "{}", o.stdout);
+
+    std::fs::write(&rock, b"glTF moved on").unwrap();
+    let (changed, o) = beauty(&table, "changed");
+    assert!(
+        o.stderr
+            .contains("rock.glb has changed since the table was baked"),
+        "{}",
+        o.stderr
+    );
+    assert_eq!(o.json()["materials"][0]["name"], "default", "{}", o.stdout);
+    assert_ne!(
+        changed, from_mesh,
+        "the default material shades like the rock's"
+    );
+    std::fs::remove_file(&rock).unwrap();
+    let (_, o) = beauty(&table, "gone");
+    assert!(o.stderr.contains("rock.glb is not there"), "{}", o.stderr);
+    let info = run(&["inspect", s(&table), "--json"])
+        .assert_success()
+        .json();
+    assert!(
+        info["mesh_scene"].as_str().unwrap().contains("not there"),
+        "{info}"
+    );
+}
+
+/// A Z-up USD asset's table stands Z up whether or not its mesh is still there: framed from
+/// the bounds, its depth image is the mesh's (a Y-up copy of the same quad frames it another
+/// way, so the comparison can fail).
+#[test]
+fn a_baked_table_keeps_its_up_axis() {
+    let dir = temp_dir("render-table-up");
+    let map = write_flat_map(&dir);
+    let depth = |input: &Path, name: &str| {
+        let out = dir.join(name);
+        let mut args = vec!["render", s(input), "--disp", s(&map), "--scale", "0.1"];
+        args.extend(["--res", "12x12", "--aov", "depth", "-o", s(&out)]);
+        let o = run(&args);
+        o.assert_success();
+        let [d] = read_channels(&out.join("depth.exr"), ["Y"]);
+        (d, o)
+    };
+    let y_up = dir.join("y.usda");
+    std::fs::write(&y_up, quad_usda("")).unwrap();
+    let z_up = dir.join("z.usda");
+    std::fs::write(
+        &z_up,
+        quad_usda("").replace("upAxis = \"Y\"", "upAxis = \"Z\""),
+    )
+    .unwrap();
+    let (want, _) = depth(&z_up, "mesh");
+    assert_ne!(
+        depth(&y_up, "y").0,
+        want,
+        "Y up and Z up frame the quad alike"
+    );
+    let table = dir.join("z.prisms");
+    run(&[
+        "bake",
+        s(&z_up),
+        "--disp",
+        s(&map),
+        "--scale",
+        "0.1",
+        "-o",
+        s(&table),
+    ])
+    .assert_success();
+    assert_eq!(
+        run(&["inspect", s(&table), "--json"])
+            .assert_success()
+            .json()["up_axis"],
+        "Z"
+    );
+    assert_eq!(depth(&table, "table").0, want);
+    std::fs::remove_file(&z_up).unwrap();
+    let (got, o) = depth(&table, "table-alone");
+    assert!(o.stderr.contains("z.usda is not there"), "{}", o.stderr);
+    assert_eq!(got, want, "without its mesh the table lost its up axis");
+}
+
 #[test]
 fn bad_render_input() {
     let dir = temp_dir("render-bad");
@@ -219,9 +339,9 @@ fn bad_render_input() {
 /// `--camera NAME` renders through that camera of the scene file: a flat quad seen head-on
 /// from USD cameras 3 and 7 units away has those depths at the image centre, whichever is
 /// picked by path or by name, the first being the default; the summary names the camera and
-/// the flags that override it. A name the file lacks, or
-/// `--camera` on a prism table (which keeps no cameras), fails naming the choices, and
-/// writes nothing.
+/// the flags that override it; a table baked from the file renders through them too. A name
+/// the file lacks, or `--camera` on a prism table whose mesh is gone (a table keeps no
+/// cameras), fails naming the choices, and writes nothing.
 #[test]
 fn camera_picks_one_of_the_scene_files_cameras_by_name() {
     let dir = temp_dir("render-camera");
@@ -314,19 +434,25 @@ fn camera_picks_one_of_the_scene_files_cameras_by_name() {
         s(&out),
     ])
     .assert_error(&["quad.usda", "no camera named 'Side'", "'/Near', '/Far'"]);
+    // A table renders through its mesh's cameras, while the mesh is there.
     let table = dir.join("quad.prisms");
     run(&["bake", s(&usda), "--disp", s(&map), "-o", s(&table)]).assert_success();
-    run(&[
-        "render",
-        s(&table),
-        "--disp",
-        s(&map),
-        "--camera",
-        "Near",
-        "-o",
-        s(&out),
-    ])
-    .assert_error(&["quad.prisms", "keeps no cameras"]);
+    let through_table = dir.join("table-far");
+    let args = ["--res", "9x9", "--aov", "depth", "--camera", "Far", "-o"];
+    run(&[&["render", s(&table)], &args[..], &[s(&through_table)]].concat()).assert_success();
+    let [depth] = read_channels(&through_table.join("depth.exr"), ["Y"]);
+    assert!(
+        (depth[4 * 9 + 4] - 7.0).abs() < 1e-3,
+        "{}",
+        depth[4 * 9 + 4]
+    );
+    std::fs::remove_file(&usda).unwrap();
+    run(&[&["render", s(&table)], &args[..], &[s(&out)]].concat()).assert_error(&[
+        "quad.prisms",
+        "--camera Far",
+        "keeps no cameras",
+        "quad.usda is not there",
+    ]);
     assert_eq!(
         files_in(&out),
         Vec::<String>::new(),

@@ -120,7 +120,12 @@ fn bake(a: BakeArgs) -> Result<ExitCode> {
     let pb = progress::spinner("baking");
     let mut prepared = asset::prepare(&spec, &ropts)?;
     pb.finish_and_clear();
-    prepared.table.map_path = asset::map_path_for_table(spec.require_disp()?, &a.output);
+    prepared.table.map_path = asset::path_for_table(spec.require_disp()?, &a.output);
+    prepared.table.source.mesh_path = asset::path_for_table(&spec.mesh, &a.output);
+    // The table's folder is made when there is a table to put in it.
+    if let Some(dir) = a.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
     prism_file::write(&a.output, &prepared.table)?;
     let summary = validate::table_summary(&prepared.table, &a.output, false);
     if a.json {

@@ -206,24 +206,7 @@ fn input_hash_at(spec: &AssetSpec, repair: &RepairOptions, revision: u32) -> Res
     h.update(b"prismbake-table");
     h.update(&prism_file::VERSION.to_le_bytes());
     h.update(&revision.to_le_bytes());
-    let mesh_bytes = std::fs::read(&spec.mesh).map_err(|e| Error::io(&spec.mesh, e))?;
-    h.update(&(mesh_bytes.len() as u64).to_le_bytes());
-    h.update(&mesh_bytes);
-    // External glTF buffers change the mesh too: hash every sibling file the glTF names.
-    if load::extension(&spec.mesh) == "gltf" {
-        if let Ok(doc) = gltf::Gltf::from_slice(&mesh_bytes) {
-            for b in doc.buffers() {
-                if let gltf::buffer::Source::Uri(uri) = b.source() {
-                    if !uri.starts_with("data:") {
-                        let p = spec.mesh.parent().unwrap_or(Path::new("")).join(uri);
-                        if let Ok(bytes) = std::fs::read(&p) {
-                            h.update(&bytes);
-                        }
-                    }
-                }
-            }
-        }
-    }
+    hash_mesh_files(&mut h, &spec.mesh)?;
     // The map is streamed through the hasher, not read whole: next to the decoded map a
     // second copy of a large file was the load's peak memory.
     let disp = spec.require_disp()?;
@@ -237,6 +220,38 @@ fn input_hash_at(spec: &AssetSpec, repair: &RepairOptions, revision: u32) -> Res
     h.update(spec.channel.as_deref().unwrap_or("").as_bytes());
     h.update(&spec.uv_set.to_le_bytes());
     h.update(format!("{repair:?}").as_bytes());
+    Ok(*h.finalize().as_bytes())
+}
+
+/// The mesh file's bytes, and those of every external buffer a glTF names (they change the
+/// mesh too), through `h`.
+fn hash_mesh_files(h: &mut blake3::Hasher, mesh: &Path) -> Result<()> {
+    let mesh_bytes = std::fs::read(mesh).map_err(|e| Error::io(mesh, e))?;
+    h.update(&(mesh_bytes.len() as u64).to_le_bytes());
+    h.update(&mesh_bytes);
+    if load::extension(mesh) == "gltf" {
+        if let Ok(doc) = gltf::Gltf::from_slice(&mesh_bytes) {
+            for b in doc.buffers() {
+                if let gltf::buffer::Source::Uri(uri) = b.source() {
+                    if !uri.starts_with("data:") {
+                        let p = mesh.parent().unwrap_or(Path::new("")).join(uri);
+                        if let Ok(bytes) = std::fs::read(&p) {
+                            h.update(&bytes);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// blake3 of the mesh file and its external buffers: what a table keeps to know whether
+/// the mesh it was baked from is still the same file (`TableSource::mesh_hash`).
+pub fn mesh_hash(mesh: &Path) -> Result<[u8; 32]> {
+    let mut h = blake3::Hasher::new();
+    h.update(b"prismbake-mesh");
+    hash_mesh_files(&mut h, mesh)?;
     Ok(*h.finalize().as_bytes())
 }
 
@@ -283,6 +298,8 @@ pub fn prepare(spec: &AssetSpec, repair_opts: &RepairOptions) -> Result<Prepared
         },
     );
     table.input_hash = input_hash(spec, repair_opts)?;
+    table.source.uv_set = spec.uv_set;
+    table.source.mesh_hash = mesh_hash(&spec.mesh)?;
     Ok(Prepared {
         spec: spec.clone(),
         mesh,
@@ -292,22 +309,98 @@ pub fn prepare(spec: &AssetSpec, repair_opts: &RepairOptions) -> Result<Prepared
     })
 }
 
-/// Path of the map as stored in a table written to `table_path` (relative when possible).
-pub fn map_path_for_table(map: &Path, table_path: &Path) -> String {
+/// Path of a file (the map, the mesh) as stored in a table written to `table_path`: relative
+/// to the table's folder (`../assets/rock.glb`), so that a tree moved whole keeps finding it,
+/// unless the two share no folder but the root; then absolute.
+pub fn path_for_table(file: &Path, table_path: &Path) -> String {
     let dir = table_path.parent().unwrap_or(Path::new(""));
     let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
-    let (map_abs, dir_abs) = (
-        abs(map),
+    let (file_abs, dir_abs) = (
+        abs(file),
         abs(if dir.as_os_str().is_empty() {
             Path::new(".")
         } else {
             dir
         }),
     );
-    match map_abs.strip_prefix(&dir_abs) {
-        Ok(rel) => rel.to_string_lossy().into_owned(),
-        Err(_) => map_abs.to_string_lossy().into_owned(),
+    let file_parts: Vec<_> = file_abs.components().collect();
+    let dir_parts: Vec<_> = dir_abs.components().collect();
+    let shared = file_parts
+        .iter()
+        .zip(&dir_parts)
+        .take_while(|(a, b)| a == b)
+        .count();
+    let below_root = dir_parts
+        .iter()
+        .take(shared)
+        .filter(|c| matches!(c, std::path::Component::Normal(_)))
+        .count();
+    if below_root == 0 {
+        return file_abs.to_string_lossy().into_owned();
     }
+    let mut rel = PathBuf::new();
+    for _ in shared..dir_parts.len() {
+        rel.push("..");
+    }
+    rel.extend(&file_parts[shared..]);
+    rel.to_string_lossy().into_owned()
+}
+
+/// The height map a table was baked from, found from the table's folder.
+pub fn table_map_path(table: &PrismTable, table_path: &Path) -> PathBuf {
+    from_table(&table.map_path, table_path)
+}
+
+/// A path a table stores, found from the table's folder where it is relative.
+fn from_table(stored: &str, table_path: &Path) -> PathBuf {
+    let p = PathBuf::from(stored);
+    match p.is_absolute() {
+        true => p,
+        false => table_path.parent().unwrap_or(Path::new("")).join(p),
+    }
+}
+
+/// The mesh file `table` (read from `table_path`) was baked from, where it is still there and
+/// unchanged; else why a render of the table goes without its cameras, materials and lights.
+pub fn table_mesh_path(
+    table: &PrismTable,
+    table_path: &Path,
+) -> std::result::Result<PathBuf, String> {
+    let source = &table.source;
+    if source.mesh_path.is_empty() {
+        return Err(
+            "the table does not name the mesh it was baked from (a version-2 table: \
+             re-bake it to render with the mesh's cameras, materials and lights)"
+                .into(),
+        );
+    }
+    let mesh = from_table(&source.mesh_path, table_path);
+    if !mesh.is_file() {
+        return Err(format!(
+            "its mesh {} is not there (moved or deleted: put it back, or re-bake the table \
+             from where it is now)",
+            mesh.display()
+        ));
+    }
+    match mesh_hash(&mesh) {
+        Ok(h) if h == source.mesh_hash => Ok(mesh),
+        Ok(_) => Err(format!(
+            "its mesh {} has changed since the table was baked (re-bake the table)",
+            mesh.display()
+        )),
+        Err(e) => Err(e.to_string()),
+    }
+}
+
+/// The mesh file `table` was baked from, loaded for what the table does not keep (its
+/// cameras, materials, lights); `Err` says why not (`table_mesh_path`, or the file failing
+/// to load).
+pub fn table_mesh(table: &PrismTable, table_path: &Path) -> std::result::Result<BaseMesh, String> {
+    let path = table_mesh_path(table, table_path)?;
+    let options = MeshOptions {
+        uv_set: table.source.uv_set,
+    };
+    load::load_mesh(&path, &options).map_err(|e| e.to_string())
 }
 
 /// Load a baked table and its height map (found relative to the table, or `disp` if given).
@@ -319,14 +412,7 @@ pub fn load_table(
     let table = prism_file::read(path)?;
     let map_path = match disp {
         Some(d) => d.to_path_buf(),
-        None => {
-            let p = PathBuf::from(&table.map_path);
-            if p.is_absolute() {
-                p
-            } else {
-                path.parent().unwrap_or(Path::new("")).join(p)
-            }
-        }
+        None => table_map_path(&table, path),
     };
     let map = load::load_height_map(
         &map_path,
@@ -354,6 +440,24 @@ pub fn load_table(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn table_paths_are_relative_below_a_shared_folder() {
+        let dir = std::env::temp_dir().join(format!("pb-paths-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("assets/maps")).unwrap();
+        std::fs::create_dir_all(dir.join("build")).unwrap();
+        let map = dir.join("assets/maps/h.png");
+        std::fs::write(&map, b"").unwrap();
+        let at = |table: &str| path_for_table(&map, &dir.join(table));
+        assert_eq!(at("t.prisms"), "assets/maps/h.png");
+        assert_eq!(at("assets/maps/t.prisms"), "h.png");
+        assert_eq!(at("build/t.prisms"), "../assets/maps/h.png");
+        assert_eq!(at("build/x/t.prisms"), "../../assets/maps/h.png");
+        // Sharing only the root: absolute.
+        let root_only = path_for_table(Path::new("/"), &dir.join("t.prisms"));
+        assert_eq!(root_only, "/");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     // Would break if the cache key lost the pipeline revision: a table baked by an older
     // build's repair would then be served as this build's.

@@ -17,7 +17,7 @@
 //! max(dmax, dmax/m_lo)]` bounds the surface for any `D ∈ [dmin, dmax]`.
 
 use crate::heightmap::{DisplaceParams, HeightMap, Wrap};
-use crate::mesh::{BaseMesh, SeamEdge, FACE_INSERTED};
+use crate::mesh::{BaseMesh, SeamEdge, UpAxis, FACE_INSERTED};
 use crate::seam::StitchField;
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -81,6 +81,24 @@ pub struct PrismTable {
     pub wrap: crate::heightmap::Wrap,
     /// UV seams (repair's `SeamEdge`, faces = prisms): what stitching needs, on disk.
     pub seams: Vec<SeamEdge>,
+    /// The mesh file the table was baked from, for what the table does not keep.
+    pub source: TableSource,
+}
+
+/// Where a table came from: the mesh file whose cameras, materials and lights a render of the
+/// table reads (the table keeps only the geometry), and the frame it was authored in.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TableSource {
+    /// The mesh file, relative to the table's folder when possible; empty where unknown (a
+    /// version-2 table).
+    pub mesh_path: String,
+    /// The UV set the table's UVs (and so the materials' textures it can read) come from.
+    pub uv_set: u32,
+    /// blake3 of the mesh file and the external buffers it names (`asset::mesh_hash`): a
+    /// render reads the file's scene only while it still matches.
+    pub mesh_hash: [u8; 32],
+    /// The asset's up axis (turntables turn about it, framing stands on it).
+    pub up_axis: UpAxis,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -477,6 +495,11 @@ pub fn bake(mesh: &BaseMesh, map: &HeightMap, opts: &BakeOptions) -> PrismTable 
         map_path: map.source.to_string_lossy().into_owned(),
         wrap: map.wrap,
         seams: mesh.seams.clone(),
+        source: TableSource {
+            mesh_path: mesh.source.to_string_lossy().into_owned(),
+            up_axis: mesh.up_axis.unwrap_or_default(),
+            ..TableSource::default()
+        },
     };
     let field = StitchField::build(&table, map);
     for i in 0..table.prisms.len() {

@@ -5,16 +5,21 @@
 //! checked arithmetic and compared to the real length before anything is allocated, and
 //! every index and float is checked after the checksum.
 
-use crate::bake::{Prism, PrismTable};
+use crate::bake::{Prism, PrismTable, TableSource};
 use crate::error::{Error, Result};
 use crate::heightmap::{DisplaceParams, Wrap};
-use crate::mesh::SeamEdge;
+use crate::mesh::{SeamEdge, UpAxis};
 use glam::{Vec2, Vec3};
 use std::io::Write;
 use std::path::Path;
 
 pub const MAGIC: [u8; 8] = *b"PRISMBK\0";
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
+/// The oldest version this build reads: version 2 lacks the source section (a render of it
+/// goes without the mesh's cameras, materials and lights, and stands Y up).
+pub const OLDEST_VERSION: u32 = 2;
+/// Header flag: the asset's up axis is +Z (USD `upAxis = "Z"`); else +Y.
+pub const FLAG_Z_UP: u32 = 1;
 /// Bytes per vertex record: position, normal (3 f32 each), uv (2 f32).
 pub const VERTEX_BYTES: usize = 32;
 /// Bytes per prism record: 3 u32 indices, d_min, d_max, lambda_lo, lambda_hi, texel_world, flags.
@@ -22,19 +27,18 @@ pub const PRISM_BYTES: usize = 36;
 /// Bytes per seam record: 2 u32 prism indices, 2 u8 edge slots, 2 reserved bytes.
 pub const SEAM_BYTES: usize = 12;
 const FIXED_HEADER: usize = 8 + 4 + 3 * 8 + 4 * 6 + 32 + 4;
+/// The source section after the map path (version 3): mesh path length, UV set, mesh hash;
+/// the mesh path's own bytes are counted apart.
+const SOURCE_FIXED: usize = 4 + 4 + 32;
 const CHECKSUM_BYTES: usize = 32;
-const MAX_MAP_PATH: usize = 4096;
+const MAX_PATH: usize = 4096;
 /// Refuse tables beyond this many prisms (far above any base mesh PDM is meant for).
 pub const MAX_PRISMS: u64 = 1 << 28;
 
 pub fn encode(table: &PrismTable) -> Vec<u8> {
     let path = table.map_path.as_bytes();
-    let mut out = Vec::with_capacity(encoded_len(
-        table.positions.len(),
-        table.prisms.len(),
-        table.seams.len(),
-        path.len(),
-    ));
+    let source = &table.source;
+    let mut out = Vec::with_capacity(encoded_len(table));
     out.extend_from_slice(&MAGIC);
     put_u32(&mut out, VERSION);
     put_u64(&mut out, table.positions.len() as u64);
@@ -51,10 +55,20 @@ pub fn encode(table: &PrismTable) -> Vec<u8> {
     );
     put_f32(&mut out, table.params.scale);
     put_f32(&mut out, table.params.midlevel);
-    put_u32(&mut out, 0); // reserved flags
+    put_u32(
+        &mut out,
+        match source.up_axis {
+            UpAxis::Y => 0,
+            UpAxis::Z => FLAG_Z_UP,
+        },
+    );
     out.extend_from_slice(&table.input_hash);
     put_u32(&mut out, path.len() as u32);
     out.extend_from_slice(path);
+    put_u32(&mut out, source.mesh_path.len() as u32);
+    out.extend_from_slice(source.mesh_path.as_bytes());
+    put_u32(&mut out, source.uv_set);
+    out.extend_from_slice(&source.mesh_hash);
     for p in &table.positions {
         put_vec3(&mut out, *p);
     }
@@ -84,9 +98,21 @@ pub fn encode(table: &PrismTable) -> Vec<u8> {
     out
 }
 
-pub fn encoded_len(vertices: usize, prisms: usize, seams: usize, path_len: usize) -> usize {
+/// The bytes `encode(table)` writes.
+pub fn encoded_len(table: &PrismTable) -> usize {
+    layout_len(
+        table.positions.len(),
+        table.prisms.len(),
+        table.seams.len(),
+        table.map_path.len() + table.source.mesh_path.len(),
+    )
+}
+
+/// The bytes of a table with these counts, and `paths` bytes of map and mesh path.
+pub fn layout_len(vertices: usize, prisms: usize, seams: usize, paths: usize) -> usize {
     FIXED_HEADER
-        + path_len
+        + SOURCE_FIXED
+        + paths
         + vertices * VERTEX_BYTES
         + prisms * PRISM_BYTES
         + seams * SEAM_BYTES
@@ -178,9 +204,9 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         );
     }
     let version = r.u32()?;
-    if version != VERSION {
+    if !(OLDEST_VERSION..=VERSION).contains(&version) {
         return Err(format!(
-            "prism table format version {version} is not supported (this prismbake reads version {VERSION}); re-bake the table with this version"
+            "prism table format version {version} is not supported (this prismbake reads versions {OLDEST_VERSION} to {VERSION}); re-bake the table with this version"
         ));
     }
     let nv = r.u64()?;
@@ -204,17 +230,29 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         scale: r.f32()?,
         midlevel: r.f32()?,
     };
-    let _flags = r.u32()?;
-    let mut input_hash = [0u8; 32];
-    input_hash.copy_from_slice(r.take(32)?);
-    let path_len = r.u32()? as usize;
-    if path_len > MAX_MAP_PATH {
+    let flags = r.u32()?;
+    if flags & !FLAG_Z_UP != 0 {
         return Err(format!(
-            "map path length {path_len} exceeds {MAX_MAP_PATH} bytes: the file is corrupt"
+            "unknown header flags {flags:#x} (the file is corrupt, or newer than this prismbake: re-bake it)"
         ));
     }
+    let mut input_hash = [0u8; 32];
+    input_hash.copy_from_slice(r.take(32)?);
+    let path_len = path_len(r.u32()?, "map")?;
+    // Version 3's source section: its mesh path's length is read ahead of the size check.
+    let (source_len, mesh_path_len) = match version {
+        2 => (0, 0),
+        _ => {
+            let at = r.pos + path_len;
+            let field = bytes.get(at..at + 4).ok_or(
+                "truncated prism table: its header ends before the mesh path (re-bake it)",
+            )?;
+            let n = path_len_of(field)?;
+            (SOURCE_FIXED + n, n)
+        }
+    };
     let expected = (FIXED_HEADER as u64)
-        .checked_add(path_len as u64)
+        .checked_add((path_len + source_len) as u64)
         .and_then(|s| s.checked_add(nv.checked_mul(VERTEX_BYTES as u64)?))
         .and_then(|s| s.checked_add(np.checked_mul(PRISM_BYTES as u64)?))
         .and_then(|s| s.checked_add(ns.checked_mul(SEAM_BYTES as u64)?))
@@ -232,6 +270,30 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
     }
     let map_path = String::from_utf8(r.take(path_len)?.to_vec())
         .map_err(|_| "map path is not UTF-8 (file is corrupt)".to_string())?;
+    let up_axis = match flags & FLAG_Z_UP {
+        0 => UpAxis::Y,
+        _ => UpAxis::Z,
+    };
+    let source = match version {
+        2 => TableSource {
+            up_axis,
+            ..TableSource::default()
+        },
+        _ => {
+            r.take(4)?; // the mesh path's length, read above
+            let mesh_path = String::from_utf8(r.take(mesh_path_len)?.to_vec())
+                .map_err(|_| "mesh path is not UTF-8 (file is corrupt)".to_string())?;
+            let uv_set = r.u32()?;
+            let mut mesh_hash = [0u8; 32];
+            mesh_hash.copy_from_slice(r.take(32)?);
+            TableSource {
+                mesh_path,
+                uv_set,
+                mesh_hash,
+                up_axis,
+            }
+        }
+    };
     let (nv, np) = (nv as usize, np as usize);
     let positions = (0..nv)
         .map(|_| r.vec3())
@@ -301,7 +363,22 @@ pub fn decode(bytes: &[u8]) -> std::result::Result<PrismTable, String> {
         map_path,
         wrap,
         seams,
+        source,
     })
+}
+
+/// A path's length field, checked against the limit.
+fn path_len(n: u32, what: &str) -> std::result::Result<usize, String> {
+    match n as usize {
+        n if n > MAX_PATH => Err(format!(
+            "{what} path length {n} exceeds {MAX_PATH} bytes: the file is corrupt"
+        )),
+        n => Ok(n),
+    }
+}
+
+fn path_len_of(field: &[u8]) -> std::result::Result<usize, String> {
+    path_len(u32::from_le_bytes(field.try_into().unwrap()), "mesh")
 }
 
 fn put_u32(out: &mut Vec<u8>, v: u32) {
@@ -348,7 +425,25 @@ mod tests {
             map_path: "maps/h.png".into(),
             wrap: Wrap::Clamp,
             seams: vec![],
+            source: TableSource {
+                mesh_path: "rock.usda".into(),
+                uv_set: 1,
+                mesh_hash: [9; 32],
+                up_axis: UpAxis::Z,
+            },
         }
+    }
+
+    /// `table` as version 2 wrote it: no source section, the version field 2.
+    fn version_2(table: &PrismTable) -> Vec<u8> {
+        let mut b = encode(table);
+        b.truncate(b.len() - CHECKSUM_BYTES);
+        let at = FIXED_HEADER + table.map_path.len();
+        b.drain(at..at + SOURCE_FIXED + table.source.mesh_path.len());
+        b[8..12].copy_from_slice(&2u32.to_le_bytes());
+        let sum = blake3::hash(&b);
+        b.extend_from_slice(sum.as_bytes());
+        b
     }
 
     /// Two prisms sharing a seam edge (edge 0 of each).
@@ -372,8 +467,10 @@ mod tests {
     fn round_trip() {
         let t = small_table();
         let bytes = encode(&t);
-        assert_eq!(bytes.len(), encoded_len(3, 1, 0, 10));
+        assert_eq!(bytes.len(), layout_len(3, 1, 0, 10 + 9));
+        assert_eq!(bytes.len(), encoded_len(&t));
         let back = decode(&bytes).unwrap();
+        assert_eq!(back.source, t.source);
         assert_eq!(back.prisms, t.prisms);
         assert_eq!(back.positions, t.positions);
         assert_eq!(back.uvs, t.uvs);
@@ -382,7 +479,7 @@ mod tests {
         assert_eq!(back.input_hash, t.input_hash);
         let t = seamed_table();
         let bytes = encode(&t);
-        assert_eq!(bytes.len(), encoded_len(4, 2, 1, 10));
+        assert_eq!(bytes.len(), layout_len(4, 2, 1, 10 + 9));
         assert_eq!(decode(&bytes).unwrap().seams, t.seams);
     }
 
@@ -408,14 +505,20 @@ mod tests {
     fn frozen_header() {
         let bytes = encode(&small_table());
         assert_eq!(&bytes[..8], b"PRISMBK\0");
-        assert_eq!(&bytes[8..12], &[2, 0, 0, 0]); // version
+        assert_eq!(&bytes[8..12], &[3, 0, 0, 0]); // version
         assert_eq!(
             &bytes[12..36],
             &[3, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]
         ); // counts: vertices, prisms, seams
         assert_eq!(&bytes[36..44], &[64, 0, 0, 0, 32, 0, 0, 0]); // map size
         assert_eq!(&bytes[44..48], &[1, 0, 0, 0]); // clamp
-                                                   // A seam record: two prism indices, two edge slots, two reserved bytes.
+        assert_eq!(&bytes[56..60], &[1, 0, 0, 0]); // flags: Z up
+                                                   // After the map path: the mesh path's length and bytes, the UV set, the mesh hash.
+        let source = &bytes[96 + 10..96 + 10 + SOURCE_FIXED + 9];
+        assert_eq!(&source[..13], b"\x09\0\0\0rock.usda");
+        assert_eq!(&source[13..17], &[1, 0, 0, 0]);
+        assert_eq!(&source[17..], &[9; 32]);
+        // A seam record: two prism indices, two edge slots, two reserved bytes.
         let bytes = encode(&seamed_table());
         let n = bytes.len() - 32;
         assert_eq!(&bytes[n - 12..n], &[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0]);
@@ -423,10 +526,47 @@ mod tests {
 
     #[test]
     fn every_truncation_is_a_clean_error() {
-        let bytes = encode(&small_table());
-        for n in 0..bytes.len() {
-            assert!(decode(&bytes[..n]).is_err(), "prefix of {n} bytes decoded");
+        for bytes in [encode(&small_table()), version_2(&small_table())] {
+            for n in 0..bytes.len() {
+                assert!(decode(&bytes[..n]).is_err(), "prefix of {n} bytes decoded");
+            }
         }
+    }
+
+    /// A version-2 table (no source section) still reads: the same geometry, no mesh named,
+    /// and the up axis its flags held.
+    #[test]
+    fn reads_version_2_without_its_source() {
+        let t = seamed_table();
+        let back = decode(&version_2(&t)).unwrap();
+        assert_eq!(back.prisms, t.prisms);
+        assert_eq!(back.seams, t.seams);
+        assert_eq!(back.map_path, t.map_path);
+        assert_eq!(
+            back.source,
+            TableSource {
+                up_axis: UpAxis::Z,
+                ..TableSource::default()
+            }
+        );
+    }
+
+    #[test]
+    fn rejects_unknown_flags_and_overlong_mesh_paths() {
+        let reseal = |mut b: Vec<u8>| {
+            let n = b.len() - CHECKSUM_BYTES;
+            let sum = blake3::hash(&b[..n]);
+            b[n..].copy_from_slice(sum.as_bytes());
+            b
+        };
+        let mut b = encode(&small_table());
+        b[56] = 2;
+        assert!(decode(&reseal(b)).unwrap_err().contains("flags"));
+        let mut b = encode(&small_table());
+        b[106..110].copy_from_slice(&5000u32.to_le_bytes());
+        assert!(decode(&reseal(b))
+            .unwrap_err()
+            .contains("mesh path length 5000"));
     }
 
     #[test]
@@ -434,6 +574,8 @@ mod tests {
         let mut b = encode(&small_table());
         b[8] = 1;
         assert!(decode(&b).unwrap_err().contains("version 1"));
+        b[8] = 4;
+        assert!(decode(&b).unwrap_err().contains("version 4"));
         let mut b = encode(&small_table());
         let n = b.len();
         b[n - 40] ^= 1;

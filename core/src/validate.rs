@@ -674,7 +674,9 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         }
         None => None,
     };
-    let path_len = spec.disp.as_ref().map_or(0, |d| d.to_string_lossy().len());
+    // The map's and the mesh's paths, as a table next to the mesh would hold them.
+    let path_len = spec.disp.as_ref().map_or(0, |d| d.to_string_lossy().len())
+        + spec.mesh.to_string_lossy().len();
     Ok(InspectInfo {
         mesh: spec.mesh.display().to_string(),
         triangles: mesh.triangle_count(),
@@ -706,7 +708,7 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         zero_area_faces: report.zero_area_faces.len(),
         triangles_after_repair: repaired.triangle_count(),
         vertices_after_repair: repaired.vertex_count(),
-        estimated_table_bytes: prism_file::encoded_len(
+        estimated_table_bytes: prism_file::layout_len(
             repaired.vertex_count(),
             repaired.triangle_count(),
             repaired.seams.len(),
@@ -738,15 +740,17 @@ pub struct TableSummary {
     pub map: String,
     pub map_size: [u32; 2],
     pub input_hash: String,
+    /// The mesh file the table was baked from, as the table names it (`null`: a version-2
+    /// table, which does not).
+    pub mesh: Option<String>,
+    /// Whether a render of the table reads that mesh's cameras, materials and lights, or
+    /// why not.
+    pub mesh_scene: String,
+    pub up_axis: crate::mesh::UpAxis,
 }
 
 pub fn table_summary(t: &PrismTable, path: &Path, reused: bool) -> TableSummary {
-    let bytes = prism_file::encoded_len(
-        t.positions.len(),
-        t.prisms.len(),
-        t.seams.len(),
-        t.map_path.len(),
-    );
+    let bytes = prism_file::encoded_len(t);
     let (lo, hi) = t.bounds();
     let lo = if t.prisms.is_empty() { Vec3::ZERO } else { lo };
     let hi = if t.prisms.is_empty() { Vec3::ZERO } else { hi };
@@ -779,5 +783,14 @@ pub fn table_summary(t: &PrismTable, path: &Path, reused: bool) -> TableSummary 
         map: t.map_path.clone(),
         map_size: [t.map_width, t.map_height],
         input_hash: t.input_hash.iter().map(|b| format!("{b:02x}")).collect(),
+        mesh: (!t.source.mesh_path.is_empty()).then(|| t.source.mesh_path.clone()),
+        mesh_scene: match crate::asset::table_mesh_path(t, path) {
+            Ok(mesh) => format!(
+                "read: a render uses {}'s cameras, materials and lights",
+                mesh.display()
+            ),
+            Err(why) => format!("not read: {why}"),
+        },
+        up_axis: t.source.up_axis,
     }
 }

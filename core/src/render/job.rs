@@ -8,7 +8,7 @@ use crate::asset::{self, AssetSpec};
 use crate::bake::PrismTable;
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
-use crate::mesh::{NamedCamera, SceneDome, SceneSun, UpAxis};
+use crate::mesh::{BaseMesh, NamedCamera, SceneDome, SceneSun, UpAxis};
 use crate::repair::RepairOptions;
 use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
@@ -249,15 +249,6 @@ impl RenderJob {
                 "--ortho and --fov: an orthographic view has no field of view (give one)".into(),
             ));
         }
-        if let (Some(name), Input::Table { path, .. }) = (&self.camera.name, &self.input) {
-            return Err(Error::invalid(
-                path,
-                format!(
-                    "--camera {name}: a prism table keeps no cameras (render the mesh file it \
-                     was baked from, or set the view with --camera-from, --camera-to and --fov)"
-                ),
-            ));
-        }
         for v in [self.camera.from, self.camera.to].into_iter().flatten() {
             if !v.is_finite() {
                 return Err(Error::Param(
@@ -335,18 +326,60 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
             path,
             disp,
             channel,
-        } => {
-            let (table, map) = asset::load_table(path, disp.as_deref(), channel.clone())?;
-            Ok(Loaded {
+        } => Ok(load_table(path, disp.as_deref(), channel.clone(), None)?.0),
+    }
+}
+
+/// A baked table, its map, and from the mesh it was baked from (`asset::table_mesh`) what the
+/// table does not keep: the camera `camera` names (else the file's first), the dome and
+/// directional light, and the mesh itself (for its materials). Without that mesh a warning
+/// says why, the view is framed from the bounds under the table's up axis, and `--camera` is
+/// an error.
+pub fn load_table(
+    path: &Path,
+    disp: Option<&Path>,
+    channel: Option<String>,
+    camera: Option<&str>,
+) -> Result<(Loaded, Option<BaseMesh>)> {
+    let (table, map) = asset::load_table(path, disp, channel)?;
+    let mesh = match asset::table_mesh(&table, path) {
+        Ok(mesh) => mesh,
+        Err(why) => {
+            if let Some(name) = camera {
+                return Err(Error::invalid(
+                    path,
+                    format!(
+                        "--camera {name}: a prism table keeps no cameras, and {why} (render \
+                         the mesh file, or set the view with --camera-from, --camera-to and \
+                         --fov)"
+                    ),
+                ));
+            }
+            eprintln!(
+                "warning: {}: {why}; rendering without the mesh's cameras, materials and lights",
+                path.display()
+            );
+            let up_axis = table.source.up_axis;
+            let loaded = Loaded {
                 table,
                 map,
                 scene_camera: None,
                 dome: None,
                 sun: None,
-                up_axis: UpAxis::Y,
-            })
+                up_axis,
+            };
+            return Ok((loaded, None));
         }
-    }
+    };
+    let loaded = Loaded {
+        scene_camera: mesh.pick_named_camera(camera)?.cloned(),
+        dome: mesh.dome.clone(),
+        sun: mesh.sun.clone(),
+        up_axis: table.source.up_axis,
+        table,
+        map,
+    };
+    Ok((loaded, Some(mesh)))
 }
 
 /// For the summary: where frame 0's camera comes from ("the file's camera 'Camera'", "framed

@@ -25,7 +25,7 @@ use super::job::{
 use super::shading::Material;
 use super::{contact_sheet, output, render_aovs, Aov, AovImage, RenderSettings};
 use crate::accel::Scene;
-use crate::asset::{self, AssetSpec};
+use crate::asset;
 use crate::bake::{self, BakeOptions, RebakeStats};
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
@@ -608,7 +608,7 @@ pub fn check_material_values(
 /// `--metallic`), and each image once. A texture that cannot be decoded is an error.
 fn asset_materials(
     mesh: &crate::mesh::BaseMesh,
-    spec: &AssetSpec,
+    uv_set: u32,
     job: &RenderJob,
     opts: &LookdevOptions,
 ) -> Result<AssetMaterials> {
@@ -626,13 +626,13 @@ fn asset_materials(
         TextureSlot::Normal => opts.normal_maps,
         TextureSlot::Emission => opts.emission,
     };
-    if let Some(w) = material_warning(mesh, spec.uv_set, &reads) {
+    if let Some(w) = material_warning(mesh, uv_set, &reads) {
         eprintln!("warning: {}: {w}", mesh.source.display());
     }
     // The images decoded so far.
     let mut decoded: Vec<&TextureRef> = vec![];
     let mut decode = |t, slot| -> Result<Option<u32>> {
-        if !reads(slot) || !texture_readable(t, spec.uv_set) {
+        if !reads(slot) || !texture_readable(t, uv_set) {
             return Ok(None);
         }
         decode_once(&mut decoded, &mut out.textures, &mesh.source, t, slot)
@@ -735,15 +735,31 @@ fn load_cached(
     job: &RenderJob,
     opts: &LookdevOptions,
 ) -> Result<(Loaded, AssetMaterials, CacheUse)> {
-    let Input::Asset(spec) = &job.input else {
-        return Ok((
-            super::job::load_input(&job.input, &job.repair)?,
-            AssetMaterials::plain(),
-            CacheUse::Off,
-        ));
+    let spec = match &job.input {
+        Input::Asset(spec) => spec,
+        Input::Table {
+            path,
+            disp,
+            channel,
+        } => {
+            let (mut loaded, mesh) = super::job::load_table(
+                path,
+                disp.as_deref(),
+                channel.clone(),
+                job.camera.name.as_deref(),
+            )?;
+            let materials = match &mesh {
+                Some(mesh) => asset_materials(mesh, loaded.table.source.uv_set, job, opts)?,
+                None => AssetMaterials::plain(),
+            };
+            if !opts.scene_lights {
+                (loaded.dome, loaded.sun) = (None, None);
+            }
+            return Ok((loaded, materials, CacheUse::Off));
+        }
     };
     let (mesh, map) = asset::load(spec)?;
-    let materials = asset_materials(&mesh, spec, job, opts)?;
+    let materials = asset_materials(&mesh, spec.uv_set, job, opts)?;
     let scene_camera = mesh.pick_named_camera(job.camera.name.as_deref())?.cloned();
     let (dome, sun) = match opts.scene_lights {
         true => (mesh.dome.clone(), mesh.sun.clone()),
@@ -1319,14 +1335,7 @@ pub fn map_source(input: &Input) -> Result<(PathBuf, MapOptions)> {
             let table = crate::prism_file::read(path)?;
             let map = match disp {
                 Some(d) => d.clone(),
-                None => {
-                    let p = PathBuf::from(&table.map_path);
-                    if p.is_absolute() {
-                        p
-                    } else {
-                        path.parent().unwrap_or(Path::new("")).join(p)
-                    }
-                }
+                None => asset::table_map_path(&table, path),
             };
             Ok((
                 map,
