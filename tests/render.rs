@@ -266,6 +266,86 @@ fn a_baked_table_keeps_its_up_axis() {
     assert_eq!(got, want, "without its mesh the table lost its up axis");
 }
 
+/// An OBJ box `w` wide (x), `h` tall (y) and `d` deep (z), centred on the origin, each face
+/// with UVs over the unit square.
+fn box_obj(path: &Path, [w, h, d]: [f32; 3]) {
+    let (x, y, z) = (w / 2.0, h / 2.0, d / 2.0);
+    let mut obj = String::from("vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n");
+    for [sx, sy, sz] in [
+        [-1., -1., -1.],
+        [1., -1., -1.],
+        [1., 1., -1.],
+        [-1., 1., -1.],
+    ]
+    .into_iter()
+    .chain([[-1., -1., 1.], [1., -1., 1.], [1., 1., 1.], [-1., 1., 1.]])
+    {
+        obj += &format!("v {} {} {}\n", sx * x, sy * y, sz * z);
+    }
+    for f in [
+        [1, 4, 3, 2],
+        [5, 6, 7, 8],
+        [1, 2, 6, 5],
+        [4, 8, 7, 3],
+        [1, 5, 8, 4],
+        [2, 3, 7, 6],
+    ] {
+        obj += &format!("f {}/1 {}/2 {}/3 {}/4\n", f[0], f[1], f[2], f[3]);
+    }
+    std::fs::write(path, obj).unwrap();
+}
+
+/// A turntable framed from the bounds holds the asset on every frame, not only the first: a
+/// box long from front to back (seen end on in frame 0) covers no pixel on the image's edge
+/// on any frame of the turn, and fills most of the width side on. The same holds for
+/// `--ortho fit`.
+#[test]
+fn a_turntable_framed_from_the_bounds_keeps_the_asset_in_view() {
+    let dir = temp_dir("render-turntable-framing");
+    let obj = dir.join("plank.obj");
+    box_obj(&obj, [0.4, 0.6, 4.0]);
+    let map = write_flat_map(&dir);
+    let n = 24;
+    for (name, extra) in [("persp", None), ("ortho", Some("fit"))] {
+        let out = dir.join(name);
+        let mut args = vec!["render", s(&obj), "--disp", s(&map), "--scale", "0.02"];
+        args.extend([
+            "--res",
+            "24x24",
+            "--aov",
+            "mask",
+            "--turntable",
+            "8",
+            "-o",
+            s(&out),
+        ]);
+        if let Some(fit) = extra {
+            args.extend(["--ortho", fit]);
+        }
+        run(&args).assert_success();
+        let mut widest = 0;
+        for f in 0..8 {
+            let [mask] = read_channels(&out.join(format!("mask_{f:04}.exr")), ["Y"]);
+            let edge = (0..n * n)
+                .filter(|&i| (i % n == 0 || i % n == n - 1 || i / n == 0 || i / n == n - 1))
+                .filter(|&i| mask[i] > 0.0)
+                .count();
+            assert_eq!(
+                edge, 0,
+                "{name}: frame {f} covers {edge} pixels on the image's edge"
+            );
+            let columns = (0..n)
+                .filter(|&x| (0..n).any(|y| mask[y * n + x] > 0.0))
+                .count();
+            widest = widest.max(columns);
+        }
+        assert!(
+            widest >= n / 2,
+            "{name}: side on, the plank spans only {widest} of {n} columns"
+        );
+    }
+}
+
 #[test]
 fn bad_render_input() {
     let dir = temp_dir("render-bad");

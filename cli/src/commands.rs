@@ -810,6 +810,7 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
             &loaded,
             &CameraOverride::default(),
             cfg.width as f32 / cfg.height as f32,
+            1,
         );
         let name = mesh.display().to_string();
         let mut asset_rows = Vec::new();

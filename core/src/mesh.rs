@@ -16,6 +16,16 @@ pub enum UpAxis {
     Z,
 }
 
+impl UpAxis {
+    /// The axis as a unit vector.
+    pub fn vector(self) -> glam::Vec3 {
+        match self {
+            UpAxis::Y => glam::Vec3::Y,
+            UpAxis::Z => glam::Vec3::Z,
+        }
+    }
+}
+
 /// How a camera maps the scene to the image.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(tag = "projection", rename_all = "lowercase")]

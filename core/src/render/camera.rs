@@ -29,6 +29,19 @@ pub fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
     })
 }
 
+/// The box's corners as a camera sees them on each frame of a `turns`-frame turntable that
+/// orbits it about `axis` through `pivot` (the corners turned the other way; 1: as they are).
+fn turned_corners(lo: Vec3, hi: Vec3, pivot: Vec3, axis: Vec3, turns: u32) -> Vec<Vec3> {
+    let corners = box_corners(lo, hi);
+    (0..turns.max(1))
+        .flat_map(|k| {
+            let angle = super::job::turntable_angle(k, turns);
+            let rot = Quat::from_axis_angle(axis.normalize(), -angle);
+            corners.map(|c| pivot + rot * (c - pivot))
+        })
+        .collect()
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     pub from: Vec3,
@@ -62,9 +75,22 @@ impl Camera {
     /// camera moved back along its view, where needed, so that the box lies ahead of it (an
     /// orthographic ray starts on the plane through the camera).
     pub fn fit_orthographic(&self, lo: Vec3, hi: Vec3, aspect: f32) -> Self {
+        self.fit_orthographic_turning(lo, hi, aspect, Vec3::Y, 1)
+    }
+
+    /// `fit_orthographic` for every frame of a `turns`-frame turntable that orbits this camera
+    /// about `axis` through its look-at point: the one view holds the box on all of them.
+    pub fn fit_orthographic_turning(
+        &self,
+        lo: Vec3,
+        hi: Vec3,
+        aspect: f32,
+        axis: Vec3,
+        turns: u32,
+    ) -> Self {
         let (right, up, back) = self.basis();
         let (mut half, mut ahead) = (0.0f32, f32::INFINITY);
-        for corner in box_corners(lo, hi) {
+        for corner in turned_corners(lo, hi, self.to, axis, turns) {
             let corner = corner - self.from;
             half = half
                 .max(corner.dot(up).abs())
@@ -86,6 +112,21 @@ impl Camera {
     /// Look at the centre of the bounds from the front, a little above, just far enough that
     /// all eight box corners are inside the view (with a 10% margin) for this aspect ratio.
     pub fn frame_bounds(lo: Vec3, hi: Vec3, up_axis: UpAxis, yfov_deg: f32, aspect: f32) -> Self {
+        Self::frame_bounds_turning(lo, hi, up_axis, yfov_deg, aspect, 1)
+    }
+
+    /// `frame_bounds` for every frame of a `turns`-frame turntable, which orbits the camera
+    /// about the up axis through the box's centre: far enough back that the box is in view
+    /// on all of them (a box long from front to back, seen end on in frame 0, fills the view
+    /// side on a quarter turn later).
+    pub fn frame_bounds_turning(
+        lo: Vec3,
+        hi: Vec3,
+        up_axis: UpAxis,
+        yfov_deg: f32,
+        aspect: f32,
+        turns: u32,
+    ) -> Self {
         let centre = (lo + hi) * 0.5;
         let (up, front) = match up_axis {
             UpAxis::Y => (Vec3::Y, Vec3::Z),
@@ -97,7 +138,7 @@ impl Camera {
         let tan_y = (yfov_deg.to_radians() * 0.5).tan() / 1.1;
         let tan_x = tan_y * aspect;
         let mut dist = 1e-6f32;
-        for corner in box_corners(lo, hi) {
+        for corner in turned_corners(lo, hi, centre, up, turns) {
             let corner = corner - centre;
             let z = corner.dot(back);
             dist = dist

@@ -411,13 +411,18 @@ pub fn describe_camera(loaded: &Loaded, o: &CameraOverride) -> String {
 }
 
 /// The camera of frame 0: the scene's, else framed from bounds; flags override (`--ortho`
-/// without a height fits the bounds from wherever the camera ends up).
-pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
+/// without a height fits the bounds from wherever the camera ends up). What is fitted to the
+/// bounds holds them on every frame of a turntable of `turns` frames whose camera orbits the
+/// asset (1 where it does not: a still, or a turntable of the lights).
+pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32, turns: u32) -> Camera {
     let fov = o.fov_deg;
     let (lo, hi) = loaded.table.bounds();
+    let up = loaded.up_axis.vector();
     let mut cam = match &loaded.scene_camera {
         Some(c) => Camera::from_scene(&c.camera),
-        None => Camera::frame_bounds(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect),
+        None => {
+            Camera::frame_bounds_turning(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect, turns)
+        }
     };
     if let Some(f) = o.from {
         cam.from = f;
@@ -430,10 +435,20 @@ pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32) -> Camera {
     }
     match o.ortho {
         Some(Some(height)) => cam.projection = Projection::Orthographic { height },
-        Some(None) => cam = cam.fit_orthographic(lo, hi, aspect),
+        Some(None) => cam = cam.fit_orthographic_turning(lo, hi, aspect, up, turns),
         None => {}
     }
     cam
+}
+
+impl RenderJob {
+    /// The frames of its turntable on which the camera orbits the asset (1: none does).
+    pub fn orbiting_frames(&self) -> u32 {
+        match self.turntable_mode {
+            TurntableMode::Lights => 1,
+            _ => self.turntable.unwrap_or(1),
+        }
+    }
 }
 
 /// One frame's figures. `seconds` is the frame's own work, `trace_seconds` (+

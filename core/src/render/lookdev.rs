@@ -857,6 +857,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         &loaded,
         &job.camera,
         job.settings.width as f32 / job.settings.height as f32,
+        job.orbiting_frames(),
     );
     let camera = super::job::describe_camera(&loaded, &job.camera);
     let up_axis = loaded.up_axis;
@@ -961,13 +962,6 @@ fn key_light(opts: &LookdevOptions, sun: &Option<SceneSun>) -> Result<Option<([f
         }
         (None, None) => None,
     })
-}
-
-fn up_vector(up: UpAxis) -> Vec3 {
-    match up {
-        UpAxis::Y => Vec3::Y,
-        UpAxis::Z => Vec3::Z,
-    }
 }
 
 /// Bounds of the displaced surface: the base positions grown by the largest |D|. Tighter than
@@ -1131,7 +1125,7 @@ pub fn render_all(
         .collect();
     let want_beauty = job.aovs.contains(&Aov::Beauty);
     let (lo, hi) = surface_bounds(&s.scene.table);
-    let up = up_vector(s.up_axis);
+    let up = s.up_axis.vector();
     // The asset's materials (and the default), the command line's settings in place of theirs.
     let materials: Vec<SurfaceMaterial> = s
         .materials
