@@ -327,7 +327,7 @@ fn a_turntable_framed_from_the_bounds_keeps_the_asset_in_view() {
         for f in 0..8 {
             let [mask] = read_channels(&out.join(format!("mask_{f:04}.exr")), ["Y"]);
             let edge = (0..n * n)
-                .filter(|&i| (i % n == 0 || i % n == n - 1 || i / n == 0 || i / n == n - 1))
+                .filter(|&i| i % n == 0 || i % n == n - 1 || i / n == 0 || i / n == n - 1)
                 .filter(|&i| mask[i] > 0.0)
                 .count();
             assert_eq!(
