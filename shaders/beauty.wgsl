@@ -143,6 +143,11 @@ fn key_sample_dir(u: vec2f) -> vec3f {
     return normalize(basis.t * (s * cos(phi)) + basis.b * (s * sin(phi)) + d * c);
 }
 
+// beauty::KeyLight::color: the key light's colour of unit luminance.
+fn key_color() -> vec3f {
+    return vec3f(lighting.key_red, lighting.key_green, lighting.key_blue);
+}
+
 // KeyLight::pdf: the density in solid angle of key_sample_dir's directions over a disc; 0 for
 // a point-like light (a delta no sampled direction meets).
 fn key_pdf() -> f32 {
@@ -176,7 +181,7 @@ fn escape_radiance(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
         if (!delta) {
             w = power_heuristic(pdf, kp);
         }
-        l += vec3f(lighting.key_irradiance * kp * w);
+        l += key_color() * (lighting.key_irradiance * kp * w);
     }
     return l;
 }
@@ -358,7 +363,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
                 if (kp > 0.0) {
                     w = power_heuristic(kp, bsdf_pdf(m, wo_l, wi_l));
                 }
-                (*s).key_term = throughput * f * (lighting.key_irradiance * w);
+                (*s).key_term = throughput * f * key_color() * (lighting.key_irradiance * w);
             }
         }
         if (env_lights) {

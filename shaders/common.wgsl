@@ -124,9 +124,9 @@ struct Lighting {
     key_cos_radius: f32, // cos of the key light's angular radius (1: point-like)
     tangent_offset: u32, // the prisms' corner tangents in texture_texels (12 floats a prism)
     emissive: u32,       // 1: some material glows (BeautyScene::emissive)
-    _pad3: u32,
-    _pad4: u32,
-    _pad5: u32,
+    key_red: f32,        // the key light's colour of unit luminance (KeyLight::color)
+    key_green: f32,
+    key_blue: f32,
 }
 
 // GpuMaterialTexture, 48 bytes: one texture of a material in texture_texels (texture.wgsl;

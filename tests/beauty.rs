@@ -1573,8 +1573,8 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 /// and the directional light):
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
 /// dome whose texture is missing fails naming the file, the dome and the texture. Its
-/// `DistantLight` is the key light where `--key-light` is not given; `--no-scene-lights`
-/// leaves both out.
+/// `DistantLight` is the key light where `--key-light` is not given, in its colour;
+/// `--no-scene-lights` leaves both out.
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
@@ -1665,6 +1665,27 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
         "the file's directional light '/Sun' (azimuth 0.0°, elevation 60.0°, irradiance 2, 0.53° across)"
     );
     assert!(summary["beauty_rays"]["key_shadow_rays"].as_u64().unwrap() > 0);
+    // A coloured sun lights in its colour: under a black sky the white quad takes its hue.
+    let warm = dir.join("warm.usda");
+    let warm_sun = sun.replace(
+        "bool inputs:normalize = 1",
+        "bool inputs:normalize = 1\n    color3f inputs:color = (1, 0.4, 0.1)",
+    );
+    std::fs::write(&warm, quad_usda(&warm_sun)).unwrap();
+    let black = dir.join("black.exr");
+    write_constant_env(&black, 0.0);
+    let (o, exr) = render(&warm, "warm", &["--env", s(&black)]);
+    let said = o.assert_success().json()["key_light"].to_string();
+    assert!(
+        said.contains("irradiance 1.0118, colour (1.977, 0.791, 0.198)"),
+        "{said}"
+    );
+    let [r, g, b, _] = read_rgba(&exr)[6 * 12 + 6];
+    assert!(
+        r > 0.1 && (g / r - 0.4).abs() < 1e-3 && (b / r - 0.1).abs() < 1e-3,
+        "{:?}",
+        [r, g, b]
+    );
     let (o, _) = render(&sunny, "own-key", &["--key-light", "0,30,1"]);
     assert_eq!(o.assert_success().json()["key_light"], "--key-light");
     // --no-scene-lights: the standard rig, neither of the file's lights.

@@ -63,6 +63,21 @@ pub struct SceneDome {
     pub turn_deg: f32,
 }
 
+/// A light's linear RGB colour split into its luminance and the colour of unit luminance
+/// (`SceneSun::color`); white for a black light. `None` where a component is negative or not
+/// finite.
+pub fn split_color(rgb: glam::Vec3) -> Option<(f32, [f32; 3])> {
+    if !(rgb.is_finite() && rgb.min_element() >= 0.0) {
+        return None;
+    }
+    let luminance = crate::render::shading::luminance(rgb);
+    let unit = match luminance > 0.0 {
+        true => rgb / luminance,
+        false => glam::Vec3::ONE,
+    };
+    unit.is_finite().then_some((luminance, unit.to_array()))
+}
+
 /// A directional light (a USD `DistantLight`, a glTF `KHR_lights_punctual` directional light):
 /// the beauty's key light where `--key-light` is not given.
 #[derive(Clone, Debug, PartialEq)]
@@ -71,11 +86,33 @@ pub struct SceneSun {
     pub name: String,
     /// `--key-light`'s azimuth, elevation (degrees, towards the light: the prim's +Z, as it
     /// shines down its −Z) and irradiance (`inputs:intensity × 2^inputs:exposure`, times the
-    /// disc's solid angle unless `inputs:normalize`, times the luminance of `inputs:color`:
-    /// the key light is white).
+    /// disc's solid angle unless `inputs:normalize`, times the luminance of `inputs:color`).
     pub key: [f32; 3],
+    /// Its colour (`inputs:color`, glTF's `color`) over its luminance: white is (1, 1, 1), and
+    /// the irradiance above is the light's luminance.
+    pub color: [f32; 3],
     /// Its angular diameter (`inputs:angle`, USD's default 0.53°), `--key-angle`'s.
     pub angle_deg: f32,
+}
+
+impl SceneSun {
+    /// "'/Sun' (azimuth 30.0°, elevation 45.0°, irradiance 3, colour (1.2, 0.9, 0.8), 0.53°
+    /// across)", the colour left out for white, at angular diameter `angle_deg`.
+    pub fn describe(&self, angle_deg: f32) -> String {
+        let [az, el, irradiance] = self.key;
+        let tint = match self.color == [1.0; 3] {
+            true => String::new(),
+            false => {
+                let [r, g, b] = self.color;
+                format!(", colour ({r:.3}, {g:.3}, {b:.3})")
+            }
+        };
+        format!(
+            "'{}' (azimuth {az:.1}°, elevation {el:.1}°, irradiance {irradiance}{tint}, \
+             {angle_deg}° across)",
+            self.name
+        )
+    }
 }
 
 /// A scene camera with the names `--camera` finds it by.

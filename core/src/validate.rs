@@ -691,13 +691,7 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         bounds_max: hi.to_array(),
         camera: !mesh.cameras.is_empty(),
         cameras: mesh.cameras.iter().map(|c| c.names[0].clone()).collect(),
-        directional_light: mesh.sun.as_ref().map(|l| {
-            let [az, el, irradiance] = l.key;
-            format!(
-                "'{}' (azimuth {az:.1}°, elevation {el:.1}°, irradiance {irradiance}, {}° across)",
-                l.name, l.angle_deg
-            )
-        }),
+        directional_light: mesh.sun.as_ref().map(|l| l.describe(l.angle_deg)),
         dome_light: mesh.dome.as_ref().map(|d| match &d.texture {
             Some(t) => format!("'{}' ({})", d.name, t.display()),
             None => format!("'{}' (no texture)", d.name),

@@ -306,9 +306,11 @@ pub struct GpuLighting {
     pub tangent_offset: u32,
     /// 1: some material glows (`BeautyScene::emissive`).
     pub emissive: u32,
-    pub _pad3: u32,
-    pub _pad4: u32,
-    pub _pad5: u32,
+    /// The key light's colour of unit luminance (`KeyLight::color`; white 1, 1, 1): three
+    /// floats, as a `vec3f` would not align here.
+    pub key_red: f32,
+    pub key_green: f32,
+    pub key_blue: f32,
 }
 
 /// One texture of a material as the kernel reads it, 48 bytes: its size (0 × 0: none), its
@@ -525,9 +527,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 key_cos_radius,
                 tangent_offset,
                 emissive,
-                _pad3,
-                _pad4,
-                _pad5
+                key_red,
+                key_green,
+                key_blue
             }
         ),
         layout!(

@@ -345,8 +345,11 @@ fn sphere_under_the_sky(
 fn sphere_with_sky_key_light_and_ground_matches_the_cpu() {
     sphere_under_the_sky(
         |ex| ex.cam,
-        // A disc 6° across: its shadow rays draw their directions (KeyLight::sample_dir).
-        KeyLight::from_angles(40.0, 50.0, 3.0, false).with_angle(6.0),
+        // A warm disc 6° across: its shadow rays draw their directions
+        // (KeyLight::sample_dir), and BSDF samples meet it, both in its colour.
+        KeyLight::from_angles(40.0, 50.0, 3.0, false)
+            .with_angle(6.0)
+            .with_color(Vec3::new(1.5, 0.9, 0.6)),
         // Half a stop up: the GPU's preview must take it as the host's does.
         1.5,
         RenderSettings {
@@ -601,7 +604,12 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
         let keyed = BeautyScene {
             env: &backdrop,
             env_lights: false,
-            key: Some(KeyLight::from_angles(20.0, 35.0, 12.0, false).with_angle(40.0)),
+            // A bluish disc: the mirror's delta lobe sees it in its colour.
+            key: Some(
+                KeyLight::from_angles(20.0, 35.0, 12.0, false)
+                    .with_angle(40.0)
+                    .with_color(Vec3::new(0.7, 1.0, 1.6)),
+            ),
             bounces: 2,
             ..bscene
         };

@@ -1,5 +1,6 @@
 """A glTF's `KHR_lights_punctual` directional light is the beauty's key light, as Blender's own
-glTF importer makes it a sun: the same direction, strength (lux / 683, W/m²) and width."""
+glTF importer makes it a sun: the same direction, strength (lux / 683, W/m²) in the same colour,
+and width."""
 import json
 import subprocess
 import sys
@@ -15,6 +16,7 @@ BLENDER = textwrap.dedent(
     bpy.ops.import_scene.gltf(filepath=sys.argv[1])
     sun = next(o for o in bpy.context.scene.objects if o.type == "LIGHT")
     print("RESULT " + json.dumps({"type": sun.data.type, "energy": sun.data.energy,
+                                  "color": list(sun.data.color),
                                   "angle": math.degrees(sun.data.angle),
                                   "toward": list(sun.matrix_world.col[2][:3])}))
     """
@@ -31,7 +33,7 @@ def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_pat
     def add_a_sun(doc):
         doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
         doc.setdefault("extensions", {})["KHR_lights_punctual"] = {
-            "lights": [{"type": "directional", "intensity": 2049.0, "color": [1.0, 1.0, 1.0], "name": "Sun"}]}
+            "lights": [{"type": "directional", "intensity": 2049.0, "color": [1.0, 0.6, 0.3], "name": "Sun"}]}
         doc["nodes"].append({"name": "SunNode", "rotation": rotation,
                              "extensions": {"KHR_lights_punctual": {"light": 0}}})
         doc["scenes"][doc.get("scene", 0)]["nodes"].append(len(doc["nodes"]) - 1)
@@ -44,6 +46,7 @@ def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_pat
     az = float(key.split("azimuth ")[1].split("°")[0])
     el = float(key.split("elevation ")[1].split("°")[0])
     irradiance = float(key.split("irradiance ")[1].split(",")[0])
+    colour = np.array([float(c) for c in key.split("colour (")[1].split(")")[0].split(",")])
     assert abs(az - 40.0) < 0.1 and abs(el - 30.0) < 0.1, key
     assert summary["beauty_rays"]["key_shadow_rays"] > 0, summary
 
@@ -53,7 +56,11 @@ def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_pat
     assert line, blender.stderr[-2000:]
     theirs = json.loads(line[len("RESULT "):])
     assert theirs["type"] == "SUN", theirs
-    assert abs(theirs["energy"] - irradiance) < 1e-3 * irradiance and abs(irradiance - 3.0) < 1e-3, (key, theirs)
+    # What each casts: our irradiance (the light's luminance) times our colour of unit luminance,
+    # Blender's strength times its colour.
+    luminance = 0.2126 * 1.0 + 0.7152 * 0.6 + 0.0722 * 0.3
+    assert abs(irradiance - 3.0 * luminance) < 1e-3, key
+    assert np.allclose(irradiance * colour, theirs["energy"] * np.array(theirs["color"]), rtol=2e-3), (key, theirs)
     assert f"{theirs['angle']:.3f}" == "0.526" and "0.526° across" in key, (key, theirs)
     a, e = np.radians(az), np.radians(el)
     ours = np.array([np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)])

@@ -647,7 +647,8 @@ BLENDER_DOME = textwrap.dedent(
     toward = list(sun.matrix_world.col[2][:3])
     print("RESULT " + json.dumps({"tint": [c * strength for c in tint], "turn": math.degrees(turn),
                                   "image": image, "sun_toward": toward, "sun_energy": sun.data.energy,
-                                  "sun_angle": math.degrees(sun.data.angle)}))
+                                  "sun_angle": math.degrees(sun.data.angle),
+                                  "sun_color": list(sun.data.color)}))
     """
 )
 
@@ -659,8 +660,8 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     it leaves out) and turned the same way:
     its mapping turns lookups by 90° − the dome's turn (Blender's centre column faces +X,
     OpenEXR's +Z, and Blender's Z-up is the stage's Y-up). A `DistantLight` beside it is the
-    key light, pointing where Blender's sun points (its width and strength are not UsdLux's in
-    Blender: see below)."""
+    key light, pointing where Blender's sun points, in its colour (its width and strength are
+    not UsdLux's in Blender: see below)."""
     sky = tmp_path / "sky.exr"
     sky.write_bytes((ROOT / "examples" / "maps" / "bumps_512.exr").read_bytes())
     path = tmp_path / "dome.usda"
@@ -683,6 +684,7 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     sun.CreateIntensityAttr(3.0)
     sun.CreateAngleAttr(4.0)
     sun.CreateNormalizeAttr(True)
+    sun.CreateColorAttr(Gf.Vec3f(0.6, 0.8, 1.0))
     UsdGeom.Xformable(sun.GetPrim()).AddRotateXYZOp().Set(Gf.Vec3f(-50.0, 20.0, 0.0))
     stage.GetRootLayer().Save()
 
@@ -717,5 +719,11 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     # UsdLux's angle is the disc's diameter, and normalized, the intensity is the irradiance.
     # Blender 5.0's importer makes a sun twice as wide (it reads the angle as a radius) and 4 ×
     # as strong whatever `normalize` says: only ours is held to UsdLux's here.
-    assert "4° across" in key and "irradiance 3," in key, key
+    # Normalized, the intensity is the light's luminance times its colour's; the colour is the
+    # light's over its luminance (Blender keeps it as it is).
+    luminance = 0.2126 * 0.6 + 0.7152 * 0.8 + 0.0722 * 1.0
+    irradiance = float(key.split("irradiance ")[1].split(",")[0])
+    colour = np.array([float(c) for c in key.split("colour (")[1].split(")")[0].split(",")])
+    assert "4° across" in key and abs(irradiance - 3.0 * luminance) < 1e-4, key
+    assert np.allclose(colour * luminance, theirs["sun_color"], rtol=2e-3), (key, theirs)
     assert abs(theirs["sun_angle"] - 8.0) < 1e-3 and abs(theirs["sun_energy"] - 12.0) < 1e-4, theirs

@@ -518,8 +518,8 @@ impl Loader<'_> {
 
     /// A `KHR_lights_punctual` light: the first directional one is the key light
     /// (`SceneSun`): towards its node's +Z (it shines down −Z), its intensity in lux over 683
-    /// lm/W (as Blender imports it: a sun of that many W/m²) times its colour's luminance, and
-    /// Blender's default sun width, 0.526°. Point and spot lights are not read (a warning).
+    /// lm/W (as Blender imports it: a sun of that many W/m²) times its colour's luminance, its
+    /// colour, and Blender's default sun width, 0.526°. Point and spot lights are not read (a warning).
     fn light(
         &mut self,
         node: &::gltf::Node,
@@ -542,18 +542,14 @@ impl Loader<'_> {
         }
         let toward = world.transform_vector3(Vec3::Z).normalize_or_zero();
         let [r, g, b] = light.color();
-        let luminance = crate::render::shading::luminance(Vec3::new(r, g, b));
+        let (luminance, color) =
+            crate::mesh::split_color(Vec3::new(r, g, b)).unwrap_or((f32::NAN, [1.0; 3]));
         let irradiance = light.intensity() / 683.0 * luminance;
         if toward == Vec3::ZERO || !(irradiance.is_finite() && irradiance >= 0.0) {
             self.warn(&format!(
-                "light '{name}': its direction or intensity is not usable; left out"
+                "light '{name}': its direction, intensity or colour ({r}, {g}, {b}) is not usable; left out"
             ));
             return;
-        }
-        if (r - g).abs().max((g - b).abs()) > 1e-6 {
-            self.warn(&format!(
-                "light '{name}': the key light is white: its colour ({r}, {g}, {b}) only scales it, by its luminance {luminance:.3}"
-            ));
         }
         self.mesh.sun = Some(SceneSun {
             name,
@@ -562,6 +558,7 @@ impl Loader<'_> {
                 toward.y.clamp(-1.0, 1.0).asin().to_degrees(),
                 irradiance,
             ],
+            color,
             angle_deg: 0.526,
         });
     }

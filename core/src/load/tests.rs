@@ -754,15 +754,15 @@ fn gltf_cameras_are_picked_by_node_or_camera_name() {
 
 /// A `KHR_lights_punctual` directional light is the key light: towards its node's +Z (turned
 /// 45° up: elevation 45°, azimuth 0, toward +Z), lux / 683 as Blender imports it, times its
-/// colour's luminance; a point light before it is left out, a second directional light too,
-/// and a light of an unknown type is an error, not a panic.
+/// colour's luminance, in its colour (of unit luminance); a point light before it is left out,
+/// a second directional light too, and a light of an unknown type is an error, not a panic.
 #[test]
 fn a_gltf_directional_light_is_the_key_light() {
     let dir = temp_dir("gltf-light");
     let lights = |types: [&str; 3]| {
         let mut doc = GltfDoc::default();
         let a_pos = doc.floats(&TRI, 3);
-        let light = |t: &str, i: f32| json!({"type": t, "intensity": i, "color": [1.0, 1.0, 1.0]});
+        let light = |t: &str, i: f32| json!({"type": t, "intensity": i, "color": [1.0, 0.5, 0.25]});
         let rest = json!({
             "extensionsUsed": ["KHR_lights_punctual"],
             "extensions": {"KHR_lights_punctual": {"lights": [
@@ -786,7 +786,14 @@ fn a_gltf_directional_light_is_the_key_light() {
     assert_eq!(sun.name, "Sun");
     let [az, el, irradiance] = sun.key;
     assert!(az.abs() < 1e-3 && (el - 45.0).abs() < 1e-3, "{:?}", sun.key);
-    assert!((irradiance - 2.0).abs() < 1e-5, "{irradiance}");
+    let luminance = 0.2126 + 0.7152 * 0.5 + 0.0722 * 0.25;
+    assert!((irradiance - 2.0 * luminance).abs() < 1e-5, "{irradiance}");
+    let want = [1.0, 0.5, 0.25].map(|c| c / luminance);
+    assert!(
+        (0..3).all(|i| (sun.color[i] - want[i]).abs() < 1e-5),
+        "{:?}",
+        sun.color
+    );
     let e = lights(["point", "flashlight", "directional"])
         .unwrap_err()
         .to_string();

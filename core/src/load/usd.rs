@@ -1003,18 +1003,9 @@ impl Loader<'_> {
             );
             return Ok(());
         }
-        let (intensity, color) = self.light_power(&at, 50_000.0)?;
-        let luminance = crate::render::shading::luminance(color.as_vec3()) as f64;
-        if (color - DVec3::splat(color.x)).abs().max_element() > 1e-6 {
-            warn(
-                path,
-                &format!(
-                    "{at}: the key light is white: its colour ({}, {}, {}) only scales it, by \
-                     its luminance {luminance:.3}",
-                    color.x, color.y, color.z
-                ),
-            );
-        }
+        let (intensity, rgb) = self.light_power(&at, 50_000.0)?;
+        let (luminance, color) = crate::mesh::split_color(rgb.as_vec3())
+            .map_or((f64::NAN, [1.0; 3]), |(l, c)| (l as f64, c));
         let angle = match input_value(path, self.stage, &at, "angle")? {
             None => 0.53,
             Some(v) => scalar(&v)
@@ -1052,7 +1043,8 @@ impl Loader<'_> {
                 path,
                 &format!(
                     "{at}: its irradiance comes to {irradiance}, not a finite, non-negative \
-                     number; left out (fix its intensity, exposure or colour)"
+                     number; left out (fix its intensity, exposure or colour ({}, {}, {}))",
+                    rgb.x, rgb.y, rgb.z
                 ),
             );
             return Ok(());
@@ -1063,6 +1055,7 @@ impl Loader<'_> {
         self.mesh.sun = Some(SceneSun {
             name: at.to_string(),
             key: [azimuth as f32, elevation as f32, irradiance],
+            color,
             angle_deg: angle.min(max) as f32,
         });
         Ok(())

@@ -1630,8 +1630,9 @@ fn a_dome_light_becomes_the_scenes_environment() {
 /// A `DistantLight` becomes the key light: towards its +Z as its transform turns it (45° up
 /// and a quarter turn: azimuth 90°, +X), its irradiance `intensity × 2^exposure` (normalized)
 /// or that times the disc's solid angle (UsdLux's fallbacks: 50 000 × 6.7 × 10⁻⁵ sr for a
-/// 0.53° sun), its angle; in a Z-up stage the same angles from the same light turned into
-/// Z-up.
+/// 0.53° sun), times its colour's luminance, in that colour of unit luminance; its angle; in a
+/// Z-up stage the same angles from the same light turned into Z-up. A negative colour, like
+/// a negative intensity, leaves the light out.
 #[test]
 fn a_distant_light_becomes_the_key_light() {
     let d = dir("sun");
@@ -1639,7 +1640,7 @@ fn a_distant_light_becomes_the_key_light() {
         let light = format!(
             "def DistantLight \"Sun\"\n{{\n    float inputs:intensity = 3\n    \
              float inputs:exposure = 1\n    float inputs:angle = 2\n    \
-             bool inputs:normalize = 1\n    \
+             bool inputs:normalize = 1\n    color3f inputs:color = (0.5, 1, 2)\n    \
              float3 xformOp:rotateXYZ = {rotate}\n    \
              uniform token[] xformOpOrder = [\"xformOp:rotateXYZ\"]\n}}\n"
         );
@@ -1658,8 +1659,14 @@ fn a_distant_light_becomes_the_key_light() {
             "{up}: {:?}",
             got.key
         );
+        let luminance = 0.2126 * 0.5 + 0.7152 + 0.0722 * 2.0;
         assert!(
-            (irradiance - 6.0).abs() < 1e-5 && got.angle_deg == 2.0,
+            (irradiance - 6.0 * luminance).abs() < 1e-5 && got.angle_deg == 2.0,
+            "{up}: {got:?}"
+        );
+        let want = [0.5, 1.0, 2.0].map(|c| c / luminance);
+        assert!(
+            (0..3).all(|i| (got.color[i] - want[i]).abs() < 1e-5),
             "{up}: {got:?}"
         );
     }
@@ -1683,9 +1690,13 @@ fn a_distant_light_becomes_the_key_light() {
         (0.0, 0.53),
         "along −Z: on the horizon"
     );
-    for (i, body) in ["float inputs:intensity = -2", "float inputs:exposure = 200"]
-        .into_iter()
-        .enumerate()
+    for (i, body) in [
+        "float inputs:intensity = -2",
+        "float inputs:exposure = 200",
+        "color3f inputs:color = (1, -0.5, 1)",
+    ]
+    .into_iter()
+    .enumerate()
     {
         let text = format!("def DistantLight \"Sun\"\n{{\n    {body}\n}}\n");
         let p = write(&d, &format!("bad{i}.usda"), &quad_with_cameras("Y", &text));

@@ -49,6 +49,9 @@ pub struct KeyLight {
     /// shadows; `--key-angle`, Cycles' sun angle). The irradiance is the disc's whole; a disc
     /// is also found by BSDF samples (`radiance_along`, `escape_radiance`), MIS-weighted.
     pub cos_radius: f32,
+    /// The light's colour of unit luminance (`mesh::split_color`; white (1, 1, 1)): what it
+    /// casts is `irradiance × color`. The shadow catcher's ratio takes the luminance alone.
+    pub color: Vec3,
 }
 
 impl KeyLight {
@@ -66,7 +69,13 @@ impl KeyLight {
             dir: dir.normalize(),
             irradiance,
             cos_radius: 1.0,
+            color: Vec3::ONE,
         }
+    }
+
+    /// The same light in `color` (of unit luminance; `mesh::split_color`).
+    pub fn with_color(self, color: Vec3) -> Self {
+        KeyLight { color, ..self }
     }
 
     /// The same light as a disc `diameter_deg` degrees across (0: point-like).
@@ -103,9 +112,9 @@ impl KeyLight {
     /// the irradiance spread evenly over the cone's solid angle (`irradiance × pdf`), so that
     /// a BSDF sample that meets the disc sees what its shadow rays sample.
     #[inline]
-    pub fn radiance_along(&self, d: Vec3) -> Option<f32> {
+    pub fn radiance_along(&self, d: Vec3) -> Option<Vec3> {
         let pdf = self.pdf()?;
-        (d.dot(self.dir) >= self.cos_radius).then_some(self.irradiance * pdf)
+        (d.dot(self.dir) >= self.cos_radius).then_some(self.color * (self.irradiance * pdf))
     }
 }
 
@@ -518,7 +527,7 @@ fn escape_radiance(s: &BeautyScene, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 
             (false, Some(pdf)) => power_heuristic(bs.pdf, pdf),
             _ => 1.0,
         };
-        l += Vec3::splat(radiance * w);
+        l += radiance * w;
     }
     l
 }
@@ -566,7 +575,7 @@ fn surface_radiance(
                     let w = k
                         .pdf()
                         .map_or(1.0, |pdf| power_heuristic(pdf, bsdf_pdf(m, wo_l, wi_l)));
-                    radiance += throughput * f * (k.irradiance * w);
+                    radiance += throughput * f * k.color * (k.irradiance * w);
                 }
             }
         }

@@ -415,7 +415,7 @@ pub struct Session {
     /// The key light: (azimuth°, elevation°, irradiance, angular diameter°) from
     /// `--key-light` and `--key-angle`, else the scene file's directional light (a USD
     /// `DistantLight`, a glTF `KHR_lights_punctual` one); and what the summary says of it.
-    key: Option<([f32; 4], String)>,
+    key: Option<([f32; 4], Vec3, String)>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
@@ -937,21 +937,24 @@ fn environment(opts: &LookdevOptions, loaded: &Loaded, source: &Path) -> Result<
 /// The key light: `--key-light` (with `--key-angle`), else the scene file's directional light
 /// (as wide as `--key-angle` where it is given, else its own width); `--key-angle` without
 /// either is an error.
-fn key_light(opts: &LookdevOptions, sun: &Option<SceneSun>) -> Result<Option<([f32; 4], String)>> {
+fn key_light(
+    opts: &LookdevOptions,
+    sun: &Option<SceneSun>,
+) -> Result<Option<([f32; 4], Vec3, String)>> {
     Ok(match (opts.key_light, sun) {
-        (Some([az, el, i]), _) => Some(([az, el, i, opts.key_angle_deg], "--key-light".into())),
+        (Some([az, el, i]), _) => Some((
+            [az, el, i, opts.key_angle_deg],
+            Vec3::ONE,
+            "--key-light".into(),
+        )),
         (None, Some(s)) => {
             let [az, el, i] = s.key;
             let angle = match opts.key_angle_deg > 0.0 {
                 true => opts.key_angle_deg,
                 false => s.angle_deg,
             };
-            let said = format!(
-                "the file's directional light '{}' (azimuth {az:.1}°, elevation {el:.1}°, \
-                 irradiance {i}, {angle}° across)",
-                s.name
-            );
-            Some(([az, el, i, angle], said))
+            let said = format!("the file's directional light {}", s.describe(angle));
+            Some(([az, el, i, angle], Vec3::from_array(s.color), said))
         }
         (None, None) if opts.key_angle_deg > 0.0 => {
             return Err(Error::Param(
@@ -1172,8 +1175,10 @@ pub fn render_all(
         env,
         env_frame: env.frame,
         env_lights: env.total_weight > 0.0,
-        key: s.key.as_ref().map(|([az, el, i, angle], _)| {
-            KeyLight::from_angles(*az, *el, *i, s.up_axis == UpAxis::Z).with_angle(*angle)
+        key: s.key.as_ref().map(|([az, el, i, angle], color, _)| {
+            KeyLight::from_angles(*az, *el, *i, s.up_axis == UpAxis::Z)
+                .with_angle(*angle)
+                .with_color(*color)
         }),
         materials: &materials,
         emissive: materials.iter().any(|m| m.emission != Vec3::ZERO),
@@ -1210,7 +1215,7 @@ pub fn render_all(
             .key
             .as_ref()
             .filter(|_| want_beauty)
-            .map(|(_, said)| said.clone()),
+            .map(|(_, _, said)| said.clone()),
         beauty_rays: BeautyCounters::default(),
         shadow_rays: 0,
         contact_sheets: vec![],
