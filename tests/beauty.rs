@@ -1574,7 +1574,7 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
 /// dome whose texture is missing fails naming the file, the dome and the texture. Its
 /// `DistantLight` is the key light where `--key-light` is not given, in its colour;
-/// `--no-scene-lights` leaves both out.
+/// `--no-scene-lights` leaves both out. Lights it does not render are named in a warning.
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
@@ -1685,6 +1685,23 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
         r > 0.1 && (g / r - 0.4).abs() < 1e-3 && (b / r - 0.1).abs() < 1e-3,
         "{:?}",
         [r, g, b]
+    );
+    // Area and point lights are not rendered: one warning names them all.
+    let rig = dir.join("rig.usda");
+    let lights = "def RectLight \"Key\"\n{\n}\ndef SphereLight \"Fill\"\n{\n}\n";
+    std::fs::write(&rig, quad_usda(&format!("{sun}{lights}"))).unwrap();
+    let o = run(&["inspect", s(&rig), "--disp", s(&map), "--json"]);
+    o.assert_success();
+    assert!(
+        o.stderr
+            .contains("2 lights are not read: /Key (RectLight), /Fill (SphereLight)"),
+        "{}",
+        o.stderr
+    );
+    assert_eq!(
+        o.json()["directional_light"],
+        info["directional_light"],
+        "the distant light beside them is still read"
     );
     let (o, _) = render(&sunny, "own-key", &["--key-light", "0,30,1"]);
     assert_eq!(o.assert_success().json()["key_light"], "--key-light");

@@ -63,10 +63,23 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             any_uv_missing: false,
             material_paths: vec![],
             cameras: vec![],
+            unread_lights: vec![],
         };
         let root = stage.prim(sdf::Path::abs_root());
         for child in children(path, &root)? {
             loader.visit(&child, DMat4::IDENTITY, 1)?;
+        }
+        if !loader.unread_lights.is_empty() {
+            let n = loader.unread_lights.len();
+            warn(
+                path,
+                &format!(
+                    "{n} light{} not read: {} (the beauty is lit by a DomeLight, a DistantLight \
+                     and the built-in rig; area and point lights are not rendered)",
+                    if n == 1 { " is" } else { "s are" },
+                    loader.unread_lights.join(", ")
+                ),
+            );
         }
         let mut mesh = loader.mesh;
         mesh.missing_uvs = loader.any_uv_missing;
@@ -805,6 +818,8 @@ struct Loader<'a> {
     /// Names (path, prim name), world transform and vertical field of view (radians) of each
     /// perspective camera, in the stage's order.
     cameras: Vec<(Vec<String>, DMat4, Projection)>,
+    /// The UsdLux lights the beauty does not render ("/Key (RectLight)"), for one warning.
+    unread_lights: Vec<String>,
 }
 
 /// A primvar expanded to one value per face corner.
@@ -829,6 +844,10 @@ impl Loader<'_> {
             "Camera" => self.camera_prim(prim, world)?,
             t @ ("DomeLight" | "DomeLight_1") => self.dome_prim(prim, world, t == "DomeLight_1")?,
             "DistantLight" => self.sun_prim(prim, world)?,
+            t @ ("SphereLight" | "RectLight" | "DiskLight" | "CylinderLight" | "GeometryLight"
+            | "PortalLight" | "PluginLight") => {
+                self.unread_lights.push(format!("{} ({t})", prim.path()))
+            }
             _ => {}
         }
         for child in children(self.path, prim)? {
