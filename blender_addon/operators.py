@@ -143,7 +143,8 @@ class PRISMBAKE_OT_turntable(jobs.JobOperator, bpy.types.Operator):
 
 
 class PRISMBAKE_OT_bake(jobs.JobOperator, bpy.types.Operator):
-    """Bake the active object's prism table (.prisms) next to the .blend or to the chosen path"""
+    """Bake the active object's prism table (.prisms) next to the .blend or to the chosen path,
+    with the base mesh it was baked from beside it (.base.glb)"""
     bl_idname = "prismbake.bake"
     bl_label = "Bake Prism Table"
 
@@ -157,7 +158,13 @@ class PRISMBAKE_OT_bake(jobs.JobOperator, bpy.types.Operator):
         os.makedirs(os.path.dirname(self._out), exist_ok=True)
         self._tmp = _temp_dir("prismbake-bake-")
         exp = _export(context, obj, info, self._tmp)
-        return cli_bridge.bake_args(binary, exp.path, info.displacement(), self._out)
+        # The table names the mesh it was baked from, and a render of the table reads that
+        # mesh's camera: the export is kept beside the table (`Sphere.base.glb`), put in
+        # place whole.
+        base = os.path.splitext(self._out)[0] + ".base.glb"
+        shutil.copyfile(exp.path, base + ".tmp")
+        os.replace(base + ".tmp", base)
+        return cli_bridge.bake_args(binary, base, info.displacement(), self._out)
 
     def finish(self, context, result):
         data = result.json()

@@ -1,4 +1,5 @@
 """Each operator against the real CLI, run synchronously (`execute`), and their error paths."""
+import json
 import os
 import subprocess
 import time
@@ -151,13 +152,22 @@ def test_turntable_uses_the_scene_settings(bpy_module, scene):
         "normal_0000.png", "normal_0001.png", "normal_contact_sheet.png"]
 
 
-def test_bake_writes_a_table_the_cli_can_read(bpy_module, addon, scene, prismbake_bin):
+def test_bake_writes_a_table_the_cli_can_read(bpy_module, addon, scene, prismbake_bin, tmp_path):
+    """The table, and the base mesh it names beside it: a render of the table looks through the
+    scene camera that went along with the export, without a warning."""
     path = bpy_module.context.scene.prismbake.prisms_path
     assert bpy_module.ops.prismbake.bake() == {"FINISHED"}
     assert os.path.getsize(path) > 1000
-    inspect = subprocess.run([prismbake_bin, "inspect", path], capture_output=True, text=True)
+    inspect = subprocess.run([prismbake_bin, "inspect", path, "--json"], capture_output=True, text=True)
     assert inspect.returncode == 0, inspect.stderr
+    info = json.loads(inspect.stdout)
+    assert info["mesh"] == os.path.basename(path)[:-len(".prisms")] + ".base.glb", info
+    assert info["mesh_scene"].startswith("read"), info
     assert addon.jobs.RESULTS["Sphere"]["bake"]["prisms"] >= 960
+    render = subprocess.run([prismbake_bin, "render", path, "--aov", "mask", "--res", "16x16", "--json",
+                             "-o", str(tmp_path / "table")], capture_output=True, text=True)
+    assert render.returncode == 0 and "warning" not in render.stderr, render.stderr
+    assert json.loads(render.stdout)["camera"] == "the file's camera 'Camera'", render.stdout
 
 
 def test_bake_next_to_the_blend(bpy_module, scene, tmp_path):
