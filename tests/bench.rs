@@ -80,6 +80,53 @@ fn bench_runs_every_method_on_the_same_rays() {
     assert!(plot.width() > 100 && plot.height() > 100);
 }
 
+/// `bench` reads a baked table as `render` does: the same rays (the rock's table, baked into
+/// another folder) give the same errors, steps and leaks as the mesh. `validate`, which
+/// checks meshes, says a table is not one and how to get the mesh.
+#[test]
+fn bench_reads_a_baked_table_as_the_mesh() {
+    let dir = temp_dir("bench-table");
+    let table = dir.join("tables/rock.prisms");
+    run(&["bake", s(&example("rock/rock.glb")), "-o", s(&table)]).assert_success();
+    let bench = |input: &std::path::Path, name: &str| {
+        let out = dir.join(name);
+        let mut args = vec!["bench", s(input), "--methods", "pdm", "--res", "16x12"];
+        args.extend(["--leak-rays", "500", "--ref-density", "1", "--repeats", "1"]);
+        args.extend(["-o", s(&out)]);
+        run(&args).assert_success();
+        let rows: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("bench.json")).unwrap()).unwrap();
+        rows.as_array().unwrap().clone()
+    };
+    let (mesh, baked) = (
+        bench(&example("rock/rock.glb"), "mesh"),
+        bench(&table, "table"),
+    );
+    assert!(!mesh.is_empty() && mesh.len() == baked.len(), "{mesh:?}");
+    for (m, t) in mesh.iter().zip(&baked) {
+        for key in [
+            "method",
+            "setting",
+            "rays",
+            "steps_per_ray",
+            "mismatch_rate",
+            "depth_err_median_texels",
+            "depth_err_p99_texels",
+            "normal_err_p99_deg",
+            "leaks",
+        ] {
+            assert_eq!(m[key], t[key], "{key}: mesh {m}\ntable {t}");
+        }
+    }
+    run(&["validate", s(&table)]).assert_code(1);
+    let o = run(&["validate", s(&table)]);
+    assert!(
+        o.stdout.contains("is a baked prism table, not a mesh"),
+        "{}",
+        o.stdout
+    );
+}
+
 #[test]
 fn bench_refuses_reference_densities_out_of_range_before_writing() {
     let torus = example("torus/torus.obj");

@@ -803,8 +803,14 @@ fn bench(a: BenchArgs) -> Result<ExitCode> {
         .map_err(|e| Error::Param(format!("--threads: {e}")))?;
     let mut rows = Vec::new();
     for mesh in &meshes {
-        let spec = asset::resolve(mesh, &overrides(&a.disp, None))?;
-        let input = Input::Asset(spec);
+        let input = match prismbake::load::extension(mesh).as_str() {
+            "prisms" => Input::Table {
+                path: mesh.clone(),
+                disp: a.disp.disp.clone(),
+                channel: a.disp.channel.clone(),
+            },
+            _ => Input::Asset(asset::resolve(mesh, &overrides(&a.disp, None))?),
+        };
         let loaded = render_job::load_input(&input, &RepairOptions::default())?;
         let cam = render_job::base_camera(
             &loaded,

@@ -174,6 +174,14 @@ pub fn load_mesh(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         "gltf" | "glb" => gltf::load(path, opts)?,
         "obj" => obj::load(path, opts)?,
         "usda" | "usdc" | "usd" => usd::load(path, opts)?,
+        "prisms" => {
+            return Err(Error::invalid(
+                path,
+                "is a baked prism table, not a mesh: `render`, `bench` and `inspect` read \
+                 tables; for \
+                 this command give the mesh it was baked from (`inspect TABLE` names it)",
+            ))
+        }
         _ => {
             return Err(Error::UnsupportedFormat {
                 path: path.into(),
