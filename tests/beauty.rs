@@ -402,7 +402,22 @@ fn a_key_light_with_an_angle_casts_soft_shadows_at_the_same_irradiance() {
         hard.1
     );
     for (args, needle) in [
-        (vec!["--key-angle", "5"], "--key-angle needs --key-light"),
+        (
+            vec!["--key-angle", "5"],
+            "--key-angle and --key-color need --key-light",
+        ),
+        (
+            vec!["--key-color", "1,0.5,0"],
+            "--key-angle and --key-color need --key-light",
+        ),
+        (
+            vec!["--key-light", "0,30,1", "--key-color", "0,0,0"],
+            "--key-color 0,0,0",
+        ),
+        (
+            vec!["--key-light", "0,30,1", "--key-color", "1,-1,1"],
+            "--key-color 1,-1,1",
+        ),
         (
             vec!["--key-light", "0,30,1", "--key-angle", "120"],
             "--key-angle 120",
@@ -1680,11 +1695,40 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
         said.contains("irradiance 1.0118, colour (1.977, 0.791, 0.198)"),
         "{said}"
     );
-    let [r, g, b, _] = read_rgba(&exr)[6 * 12 + 6];
+    let warm_rgba = read_rgba(&exr);
+    let [r, g, b, _] = warm_rgba[6 * 12 + 6];
     assert!(
         r > 0.1 && (g / r - 0.4).abs() < 1e-3 && (b / r - 0.1).abs() < 1e-3,
         "{:?}",
         [r, g, b]
+    );
+    // --key-color gives the file's white sun that hue, keeping its irradiance (2, where the
+    // warm sun's colour took it to 1.0118): the warm picture, brighter by 2 / 1.0118; and
+    // --key-light one too.
+    let (o, exr) = render(
+        &sunny,
+        "tinted",
+        &["--env", s(&black), "--key-color", "1,0.4,0.1"],
+    );
+    o.assert_success();
+    for (t, w) in read_rgba(&exr).iter().zip(&warm_rgba) {
+        for c in 0..3 {
+            let want = w[c] * 2.0 / 1.0118;
+            assert!(
+                (t[c] - want).abs() <= 1e-3 * want.max(1e-3),
+                "{t:?} against {w:?}"
+            );
+        }
+        assert_eq!(t[3], w[3]);
+    }
+    let (o, _) = render(
+        &sunny,
+        "own-tinted",
+        &["--key-light", "0,30,1", "--key-color", "2,0.8,0.2"],
+    );
+    assert_eq!(
+        o.assert_success().json()["key_light"],
+        "--key-light, colour (1.977, 0.791, 0.198)"
     );
     // Area and point lights are not rendered: one warning names them all.
     let rig = dir.join("rig.usda");

@@ -185,6 +185,11 @@ pub struct LookArgs {
     /// Default: 0 for `--key-light`, the file's own for its light.
     #[arg(long, value_name = "DEG", default_value_t = 0.0)]
     pub key_angle: f32,
+    /// The key light's colour (linear R,G,B), for `--key-light` or the file's light: a hue,
+    /// divided by its luminance, so the light's irradiance stays what it was. Default: white
+    /// for `--key-light`, the file's light's own colour.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
+    pub key_color: Option<[f32; 3]>,
     /// Base colour (linear R,G,B in [0, 1]), in place of the glTF material's colour and
     /// base-colour texture; default: the material's, else 0.8 grey.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]

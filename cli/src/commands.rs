@@ -351,6 +351,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         env_intensity: l.env_intensity,
         key_light: l.key_light,
         key_angle_deg: l.key_angle,
+        key_color: l.key_color.map(Vec3::from),
         base_color: l.base_color.map(Vec3::from),
         roughness: l.roughness,
         metallic: l.metallic,

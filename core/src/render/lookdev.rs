@@ -59,6 +59,9 @@ pub struct LookdevOptions {
     /// The key light's angular diameter in degrees (`--key-angle`): 0 is a point-like sun
     /// with hard shadows, more a disc with soft ones.
     pub key_angle_deg: f32,
+    /// The key light's colour (`--key-color`, linear RGB), whichever light is the key; `None`:
+    /// white for `key_light`, the file's light's own.
+    pub key_color: Option<Vec3>,
     /// Overrides the mesh's material colour and texture (linear RGB).
     pub base_color: Option<Vec3>,
     /// Override the mesh's material's factors (default: its own, else `DEFAULT_ROUGHNESS`,
@@ -95,6 +98,7 @@ impl Default for LookdevOptions {
             env_intensity: 1.0,
             key_light: None,
             key_angle_deg: 0.0,
+            key_color: None,
             base_color: None,
             roughness: None,
             metallic: None,
@@ -164,6 +168,15 @@ impl LookdevOptions {
                 "--key-angle {}: must be an angular diameter in [0, {MAX_KEY_ANGLE_DEG}] degrees",
                 self.key_angle_deg
             )));
+        }
+        if let Some(c) = self.key_color {
+            if crate::mesh::split_color(c).is_none_or(|(luminance, _)| luminance <= 0.0) {
+                return Err(Error::Param(format!(
+                    "--key-color {},{},{}: give a linear R,G,B with components >= 0 and some \
+                     brightness (e.g. 1,0.9,0.8 for a warm white)",
+                    c.x, c.y, c.z
+                )));
+            }
         }
         if let Some(c) = self.base_color {
             if !(c.is_finite() && c.min_element() >= 0.0 && c.max_element() <= 1.0) {
@@ -941,11 +954,19 @@ fn key_light(
     opts: &LookdevOptions,
     sun: &Option<SceneSun>,
 ) -> Result<Option<([f32; 4], Vec3, String)>> {
+    // --key-color, as a colour of unit luminance (validated: it has some).
+    let hue = opts
+        .key_color
+        .and_then(crate::mesh::split_color)
+        .map(|(_, c)| Vec3::from_array(c));
     Ok(match (opts.key_light, sun) {
         (Some([az, el, i]), _) => Some((
             [az, el, i, opts.key_angle_deg],
-            Vec3::ONE,
-            "--key-light".into(),
+            hue.unwrap_or(Vec3::ONE),
+            match hue {
+                Some(c) => format!("--key-light, colour ({:.3}, {:.3}, {:.3})", c.x, c.y, c.z),
+                None => "--key-light".into(),
+            },
         )),
         (None, Some(s)) => {
             let [az, el, i] = s.key;
@@ -953,13 +974,17 @@ fn key_light(
                 true => opts.key_angle_deg,
                 false => s.angle_deg,
             };
+            let s = SceneSun {
+                color: hue.map_or(s.color, |c| c.to_array()),
+                ..s.clone()
+            };
             let said = format!("the file's directional light {}", s.describe(angle));
             Some(([az, el, i, angle], Vec3::from_array(s.color), said))
         }
-        (None, None) if opts.key_angle_deg > 0.0 => {
+        (None, None) if opts.key_angle_deg > 0.0 || opts.key_color.is_some() => {
             return Err(Error::Param(
-                "--key-angle needs --key-light AZ,EL,INTENSITY or a directional light in the \
-                 scene file (the light it widens)"
+                "--key-angle and --key-color need --key-light AZ,EL,INTENSITY or a directional \
+                 light in the scene file (the light they change)"
                     .into(),
             ))
         }
