@@ -147,6 +147,36 @@ fn renders_a_baked_table() {
     assert_frame_times(&summary.json(), false);
 }
 
+/// A USD camera's film back twice as wide as tall (apertures 40 × 20 tenths, focal length 50)
+/// keeps its whole width in a square image, as USD's `expandAperture` and Blender's importer
+/// (which fits it horizontally) have it: 5 units from the 2 × 2 quad, the view is 4 units
+/// across both ways and the quad covers a quarter of the image (from the vertical aperture
+/// alone it would fill it). An image twice as wide as tall sees the film back exactly, 4 × 2
+/// units: the quad fills its height and half its width.
+#[test]
+fn a_usd_cameras_film_back_stays_whole_in_a_narrower_image() {
+    let dir = temp_dir("render-film-back");
+    let usda = dir.join("quad.usda");
+    let camera = "def Camera \"Wide\"\n{\n    float focalLength = 50\n    \
+                  float horizontalAperture = 40\n    float verticalAperture = 20\n    \
+                  double3 xformOp:translate = (0, 0, 5)\n    \
+                  uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}\n";
+    std::fs::write(&usda, quad_usda(camera)).unwrap();
+    let map = write_flat_map(&dir);
+    let coverage = |res: &str| {
+        let out = dir.join(res);
+        let mut args = vec!["render", s(&usda), "--disp", s(&map), "--scale", "0"];
+        args.extend(["--res", res, "--aov", "mask", "--no-jitter", "-o", s(&out)]);
+        run(&args).assert_success();
+        let [mask] = read_channels(&out.join("mask.exr"), ["Y"]);
+        mask.iter().sum::<f32>() / mask.len() as f32
+    };
+    let square = coverage("16x16");
+    assert!((square - 0.25).abs() < 1e-6, "square: {square}");
+    let wide = coverage("32x16");
+    assert!((wide - 0.5).abs() < 1e-6, "wide: {wide}");
+}
+
 /// A table keeps the geometry; a render of it reads the rest from the mesh it was baked from
 /// (found from the table's folder): the rock's table, baked into another folder, renders the
 /// same beauty as the rock, its textured material included. Where the mesh has gone, or

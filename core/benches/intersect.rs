@@ -48,7 +48,7 @@ fn intersect(c: &mut Criterion) {
     let spec = asset::resolve(&root, &Overrides::default()).expect("examples/sphere resolves");
     let prepared = asset::prepare(&spec, &RepairOptions::default()).expect("examples/sphere bakes");
     let cam = match prepared.mesh.cameras.first().map(|c| &c.camera) {
-        Some(c) => Camera::from_scene(c),
+        Some(c) => Camera::from_scene(c, 1.0),
         None => {
             let (lo, hi) = prepared.table.bounds();
             Camera::frame_bounds(

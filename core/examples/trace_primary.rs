@@ -79,7 +79,7 @@ fn main() {
     let spec = asset::resolve(&asset_path, &Overrides::default()).expect("asset resolves");
     let prepared = asset::prepare(&spec, &RepairOptions::default()).expect("asset bakes");
     let cam = match prepared.mesh.cameras.first().map(|c| &c.camera) {
-        Some(c) => Camera::from_scene(c),
+        Some(c) => Camera::from_scene(c, 1.0),
         None => {
             let (lo, hi) = prepared.table.bounds();
             let up = prepared.mesh.up_axis.unwrap_or(prismbake::mesh::UpAxis::Y);

@@ -44,7 +44,13 @@ pub struct SceneCamera {
     pub from: Vec3,
     pub to: Vec3,
     pub up: Vec3,
+    /// The view's height: a pinhole's vertical field of view, an orthographic view's size.
     pub projection: Projection,
+    /// The film back's width over its height (USD: `horizontalAperture / verticalAperture`):
+    /// an image narrower than that widens the view so that the whole film back stays in it
+    /// (`Camera::from_scene`; USD's default `expandAperture` conform policy). `None` (glTF):
+    /// the projection's height whatever the image's shape.
+    pub film_aspect: Option<f32>,
 }
 
 /// A USD `DomeLight` (or `DomeLight_1`): the environment a beauty lights with where `--env` is

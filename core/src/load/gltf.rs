@@ -100,7 +100,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         mesh.group_material.clear();
     }
     for (names, world, projection) in loader.cameras {
-        super::attach_camera(&mut mesh, names, world, projection);
+        super::attach_camera(&mut mesh, names, world, projection, None);
     }
     Ok(mesh)
 }

@@ -59,8 +59,14 @@ fn camera_fault(c: &SceneCamera) -> Option<String> {
 
 /// Camera looking down its local -Z with local +Y up (glTF's and USD's convention); the target
 /// is the mesh centre projected on the view axis, at least one unit ahead. An orthographic
-/// view's height (in the camera's own units) is scaled as the transform scales its +Y.
-fn scene_camera(mesh: &BaseMesh, world: Mat4, projection: Projection) -> SceneCamera {
+/// view's height (in the camera's own units) is scaled as the transform scales its +Y, and its
+/// film aspect as it scales its +X against its +Y.
+fn scene_camera(
+    mesh: &BaseMesh,
+    world: Mat4,
+    projection: Projection,
+    film_aspect: Option<f32>,
+) -> SceneCamera {
     let from = world.transform_point3(Vec3::ZERO);
     let forward = world
         .transform_vector3(Vec3::NEG_Z)
@@ -70,6 +76,7 @@ fn scene_camera(mesh: &BaseMesh, world: Mat4, projection: Projection) -> SceneCa
     let up = local_up.try_normalize().unwrap_or(Vec3::Y);
     let (lo, hi) = mesh.bounds();
     let distance = ((lo + hi) * 0.5 - from).dot(forward).max(1.0);
+    let orthographic = matches!(projection, Projection::Orthographic { .. });
     SceneCamera {
         from,
         to: from + forward * distance,
@@ -80,19 +87,24 @@ fn scene_camera(mesh: &BaseMesh, world: Mat4, projection: Projection) -> SceneCa
             },
             perspective => perspective,
         },
+        film_aspect: film_aspect.map(|a| match orthographic {
+            true => a * world.transform_vector3(Vec3::X).length() / local_up.length(),
+            false => a,
+        }),
     }
 }
 
 /// Add to `mesh`'s cameras the scene camera `names` at `world` with `projection` (an
-/// orthographic height in the camera's own units), once its geometry is loaded; one that
-/// cannot be rendered through is left out with a warning.
+/// orthographic height in the camera's own units) and `film_aspect` (`SceneCamera`), once its
+/// geometry is loaded; one that cannot be rendered through is left out with a warning.
 pub(crate) fn attach_camera(
     mesh: &mut BaseMesh,
     mut names: Vec<String>,
     world: Mat4,
     projection: Projection,
+    film_aspect: Option<f32>,
 ) {
-    let camera = scene_camera(mesh, world, projection);
+    let camera = scene_camera(mesh, world, projection, film_aspect);
     let mut seen = std::collections::HashSet::new();
     names.retain(|n| seen.insert(n.clone()));
     match camera_fault(&camera) {

@@ -84,8 +84,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         let mut mesh = loader.mesh;
         mesh.missing_uvs = loader.any_uv_missing;
         mesh.face_flags = vec![0; mesh.triangles.len()];
-        for (names, world, projection) in loader.cameras {
-            super::attach_camera(&mut mesh, names, world.as_mat4(), projection);
+        for (names, world, projection, film_aspect) in loader.cameras {
+            super::attach_camera(&mut mesh, names, world.as_mat4(), projection, film_aspect);
         }
         Ok(mesh)
     })
@@ -815,9 +815,9 @@ struct Loader<'a> {
     /// The material prim of each of `mesh.materials` (a material bound to several meshes is
     /// read once).
     material_paths: Vec<sdf::Path>,
-    /// Names (path, prim name), world transform and vertical field of view (radians) of each
-    /// perspective camera, in the stage's order.
-    cameras: Vec<(Vec<String>, DMat4, Projection)>,
+    /// Names (path, prim name), world transform, projection and film aspect of each camera,
+    /// in the stage's order.
+    cameras: Vec<(Vec<String>, DMat4, Projection, Option<f32>)>,
     /// The UsdLux lights the beauty does not render ("/Key (RectLight)"), for one warning.
     unread_lights: Vec<String>,
 }
@@ -860,7 +860,9 @@ impl Loader<'_> {
     /// vertical field of view from `verticalAperture` and `focalLength` (both in the same
     /// tenths of a scene unit, so their ratio is the field of view; USD's defaults 15.2908 and
     /// 50 where not authored); an orthographic camera's view is `verticalAperture` tenths of
-    /// a scene unit tall. A camera of another projection is left out with a warning, and so
+    /// a scene unit tall. `horizontalAperture` (20.955) over `verticalAperture` is the film
+    /// aspect, which widens the view of an image narrower than the film back (USD's
+    /// `expandAperture`). A camera of another projection is left out with a warning, and so
     /// is one whose values are not numbers; a view that cannot be rendered through is left
     /// out by `attach_camera`.
     fn camera_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
@@ -884,19 +886,24 @@ impl Loader<'_> {
                 Some(v) => scalar(&v),
             })
         };
-        let (Some(focal), Some(aperture)) = (
+        let (Some(focal), Some(aperture), Some(width)) = (
             read("focalLength", 50.0)?,
             read("verticalAperture", 15.2908)?,
+            read("horizontalAperture", 20.955)?,
         ) else {
             warn(
                 self.path,
                 &format!(
-                    "camera {}: focalLength or verticalAperture is not a number; left out (re-export)",
+                    "camera {}: focalLength, verticalAperture or horizontalAperture is not a \
+                     number; left out (re-export)",
                     prim.path()
                 ),
             );
             return Ok(());
         };
+        // A film back of no width, or a width that is not a finite positive number, does not
+        // widen the view (the vertical aperture alone, as before).
+        let film_aspect = Some((width / aperture) as f32).filter(|a| a.is_finite() && *a > 0.0);
         let projection = match orthographic {
             true => Projection::Orthographic {
                 height: (aperture / 10.0) as f32,
@@ -907,7 +914,8 @@ impl Loader<'_> {
         };
         let path = prim.path().to_string();
         let name = path.rsplit('/').next().unwrap_or_default().to_string();
-        self.cameras.push((vec![path, name], world, projection));
+        self.cameras
+            .push((vec![path, name], world, projection, film_aspect));
         Ok(())
     }
 

@@ -1449,6 +1449,8 @@ def Camera "Second"
     assert!((cam.up - Vec3::Y).length() < 1e-5, "{}", cam.up);
     let want = 2.0 * (12.0f32 / 35.0).atan().to_degrees();
     assert_yfov(&cam, want);
+    // The film back: USD's default horizontal aperture over the authored vertical one.
+    assert_eq!(cam.film_aspect, Some(20.955 / 24.0));
 
     // Not authored: USD's defaults (15.2908 over 50, 17.4°).
     let p = write(
@@ -1462,6 +1464,19 @@ def Camera "Second"
         .unwrap()
         .unwrap();
     assert_yfov(&cam, 2.0 * (15.2908f32 / 100.0).atan().to_degrees());
+    assert_eq!(cam.film_aspect, Some((20.955f64 / 15.2908) as f32));
+    // A square image of that camera keeps the film back's whole width: its vertical field of
+    // view is the horizontal aperture's (23.9°); an image wider than the film back keeps the
+    // vertical aperture's.
+    let square = crate::render::camera::Camera::from_scene(&cam, 1.0);
+    let wide = crate::render::camera::Camera::from_scene(&cam, 2.0);
+    let yfov = |c: crate::render::camera::Camera| match c.projection {
+        Projection::Perspective { yfov_deg } => yfov_deg,
+        p => panic!("{p:?}"),
+    };
+    let horizontal = 2.0 * (20.955f32 / 100.0).atan().to_degrees();
+    assert!((yfov(square) - horizontal).abs() < 1e-3, "{square:?}");
+    assert!((yfov(wide) - 2.0 * (15.2908f32 / 100.0).atan().to_degrees()).abs() < 1e-4);
 
     // Orthographic: the view is verticalAperture tenths of a scene unit tall, scaled with
     // the prim (USD's default aperture where not authored).

@@ -51,12 +51,27 @@ pub struct Camera {
 }
 
 impl Camera {
-    pub fn from_scene(c: &SceneCamera) -> Self {
+    /// The scene camera for an image of `aspect` (width over height): an image narrower than
+    /// its film back (`SceneCamera::film_aspect`) gets a taller view, so that the film back's
+    /// whole width stays in it (USD's `expandAperture`).
+    pub fn from_scene(c: &SceneCamera, aspect: f32) -> Self {
+        let widen = c.film_aspect.map_or(1.0, |film| (film / aspect).max(1.0));
         Camera {
             from: c.from,
             to: c.to,
             up: c.up,
-            projection: c.projection,
+            projection: match c.projection {
+                Projection::Perspective { yfov_deg } => Projection::Perspective {
+                    yfov_deg: match widen > 1.0 {
+                        true => (2.0 * ((0.5 * yfov_deg).to_radians().tan() * widen).atan())
+                            .to_degrees(),
+                        false => yfov_deg,
+                    },
+                },
+                Projection::Orthographic { height } => Projection::Orthographic {
+                    height: height * widen,
+                },
+            },
         }
     }
 

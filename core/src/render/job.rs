@@ -419,7 +419,7 @@ pub fn base_camera(loaded: &Loaded, o: &CameraOverride, aspect: f32, turns: u32)
     let (lo, hi) = loaded.table.bounds();
     let up = loaded.up_axis.vector();
     let mut cam = match &loaded.scene_camera {
-        Some(c) => Camera::from_scene(&c.camera),
+        Some(c) => Camera::from_scene(&c.camera, aspect),
         None => {
             Camera::frame_bounds_turning(lo, hi, loaded.up_axis, fov.unwrap_or(40.0), aspect, turns)
         }
