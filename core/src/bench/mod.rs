@@ -17,7 +17,7 @@ use crate::render::camera::Camera;
 use crate::render::job::{make_intersector, Method, MethodConfig};
 use crate::rng::{self, Purpose};
 use crate::seam::SeamMode;
-use crate::trace::reference::{default_budget, Reference, DEFAULT_ACCEL};
+use crate::trace::reference::{build_bytes, default_budget, Reference, DEFAULT_ACCEL};
 use crate::trace::{Hit, Intersector, Ray, RayContext};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -114,10 +114,14 @@ impl RaySet {
     /// Whether the canonical surface tessellated at density `k` (`tessellate_prisms`, only the
     /// prisms whose boxes the ray crosses: the same micro-triangles as the whole asset's,
     /// for the price of a few prisms) has a hit on leak ray `i` clear of its end, computed once
-    /// per ray.
-    fn confirmed(&self, i: usize, scene: &Scene, k: f32) -> bool {
+    /// per ray; not confirmed where that tessellation would take more than `budget` bytes to
+    /// build (a warning says so).
+    fn confirmed(&self, i: usize, scene: &Scene, k: f32, budget: u64) -> bool {
         once_per_ray(&self.confirmed, i, || {
-            confirms_leak(scene, &self.rays[i], i as u32, k)
+            confirms_leak(scene, &self.rays[i], i as u32, k, budget).unwrap_or_else(|why| {
+                eprintln!("warning: leak ray {i}: {why}; counted as not confirmed");
+                false
+            })
         })
     }
 }
@@ -141,22 +145,43 @@ fn once_per_ray(
 /// (`LEAK_END_TOL_TEXELS`): only the prisms whose boxes the ray crosses are tessellated
 /// (`tessellate_prisms`, the same micro-triangles over them as the whole asset's), so a leak
 /// of any asset can be checked at a density whose whole tessellation would not fit in memory.
-/// `pixel` seeds nothing (the reference has no jitter); it is the hit's context.
-pub fn confirms_leak(scene: &Scene, ray: &Ray, pixel: u32, k: f32) -> bool {
+/// `pixel` seeds nothing (the reference has no jitter); it is the hit's context. `Err` says
+/// why not checked: that tessellation would take more than `budget` bytes to build
+/// (`reference::build_bytes`; a ray across many prisms of a fine map at k = 8 could).
+pub fn confirms_leak(
+    scene: &Scene,
+    ray: &Ray,
+    pixel: u32,
+    k: f32,
+    budget: u64,
+) -> Result<bool, String> {
     let mut keep = vec![false; scene.table.prisms.len()];
     scene.closest_hit(ray, |_, prism| {
         keep[prism as usize] = true;
         None
     });
     let surface = scene.surface();
+    let size = crate::tessellate::tessellation_size(&surface, k, Some(&keep));
+    let need = build_bytes(size);
+    if need > budget {
+        return Err(format!(
+            "the k = {k} check over the {} prisms it crosses is {} micro-triangles, about \
+             {:.2} GiB to build, over the {:.2} GiB budget (--ref-memory)",
+            keep.iter().filter(|&&k| k).count(),
+            size.triangles,
+            need as f64 / (1u64 << 30) as f64,
+            budget as f64 / (1u64 << 30) as f64
+        ));
+    }
     let mesh = crate::tessellate::tessellate_prisms(&surface, k, Some(&keep));
     let fine = Reference::from_mesh(surface, k, &mesh, DEFAULT_ACCEL);
     let ctx = RayContext {
         pixel,
         ..Default::default()
     };
-    fine.intersect(ray, &ctx)
-        .is_some_and(|h| clear_of_the_end(scene, &h, ray))
+    Ok(fine
+        .intersect(ray, &ctx)
+        .is_some_and(|h| clear_of_the_end(scene, &h, ray)))
 }
 
 fn trace_all(isect: &dyn Intersector, rays: &[Ray], seed: u32) -> Vec<Option<Hit>> {
@@ -457,9 +482,10 @@ fn measure(
         .filter(|&&i| set.ends_inside(i, reference))
         .count();
     let leaks_confirmed = (cfg.confirm_density > 0.0).then(|| {
+        let budget = cfg.ref_memory.unwrap_or_else(default_budget);
         leaks
             .iter()
-            .filter(|&&i| set.confirmed(i, scene, cfg.confirm_density))
+            .filter(|&&i| set.confirmed(i, scene, cfg.confirm_density, budget))
             .count()
     });
     let through = hits[set.leak_start..]
@@ -659,18 +685,33 @@ mod tests {
             confirmed: Default::default(),
         };
         // At k = 2 (the bench's reference, over the same prisms) both hit clear of the end.
+        let budget = default_budget();
         let coarse = set(vec![rays[real], rays[chords]]);
-        assert!(coarse.confirmed(0, scene, 2.0), "ray {real} at k = 2");
-        assert!(coarse.confirmed(1, scene, 2.0), "ray {chords} at k = 2");
+        assert!(
+            coarse.confirmed(0, scene, 2.0, budget),
+            "ray {real} at k = 2"
+        );
+        assert!(
+            coarse.confirmed(1, scene, 2.0, budget),
+            "ray {chords} at k = 2"
+        );
         let fine = set(vec![rays[real], rays[chords]]);
         assert!(
-            fine.confirmed(0, scene, 8.0),
+            fine.confirmed(0, scene, 8.0, budget),
             "ray {real}: a fold of the surface"
         );
         assert!(
-            !fine.confirmed(1, scene, 8.0),
+            !fine.confirmed(1, scene, 8.0, budget),
             "ray {chords}: a fold of the chords"
         );
+        // A check past its budget is not built: the real leak is then not confirmed, and
+        // the error says by how much.
+        let why = confirms_leak(scene, &rays[real], real as u32, 8.0, 1 << 10).unwrap_err();
+        assert!(
+            why.contains("over the 0.00 GiB budget (--ref-memory)"),
+            "{why}"
+        );
+        assert!(!set(vec![rays[real]]).confirmed(0, scene, 8.0, 1 << 10));
     }
 
     #[test]
