@@ -74,7 +74,13 @@ fn main() {
             continue;
         }
         leaks += 1;
-        let fine_truth = confirm.map(|k| confirms_leak(&scene, r, i as u32, k));
+        let fine_truth = confirm.map(|k| {
+            let budget = prismbake::trace::reference::default_budget();
+            confirms_leak(&scene, r, i as u32, k, budget).unwrap_or_else(|why| {
+                eprintln!("ray {i}: {why}; not confirmed");
+                false
+            })
+        });
         confirmed += fine_truth.unwrap_or(false) as usize;
         let winding = reference.winding_number(r.at(r.t_max));
         inside += (winding >= 0.5) as usize;
