@@ -128,11 +128,9 @@ fn rand2(ctx: RayContext, bounce: u32, k: u32, purpose: u32) -> vec2f {
     );
 }
 
-// KeyLight::sample_dir: the key light's direction for random numbers `u`, uniform over its
-// disc's cone (the direction itself for a point-like light).
-fn key_sample_dir(u: vec2f) -> vec3f {
-    let d = lighting.key_dir;
-    let cos_r = lighting.key_cos_radius;
+// KeyLight::sample_dir: a directional light's direction for random numbers `u`, uniform over
+// its disc's cone (the direction itself for a point-like light).
+fn disc_sample_dir(d: vec3f, cos_r: f32, u: vec2f) -> vec3f {
     if (cos_r >= 1.0) {
         return d;
     }
@@ -143,29 +141,130 @@ fn key_sample_dir(u: vec2f) -> vec3f {
     return normalize(basis.t * (s * cos(phi)) + basis.b * (s * sin(phi)) + d * c);
 }
 
-// beauty::KeyLight::color: the key light's colour of unit luminance.
-fn key_color() -> vec3f {
-    return vec3f(lighting.key_red, lighting.key_green, lighting.key_blue);
-}
-
-// KeyLight::pdf: the density in solid angle of key_sample_dir's directions over a disc; 0 for
-// a point-like light (a delta no sampled direction meets).
-fn key_pdf() -> f32 {
-    let cos_r = lighting.key_cos_radius;
-    if (lighting.has_key == 0u || cos_r >= 1.0) {
+// KeyLight::pdf: the density in solid angle of a disc's directions; 0 for a point-like light.
+fn disc_pdf(cos_r: f32) -> f32 {
+    if (cos_r >= 1.0) {
         return 0.0;
     }
     return 1.0 / (2.0 * PI * (1.0 - cos_r));
 }
 
-// Whether KeyLight::radiance_along finds direction `d` within the key light's disc.
-fn key_disc_contains(d: vec3f) -> bool {
-    return key_pdf() > 0.0 && dot(d, lighting.key_dir) >= lighting.key_cos_radius;
+// lights::Spot::falloff.
+fn spot_falloff(l: Light, d: vec3f) -> f32 {
+    let t = clamp((dot(d, l.axis) - l.cos_outer) / max(l.cos_inner - l.cos_outer, 1e-4), 0.0, 1.0);
+    return t * t;
+}
+
+// lights::LightSample; mis_pdf 0: none (a delta, a local light); ok false: no sample.
+struct LightSample {
+    dir: vec3f,
+    t_max: f32,
+    e: f32,
+    color: vec3f,
+    mis_pdf: f32,
+    ok: bool,
+}
+
+// lights::Light::sample: a direction towards light `l` from `p` (what it brings not yet over
+// the pick's chance).
+fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
+    var out = LightSample(vec3f(0.0, 1.0, 0.0), T_FAR, 0.0, l.color, 0.0, false);
+    if (l.kind == 0u) {
+        out.dir = disc_sample_dir(l.pos, l.size, u);
+        out.e = l.power;
+        out.mis_pdf = disc_pdf(l.size);
+        out.ok = true;
+        return out;
+    }
+    let to = l.pos - p;
+    let d2 = dot(to, to);
+    let d = sqrt(d2);
+    let radius = l.size;
+    if (!(d > radius && d > 0.0)) {
+        return out;
+    }
+    let centre = to / d;
+    var cone = 1.0;
+    if (l.kind == 2u) {
+        cone = spot_falloff(l, -centre);
+    }
+    out.ok = true;
+    if (radius <= 0.0) {
+        out.dir = centre;
+        out.t_max = d;
+        out.e = l.power * cone / d2;
+        return out;
+    }
+    let s2 = (radius * radius) / d2;
+    let one_minus_cos = s2 / (1.0 + sqrt(max(1.0 - s2, 0.0)));
+    let c = 1.0 - u.x * one_minus_cos;
+    let sn = sqrt(max(1.0 - c * c, 0.0));
+    let phi = 2.0 * PI * u.y;
+    let basis = onb(centre);
+    let dir = normalize(basis.t * (sn * cos(phi)) + basis.b * (sn * sin(phi)) + centre * c);
+    let radiance = l.power / (PI * radius * radius);
+    let solid_angle = 2.0 * PI * one_minus_cos;
+    let b_half = dot(dir, to);
+    let near = b_half - sqrt(max(b_half * b_half - (d2 - radius * radius), 0.0));
+    out.dir = dir;
+    out.t_max = max(near, 0.0);
+    out.e = radiance * solid_angle * cone;
+    return out;
+}
+
+// lights::LightSet::sample: one light picked by u.x (lights::LightSet::pick), its sample with
+// what it brings and its density over the pick's chance.
+fn light_sample(p: vec3f, u: vec2f) -> LightSample {
+    let n = lighting.light_count;
+    var i = 0u;
+    while (i + 1u < n && u.x >= lighting.lights[i].cdf) {
+        i += 1u;
+    }
+    let l = lighting.lights[i];
+    var start = 0.0;
+    if (i > 0u) {
+        start = lighting.lights[i - 1u].cdf;
+    }
+    let ux = clamp((u.x - start) / l.prob, 0.0, 1.0 - 5.9604645e-8);
+    var s = light_sample_one(l, p, vec2f(ux, u.y));
+    s.e = s.e / l.prob;
+    s.mis_pdf = s.mis_pdf * l.prob;
+    return s;
+}
+
+// lights::LightSet::escape: radiance of the directional discs a BSDF sample leaving along
+// `wi` meets, each MIS-weighted against its light samples (weight 1 for a delta lobe).
+fn lights_escape(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
+    var l = vec3f(0.0);
+    for (var i = 0u; i < lighting.light_count; i += 1u) {
+        let li = lighting.lights[i];
+        let lp = disc_pdf(li.size);
+        if (li.kind != 0u || lp <= 0.0 || dot(wi, li.pos) < li.size) {
+            continue;
+        }
+        var w = 1.0;
+        if (!delta) {
+            w = power_heuristic(pdf, lp * li.prob);
+        }
+        l += li.color * (li.power * lp * w);
+    }
+    return l;
+}
+
+// lights::LightSet::seen_along: whether a BSDF sample leaving along `wi` meets a disc.
+fn lights_seen_along(wi: vec3f) -> bool {
+    for (var i = 0u; i < lighting.light_count; i += 1u) {
+        let li = lighting.lights[i];
+        if (li.kind == 0u && li.size < 1.0 && dot(wi, li.pos) >= li.size) {
+            return true;
+        }
+    }
+    return false;
 }
 
 // beauty::escape_radiance: light a BSDF sample (direction `wi`, density `pdf`, a delta lobe
-// or not) meets when it leaves the scene, the environment and the key's disc, each weighted by
-// MIS against its own light samples.
+// or not) meets when it leaves the scene, the environment and the directional discs, each
+// weighted by MIS against its own light samples.
 fn escape_radiance(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
     var l = vec3f(0.0);
     if (lighting.env_lights != 0u) {
@@ -175,20 +274,17 @@ fn escape_radiance(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
         }
         l += env_radiance(wi) * w;
     }
-    if (key_disc_contains(wi)) {
-        let kp = key_pdf();
-        var w = 1.0;
-        if (!delta) {
-            w = power_heuristic(pdf, kp);
-        }
-        l += key_color() * (lighting.key_irradiance * kp * w);
-    }
-    return l;
+    return l + lights_escape(wi, pdf, delta);
 }
 
 // beauty::shadow_ray (t_max = +∞).
 fn shadow_ray(origin: vec3f, dir: vec3f) -> Ray {
     return Ray(origin, dir, 0.0, T_FAR);
+}
+
+// beauty::shadow_ray_to: one that stops at t_max (a local light's distance).
+fn shadow_ray_to(origin: vec3f, dir: vec3f, t_max: f32) -> Ray {
+    return Ray(origin, dir, 0.0, t_max);
 }
 
 // beauty::ground_hit: distance to the catcher plane, if in front and the ray goes down.
@@ -310,14 +406,14 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         // beauty::ground_light (the camera sample's context: bounce 0).
         let up = lighting.ground_up;
         let origin = (*s).ground_p + up * eps;
-        if (lighting.has_key != 0u) {
-            let kd = key_sample_dir(rand2(ctx, 0u, KEY_DIM, PURPOSE_LIGHT));
-            let cos_k = dot(kd, up);
-            if (cos_k > 0.0) {
-                (*s).key_e = lighting.key_irradiance * cos_k;
+        if (lighting.light_count != 0u) {
+            let ls = light_sample(origin, rand2(ctx, 0u, KEY_DIM, PURPOSE_LIGHT));
+            let cos_k = dot(ls.dir, up);
+            if (ls.ok && cos_k > 0.0 && ls.e > 0.0) {
+                (*s).key_e = ls.e * cos_k;
                 (*s).ground_all += (*s).key_e;
                 (*s).key_shadow_rays += 1u;
-                q0 = query(shadow_ray(origin, kd), 0u, true);
+                q0 = query(shadow_ray_to(origin, ls.dir, ls.t_max - eps), 0u, true);
             }
         }
         if (env_lights) {
@@ -347,23 +443,23 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
         let p = hit.position;
-        if (lighting.has_key != 0u) {
-            let kd = key_sample_dir(rand2(ctx, bounce, KEY_DIM, PURPOSE_LIGHT));
+        if (lighting.light_count != 0u) {
+            let ls = light_sample(p, rand2(ctx, bounce, KEY_DIM, PURPOSE_LIGHT));
+            let kd = ls.dir;
             let wi_l = to_local(kd, basis.t, basis.b, ns);
             var f = vec3f(0.0);
-            if (dot(kd, ng) > 0.0) {
+            if (ls.ok && dot(kd, ng) > 0.0 && ls.e > 0.0) {
                 f = bsdf_eval(m, wo_l, wi_l);
             }
             if (max_element(f) > 0.0) {
                 (*s).key_shadow_rays += 1u;
-                q0 = query(shadow_ray(offset_origin(p, ng, kd, eps), kd), bounce + 1u, true);
+                q0 = query(shadow_ray_to(offset_origin(p, ng, kd, eps), kd, ls.t_max - eps), bounce + 1u, true);
                 // A disc is also met by BSDF samples: the two share it by MIS.
-                let kp = key_pdf();
                 var w = 1.0;
-                if (kp > 0.0) {
-                    w = power_heuristic(kp, bsdf_pdf(m, wo_l, wi_l));
+                if (ls.mis_pdf > 0.0) {
+                    w = power_heuristic(ls.mis_pdf, bsdf_pdf(m, wo_l, wi_l));
                 }
-                (*s).key_term = throughput * f * key_color() * (lighting.key_irradiance * w);
+                (*s).key_term = throughput * f * ls.color * (ls.e * w);
             }
         }
         if (env_lights) {
@@ -406,7 +502,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
                     // Last event: only whether the ray escapes matters.
                     (*s).env_shadow_rays += 1u;
                     q2 = query(ray, bounce + 1u, true);
-                } else if (key_disc_contains(wi)) {
+                } else if (lights_seen_along(wi)) {
                     (*s).key_shadow_rays += 1u;
                     q2 = query(ray, bounce + 1u, true);
                 }

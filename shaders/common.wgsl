@@ -100,16 +100,34 @@ struct AovPixel {
     _pad: array<u32, 3>,
 }
 
-// GpuLighting, 96 bytes: everything beauty needs besides the scene, the materials and the
+// GpuLight, 64 bytes: one light (render::lights::Light) and its pick's chance. kind 0
+// directional (pos: the unit direction towards it; size: cos of its disc's radius), 1 point or
+// sphere (pos: its centre; size: its radius), 2 spot (also axis, cos_inner, cos_outer).
+struct Light {
+    pos: vec3f,
+    kind: u32,
+    color: vec3f,        // of unit luminance
+    power: f32,          // irradiance (directional) or intensity (local), luminance
+    axis: vec3f,
+    size: f32,
+    cos_inner: f32,
+    cos_outer: f32,
+    prob: f32,           // LightSet::chance
+    cdf: f32,
+}
+
+// GpuLighting, 624 bytes: everything beauty needs besides the scene, the materials and the
 // environment tables (render::beauty::BeautyScene).
 struct Lighting {
-    key_dir: vec3f,
-    key_irradiance: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    _pad3: u32,
     ground_up: vec3f,
     ground_height: f32,
     eps: f32,            // ray origin offset (beauty::scene_epsilon)
     bounces: u32,
-    has_key: u32,
+    light_count: u32,    // lights used in `lights` (0: no light samples)
     has_ground: u32,
     env_lights: u32,     // 0: black environment, no environment rays
     env_z_up: u32,
@@ -121,12 +139,13 @@ struct Lighting {
     env_from_sin: f32,   // sin, cos of +rotation (env_to_world)
     env_from_cos: f32,
     exposure: f32,       // the preview's exposure factor (tonemap.wgsl)
-    key_cos_radius: f32, // cos of the key light's angular radius (1: point-like)
+    _pad4: u32,
     tangent_offset: u32, // the prisms' corner tangents in texture_texels (12 floats a prism)
     emissive: u32,       // 1: some material glows (BeautyScene::emissive)
-    key_red: f32,        // the key light's colour of unit luminance (KeyLight::color)
-    key_green: f32,
-    key_blue: f32,
+    _pad5: u32,
+    _pad6: u32,
+    _pad7: u32,
+    lights: array<Light, 8>, // render::lights::MAX_LIGHTS
 }
 
 // GpuMaterialTexture, 48 bytes: one texture of a material in texture_texels (texture.wgsl;

@@ -1584,12 +1584,93 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
     }
 }
 
+/// A point light lights by the inverse square: a USD `SphereLight` marked `treatAsPoint`,
+/// normalized, of intensity 16 (4 W/sr) two units above a white quad's centre casts 1 W/m²
+/// there, and a Lambertian surface of albedo 0.8 under it sends 0.8 / π towards the camera
+/// (no environment, no specular); a spot of the same intensity aimed away casts nothing; the
+/// summary and `inspect` name the lights.
+#[test]
+fn a_point_light_lights_by_the_inverse_square() {
+    let dir = temp_dir("point-light");
+    let map = write_flat_map(&dir);
+    let black = dir.join("black.exr");
+    write_constant_env(&black, 0.0);
+    let scene = |shaping: &str| {
+        quad_usda(&format!(
+            "def SphereLight \"Bulb\" (\n    prepend apiSchemas = [\"ShapingAPI\"]\n)\n{{\n    \
+             float inputs:intensity = 16\n    bool inputs:normalize = 1\n    \
+             bool treatAsPoint = 1\n    {shaping}\n    \
+             double3 xformOp:translate = (0, 0, 2)\n    \
+             uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
+        ))
+    };
+    let centre = |usda: &str, name: &str| {
+        let path = dir.join(format!("{name}.usda"));
+        std::fs::write(&path, usda).unwrap();
+        let out = dir.join(name);
+        let mut args = vec!["render", s(&path), "--disp", s(&map), "--scale", "0"];
+        args.extend([
+            "--aov",
+            "beauty",
+            "--res",
+            "9x9",
+            "--spp",
+            "4",
+            "--bounces",
+            "1",
+        ]);
+        args.extend([
+            "--base-color",
+            "0.8,0.8,0.8",
+            "--roughness",
+            "1",
+            "--specular",
+            "0",
+        ]);
+        args.extend([
+            "--env",
+            s(&black),
+            "--camera-from",
+            "0,0,3",
+            "--camera-to",
+            "0,0,0",
+        ]);
+        args.extend(["--fov", "10", "--json", "-o", s(&out)]);
+        let o = run(&args);
+        let summary = o.assert_success().json();
+        (read_rgba(&out.join("beauty.exr"))[4 * 9 + 4], summary)
+    };
+    let (rgba, summary) = centre(&scene(""), "point");
+    let want = 0.8 / std::f32::consts::PI;
+    assert!(
+        (rgba[0] / want - 1.0).abs() < 0.01,
+        "{rgba:?} against {want}"
+    );
+    assert_eq!(
+        summary["lights"][0],
+        "point '/Bulb' at (0.000, 0.000, 2.000), intensity 4"
+    );
+    // Aimed along +Z, away from the quad below it.
+    let away = "float inputs:shaping:cone:angle = 30\n    \
+                float xformOp:rotateX = 180\n    \
+                uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateX\"]";
+    let (rgba, _) = centre(
+        &scene(away).replace(
+            "    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n",
+            "",
+        ),
+        "spot",
+    );
+    assert_eq!(rgba[0], 0.0, "{rgba:?}");
+}
+
 /// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it,
 /// and the directional light):
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
 /// dome whose texture is missing fails naming the file, the dome and the texture. Its
 /// `DistantLight` is the key light where `--key-light` is not given, in its colour;
-/// `--no-scene-lights` leaves both out. Lights it does not render are named in a warning.
+/// `--no-scene-lights` leaves both out. Lights it does not render (rect, disk) are named in a
+/// warning.
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
@@ -1730,15 +1811,15 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
         o.assert_success().json()["key_light"],
         "--key-light, colour (1.977, 0.791, 0.198)"
     );
-    // Area and point lights are not rendered: one warning names them all.
+    // Rect and disk lights are not rendered: one warning names them all.
     let rig = dir.join("rig.usda");
-    let lights = "def RectLight \"Key\"\n{\n}\ndef SphereLight \"Fill\"\n{\n}\n";
+    let lights = "def RectLight \"Key\"\n{\n}\ndef DiskLight \"Fill\"\n{\n}\n";
     std::fs::write(&rig, quad_usda(&format!("{sun}{lights}"))).unwrap();
     let o = run(&["inspect", s(&rig), "--disp", s(&map), "--json"]);
     o.assert_success();
     assert!(
         o.stderr
-            .contains("2 lights are not read: /Key (RectLight), /Fill (SphereLight)"),
+            .contains("2 lights are not read: /Key (RectLight), /Fill (DiskLight)"),
         "{}",
         o.stderr
     );

@@ -479,6 +479,12 @@ fn print_render_summary(a: &RenderArgs, summary: &LookdevSummary) {
     if let Some(env) = &summary.environment {
         eprintln!("environment: {env}");
     }
+    if let Some(key) = &summary.key_light {
+        eprintln!("key light: {key}");
+    }
+    for l in &summary.lights {
+        eprintln!("light: {l}");
+    }
     for f in &summary.render.frames {
         eprintln!(
             "{}frame: {:.3} s (trace {:.3} s{}, {}files {:.3} s), {:.2} Mrays/s, {:.1} steps/ray, coverage {:.1}%",

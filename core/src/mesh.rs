@@ -101,6 +101,62 @@ pub struct SceneSun {
     pub angle_deg: f32,
 }
 
+/// A light of the scene file besides its first directional light (`BaseMesh::lights`), in the
+/// mesh's own frame, as the beauty samples it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneLight {
+    /// The USD prim's path, or the glTF node's name (else `node #N`).
+    pub name: String,
+    pub light: crate::render::lights::Light,
+}
+
+impl SceneLight {
+    /// "point '/Bulb' at (0, 3, 0), intensity 7.96, colour (…)", for the summary and `inspect`.
+    pub fn describe(&self) -> String {
+        use crate::render::lights::LightShape;
+        let l = &self.light;
+        let v = |v: glam::Vec3| format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z);
+        let tint = match l.color == glam::Vec3::ONE {
+            true => String::new(),
+            false => format!(", colour {}", v(l.color)),
+        };
+        match l.shape {
+            LightShape::Distant { dir, cos_radius } => format!(
+                "directional '{}' towards {}, irradiance {}{tint}, {}° across",
+                self.name,
+                v(dir),
+                l.power,
+                2.0 * cos_radius.clamp(-1.0, 1.0).acos().to_degrees()
+            ),
+            LightShape::Local { pos, radius, spot } => {
+                let what = match (spot, radius > 0.0) {
+                    (Some(_), _) => "spot",
+                    (None, true) => "sphere",
+                    (None, false) => "point",
+                };
+                let size = match radius > 0.0 {
+                    true => format!(", radius {radius}"),
+                    false => String::new(),
+                };
+                let cone = spot.map_or(String::new(), |s| {
+                    format!(
+                        ", cone {:.1}° to {:.1}° about {}",
+                        s.cos_inner.clamp(-1.0, 1.0).acos().to_degrees(),
+                        s.cos_outer.clamp(-1.0, 1.0).acos().to_degrees(),
+                        v(s.axis)
+                    )
+                });
+                format!(
+                    "{what} '{}' at {}{size}, intensity {}{tint}{cone}",
+                    self.name,
+                    v(pos),
+                    l.power
+                )
+            }
+        }
+    }
+}
+
 impl SceneSun {
     /// "'/Sun' (azimuth 30.0°, elevation 45.0°, irradiance 3, colour (1.2, 0.9, 0.8), 0.53°
     /// across)", the colour left out for white, at angular diameter `angle_deg`.
@@ -150,6 +206,9 @@ pub struct BaseMesh {
     pub dome: Option<SceneDome>,
     /// The scene file's directional light (USD, glTF), the first if there are several.
     pub sun: Option<SceneSun>,
+    /// The file's other lights the beauty renders: later directional lights, points, spheres
+    /// and spots, in the file's order.
+    pub lights: Vec<SceneLight>,
     /// True when the file carried no UVs at all (every UV is then zero).
     pub missing_uvs: bool,
     /// The file's materials (glTF's metallic-roughness), in its order.

@@ -469,6 +469,9 @@ pub struct InspectInfo {
     /// the key light unless `--key-light` is given: its name and `--key-light`'s terms.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub directional_light: Option<String>,
+    /// The file's other lights the beauty renders beside the key (`SceneLight::describe`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<String>,
     pub sharp_corners: usize,
     pub crease_edges: usize,
     pub inverted_corners: usize,
@@ -583,6 +586,9 @@ impl InspectInfo {
                 "key       {d} (the key light unless --key-light is given)\n"
             ));
         }
+        for l in &self.lights {
+            s.push_str(&format!("light     {l}\n"));
+        }
         if let Some(m) = &self.map {
             s.push_str(&format!(
                 "map       {} {}x{} channel {}, values {:.4} .. {:.4}, displacement {:.5} .. {:.5}\n",
@@ -692,6 +698,7 @@ pub fn inspect(spec: &AssetSpec, ropts: &RepairOptions) -> Result<InspectInfo> {
         camera: !mesh.cameras.is_empty(),
         cameras: mesh.cameras.iter().map(|c| c.names[0].clone()).collect(),
         directional_light: mesh.sun.as_ref().map(|l| l.describe(l.angle_deg)),
+        lights: mesh.lights.iter().map(|l| l.describe()).collect(),
         dome_light: mesh.dome.as_ref().map(|d| match &d.texture {
             Some(t) => format!("'{}' ({})", d.name, t.display()),
             None => format!("'{}' (no texture)", d.name),

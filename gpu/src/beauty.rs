@@ -18,7 +18,7 @@
 
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
 use crate::layout::{
-    texture_sampler_code, GpuBeautySums, GpuLighting, GpuMaterial, GpuMaterialTexture,
+    texture_sampler_code, GpuBeautySums, GpuLight, GpuLighting, GpuMaterial, GpuMaterialTexture,
 };
 use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
@@ -29,6 +29,7 @@ use prismbake::render::beauty::{
 };
 use prismbake::render::camera::Camera;
 use prismbake::render::env::{EnvFrame, EnvMap};
+use prismbake::render::lights::{Light, LightShape, MAX_LIGHTS};
 use prismbake::render::RenderSettings;
 use prismbake::texture::{raw8_table, srgb8_table, ColorMap};
 use prismbake::trace::pdm::PdmOptions;
@@ -38,26 +39,61 @@ use wgpu::util::DeviceExt;
 /// The lighting uniform of a beauty scene (everything but the environment's tables and the
 /// materials) whose textures `layout` lays out (the tangents follow them).
 pub fn lighting_uniform(s: &BeautyScene, layout: &TextureLayout) -> GpuLighting {
-    let key = s.key;
     let ground = s.ground;
+    let mut lights = [GpuLight::default(); MAX_LIGHTS];
+    for (i, (l, slot)) in s.lights.lights().iter().zip(&mut lights).enumerate() {
+        let (prob, cdf) = s.lights.chance(i);
+        *slot = gpu_light(l, prob, cdf);
+    }
     GpuLighting {
-        key_dir: key.map_or([0.0; 3], |k| k.dir.to_array()),
-        key_irradiance: key.map_or(0.0, |k| k.irradiance),
-        key_cos_radius: key.map_or(1.0, |k| k.cos_radius),
-        key_red: key.map_or(1.0, |k| k.color.x),
-        key_green: key.map_or(1.0, |k| k.color.y),
-        key_blue: key.map_or(1.0, |k| k.color.z),
+        light_count: s.lights.len() as u32,
+        lights,
         ground_up: ground.map_or([0.0, 1.0, 0.0], |g| g.up.to_array()),
         ground_height: ground.map_or(0.0, |g| g.height),
         eps: s.eps,
         bounces: s.bounces,
-        has_key: key.is_some() as u32,
         has_ground: ground.is_some() as u32,
         env_lights: s.env_lights as u32,
         exposure: s.exposure,
         tangent_offset: layout.len as u32,
         emissive: s.emissive as u32,
         ..env_lighting(s.env, s.env_frame)
+    }
+}
+
+/// One light as the kernel reads it (`GpuLight`), with its pick's chance and running sum.
+pub fn gpu_light(l: &Light, prob: f32, cdf: f32) -> GpuLight {
+    let base = GpuLight {
+        color: l.color.to_array(),
+        power: l.power,
+        prob,
+        cdf,
+        ..Default::default()
+    };
+    match l.shape {
+        LightShape::Distant { dir, cos_radius } => GpuLight {
+            pos: dir.to_array(),
+            kind: 0,
+            size: cos_radius,
+            ..base
+        },
+        LightShape::Local { pos, radius, spot } => match spot {
+            None => GpuLight {
+                pos: pos.to_array(),
+                kind: 1,
+                size: radius,
+                ..base
+            },
+            Some(s) => GpuLight {
+                pos: pos.to_array(),
+                kind: 2,
+                size: radius,
+                axis: s.axis.to_array(),
+                cos_inner: s.cos_inner,
+                cos_outer: s.cos_outer,
+                ..base
+            },
+        },
     }
 }
 
@@ -639,7 +675,7 @@ fn sample_stages<'k>(k: &'k BeautyKernel, l: &GpuLighting, trace_pixels: u32) ->
         layers,
         across: trace_pixels,
     };
-    let slots = match (l.has_key != 0, l.env_lights != 0) {
+    let slots = match (l.light_count != 0, l.env_lights != 0) {
         (true, _) => 3,
         (false, true) => 2,
         (false, false) => 1,

@@ -268,22 +268,46 @@ pub struct GpuAovPixel {
     pub _pad: [u32; 3],
 }
 
+/// One light of the beauty (`prismbake::render::lights::Light`, with its pick's chance), 64
+/// bytes: `kind` 0 directional (`pos` the unit direction towards it, `size` the cosine of its
+/// disc's radius), 1 a point or sphere (`pos` its centre, `size` its radius), 2 a spot (also
+/// `axis`, `cos_inner`, `cos_outer`); `power`, `color` as `Light`'s; `prob` its chance and
+/// `cdf` the running sum up to it (`LightSet::chance`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    pub pos: [f32; 3],
+    pub kind: u32,
+    pub color: [f32; 3],
+    pub power: f32,
+    pub axis: [f32; 3],
+    pub size: f32,
+    pub cos_inner: f32,
+    pub cos_outer: f32,
+    pub prob: f32,
+    pub cdf: f32,
+}
+
 /// Everything the beauty kernel needs besides the scene, the materials and the environment
-/// tables, 96 bytes
-/// (uniform): `prismbake::render::beauty::BeautyScene` with its `Material`, and the
+/// tables, 624 bytes
+/// (uniform): `prismbake::render::beauty::BeautyScene` with its `Material` and its lights
+/// (`lights::MAX_LIGHTS` slots, `light_count` used), and the
 /// environment's size, total weight and frame (the rotation's sine and cosine computed on the
 /// host, as `env::world_to_env` / `env_to_world` compute them).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLighting {
-    pub key_dir: [f32; 3],
-    pub key_irradiance: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+    pub _pad3: u32,
     pub ground_up: [f32; 3],
     pub ground_height: f32,
     /// Ray origin offset (`beauty::scene_epsilon`).
     pub eps: f32,
     pub bounces: u32,
-    pub has_key: u32,
+    /// The lights in `lights` (0: none, no light samples).
+    pub light_count: u32,
     pub has_ground: u32,
     /// 0: the environment is black (`BeautyScene::env_lights`), no environment rays.
     pub env_lights: u32,
@@ -299,18 +323,16 @@ pub struct GpuLighting {
     pub env_from_cos: f32,
     /// The preview's exposure factor (`BeautyScene::exposure`), for `tonemap.wgsl`.
     pub exposure: f32,
-    /// Cosine of the key light's angular radius (`KeyLight::cos_radius`; 1: point-like).
-    pub key_cos_radius: f32,
+    pub _pad4: u32,
     /// The first float of the prisms' corner tangents in `texture_texels`
     /// (`BeautyScene::tangents`, 12 floats a prism), which normal maps are read in.
     pub tangent_offset: u32,
     /// 1: some material glows (`BeautyScene::emissive`).
     pub emissive: u32,
-    /// The key light's colour of unit luminance (`KeyLight::color`; white 1, 1, 1): three
-    /// floats, as a `vec3f` would not align here.
-    pub key_red: f32,
-    pub key_green: f32,
-    pub key_blue: f32,
+    pub _pad5: u32,
+    pub _pad6: u32,
+    pub _pad7: u32,
+    pub lights: [GpuLight; prismbake::render::lights::MAX_LIGHTS],
 }
 
 /// One texture of a material as the kernel reads it, 48 bytes: its size (0 × 0: none), its
@@ -395,7 +417,8 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
     assert!(std::mem::size_of::<GpuFrame>() == 128);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
-    assert!(std::mem::size_of::<GpuLighting>() == 112);
+    assert!(std::mem::size_of::<GpuLighting>() == 624);
+    assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
     assert!(std::mem::size_of::<GpuMaterial>() == 320);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
@@ -504,15 +527,32 @@ pub fn shared_layouts() -> Vec<StructLayout> {
             }
         ),
         layout!(
+            "Light",
+            GpuLight {
+                pos,
+                kind,
+                color,
+                power,
+                axis,
+                size,
+                cos_inner,
+                cos_outer,
+                prob,
+                cdf
+            }
+        ),
+        layout!(
             "Lighting",
             GpuLighting {
-                key_dir,
-                key_irradiance,
+                _pad0,
+                _pad1,
+                _pad2,
+                _pad3,
                 ground_up,
                 ground_height,
                 eps,
                 bounces,
-                has_key,
+                light_count,
                 has_ground,
                 env_lights,
                 env_z_up,
@@ -524,12 +564,13 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 env_from_sin,
                 env_from_cos,
                 exposure,
-                key_cos_radius,
+                _pad4,
                 tangent_offset,
                 emissive,
-                key_red,
-                key_green,
-                key_blue
+                _pad5,
+                _pad6,
+                _pad7,
+                lights
             }
         ),
         layout!(

@@ -28,6 +28,7 @@ use prismbake::render::beauty::{
 };
 use prismbake::render::camera::Camera;
 use prismbake::render::env::{EnvFrame, EnvMap};
+use prismbake::render::lights::{Light, LightSet, LightShape, Spot};
 use prismbake::render::shading::{luminance, Material};
 use prismbake::render::RenderSettings;
 use prismbake::trace::pdm::{Pdm, PdmOptions};
@@ -298,12 +299,70 @@ fn preview_agrees(rel: &str, label: &str, gpu: &BeautyImage) {
     );
 }
 
+/// The lights of `sphere_under_the_sky`: one key light, or a rig picked by what each casts on
+/// the sphere's centre.
+enum Lights {
+    One(KeyLight),
+    Rig(Vec<Light>),
+}
+
+impl From<KeyLight> for Lights {
+    fn from(k: KeyLight) -> Self {
+        Lights::One(k)
+    }
+}
+
+/// A rig of every kind of light about the sphere (radius about 1, at the origin): a warm sun
+/// disc, a point above, a blue sphere light beside it, a spot aimed at it from the front and
+/// a point-like rim light behind. Each shadow ray goes as far as its light; BSDF samples
+/// meet only the disc.
+#[test]
+fn a_rig_of_directional_point_sphere_and_spot_lights_matches_the_cpu() {
+    let spot = Spot {
+        axis: Vec3::new(0.0, -0.3, -1.0).normalize(),
+        cos_inner: 0.97,
+        cos_outer: 0.9,
+    };
+    let local = |pos: Vec3, radius: f32, spot: Option<Spot>, power: f32, color: Vec3| Light {
+        shape: LightShape::Local { pos, radius, spot },
+        power,
+        color,
+    };
+    sphere_under_the_sky(
+        |ex| ex.cam,
+        Lights::Rig(vec![
+            KeyLight::from_angles(40.0, 50.0, 2.0, false)
+                .with_angle(6.0)
+                .with_color(Vec3::new(1.3, 0.95, 0.7))
+                .into(),
+            local(Vec3::new(0.0, 3.0, 0.5), 0.0, None, 12.0, Vec3::ONE),
+            local(
+                Vec3::new(2.5, 0.5, 1.0),
+                0.3,
+                None,
+                6.0,
+                Vec3::new(0.6, 0.9, 1.6),
+            ),
+            local(Vec3::new(0.0, 1.2, 4.0), 0.0, Some(spot), 30.0, Vec3::ONE),
+            KeyLight::from_angles(200.0, 20.0, 1.5, false).into(),
+        ]),
+        1.0,
+        RenderSettings {
+            width: 64,
+            height: 64,
+            spp: 4,
+            seed: 11,
+        },
+        "rig of five lights",
+    );
+}
+
 /// The sphere under the lookdev default: the built-in sky, `key` with its shadow rays, the
 /// shadow catcher, Lambert + GGX (roughness 0.5), two bounces, seen through `view`'s camera
 /// (given the example, framed through a pinhole).
 fn sphere_under_the_sky(
     view: impl FnOnce(&ExampleScene) -> Camera,
-    key: KeyLight,
+    key: impl Into<Lights>,
     exposure: f32,
     settings: RenderSettings,
     label: &str,
@@ -327,7 +386,13 @@ fn sphere_under_the_sky(
         env: &env,
         env_frame: env.frame,
         env_lights: true,
-        key: Some(key),
+        lights: match key.into() {
+            Lights::One(k) => LightSet::one(k),
+            Lights::Rig(lights) => {
+                let (lo, hi) = ex.scene.table.bounds();
+                LightSet::new(&lights, (lo + hi) * 0.5)
+            }
+        },
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
         tangents: &[],
@@ -522,7 +587,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         env: &env,
         env_frame: env.frame,
         env_lights: true,
-        key: Some(KeyLight::from_angles(-30.0, 40.0, 2.0, false)),
+        lights: LightSet::one(KeyLight::from_angles(-30.0, 40.0, 2.0, false)),
         materials: &materials,
         textures: &textures,
         tangents: &prismbake::tangent::corner_tangents(&ex.scene.table),
@@ -584,7 +649,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             env: &env,
             env_frame: env.frame,
             env_lights: true,
-            key: None,
+            lights: LightSet::none(),
             materials: &[SurfaceMaterial::from(material)],
             textures: &[],
             tangents: &[],
@@ -605,7 +670,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             env: &backdrop,
             env_lights: false,
             // A bluish disc: the mirror's delta lobe sees it in its colour.
-            key: Some(
+            lights: LightSet::one(
                 KeyLight::from_angles(20.0, 35.0, 12.0, false)
                     .with_angle(40.0)
                     .with_color(Vec3::new(0.7, 1.0, 1.6)),
@@ -656,7 +721,7 @@ fn wavefront_path_records_are_sized_to_the_frame_and_fused_takes_none() {
         env: &env,
         env_frame: env.frame,
         env_lights: true,
-        key: None,
+        lights: LightSet::none(),
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
         tangents: &[],

@@ -67,3 +67,73 @@ def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_pat
     toward = np.array(theirs["toward"]) / np.linalg.norm(theirs["toward"])
     # Blender is Z-up: glTF (x, y, z) is Blender (x, -z, y).
     assert np.allclose([ours[0], -ours[2], ours[1]], toward, atol=2e-3), (key, theirs)
+
+
+BLENDER_LOCAL = textwrap.dedent(
+    """
+    import json, math, sys, bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=sys.argv[1])
+    out = {}
+    for o in bpy.context.scene.objects:
+        if o.type == "LIGHT":
+            d = o.data
+            out[o.name] = {"type": d.type, "energy": d.energy, "radius": d.shadow_soft_size,
+                           "color": list(d.color), "at": list(o.matrix_world.col[3][:3]),
+                           "down": [-x for x in o.matrix_world.col[2][:3]],
+                           "spot_size": math.degrees(getattr(d, "spot_size", 0.0))}
+    print("RESULT " + json.dumps(out))
+    """
+)
+
+
+def test_point_and_spot_lights_light_as_blender_imports_them(run, tmp_path, edited_sphere):
+    """A glTF point light and a spot light beside the sphere light the beauty where Blender's
+    importer puts its lamps: at the same places, of the same intensity (candela / 683 W/sr
+    each, Blender's 4π times that in watts), a spot's cone as wide as Blender's spot size."""
+    down = [np.sin(np.radians(-22.5)), 0, 0, np.cos(np.radians(-22.5))]  # 45° about −X: aimed down at the sphere
+
+    def add_lights(doc):
+        doc.setdefault("extensionsUsed", []).append("KHR_lights_punctual")
+        doc.setdefault("extensions", {})["KHR_lights_punctual"] = {"lights": [
+            {"type": "point", "intensity": 500.0, "color": [1.0, 0.8, 0.6], "name": "Bulb"},
+            {"type": "spot", "intensity": 900.0, "name": "Cone",
+             "spot": {"innerConeAngle": 0.3, "outerConeAngle": 0.6}}]}
+        first = len(doc["nodes"])
+        doc["nodes"] += [
+            {"name": "BulbNode", "translation": [1.5, 2.0, 0.5],
+             "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"name": "ConeNode", "translation": [0.0, 2.5, 2.5], "rotation": down,
+             "extensions": {"KHR_lights_punctual": {"light": 1}}},
+        ]
+        doc["scenes"][doc.get("scene", 0)]["nodes"] += [first, first + 1]
+    asset = edited_sphere("bulbs", add_lights)
+    proc = run("render", asset, "--aov", "beauty", "--res", "8x8", "--spp", "1", "--json",
+               "-o", tmp_path / "out", check=0)
+    lights = json.loads(proc.stdout)["lights"]
+    assert len(lights) == 2 and lights[0].startswith("point 'BulbNode' at (1.500, 2.000, 0.500)"), lights
+    assert lights[1].startswith("spot 'ConeNode' at (0.000, 2.500, 2.500)"), lights
+
+    blender = subprocess.run([sys.executable, "-c", BLENDER_LOCAL, str(asset)], capture_output=True,
+                             text=True, timeout=300)
+    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
+    assert line, blender.stderr[-2000:]
+    theirs = json.loads(line[len("RESULT "):])
+    bulb, cone = theirs["BulbNode"], theirs["ConeNode"]
+    assert bulb["type"] == "POINT" and cone["type"] == "SPOT", theirs
+    # Blender is Z-up: glTF (x, y, z) is Blender (x, -z, y).
+    assert np.allclose(bulb["at"], [1.5, -0.5, 2.0], atol=1e-5), bulb
+    assert np.allclose(cone["at"], [0.0, -2.5, 2.5], atol=1e-5), cone
+    # Intensity: ours is the light's luminance in W/sr; Blender's watts over 4π, times its
+    # colour's luminance.
+    lum = lambda c: 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+    ours = [float(l.split("intensity ")[1].split(",")[0]) for l in lights]
+    for mine, lamp in zip(ours, (bulb, cone)):
+        assert abs(mine - lamp["energy"] / (4 * np.pi) * lum(lamp["color"])) < 1e-3 * mine, (mine, lamp)
+    # The spot's cone: ours from 0.3 to 0.6 rad about its axis; Blender's spot size is the
+    # outer cone's full width, its axis the lamp's −Z.
+    outer = float(lights[1].split(" to ")[1].split("°")[0])
+    assert abs(outer - np.degrees(0.6)) < 0.05 and abs(cone["spot_size"] - 2 * outer) < 0.1, (lights[1], cone)
+    axis = np.array([float(x) for x in lights[1].split("about (")[1].split(")")[0].split(",")])
+    assert np.allclose([axis[0], -axis[2], axis[1]], cone["down"], atol=2e-3), (axis, cone)
+    assert bulb["radius"] == 0.0, bulb

@@ -516,50 +516,92 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// A `KHR_lights_punctual` light: the first directional one is the key light
+    /// A `KHR_lights_punctual` light. The first directional one is the key light
     /// (`SceneSun`): towards its node's +Z (it shines down −Z), its intensity in lux over 683
     /// lm/W (as Blender imports it: a sun of that many W/m²) times its colour's luminance, its
-    /// colour, and Blender's default sun width, 0.526°. Point and spot lights are not read (a warning).
+    /// colour, and Blender's default sun width, 0.526°. Later directional lights, point and
+    /// spot lights are `BaseMesh::lights`: a point at its node's origin, of intensity candela
+    /// over 683 (W/sr, as Blender's importer makes a lamp of 4π × that many watts), a spot
+    /// also shining down −Z within its cone (`innerConeAngle`, default 0, to
+    /// `outerConeAngle`, default π/4). A light whose numbers are not usable is left out with a
+    /// warning.
     fn light(
         &mut self,
         node: &::gltf::Node,
         light: &::gltf::khr_lights_punctual::Light,
         world: Mat4,
     ) {
+        use crate::render::lights::{Light, LightShape, Spot};
         use ::gltf::khr_lights_punctual::Kind;
         let name = node
             .name()
             .or(light.name())
             .map_or_else(|| format!("node #{}", node.index()), str::to_string);
-        if !matches!(light.kind(), Kind::Directional) {
-            self.warn(&format!("light '{name}' is a point or spot light: only directional lights are read (the key light)"));
-            return;
-        }
-        if let Some(first) = &self.mesh.sun {
-            let first = &first.name;
-            self.warn(&format!("light '{name}': a second directional light; the first, '{first}', is the key light"));
-            return;
-        }
-        let toward = world.transform_vector3(Vec3::Z).normalize_or_zero();
         let [r, g, b] = light.color();
         let (luminance, color) =
             crate::mesh::split_color(Vec3::new(r, g, b)).unwrap_or((f32::NAN, [1.0; 3]));
-        let irradiance = light.intensity() / 683.0 * luminance;
-        if toward == Vec3::ZERO || !(irradiance.is_finite() && irradiance >= 0.0) {
+        let power = light.intensity() / 683.0 * luminance;
+        let toward = world.transform_vector3(Vec3::Z).normalize_or_zero();
+        let pos = world.transform_point3(Vec3::ZERO);
+        if toward == Vec3::ZERO || !pos.is_finite() || !(power.is_finite() && power >= 0.0) {
             self.warn(&format!(
                 "light '{name}': its direction, intensity or colour ({r}, {g}, {b}) is not usable; left out"
             ));
             return;
         }
-        self.mesh.sun = Some(SceneSun {
+        let color_v = Vec3::from_array(color);
+        let shape = match light.kind() {
+            Kind::Directional if self.mesh.sun.is_none() => {
+                self.mesh.sun = Some(SceneSun {
+                    name,
+                    key: [
+                        toward.x.atan2(toward.z).to_degrees(),
+                        toward.y.clamp(-1.0, 1.0).asin().to_degrees(),
+                        power,
+                    ],
+                    color,
+                    angle_deg: 0.526,
+                });
+                return;
+            }
+            Kind::Directional => LightShape::Distant {
+                dir: toward,
+                cos_radius: (0.5f32 * 0.526).to_radians().cos(),
+            },
+            Kind::Point => LightShape::Local {
+                pos,
+                radius: 0.0,
+                spot: None,
+            },
+            Kind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let (inner, outer) = (inner_cone_angle, outer_cone_angle);
+                if !(inner.is_finite() && outer.is_finite() && 0.0 <= inner && inner < outer) {
+                    self.warn(&format!(
+                        "light '{name}': its cone ({inner} to {outer} radians) is not one (inner below outer, both >= 0); left out"
+                    ));
+                    return;
+                }
+                LightShape::Local {
+                    pos,
+                    radius: 0.0,
+                    spot: Some(Spot {
+                        axis: -toward,
+                        cos_inner: inner.cos(),
+                        cos_outer: outer.cos(),
+                    }),
+                }
+            }
+        };
+        self.mesh.lights.push(crate::mesh::SceneLight {
             name,
-            key: [
-                toward.x.atan2(toward.z).to_degrees(),
-                toward.y.clamp(-1.0, 1.0).asin().to_degrees(),
-                irradiance,
-            ],
-            color,
-            angle_deg: 0.526,
+            light: Light {
+                shape,
+                power,
+                color: color_v,
+            },
         });
     }
 

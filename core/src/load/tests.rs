@@ -754,15 +754,21 @@ fn gltf_cameras_are_picked_by_node_or_camera_name() {
 
 /// A `KHR_lights_punctual` directional light is the key light: towards its node's +Z (turned
 /// 45° up: elevation 45°, azimuth 0, toward +Z), lux / 683 as Blender imports it, times its
-/// colour's luminance, in its colour (of unit luminance); a point light before it is left out,
-/// a second directional light too, and a light of an unknown type is an error, not a panic.
+/// colour's luminance, in its colour (of unit luminance). A point light before it and a second
+/// directional light light beside it (candela or lux over 683, at the node's origin or towards
+/// its +Z); a spot shines down its node's −Z within its cone; a light of an unknown type is an
+/// error, not a panic.
 #[test]
 fn a_gltf_directional_light_is_the_key_light() {
     let dir = temp_dir("gltf-light");
     let lights = |types: [&str; 3]| {
         let mut doc = GltfDoc::default();
         let a_pos = doc.floats(&TRI, 3);
-        let light = |t: &str, i: f32| json!({"type": t, "intensity": i, "color": [1.0, 0.5, 0.25]});
+        let light = |t: &str, i: f32| match t {
+            "spot" => json!({"type": t, "intensity": i, "color": [1.0, 0.5, 0.25],
+                             "spot": {"innerConeAngle": 0.25, "outerConeAngle": 0.5}}),
+            _ => json!({"type": t, "intensity": i, "color": [1.0, 0.5, 0.25]}),
+        };
         let rest = json!({
             "extensionsUsed": ["KHR_lights_punctual"],
             "extensions": {"KHR_lights_punctual": {"lights": [
@@ -793,6 +799,36 @@ fn a_gltf_directional_light_is_the_key_light() {
         (0..3).all(|i| (sun.color[i] - want[i]).abs() < 1e-5),
         "{:?}",
         sun.color
+    );
+    use crate::render::lights::LightShape;
+    let names: Vec<&str> = m.lights.iter().map(|l| l.name.as_str()).collect();
+    assert_eq!(names, ["Bulb", "Moon"]);
+    let [bulb, moon] = [&m.lights[0].light, &m.lights[1].light];
+    assert!(
+        matches!(bulb.shape, LightShape::Local { pos, radius: 0.0, spot: None } if pos == Vec3::ZERO)
+    );
+    assert!(
+        (bulb.power - 10.0 / 683.0 * luminance).abs() < 1e-6,
+        "{bulb:?}"
+    );
+    assert!(
+        matches!(moon.shape, LightShape::Distant { dir, .. } if (dir - Vec3::Z).length() < 1e-6)
+    );
+    assert!(
+        (moon.power - 5.0 / 683.0 * luminance).abs() < 1e-6,
+        "{moon:?}"
+    );
+    let m = lights(["spot", "directional", "directional"]).unwrap();
+    let LightShape::Local {
+        spot: Some(spot), ..
+    } = m.lights[0].light.shape
+    else {
+        panic!("{:?}", m.lights[0])
+    };
+    assert!((spot.axis - Vec3::NEG_Z).length() < 1e-6, "{spot:?}");
+    assert!(
+        (spot.cos_inner - 0.25f32.cos()).abs() < 1e-6
+            && (spot.cos_outer - 0.5f32.cos()).abs() < 1e-6
     );
     let e = lights(["point", "flashlight", "directional"])
         .unwrap_err()

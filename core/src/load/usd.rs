@@ -22,6 +22,7 @@ use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
 use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneDome, SceneSun, UpAxis, MAX_MATERIALS};
+use crate::render::lights::{Light, LightShape, Spot};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -74,8 +75,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             warn(
                 path,
                 &format!(
-                    "{n} light{} not read: {} (the beauty is lit by a DomeLight, a DistantLight \
-                     and the built-in rig; area and point lights are not rendered)",
+                    "{n} light{} not read: {} (the beauty renders a DomeLight, DistantLights and \
+                     SphereLights; rect, disk, cylinder and mesh lights are not rendered)",
                     if n == 1 { " is" } else { "s are" },
                     loader.unread_lights.join(", ")
                 ),
@@ -844,10 +845,9 @@ impl Loader<'_> {
             "Camera" => self.camera_prim(prim, world)?,
             t @ ("DomeLight" | "DomeLight_1") => self.dome_prim(prim, world, t == "DomeLight_1")?,
             "DistantLight" => self.sun_prim(prim, world)?,
-            t @ ("SphereLight" | "RectLight" | "DiskLight" | "CylinderLight" | "GeometryLight"
-            | "PortalLight" | "PluginLight") => {
-                self.unread_lights.push(format!("{} ({t})", prim.path()))
-            }
+            "SphereLight" => self.sphere_prim(prim, world)?,
+            t @ ("RectLight" | "DiskLight" | "CylinderLight" | "GeometryLight" | "PortalLight"
+            | "PluginLight") => self.unread_lights.push(format!("{} ({t})", prim.path())),
             _ => {}
         }
         for child in children(self.path, prim)? {
@@ -1014,22 +1014,14 @@ impl Loader<'_> {
         Ok(())
     }
 
-    /// A `DistantLight`: the key light (`SceneSun`), pointing where the prim's transform turns
-    /// its −Z; the first one is read, a later one is left out with a warning. UsdLux's
+    /// A `DistantLight`: the first is the key light (`SceneSun`), pointing where the prim's
+    /// transform turns its −Z; a later one lights beside it (`BaseMesh::lights`). UsdLux's
     /// `intensity` (fallback 50 000 for this light) is the disc's luminance: its irradiance is
     /// that times the disc's solid angle, `2π(1 − cos(angle/2))` (3.4 for the fallbacks, a
     /// sun's), unless `inputs:normalize` makes the intensity the irradiance itself, as a light
     /// of no angle has it too.
     fn sun_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
         let (path, at) = (self.path, prim.path().clone());
-        if let Some(first) = &self.mesh.sun {
-            let first = &first.name;
-            warn(
-                path,
-                &format!("{at}: a second distant light; the first, {first}, is the key light"),
-            );
-            return Ok(());
-        }
         let (intensity, rgb) = self.light_power(&at, 50_000.0)?;
         let (luminance, color) = crate::mesh::split_color(rgb.as_vec3())
             .map_or((f64::NAN, [1.0; 3]), |(l, c)| (l as f64, c));
@@ -1076,14 +1068,115 @@ impl Loader<'_> {
             );
             return Ok(());
         }
+        let max = crate::render::lookdev::MAX_KEY_ANGLE_DEG as f64;
+        if self.mesh.sun.is_some() {
+            // A later one lights beside the key, in the mesh's own frame.
+            let dir = world.transform_vector3(DVec3::Z).normalize().as_vec3();
+            self.mesh.lights.push(crate::mesh::SceneLight {
+                name: at.to_string(),
+                light: Light {
+                    shape: LightShape::Distant {
+                        dir,
+                        cos_radius: (0.5 * angle.min(max)).to_radians().cos() as f32,
+                    },
+                    power: irradiance,
+                    color: Vec3::from_array(color),
+                },
+            });
+            return Ok(());
+        }
         let elevation = toward.y.clamp(-1.0, 1.0).asin().to_degrees();
         let azimuth = toward.x.atan2(toward.z).to_degrees();
-        let max = crate::render::lookdev::MAX_KEY_ANGLE_DEG as f64;
         self.mesh.sun = Some(SceneSun {
             name: at.to_string(),
             key: [azimuth as f32, elevation as f32, irradiance],
             color,
             angle_deg: angle.min(max) as f32,
+        });
+        Ok(())
+    }
+
+    /// A `SphereLight`: a sphere of radius `inputs:radius` (0.5, scaled with the prim) at its
+    /// prim's origin, or a point where `treatAsPoint` says so, of intensity (W/sr, the
+    /// luminance of `inputs:color` times) UsdLux's radiance `inputs:intensity ×
+    /// 2^inputs:exposure` times the sphere's disc, πr², or, `inputs:normalize`d, over its whole
+    /// area, intensity / 4: Blender's exporter writes a lamp of P watts as intensity P / π,
+    /// normalized, a 4π-th of P a steradian. With `ShapingAPI`'s `shaping:cone:angle` below
+    /// 90°, a spot down its −Z, fading over `shaping:cone:softness` of that angle (as
+    /// Blender's glTF exporter maps a spot's blend). A light of no radius that is not
+    /// normalized casts nothing, and one whose numbers are not usable is left out, with a
+    /// warning.
+    fn sphere_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
+        let (path, at) = (self.path, prim.path().clone());
+        let (intensity, rgb) = self.light_power(&at, 1.0)?;
+        let number = |name: &str, default: f64, ok: fn(f64) -> bool| -> Result<f64> {
+            match input_value(path, self.stage, &at, name)? {
+                None => Ok(default),
+                Some(v) => scalar(&v).filter(|x| ok(*x)).ok_or_else(|| {
+                    let what = format!("inputs:{name} is {}, out of range (re-export)", kind(&v));
+                    prim_err(path, &at, what)
+                }),
+            }
+        };
+        let radius = number("radius", 0.5, |r| r.is_finite() && r >= 0.0)?;
+        let cone = number("shaping:cone:angle", 90.0, |a| a.is_finite() && a > 0.0)?;
+        let softness = number("shaping:cone:softness", 0.0, |s| (0.0..=1.0).contains(&s))?;
+        let normalize = matches!(
+            input_value(path, self.stage, &at, "normalize")?,
+            Some(Value::Bool(true))
+        );
+        let as_point = matches!(value(path, prim, "treatAsPoint")?, Some(Value::Bool(true)));
+        let scale = world.transform_vector3(DVec3::X).length();
+        let r = radius * scale;
+        let (luminance, color) = crate::mesh::split_color(rgb.as_vec3())
+            .map_or((f64::NAN, [1.0; 3]), |(l, c)| (l as f64, c));
+        let power = match normalize {
+            true => intensity / 4.0,
+            false => intensity * std::f64::consts::PI * r * r,
+        } * luminance;
+        let pos = world.transform_point3(DVec3::ZERO).as_vec3();
+        let axis = world
+            .transform_vector3(DVec3::NEG_Z)
+            .normalize_or_zero()
+            .as_vec3();
+        let power = power as f32;
+        let unusable = !(power.is_finite() && power >= 0.0 && pos.is_finite() && r.is_finite());
+        if unusable || (!normalize && r == 0.0) || (cone < 90.0 && axis == Vec3::ZERO) {
+            let why = match unusable {
+                true => format!(
+                    "its intensity comes to {power} (intensity, exposure, colour ({}, {}, {}), \
+                     radius {r}), not a finite, non-negative number",
+                    rgb.x, rgb.y, rgb.z
+                ),
+                false if !normalize && r == 0.0 => {
+                    "it has no radius and is not normalized: it casts nothing (give it a \
+                     radius, or inputs:normalize)"
+                        .to_string()
+                }
+                false => "its transform collapses its cone's axis".to_string(),
+            };
+            warn(path, &format!("{at}: {why}; left out"));
+            return Ok(());
+        }
+        let spot = (cone < 90.0).then(|| {
+            let outer = cone.to_radians();
+            Spot {
+                axis,
+                cos_inner: (outer * (1.0 - softness)).cos() as f32,
+                cos_outer: outer.cos() as f32,
+            }
+        });
+        self.mesh.lights.push(crate::mesh::SceneLight {
+            name: at.to_string(),
+            light: Light {
+                shape: LightShape::Local {
+                    pos,
+                    radius: if as_point { 0.0 } else { r as f32 },
+                    spot,
+                },
+                power,
+                color: Vec3::from_array(color),
+            },
         });
         Ok(())
     }

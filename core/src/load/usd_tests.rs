@@ -1642,6 +1642,93 @@ fn a_dome_light_becomes_the_scenes_environment() {
     );
 }
 
+/// `SphereLight`s light beside the key, as points or spheres of intensity (W/sr) UsdLux's
+/// radiance times the sphere's disc, or normalized a quarter of the intensity (Blender writes
+/// a 100 W lamp as 31.83, normalized: 7.96 W/sr); `treatAsPoint` makes a point;
+/// `ShapingAPI`'s cone a spot down −Z; one of no radius that is not normalized casts nothing
+/// and is left out; a second `DistantLight` lights beside the first, in the mesh's frame.
+#[test]
+fn sphere_lights_and_later_distant_lights_light_beside_the_key() {
+    use crate::render::lights::LightShape;
+    let d = dir("spheres");
+    let lights = r#"def DistantLight "Sun"
+{
+}
+def DistantLight "Rim"
+{
+    float inputs:intensity = 2
+    bool inputs:normalize = 1
+    float xformOp:rotateX = 90
+    uniform token[] xformOpOrder = ["xformOp:rotateX"]
+}
+def SphereLight "Blender"
+{
+    float inputs:intensity = 31.830988
+    bool inputs:normalize = 1
+    float inputs:radius = 0.1
+    double3 xformOp:translate = (0, 3, 0)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def SphereLight "Ball"
+{
+    float inputs:intensity = 4
+    color3f inputs:color = (1, 0, 0)
+}
+def SphereLight "Dot"
+{
+    float inputs:intensity = 4
+    bool treatAsPoint = 1
+}
+def SphereLight "Spot" (
+    prepend apiSchemas = ["ShapingAPI"]
+)
+{
+    float inputs:intensity = 8
+    bool inputs:normalize = 1
+    float inputs:radius = 0
+    float inputs:shaping:cone:angle = 30
+    float inputs:shaping:cone:softness = 0.25
+}
+def SphereLight "Nothing"
+{
+    float inputs:radius = 0
+}"#;
+    let p = write(&d, "lights.usda", &quad_with_cameras("Y", lights));
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    assert_eq!(m.sun.as_ref().map(|s| s.name.as_str()), Some("/Sun"));
+    let names: Vec<&str> = m.lights.iter().map(|l| l.name.as_str()).collect();
+    assert_eq!(names, ["/Rim", "/Blender", "/Ball", "/Dot", "/Spot"]);
+    let l = |i: usize| m.lights[i].light;
+    // Turned 90° about +X, the rim's +Z is −Y.
+    assert!(matches!(l(0).shape, LightShape::Distant { dir, cos_radius }
+        if (dir - Vec3::NEG_Y).length() < 1e-6 && (cos_radius - 0.265f32.to_radians().cos()).abs() < 1e-6));
+    assert_eq!(l(0).power, 2.0);
+    assert!(
+        matches!(l(1).shape, LightShape::Local { pos, radius, spot: None }
+        if pos == Vec3::new(0.0, 3.0, 0.0) && (radius - 0.1).abs() < 1e-6)
+    );
+    assert!(
+        (l(1).power - 100.0 / (4.0 * std::f32::consts::PI)).abs() < 1e-3,
+        "{:?}",
+        l(1)
+    );
+    // Red: its luminance 0.2126 of the radiance, times the disc, π × 0.5².
+    let want = 4.0 * std::f32::consts::PI * 0.25 * 0.2126;
+    assert!((l(2).power - want).abs() < 1e-5, "{:?}", l(2));
+    assert!((l(2).color - Vec3::new(1.0 / 0.2126, 0.0, 0.0)).length() < 1e-4);
+    assert!(matches!(l(3).shape, LightShape::Local { radius: 0.0, .. }));
+    let LightShape::Local {
+        spot: Some(spot), ..
+    } = l(4).shape
+    else {
+        panic!("{:?}", l(4))
+    };
+    assert!((spot.axis - Vec3::NEG_Z).length() < 1e-6);
+    assert!((spot.cos_outer - 30f32.to_radians().cos()).abs() < 1e-6);
+    assert!((spot.cos_inner - 22.5f32.to_radians().cos()).abs() < 1e-6);
+    assert_eq!(l(4).power, 2.0);
+}
+
 /// A `DistantLight` becomes the key light: towards its +Z as its transform turns it (45° up
 /// and a quarter turn: azimuth 90°, +X), its irradiance `intensity × 2^exposure` (normalized)
 /// or that times the disc's solid angle (UsdLux's fallbacks: 50 000 × 6.7 × 10⁻⁵ sr for a

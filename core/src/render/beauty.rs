@@ -1,11 +1,12 @@
 //! The beauty pass: a progressive path tracer over any intersector. Lighting: the environment
-//! (`env`) and an optional directional key light; material: `shading::Material` (Lambert +
+//! (`env`) and up to `lights::MAX_LIGHTS` directional, point, sphere and spot lights (one
+//! sampled an event, `lights::LightSet`); material: `shading::Material` (Lambert +
 //! GGX, mirror below `MIRROR_ROUGHNESS`), one per material of the asset, its base colour,
 //! roughness and metallic times optional textures at the hit's UV (`BeautyScene::material_at`),
 //! its shading normal bent by an optional normal map (`shade_hit`), and an optional glow
 //! (`emission_at`, met by camera and BSDF rays, not sampled as a light); `bounces` surface
-//! events; next-event estimation of the environment and the key light (a direction, or a disc
-//! that BSDF samples meet too) combined with BSDF sampling by MIS (power heuristic). An optional
+//! events; next-event estimation of the environment and a light (a directional disc is met by
+//! BSDF samples too) combined with BSDF sampling by MIS (power heuristic). An optional
 //! shadow-catcher ground plane at the asset's lowest point records how much light the asset
 //! takes away (alpha), nothing else.
 //!
@@ -22,6 +23,7 @@
 
 use super::camera::Camera;
 use super::env::{env_pdf, env_radiance, env_radiance_smooth, env_sample, EnvFrame, EnvMap};
+use super::lights::LightSet;
 use super::shading::{
     self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material,
 };
@@ -30,7 +32,7 @@ use crate::bake::Prism;
 use crate::rng::{self, Purpose};
 use crate::texture::ColorMap;
 use crate::trace::{Hit, Intersector, Ray, RayContext};
-use glam::{Quat, Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -138,7 +140,8 @@ pub struct BeautyScene<'a> {
     pub env_frame: EnvFrame,
     /// Whether the environment lights the scene (false when it is black: no env rays).
     pub env_lights: bool,
-    pub key: Option<KeyLight>,
+    /// The directional and local lights (`lights::LightSet`): one is sampled an event.
+    pub lights: LightSet,
     /// The surface's materials: a prism's is `materials[prism.material()]`, the last one for
     /// an index past the end (an asset's triangles without a material, tables without any).
     /// At least one.
@@ -206,21 +209,18 @@ impl From<Material> for SurfaceMaterial {
 }
 
 impl BeautyScene<'_> {
-    /// The same scene with its environment and key light turned by `angle` radians about
-    /// `up` (the asset's up axis, the environment frame's up), counter-clockwise seen from
-    /// above: what a turntable whose camera orbits by `angle` does to the lights that turn
-    /// with it. The ground is a plane across `up` and does not change.
-    pub fn turned(&self, up: Vec3, angle: f32) -> Self {
+    /// The same scene with its environment and lights turned by `angle` radians about `up`
+    /// (the asset's up axis, the environment frame's up) through `pivot` (where local lights
+    /// turn about: the camera's orbit centre), counter-clockwise seen from above: what a
+    /// turntable whose camera orbits by `angle` does to the lights that turn with it. The
+    /// ground is a plane across `up` and does not change.
+    pub fn turned(&self, up: Vec3, pivot: Vec3, angle: f32) -> Self {
         if angle == 0.0 {
             return *self;
         }
-        let rot = Quat::from_axis_angle(up, angle);
         BeautyScene {
             env_frame: self.env_frame.turned(angle),
-            key: self.key.map(|k| KeyLight {
-                dir: (rot * k.dir).normalize(),
-                ..k
-            }),
+            lights: self.lights.turned(up, pivot, angle),
             ..*self
         }
     }
@@ -452,11 +452,18 @@ fn rand2(ctx: &RayContext, bounce: u32, k: u32, purpose: Purpose) -> Vec2 {
 
 #[inline]
 fn shadow_ray(origin: Vec3, dir: Vec3) -> Ray {
+    shadow_ray_to(origin, dir, f32::INFINITY)
+}
+
+/// A shadow ray that stops `eps` short of `t_max` (a local light's distance: what lies
+/// beyond it does not shadow it).
+#[inline]
+fn shadow_ray_to(origin: Vec3, dir: Vec3, t_max: f32) -> Ray {
     Ray {
         origin,
         dir,
         t_min: 0.0,
-        t_max: f32::INFINITY,
+        t_max,
     }
 }
 
@@ -483,14 +490,16 @@ fn ground_light(
     let Some(g) = s.ground else { return (0.0, 0.0) };
     let origin = p + g.up * s.eps;
     let (mut lit, mut all) = (0.0, 0.0);
-    if let Some(k) = s.key {
-        let kd = k.sample_dir(rand2(ctx, 0, KEY_DIM, Purpose::Light));
-        let cos = kd.dot(g.up);
-        if cos > 0.0 {
-            all += k.irradiance * cos;
+    if let Some(ls) = s
+        .lights
+        .sample(origin, rand2(ctx, 0, KEY_DIM, Purpose::Light))
+    {
+        let cos = ls.dir.dot(g.up);
+        if cos > 0.0 && ls.e > 0.0 {
+            all += ls.e * cos;
             n.key_shadow_rays += 1;
-            if !isect.occluded(&shadow_ray(origin, kd), ctx) {
-                lit += k.irradiance * cos;
+            if !isect.occluded(&shadow_ray_to(origin, ls.dir, ls.t_max - s.eps), ctx) {
+                lit += ls.e * cos;
             }
         }
     }
@@ -510,8 +519,8 @@ fn ground_light(
 }
 
 /// Light a BSDF sample `bs` (direction `wi`) meets when it leaves the scene: the environment
-/// and the key light's disc if `wi` lies within it, each weighted by MIS against its own
-/// light samples (weight 1 for a delta lobe, which light samples never find).
+/// and the directional discs `wi` lies within, each weighted by MIS against its own light
+/// samples (weight 1 for a delta lobe, which light samples never find).
 fn escape_radiance(s: &BeautyScene, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 {
     let mut l = Vec3::ZERO;
     if s.env_lights {
@@ -522,14 +531,7 @@ fn escape_radiance(s: &BeautyScene, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 
         };
         l += env_radiance(s.env, s.env_frame, wi) * w;
     }
-    if let Some((k, radiance)) = s.key.and_then(|k| Some((k, k.radiance_along(wi)?))) {
-        let w = match (bs.delta, k.pdf()) {
-            (false, Some(pdf)) => power_heuristic(bs.pdf, pdf),
-            _ => 1.0,
-        };
-        l += radiance * w;
-    }
-    l
+    l + s.lights.escape(wi, (!bs.delta).then_some(bs.pdf))
 }
 
 /// Radiance leaving a camera hit towards the camera: the path tracer proper.
@@ -560,22 +562,26 @@ fn surface_radiance(
             ..*ctx
         };
 
-        if let Some(k) = s.key {
-            let kd = k.sample_dir(rand2(ctx, bounce, KEY_DIM, Purpose::Light));
+        if let Some(ls) = s
+            .lights
+            .sample(p, rand2(ctx, bounce, KEY_DIM, Purpose::Light))
+        {
+            let kd = ls.dir;
             let wi_l = shading::to_local(kd, t, b, ns);
-            let f = if kd.dot(ng) > 0.0 {
+            let f = if kd.dot(ng) > 0.0 && ls.e > 0.0 {
                 bsdf_eval(m, wo_l, wi_l)
             } else {
                 Vec3::ZERO
             };
             if f.max_element() > 0.0 {
                 n.key_shadow_rays += 1;
-                if !isect.occluded(&shadow_ray(offset_origin(p, ng, kd, s.eps), kd), &bctx) {
+                let ray = shadow_ray_to(offset_origin(p, ng, kd, s.eps), kd, ls.t_max - s.eps);
+                if !isect.occluded(&ray, &bctx) {
                     // A disc is also met by BSDF samples (below): the two share it by MIS.
-                    let w = k
-                        .pdf()
+                    let w = ls
+                        .mis_pdf
                         .map_or(1.0, |pdf| power_heuristic(pdf, bsdf_pdf(m, wo_l, wi_l)));
-                    radiance += throughput * f * k.color * (k.irradiance * w);
+                    radiance += throughput * f * ls.color * (ls.e * w);
                 }
             }
         }
@@ -616,7 +622,7 @@ fn surface_radiance(
         }
         throughput *= bs.weight;
         let ray = shadow_ray(offset_origin(p, ng, wi, s.eps), wi);
-        let key_seen = s.key.and_then(|k| k.radiance_along(wi));
+        let key_seen = s.lights.seen_along(wi);
         if bounce + 1 == s.bounces {
             if s.emissive {
                 // Last event: the surface the ray meets counts with its glow.
@@ -629,7 +635,7 @@ fn surface_radiance(
                 break;
             }
             // Last event: only whether the ray escapes matters.
-            if s.env_lights || key_seen.is_some() {
+            if s.env_lights || key_seen {
                 if s.env_lights {
                     n.env_shadow_rays += 1;
                 } else {

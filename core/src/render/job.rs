@@ -8,7 +8,7 @@ use crate::asset::{self, AssetSpec};
 use crate::bake::PrismTable;
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
-use crate::mesh::{BaseMesh, NamedCamera, SceneDome, SceneSun, UpAxis};
+use crate::mesh::{BaseMesh, NamedCamera, SceneDome, SceneLight, SceneSun, UpAxis};
 use crate::repair::RepairOptions;
 use crate::seam::SeamMode;
 use crate::trace::nonlinear::{Nonlinear, NonlinearOptions};
@@ -306,6 +306,9 @@ pub struct Loaded {
     pub dome: Option<SceneDome>,
     /// The scene file's directional light: the key light where `--key-light` is not given.
     pub sun: Option<SceneSun>,
+    /// The scene file's other lights (`BaseMesh::lights`), which light the beauty beside the
+    /// key light.
+    pub lights: Vec<SceneLight>,
     pub up_axis: UpAxis,
 }
 
@@ -317,6 +320,7 @@ pub fn load_input(input: &Input, repair: &RepairOptions) -> Result<Loaded> {
                 scene_camera: p.mesh.pick_named_camera(None)?.cloned(),
                 dome: p.mesh.dome.clone(),
                 sun: p.mesh.sun.clone(),
+                lights: p.mesh.lights.clone(),
                 up_axis: p.mesh.up_axis.unwrap_or_default(),
                 table: p.table,
                 map: p.map,
@@ -366,6 +370,7 @@ pub fn load_table(
                 scene_camera: None,
                 dome: None,
                 sun: None,
+                lights: vec![],
                 up_axis,
             };
             return Ok((loaded, None));
@@ -375,6 +380,7 @@ pub fn load_table(
         scene_camera: mesh.pick_named_camera(camera)?.cloned(),
         dome: mesh.dome.clone(),
         sun: mesh.sun.clone(),
+        lights: mesh.lights.clone(),
         up_axis: table.source.up_axis,
         table,
         map,

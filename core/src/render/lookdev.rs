@@ -22,6 +22,7 @@ use super::job::{
     base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob,
     RenderSummary,
 };
+use super::lights::{Light, LightSet};
 use super::shading::Material;
 use super::{contact_sheet, output, render_aovs, Aov, AovImage, RenderSettings};
 use crate::accel::Scene;
@@ -30,7 +31,7 @@ use crate::bake::{self, BakeOptions, RebakeStats};
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
 use crate::load::{self, MapOptions};
-use crate::mesh::{MeshMaterial, SceneSun, UpAxis};
+use crate::mesh::{MeshMaterial, SceneLight, SceneSun, UpAxis};
 use crate::repair;
 use crate::table_cache;
 use crate::texture::{ColorMap, TextureRef, TextureSlot};
@@ -217,6 +218,10 @@ pub struct LookdevSummary {
     /// absent without one (or without beauty).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub key_light: Option<String>,
+    /// The scene file's other lights the beauty renders (`SceneLight::describe`), with the
+    /// key light: absent without any (or without beauty).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<String>,
     /// Beauty rays over all frames; shadow rays by the light they test.
     pub beauty_rays: BeautyCounters,
     pub shadow_rays: u64,
@@ -429,6 +434,8 @@ pub struct Session {
     /// `--key-light` and `--key-angle`, else the scene file's directional light (a USD
     /// `DistantLight`, a glTF `KHR_lights_punctual` one); and what the summary says of it.
     key: Option<([f32; 4], Vec3, String)>,
+    /// The scene file's other lights (`BaseMesh::lights`; none with `--no-scene-lights`).
+    lights: Vec<SceneLight>,
     denoiser: Option<Denoiser>,
     setup_seconds: f64,
     cache: CacheUse,
@@ -767,6 +774,7 @@ fn load_cached(
             };
             if !opts.scene_lights {
                 (loaded.dome, loaded.sun) = (None, None);
+                loaded.lights.clear();
             }
             return Ok((loaded, materials, CacheUse::Off));
         }
@@ -774,9 +782,9 @@ fn load_cached(
     let (mesh, map) = asset::load(spec)?;
     let materials = asset_materials(&mesh, spec.uv_set, job, opts)?;
     let scene_camera = mesh.pick_named_camera(job.camera.name.as_deref())?.cloned();
-    let (dome, sun) = match opts.scene_lights {
-        true => (mesh.dome.clone(), mesh.sun.clone()),
-        false => (None, None),
+    let (dome, sun, lights) = match opts.scene_lights {
+        true => (mesh.dome.clone(), mesh.sun.clone(), mesh.lights.clone()),
+        false => (None, None, vec![]),
     };
     let up_axis = mesh.up_axis.unwrap_or_default();
     let hash = match &opts.cache_dir {
@@ -792,6 +800,7 @@ fn load_cached(
                     scene_camera,
                     dome,
                     sun,
+                    lights,
                     up_axis,
                 },
                 materials,
@@ -824,6 +833,7 @@ fn load_cached(
             scene_camera,
             dome,
             sun,
+            lights,
             up_axis,
         },
         materials,
@@ -882,6 +892,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         false => (None, None),
     };
     let sun = loaded.sun;
+    let lights = loaded.lights;
     let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
     Ok(Session {
         scene,
@@ -892,6 +903,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         env,
         environment,
         key: key_light(opts, &sun)?,
+        lights,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
         cache,
@@ -1200,11 +1212,20 @@ pub fn render_all(
         env,
         env_frame: env.frame,
         env_lights: env.total_weight > 0.0,
-        key: s.key.as_ref().map(|([az, el, i, angle], color, _)| {
-            KeyLight::from_angles(*az, *el, *i, s.up_axis == UpAxis::Z)
-                .with_angle(*angle)
-                .with_color(*color)
-        }),
+        lights: LightSet::new(
+            &s.key
+                .iter()
+                .map(|([az, el, i, angle], color, _)| {
+                    Light::from(
+                        KeyLight::from_angles(*az, *el, *i, s.up_axis == UpAxis::Z)
+                            .with_angle(*angle)
+                            .with_color(*color),
+                    )
+                })
+                .chain(s.lights.iter().map(|l| l.light))
+                .collect::<Vec<_>>(),
+            (lo + hi) * 0.5,
+        ),
         materials: &materials,
         emissive: materials.iter().any(|m| m.emission != Vec3::ZERO),
         textures: &s.materials.textures,
@@ -1241,6 +1262,10 @@ pub fn render_all(
             .as_ref()
             .filter(|_| want_beauty)
             .map(|(_, _, said)| said.clone()),
+        lights: match want_beauty {
+            true => s.lights.iter().map(SceneLight::describe).collect(),
+            false => vec![],
+        },
         beauty_rays: BeautyCounters::default(),
         shadow_rays: 0,
         contact_sheets: vec![],
@@ -1271,7 +1296,7 @@ pub fn render_all(
                         (Some(f), Some(n)) => job.turntable_mode.frame(&s.cam0, up, *f, n),
                         _ => (s.cam0, 0.0),
                     };
-                    let lights = bscene.turned(up, turn);
+                    let lights = bscene.turned(up, s.cam0.to, turn);
                     trace_frame(
                         renderer,
                         &cam,

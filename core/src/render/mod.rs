@@ -12,6 +12,7 @@ pub mod contact_sheet;
 pub mod denoise;
 pub mod env;
 pub mod job;
+pub mod lights;
 pub mod lookdev;
 pub mod output;
 pub mod shading;

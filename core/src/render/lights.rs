@@ -1,0 +1,447 @@
+//! The beauty's lights besides the environment: directional lights (a direction, or a disc as
+//! wide as the sun), points, spheres and spots, up to `MAX_LIGHTS`. Each surface event samples
+//! one of them, picked with a fixed chance (`LightSet::new`: by what each casts on the asset's
+//! centre), so that a rig of several lights costs one shadow ray an event, as one light does.
+//!
+//! A directional disc is also met by BSDF samples that leave the scene (`LightSet::escape`),
+//! and the two estimates share it by MIS (power heuristic, the pick's chance in the light
+//! sample's density). Points, spheres and spots are found by their shadow rays alone: BSDF
+//! samples do not meet them, so a mirror does not reflect them (a rough surface's highlight
+//! from them is whole: nothing else counts that light).
+//!
+//! Mirrored in `shaders/beauty.wgsl` (`Light`, `light_sample`, `lights_escape`), which reads
+//! the same numbers from the lighting uniform (`gpu::layout::GpuLight`).
+
+use super::beauty::KeyLight;
+use super::shading::{self, power_heuristic};
+use glam::{Quat, Vec2, Vec3};
+
+/// The most lights a beauty samples (the GPU's lighting uniform holds this many).
+pub const MAX_LIGHTS: usize = 8;
+
+/// Where a light is and what shape it has.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightShape {
+    /// Infinitely far, towards the unit direction `dir`: a point-like sun (`cos_radius` 1) or
+    /// a disc of that angular radius (`KeyLight`).
+    Distant { dir: Vec3, cos_radius: f32 },
+    /// At `pos`: a point (`radius` 0) or a sphere of even radiance; a spot where `spot` gives
+    /// its cone.
+    Local {
+        pos: Vec3,
+        radius: f32,
+        spot: Option<Spot>,
+    },
+}
+
+/// A spot's cone: full intensity within `cos_inner` of `axis` (the unit direction it shines),
+/// none past `cos_outer`, between them the square of the linear ramp in the cosine
+/// (`KHR_lights_punctual`'s falloff).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spot {
+    pub axis: Vec3,
+    pub cos_inner: f32,
+    pub cos_outer: f32,
+}
+
+impl Spot {
+    /// The cone's factor for light leaving along the unit direction `d`.
+    #[inline]
+    pub fn falloff(&self, d: Vec3) -> f32 {
+        let t = ((d.dot(self.axis) - self.cos_outer) / (self.cos_inner - self.cos_outer).max(1e-4))
+            .clamp(0.0, 1.0);
+        t * t
+    }
+}
+
+/// One light: its shape, what it casts (a directional light's irradiance at normal incidence;
+/// a local light's intensity, the irradiance it casts at normal incidence one unit away, along
+/// a spot's axis), both as luminance, and its colour of unit luminance (`mesh::split_color`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    pub shape: LightShape,
+    pub power: f32,
+    pub color: Vec3,
+}
+
+impl From<KeyLight> for Light {
+    fn from(k: KeyLight) -> Self {
+        Light {
+            shape: LightShape::Distant {
+                dir: k.dir,
+                cos_radius: k.cos_radius,
+            },
+            power: k.irradiance,
+            color: k.color,
+        }
+    }
+}
+
+impl Default for Light {
+    fn default() -> Self {
+        Light {
+            shape: LightShape::Distant {
+                dir: Vec3::Y,
+                cos_radius: 1.0,
+            },
+            power: 0.0,
+            color: Vec3::ONE,
+        }
+    }
+}
+
+/// A sampled direction towards a light from a surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSample {
+    pub dir: Vec3,
+    /// How far the shadow ray goes (+∞ for a directional light).
+    pub t_max: f32,
+    /// The irradiance at normal incidence it brings, over the pick's chance (luminance; times
+    /// `color` for RGB).
+    pub e: f32,
+    pub color: Vec3,
+    /// The sample's density in solid angle times the pick's chance, for MIS against BSDF
+    /// samples; `None` where BSDF samples do not meet the light (a delta, a local light).
+    pub mis_pdf: Option<f32>,
+}
+
+impl Light {
+    /// What the light casts on a point at `p` facing it, as luminance: the weight it is picked
+    /// by (`LightSet::new`).
+    fn weight_at(&self, p: Vec3) -> f32 {
+        match self.shape {
+            LightShape::Distant { .. } => self.power,
+            LightShape::Local { pos, radius, spot } => {
+                let to = p - pos;
+                let d2 = to.length_squared().max(radius * radius).max(1e-12);
+                let cone = spot.map_or(1.0, |s| s.falloff(to / d2.sqrt()));
+                self.power * cone / d2
+            }
+        }
+    }
+
+    /// A direction towards the light from `p` for random numbers `u`, and what it brings (not
+    /// yet over the pick's chance); `None` from inside a sphere light.
+    fn sample(&self, p: Vec3, u: Vec2) -> Option<LightSample> {
+        match self.shape {
+            LightShape::Distant { dir, cos_radius } => {
+                let k = KeyLight {
+                    dir,
+                    irradiance: self.power,
+                    cos_radius,
+                    color: self.color,
+                };
+                Some(LightSample {
+                    dir: k.sample_dir(u),
+                    t_max: f32::INFINITY,
+                    e: self.power,
+                    color: self.color,
+                    mis_pdf: k.pdf(),
+                })
+            }
+            LightShape::Local { pos, radius, spot } => {
+                let to = pos - p;
+                let d2 = to.length_squared();
+                let d = d2.sqrt();
+                if !(d > radius && d > 0.0) {
+                    return None;
+                }
+                let centre = to / d;
+                let cone = spot.map_or(1.0, |s| s.falloff(-centre));
+                if radius <= 0.0 {
+                    return Some(LightSample {
+                        dir: centre,
+                        t_max: d,
+                        e: self.power * cone / d2,
+                        color: self.color,
+                        mis_pdf: None,
+                    });
+                }
+                // Uniform over the cone the sphere fills; 1 − cos of its half-angle without
+                // the cancellation of 1 − √(1 − s²) for a small, far sphere.
+                let s2 = (radius * radius) / d2;
+                let one_minus_cos = s2 / (1.0 + (1.0 - s2).max(0.0).sqrt());
+                let cos = 1.0 - u.x * one_minus_cos;
+                let sin = (1.0 - cos * cos).max(0.0).sqrt();
+                let phi = 2.0 * std::f32::consts::PI * u.y;
+                let (t, b) = shading::onb(centre);
+                let dir =
+                    (t * (sin * phi.cos()) + b * (sin * phi.sin()) + centre * cos).normalize();
+                // The sphere's radiance (intensity over its disc's area) over the cone's solid
+                // angle; the shadow ray stops at the sphere's near side.
+                let radiance = self.power / (std::f32::consts::PI * radius * radius);
+                let solid_angle = 2.0 * std::f32::consts::PI * one_minus_cos;
+                let b_half = dir.dot(to);
+                let near = b_half - (b_half * b_half - (d2 - radius * radius)).max(0.0).sqrt();
+                Some(LightSample {
+                    dir,
+                    t_max: near.max(0.0),
+                    e: radiance * solid_angle * cone,
+                    color: self.color,
+                    mis_pdf: None,
+                })
+            }
+        }
+    }
+
+    /// The same light turned by `rot` about `pivot` (a turntable that turns the lights).
+    fn turned(&self, rot: Quat, pivot: Vec3) -> Self {
+        let shape = match self.shape {
+            LightShape::Distant { dir, cos_radius } => LightShape::Distant {
+                dir: (rot * dir).normalize(),
+                cos_radius,
+            },
+            LightShape::Local { pos, radius, spot } => LightShape::Local {
+                pos: pivot + rot * (pos - pivot),
+                radius,
+                spot: spot.map(|s| Spot {
+                    axis: (rot * s.axis).normalize(),
+                    ..s
+                }),
+            },
+        };
+        Light { shape, ..*self }
+    }
+}
+
+/// The lights a beauty samples and each one's chance of being picked.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LightSet {
+    lights: [Light; MAX_LIGHTS],
+    /// Each light's chance, and their running sum (the last is 1).
+    prob: [f32; MAX_LIGHTS],
+    cdf: [f32; MAX_LIGHTS],
+    count: usize,
+}
+
+impl LightSet {
+    /// No lights.
+    pub fn none() -> Self {
+        Self::default()
+    }
+
+    /// `lights` (the first `MAX_LIGHTS`), each picked with a chance in proportion to what it
+    /// casts on a point at `centre` facing it (the asset's centre), but at least 1/20 of an
+    /// even share, so that a light that casts little there (a spot aimed past it) still
+    /// lights what it reaches.
+    pub fn new(lights: &[Light], centre: Vec3) -> Self {
+        let mut set = Self::default();
+        let lights = &lights[..lights.len().min(MAX_LIGHTS)];
+        set.count = lights.len();
+        if lights.is_empty() {
+            return set;
+        }
+        let weights: Vec<f32> = lights
+            .iter()
+            .map(|l| l.weight_at(centre))
+            .map(|w| if w.is_finite() { w.max(0.0) } else { 0.0 })
+            .collect();
+        let total: f32 = weights.iter().sum();
+        let floor = 0.05 / lights.len() as f32;
+        let shares: Vec<f32> = weights
+            .iter()
+            .map(|w| match total > 0.0 {
+                true => (w / total).max(floor),
+                false => 1.0,
+            })
+            .collect();
+        let sum: f32 = shares.iter().sum();
+        let mut run = 0.0;
+        for (i, (l, s)) in lights.iter().zip(&shares).enumerate() {
+            set.lights[i] = *l;
+            set.prob[i] = s / sum;
+            run += set.prob[i];
+            set.cdf[i] = run;
+        }
+        set.cdf[lights.len() - 1] = 1.0;
+        set
+    }
+
+    /// One light, always picked.
+    pub fn one(light: impl Into<Light>) -> Self {
+        Self::new(&[light.into()], Vec3::ZERO)
+    }
+
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// The lights, in order.
+    pub fn lights(&self) -> &[Light] {
+        &self.lights[..self.count]
+    }
+
+    /// Light `i`'s chance of being picked, and the running sum up to it.
+    pub fn chance(&self, i: usize) -> (f32, f32) {
+        (self.prob[i], self.cdf[i])
+    }
+
+    /// The light a random number `u` picks, its chance, and `u` stretched back over [0, 1)
+    /// within its share (so one light leaves `u` as it is).
+    #[inline]
+    pub fn pick(&self, u: f32) -> (usize, f32, f32) {
+        let mut i = 0;
+        while i + 1 < self.count && u >= self.cdf[i] {
+            i += 1;
+        }
+        let start = if i == 0 { 0.0 } else { self.cdf[i - 1] };
+        let p = self.prob[i];
+        let v = ((u - start) / p).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+        (i, p, v)
+    }
+
+    /// A sample of one light, picked by `u.x`, towards it from `p`: what it brings is over
+    /// the pick's chance, and so is its density for MIS.
+    #[inline]
+    pub fn sample(&self, p: Vec3, u: Vec2) -> Option<LightSample> {
+        if self.count == 0 {
+            return None;
+        }
+        let (i, prob, ux) = self.pick(u.x);
+        let s = self.lights[i].sample(p, Vec2::new(ux, u.y))?;
+        Some(LightSample {
+            e: s.e / prob,
+            mis_pdf: s.mis_pdf.map(|pdf| pdf * prob),
+            ..s
+        })
+    }
+
+    /// Radiance of the directional discs a BSDF sample leaving the scene along `wi` meets,
+    /// each weighted by MIS against its light samples (`bsdf_pdf`: the BSDF sample's density;
+    /// `None` for a delta lobe, which light samples never find: weight 1).
+    pub fn escape(&self, wi: Vec3, bsdf_pdf: Option<f32>) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for (i, light) in self.lights().iter().enumerate() {
+            let LightShape::Distant { dir, cos_radius } = light.shape else {
+                continue;
+            };
+            let k = KeyLight {
+                dir,
+                irradiance: light.power,
+                cos_radius,
+                color: light.color,
+            };
+            if let (Some(radiance), Some(pdf)) = (k.radiance_along(wi), k.pdf()) {
+                let w = bsdf_pdf.map_or(1.0, |b| power_heuristic(b, pdf * self.prob[i]));
+                l += radiance * w;
+            }
+        }
+        l
+    }
+
+    /// Whether a BSDF sample leaving the scene along `wi` meets some directional disc.
+    pub fn seen_along(&self, wi: Vec3) -> bool {
+        self.lights().iter().any(|l| match l.shape {
+            LightShape::Distant { dir, cos_radius } => {
+                cos_radius < 1.0 && wi.dot(dir) >= cos_radius
+            }
+            LightShape::Local { .. } => false,
+        })
+    }
+
+    /// The same lights turned by `angle` radians about `up` through `pivot` (the chances stay).
+    pub fn turned(&self, up: Vec3, pivot: Vec3, angle: f32) -> Self {
+        let rot = Quat::from_axis_angle(up, angle);
+        let mut set = *self;
+        for l in set.lights[..self.count].iter_mut() {
+            *l = l.turned(rot, pivot);
+        }
+        set
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A point light's sample: straight at it, the inverse square, the shadow ray stopping
+    /// there; a sphere far away casts what a point of the same intensity casts; a spot casts
+    /// nothing past its cone and all of it within; from inside a sphere, nothing.
+    #[test]
+    fn local_lights_cast_the_inverse_square() {
+        let p = Vec3::ZERO;
+        let point = Light {
+            shape: LightShape::Local {
+                pos: Vec3::new(0.0, 4.0, 0.0),
+                radius: 0.0,
+                spot: None,
+            },
+            power: 32.0,
+            color: Vec3::ONE,
+        };
+        let s = point.sample(p, Vec2::new(0.3, 0.7)).unwrap();
+        assert_eq!((s.dir, s.t_max, s.e), (Vec3::Y, 4.0, 2.0));
+        let sphere = Light {
+            shape: LightShape::Local {
+                pos: Vec3::new(0.0, 400.0, 0.0),
+                radius: 0.5,
+                spot: None,
+            },
+            ..point
+        };
+        let s = sphere.sample(p, Vec2::new(0.3, 0.7)).unwrap();
+        let want = 32.0 / 400.0f32.powi(2);
+        assert!((s.e / want - 1.0).abs() < 1e-4, "{} against {want}", s.e);
+        assert!(s.t_max > 399.4 && s.t_max < 399.6, "{}", s.t_max);
+        let spot = |axis: Vec3| Light {
+            shape: LightShape::Local {
+                pos: Vec3::new(0.0, 4.0, 0.0),
+                radius: 0.0,
+                spot: Some(Spot {
+                    axis,
+                    cos_inner: 0.9,
+                    cos_outer: 0.8,
+                }),
+            },
+            ..point
+        };
+        assert_eq!(spot(Vec3::NEG_Y).sample(p, Vec2::ZERO).unwrap().e, 2.0);
+        assert_eq!(spot(Vec3::X).sample(p, Vec2::ZERO).unwrap().e, 0.0);
+        assert!(sphere
+            .sample(Vec3::new(0.0, 400.2, 0.0), Vec2::ZERO)
+            .is_none());
+    }
+
+    /// Picks follow the chances (by what each light casts on the centre, floored), `u` is
+    /// stretched back over its share, and one light is always picked with `u` as it is.
+    #[test]
+    fn lights_are_picked_by_what_they_cast_on_the_centre() {
+        let sun = |power| Light {
+            power,
+            ..Light::default()
+        };
+        let set = LightSet::new(&[sun(3.0), sun(1.0)], Vec3::ZERO);
+        assert_eq!(set.chance(0), (0.75, 0.75));
+        assert_eq!(set.pick(0.375), (0, 0.75, 0.5));
+        let (i, p, v) = set.pick(0.875);
+        assert_eq!((i, p), (1, 0.25));
+        assert!((v - 0.5).abs() < 1e-6);
+        let one = LightSet::one(sun(1.0));
+        assert_eq!(one.pick(0.123), (0, 1.0, 0.123));
+        // A light that casts nothing on the centre keeps a floor of 1/20 of an even share.
+        let set = LightSet::new(&[sun(1.0), sun(0.0)], Vec3::ZERO);
+        let (p0, p1) = (set.chance(0).0, set.chance(1).0);
+        assert!((p1 - 0.025 / 1.025).abs() < 1e-6 && (p0 + p1 - 1.0).abs() < 1e-6);
+    }
+
+    /// The NEE and BSDF weights of a disc sum to one for any direction within it, with the
+    /// pick's chance in the light's density.
+    #[test]
+    fn a_discs_two_estimates_share_it() {
+        let disc = Light::from(KeyLight::from_angles(0.0, 60.0, 2.0, false).with_angle(10.0));
+        let set = LightSet::new(&[disc, Light::default()], Vec3::ZERO);
+        let s = set.sample(Vec3::ZERO, Vec2::new(0.2, 0.4)).unwrap();
+        let bsdf = 0.7;
+        let nee = power_heuristic(s.mis_pdf.unwrap(), bsdf);
+        let radiance = set.escape(s.dir, Some(bsdf));
+        let LightShape::Distant { cos_radius, .. } = disc.shape else {
+            unreachable!()
+        };
+        let full = 2.0 / (2.0 * std::f32::consts::PI * (1.0 - cos_radius));
+        assert!((radiance.x / full + nee - 1.0).abs() < 1e-5);
+    }
+}
