@@ -1588,7 +1588,7 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 /// normalized, of intensity 16 (4 W/sr) two units above a white quad's centre casts 1 W/m²
 /// there, and a Lambertian surface of albedo 0.8 under it sends 0.8 / π towards the camera
 /// (no environment, no specular); a spot of the same intensity aimed away casts nothing; the
-/// summary and `inspect` name the lights.
+/// summary names the lights, and past eight a warning names those left out.
 #[test]
 fn a_point_light_lights_by_the_inverse_square() {
     let dir = temp_dir("point-light");
@@ -1662,6 +1662,33 @@ fn a_point_light_lights_by_the_inverse_square() {
         "spot",
     );
     assert_eq!(rgba[0], 0.0, "{rgba:?}");
+    // A sun and nine bulbs: eight lights are rendered, and a warning names the two left out.
+    let many = (0..9)
+        .map(|i| format!("def SphereLight \"B{i}\"\n{{\n    float inputs:radius = 0.1\n}}\n"))
+        .collect::<String>();
+    let path = dir.join("many.usda");
+    std::fs::write(
+        &path,
+        quad_usda(&format!("def DistantLight \"Sun\"\n{{\n}}\n{many}")),
+    )
+    .unwrap();
+    let mut args = vec!["render", s(&path), "--disp", s(&map), "--aov", "beauty"];
+    let out = dir.join("many");
+    args.extend(["--res", "4x4", "--json", "-o", s(&out)]);
+    let o = run(&args);
+    assert_eq!(
+        o.assert_success().json()["lights"]
+            .as_array()
+            .unwrap()
+            .len(),
+        7
+    );
+    assert!(
+        o.stderr
+            .contains("renders 8 lights, the key light and the first 7 others; left out: /B7, /B8"),
+        "{}",
+        o.stderr
+    );
 }
 
 /// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it,

@@ -22,7 +22,7 @@ use super::job::{
     base_camera, prepare_out_dir, with_intersector, FrameStats, Input, Loaded, RenderJob,
     RenderSummary,
 };
-use super::lights::{Light, LightSet};
+use super::lights::{Light, LightSet, MAX_LIGHTS};
 use super::shading::Material;
 use super::{contact_sheet, output, render_aovs, Aov, AovImage, RenderSettings};
 use crate::accel::Scene;
@@ -892,7 +892,19 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         false => (None, None),
     };
     let sun = loaded.sun;
-    let lights = loaded.lights;
+    let key = key_light(opts, &sun)?;
+    let mut lights = loaded.lights;
+    let room = MAX_LIGHTS - key.is_some() as usize;
+    if lights.len() > room && job.aovs.contains(&Aov::Beauty) {
+        let left: Vec<&str> = lights[room..].iter().map(|l| l.name.as_str()).collect();
+        eprintln!(
+            "warning: {}: the beauty renders {MAX_LIGHTS} lights, the key light and the first \
+             {room} others; left out: {}",
+            job.input.path().display(),
+            left.join(", ")
+        );
+    }
+    lights.truncate(room);
     let scene = Scene::new(loaded.table, loaded.map).with_seam_mode(job.method.seams);
     Ok(Session {
         scene,
@@ -902,7 +914,7 @@ pub fn open(job: &RenderJob, opts: &LookdevOptions) -> Result<Session> {
         materials,
         env,
         environment,
-        key: key_light(opts, &sun)?,
+        key,
         lights,
         denoiser,
         setup_seconds: t0.elapsed().as_secs_f64(),
