@@ -151,8 +151,8 @@ fn disc_pdf(cos_r: f32) -> f32 {
 
 // lights::Spot::falloff.
 fn spot_falloff(l: Light, d: vec3f) -> f32 {
-    let t = clamp((dot(d, l.axis) - l.cos_outer) / max(l.cos_inner - l.cos_outer, 1e-4), 0.0, 1.0);
-    return t * t;
+    let t = clamp((dot(d, l.axis) - l.cos_outer) / max(l.cos_inner - l.cos_outer, 1e-6), 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
 }
 
 // lights::LightSample; mis_pdf 0: none (a delta, a local light); ok false: no sample.

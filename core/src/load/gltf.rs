@@ -522,9 +522,10 @@ impl Loader<'_> {
     /// colour, and Blender's default sun width, 0.526°. Later directional lights, point and
     /// spot lights are `BaseMesh::lights`: a point at its node's origin, of intensity candela
     /// over 683 (W/sr, as Blender's importer makes a lamp of 4π × that many watts), a spot
-    /// also shining down −Z within its cone (`innerConeAngle`, default 0, to
-    /// `outerConeAngle`, default π/4). A light whose numbers are not usable is left out with a
-    /// warning.
+    /// also shining down −Z within `outerConeAngle` (default π/4), its edge fading as the
+    /// Cycles spot Blender's importer makes of it (a blend of 1 − `innerConeAngle` / outer;
+    /// `Spot::blended`), not by glTF's own ramp. A light whose numbers are not usable is left
+    /// out with a warning.
     fn light(
         &mut self,
         node: &::gltf::Node,
@@ -587,11 +588,7 @@ impl Loader<'_> {
                 LightShape::Local {
                     pos,
                     radius: 0.0,
-                    spot: Some(Spot {
-                        axis: -toward,
-                        cos_inner: inner.cos(),
-                        cos_outer: outer.cos(),
-                    }),
+                    spot: Some(Spot::blended(-toward, outer, 1.0 - inner / outer)),
                 }
             }
         };

@@ -827,7 +827,7 @@ fn a_gltf_directional_light_is_the_key_light() {
     };
     assert!((spot.axis - Vec3::NEG_Z).length() < 1e-6, "{spot:?}");
     assert!(
-        (spot.cos_inner - 0.25f32.cos()).abs() < 1e-6
+        (spot.cos_inner - (0.5f32.cos() + 0.5 * (1.0 - 0.5f32.cos()))).abs() < 1e-6
             && (spot.cos_outer - 0.5f32.cos()).abs() < 1e-6
     );
     let e = lights(["point", "flashlight", "directional"])

@@ -1102,8 +1102,8 @@ impl Loader<'_> {
     /// 2^inputs:exposure` times the sphere's disc, πr², or, `inputs:normalize`d, over its whole
     /// area, intensity / 4: Blender's exporter writes a lamp of P watts as intensity P / π,
     /// normalized, a 4π-th of P a steradian. With `ShapingAPI`'s `shaping:cone:angle` below
-    /// 90°, a spot down its −Z, fading over `shaping:cone:softness` of that angle (as
-    /// Blender's glTF exporter maps a spot's blend). A light of no radius that is not
+    /// 90°, a spot down its −Z whose edge fades as a Cycles spot of blend
+    /// `shaping:cone:softness` (Blender's importer's mapping; `Spot::blended`). A light of no radius that is not
     /// normalized casts nothing, and one whose numbers are not usable is left out, with a
     /// warning.
     fn sphere_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
@@ -1158,14 +1158,8 @@ impl Loader<'_> {
             warn(path, &format!("{at}: {why}; left out"));
             return Ok(());
         }
-        let spot = (cone < 90.0).then(|| {
-            let outer = cone.to_radians();
-            Spot {
-                axis,
-                cos_inner: (outer * (1.0 - softness)).cos() as f32,
-                cos_outer: outer.cos() as f32,
-            }
-        });
+        let spot =
+            (cone < 90.0).then(|| Spot::blended(axis, cone.to_radians() as f32, softness as f32));
         self.mesh.lights.push(crate::mesh::SceneLight {
             name: at.to_string(),
             light: Light {

@@ -1725,7 +1725,8 @@ def SphereLight "Nothing"
     };
     assert!((spot.axis - Vec3::NEG_Z).length() < 1e-6);
     assert!((spot.cos_outer - 30f32.to_radians().cos()).abs() < 1e-6);
-    assert!((spot.cos_inner - 22.5f32.to_radians().cos()).abs() < 1e-6);
+    let cos30 = 30f32.to_radians().cos();
+    assert!((spot.cos_inner - (cos30 + 0.25 * (1.0 - cos30))).abs() < 1e-6);
     assert_eq!(l(4).power, 2.0);
 }
 

@@ -35,8 +35,8 @@ pub enum LightShape {
 }
 
 /// A spot's cone: full intensity within `cos_inner` of `axis` (the unit direction it shines),
-/// none past `cos_outer`, between them the square of the linear ramp in the cosine
-/// (`KHR_lights_punctual`'s falloff).
+/// none past `cos_outer`, between them a smoothstep in the cosine: Cycles' spot, whose blend
+/// `b` puts `cos_inner` at `cos_outer + b (1 − cos_outer)` (`Spot::blended`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Spot {
     pub axis: Vec3,
@@ -45,12 +45,24 @@ pub struct Spot {
 }
 
 impl Spot {
+    /// A cone of half-angle `outer` radians about `axis` whose edge fades over `blend` (0..1)
+    /// of the cosine's range, as Blender's spot blend: glTF's inner cone angle `i` is a blend
+    /// of `1 − i / outer` (Blender's importer), USD's `shaping:cone:softness` the blend itself.
+    pub fn blended(axis: Vec3, outer: f32, blend: f32) -> Self {
+        let cos_outer = outer.cos();
+        Spot {
+            axis,
+            cos_inner: cos_outer + blend.clamp(0.0, 1.0) * (1.0 - cos_outer),
+            cos_outer,
+        }
+    }
+
     /// The cone's factor for light leaving along the unit direction `d`.
     #[inline]
     pub fn falloff(&self, d: Vec3) -> f32 {
-        let t = ((d.dot(self.axis) - self.cos_outer) / (self.cos_inner - self.cos_outer).max(1e-4))
+        let t = ((d.dot(self.axis) - self.cos_outer) / (self.cos_inner - self.cos_outer).max(1e-6))
             .clamp(0.0, 1.0);
-        t * t
+        t * t * (3.0 - 2.0 * t)
     }
 }
 
