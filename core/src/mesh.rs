@@ -122,7 +122,7 @@ impl SceneLight {
         };
         match l.shape {
             LightShape::Distant { dir, cos_radius } => format!(
-                "directional '{}' towards {}, irradiance {}{tint}, {}° across",
+                "directional '{}' towards {}, irradiance {}{tint}, {:.3}° across",
                 self.name,
                 v(dir),
                 l.power,
