@@ -727,3 +727,38 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     assert "4° across" in key and abs(irradiance - 3.0 * luminance) < 1e-4, key
     assert np.allclose(colour * luminance, theirs["sun_color"], rtol=2e-3), (key, theirs)
     assert abs(theirs["sun_angle"] - 8.0) < 1e-3 and abs(theirs["sun_energy"] - 12.0) < 1e-4, theirs
+
+
+def test_a_lights_colour_temperature_tints_it_as_usd_lux_does(run, tmp_path):
+    """`inputs:enableColorTemperature` (as Blender writes on every light it exports) tints a
+    light by the black body at `inputs:colorTemperature`: a 3000 K distant light and sphere
+    light take UsdLux's own colour for it (`UsdLux.BlackbodyTemperatureAsRgb`) within 2% a
+    channel, times their `inputs:color`; without the switch the temperature is not read."""
+    from pxr import UsdLux
+    path = tmp_path / "warm.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    quad = UsdGeom.Mesh.Define(stage, "/Quad")
+    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    quad.CreateFaceVertexCountsAttr([4])
+    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    sun = UsdLux.DistantLight.Define(stage, "/Sun")
+    sun.CreateEnableColorTemperatureAttr(True)
+    sun.CreateColorTemperatureAttr(3000.0)
+    bulb = UsdLux.SphereLight.Define(stage, "/Bulb")
+    bulb.CreateEnableColorTemperatureAttr(True)
+    bulb.CreateColorTemperatureAttr(3000.0)
+    bulb.CreateColorAttr(Gf.Vec3f(0.5, 1.0, 1.0))
+    cold = UsdLux.SphereLight.Define(stage, "/Cold")
+    cold.CreateColorTemperatureAttr(3000.0)
+    stage.GetRootLayer().Save()
+
+    info = inspect(run, path, "--disp", MAP)
+    colour = lambda said: np.array([float(c) for c in said.split("colour (")[1].split(")")[0].split(",")])
+    lum = lambda c: c @ [0.2126, 0.7152, 0.0722]
+    usd = np.array(UsdLux.BlackbodyTemperatureAsRgb(3000.0))
+    for ours, want in ((colour(info["directional_light"]), usd),
+                       (colour(info["lights"][0]), usd * [0.5, 1.0, 1.0])):
+        assert np.allclose(ours, want / lum(want), rtol=0.02), (ours, want / lum(want))
+    assert "colour" not in info["lights"][1], info["lights"]

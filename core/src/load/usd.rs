@@ -1176,8 +1176,9 @@ impl Loader<'_> {
     }
 
     /// A light's `inputs:intensity × 2^inputs:exposure` and `inputs:color` (UsdLux's
-    /// fallbacks `intensity`, 0 and white); a value that is not a number is an error naming
-    /// it.
+    /// fallbacks `intensity`, 0 and white), the colour times a black body's at
+    /// `inputs:colorTemperature` (6 500 K) where `inputs:enableColorTemperature` is set
+    /// (`lights::blackbody`); a value that is not a number is an error naming it.
     fn light_power(&self, at: &sdf::Path, intensity: f64) -> Result<(f64, DVec3)> {
         let path = self.path;
         let number = |name: &str, default: f64| -> Result<f64> {
@@ -1199,6 +1200,13 @@ impl Loader<'_> {
                 let what = format!("inputs:color is {}, expected color3f (re-export)", kind(&v));
                 prim_err(path, at, what)
             })?,
+        };
+        let color = match input_value(path, self.stage, at, "enableColorTemperature")? {
+            Some(Value::Bool(true)) => {
+                let kelvin = number("colorTemperature", 6500.0)?;
+                color * crate::render::lights::blackbody(kelvin as f32).as_dvec3()
+            }
+            _ => color,
         };
         Ok((intensity, color))
     }
