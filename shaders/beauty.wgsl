@@ -176,6 +176,35 @@ fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
         out.ok = true;
         return out;
     }
+    if (l.kind >= 3u) {
+        // lights::Light::sample's area light: a point uniform over the rectangle or ellipse.
+        let u_vec = l.axis;
+        let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
+        var q = l.pos + u_vec * (2.0 * u.x - 1.0) + v_vec * (2.0 * u.y - 1.0);
+        let c = cross(v_vec, u_vec);
+        var area = 4.0 * length(c);
+        if (l.kind == 4u) {
+            let r = sqrt(u.x);
+            let phi = 2.0 * PI * u.y;
+            q = l.pos + (u_vec * cos(phi) + v_vec * sin(phi)) * r;
+            area = PI * length(c);
+        }
+        var n = vec3f(0.0);
+        if (length(c) > 0.0) {
+            n = normalize(c);
+        }
+        let to_q = q - p;
+        let dq2 = dot(to_q, to_q);
+        let dq = sqrt(dq2);
+        if (!(dq > 0.0)) {
+            return out;
+        }
+        out.dir = to_q / dq;
+        out.t_max = dq;
+        out.e = l.power * area * max(dot(-out.dir, n), 0.0) / dq2;
+        out.ok = true;
+        return out;
+    }
     let to = l.pos - p;
     let d2 = dot(to, to);
     let d = sqrt(d2);

@@ -102,7 +102,8 @@ struct AovPixel {
 
 // GpuLight, 64 bytes: one light (render::lights::Light) and its pick's chance. kind 0
 // directional (pos: the unit direction towards it; size: cos of its disc's radius), 1 point or
-// sphere (pos: its centre; size: its radius), 2 spot (also axis, cos_inner, cos_outer).
+// sphere (pos: its centre; size: its radius), 2 spot (also axis, cos_inner, cos_outer), 3
+// rectangle and 4 disk (pos: its centre; axis: its u; size, cos_inner, cos_outer: its v).
 struct Light {
     pos: vec3f,
     kind: u32,

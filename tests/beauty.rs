@@ -1691,13 +1691,82 @@ fn a_point_light_lights_by_the_inverse_square() {
     );
 }
 
+/// An area light lights by its radiance over its solid angle: a USD `DiskLight` of radius 1 and
+/// intensity 4 two units above a white quad, shining down, casts π L R² / (h² + R²) = 2.51
+/// W/m² on the centre, and the albedo-0.8 Lambertian surface there sends 0.8 / π of that
+/// towards the camera (within 3%: 64 samples a pixel of the disk); turned to face up, it
+/// casts nothing.
+#[test]
+fn a_disk_light_lights_by_its_solid_angle() {
+    let dir = temp_dir("disk-light");
+    let map = write_flat_map(&dir);
+    let black = dir.join("black.exr");
+    write_constant_env(&black, 0.0);
+    let centre = |turn: &str, name: &str| {
+        let path = dir.join(format!("{name}.usda"));
+        let light = format!(
+            "def DiskLight \"Panel\"\n{{\n    float inputs:intensity = 4\n    \
+             float inputs:radius = 1\n    double3 xformOp:translate = (0, 0, 2)\n    \
+             float xformOp:rotateX = {turn}\n    \
+             uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateX\"]\n}}\n"
+        );
+        std::fs::write(&path, quad_usda(&light)).unwrap();
+        let out = dir.join(name);
+        let mut args = vec!["render", s(&path), "--disp", s(&map), "--scale", "0"];
+        args.extend([
+            "--aov",
+            "beauty",
+            "--res",
+            "9x9",
+            "--spp",
+            "64",
+            "--bounces",
+            "1",
+        ]);
+        args.extend([
+            "--base-color",
+            "0.8,0.8,0.8",
+            "--roughness",
+            "1",
+            "--specular",
+            "0",
+        ]);
+        args.extend([
+            "--env",
+            s(&black),
+            "--camera-from",
+            "0,0,3",
+            "--camera-to",
+            "0,0,0",
+        ]);
+        args.extend(["--fov", "10", "--json", "-o", s(&out)]);
+        let summary = run(&args).assert_success().json();
+        (read_rgba(&out.join("beauty.exr"))[4 * 9 + 4], summary)
+    };
+    let (rgba, summary) = centre("0", "down");
+    let want = 0.8 / std::f32::consts::PI * (std::f32::consts::PI * 4.0 / 5.0);
+    assert!(
+        (rgba[0] / want - 1.0).abs() < 0.03,
+        "{rgba:?} against {want}"
+    );
+    assert!(
+        summary["lights"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("disk '/Panel' at (0.000, 0.000, 2.000), 2 × 2 across, shining along (0.000, 0.000, -1.000), radiance 4"),
+        "{summary}"
+    );
+    let (rgba, _) = centre("180", "up");
+    assert_eq!(rgba[0], 0.0, "{rgba:?}");
+}
+
 /// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it,
 /// and the directional light):
 /// a red dome of intensity 3 (no texture) lights a white quad red, `--env` replaces it, and a
 /// dome whose texture is missing fails naming the file, the dome and the texture. Its
 /// `DistantLight` is the key light where `--key-light` is not given, in its colour;
-/// `--no-scene-lights` leaves both out. Lights it does not render (rect, disk) are named in a
-/// warning.
+/// `--no-scene-lights` leaves both out. Lights it does not render (cylinder, portal) are named
+/// in a warning.
 #[test]
 fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     let dir = temp_dir("dome");
@@ -1838,15 +1907,15 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
         o.assert_success().json()["key_light"],
         "--key-light, colour (1.977, 0.791, 0.198)"
     );
-    // Rect and disk lights are not rendered: one warning names them all.
+    // Cylinder and portal lights are not rendered: one warning names them all.
     let rig = dir.join("rig.usda");
-    let lights = "def RectLight \"Key\"\n{\n}\ndef DiskLight \"Fill\"\n{\n}\n";
+    let lights = "def CylinderLight \"Key\"\n{\n}\ndef PortalLight \"Fill\"\n{\n}\n";
     std::fs::write(&rig, quad_usda(&format!("{sun}{lights}"))).unwrap();
     let o = run(&["inspect", s(&rig), "--disp", s(&map), "--json"]);
     o.assert_success();
     assert!(
         o.stderr
-            .contains("2 lights are not read: /Key (RectLight), /Fill (DiskLight)"),
+            .contains("2 lights are not read: /Key (CylinderLight), /Fill (PortalLight)"),
         "{}",
         o.stderr
     );

@@ -128,6 +128,26 @@ impl SceneLight {
                 l.power,
                 2.0 * cos_radius.clamp(-1.0, 1.0).acos().to_degrees()
             ),
+            LightShape::Area {
+                pos,
+                u,
+                v: side,
+                disk,
+            } => {
+                let (w, h) = (2.0 * u.length(), 2.0 * side.length());
+                let size = match disk {
+                    true => format!("{w} × {h} across"),
+                    false => format!("{w} × {h}"),
+                };
+                format!(
+                    "{} '{}' at {}, {size}, shining along {}, radiance {}{tint}",
+                    if disk { "disk" } else { "rect" },
+                    self.name,
+                    v(pos),
+                    v(crate::render::lights::area_and_normal(u, side, disk).1),
+                    l.power
+                )
+            }
             LightShape::Local { pos, radius, spot } => {
                 let what = match (spot, radius > 0.0) {
                     (Some(_), _) => "spot",

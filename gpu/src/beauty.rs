@@ -77,6 +77,15 @@ pub fn gpu_light(l: &Light, prob: f32, cdf: f32) -> GpuLight {
             size: cos_radius,
             ..base
         },
+        LightShape::Area { pos, u, v, disk } => GpuLight {
+            pos: pos.to_array(),
+            kind: if disk { 4 } else { 3 },
+            axis: u.to_array(),
+            size: v.x,
+            cos_inner: v.y,
+            cos_outer: v.z,
+            ..base
+        },
         LightShape::Local { pos, radius, spot } => match spot {
             None => GpuLight {
                 pos: pos.to_array(),

@@ -271,8 +271,10 @@ pub struct GpuAovPixel {
 /// One light of the beauty (`prismbake::render::lights::Light`, with its pick's chance), 64
 /// bytes: `kind` 0 directional (`pos` the unit direction towards it, `size` the cosine of its
 /// disc's radius), 1 a point or sphere (`pos` its centre, `size` its radius), 2 a spot (also
-/// `axis`, `cos_inner`, `cos_outer`); `power`, `color` as `Light`'s; `prob` its chance and
-/// `cdf` the running sum up to it (`LightSet::chance`).
+/// `axis`, `cos_inner`, `cos_outer`), 3 a rectangle and 4 a disk (`pos` its centre, `axis` its
+/// `u`, and `size`, `cos_inner`, `cos_outer` the three components of its `v`); `power`,
+/// `color` as `Light`'s; `prob` its chance and `cdf` the running sum up to it
+/// (`LightSet::chance`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {

@@ -313,11 +313,11 @@ impl From<KeyLight> for Lights {
 }
 
 /// A rig of every kind of light about the sphere (radius about 1, at the origin): a warm sun
-/// disc, a point above, a blue sphere light beside it, a spot aimed at it from the front and
-/// a point-like rim light behind. Each shadow ray goes as far as its light; BSDF samples
-/// meet only the disc.
+/// disc, a point above, a blue sphere light beside it, a spot aimed at it from the front, a
+/// point-like rim light behind, a rectangle and a disk. Each shadow ray goes as far as its
+/// light; BSDF samples meet only the sun's disc.
 #[test]
-fn a_rig_of_directional_point_sphere_and_spot_lights_matches_the_cpu() {
+fn a_rig_of_every_kind_of_light_matches_the_cpu() {
     let spot = Spot {
         axis: Vec3::new(0.0, -0.3, -1.0).normalize(),
         cos_inner: 0.97,
@@ -345,6 +345,28 @@ fn a_rig_of_directional_point_sphere_and_spot_lights_matches_the_cpu() {
             ),
             local(Vec3::new(0.0, 1.2, 4.0), 0.0, Some(spot), 30.0, Vec3::ONE),
             KeyLight::from_angles(200.0, 20.0, 1.5, false).into(),
+            // A softbox above and in front, shining down and back; a disk low on the left,
+            // shining right.
+            Light {
+                shape: LightShape::Area {
+                    pos: Vec3::new(0.0, 2.5, 2.0),
+                    u: Vec3::new(0.8, 0.0, 0.0),
+                    v: Vec3::new(0.0, 0.3, -0.4),
+                    disk: false,
+                },
+                power: 3.0,
+                color: Vec3::new(1.0, 0.9, 0.8),
+            },
+            Light {
+                shape: LightShape::Area {
+                    pos: Vec3::new(-2.5, -0.5, 0.5),
+                    u: Vec3::new(0.0, 0.0, 0.6),
+                    v: Vec3::new(0.0, 0.6, 0.0),
+                    disk: true,
+                },
+                power: 2.0,
+                color: Vec3::ONE,
+            },
         ]),
         1.0,
         RenderSettings {
@@ -353,7 +375,7 @@ fn a_rig_of_directional_point_sphere_and_spot_lights_matches_the_cpu() {
             spp: 4,
             seed: 11,
         },
-        "rig of five lights",
+        "rig of seven lights",
     );
 }
 

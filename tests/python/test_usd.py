@@ -762,3 +762,72 @@ def test_a_lights_colour_temperature_tints_it_as_usd_lux_does(run, tmp_path):
                        (colour(info["lights"][0]), usd * [0.5, 1.0, 1.0])):
         assert np.allclose(ours, want / lum(want), rtol=0.02), (ours, want / lum(want))
     assert "colour" not in info["lights"][1], info["lights"]
+
+
+BLENDER_AREA = textwrap.dedent(
+    """
+    import json, sys, bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.usd_import(filepath=sys.argv[1])
+    out = {}
+    for o in bpy.context.scene.objects:
+        if o.type == "LIGHT":
+            d = o.data
+            out[o.name] = {"type": d.type, "shape": d.shape, "energy": d.energy, "size": d.size,
+                           "size_y": d.size_y, "at": list(o.matrix_world.col[3][:3]),
+                           "down": [-x for x in o.matrix_world.col[2][:3]]}
+    print("RESULT " + json.dumps(out))
+    """
+)
+
+
+def test_rect_and_disk_lights_light_as_blender_imports_them(run, tmp_path):
+    """A normalized `RectLight` and a `DiskLight` written by usd-core light the beauty where
+    Blender's importer puts its area lamps, shining the same way. The normalized rect light
+    has the radiance a Cycles area lamp of Blender's power has (P / (π × area)). The disk is
+    not normalized: UsdLux makes its intensity its radiance, whatever its size; Blender's
+    importer reads it as normalized all the same (P = π × intensity), so there the two differ
+    by the disk's area, and the test pins that rather than copying it."""
+    from pxr import UsdLux
+    path = tmp_path / "areas.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
+    UsdGeom.SetStageMetersPerUnit(stage, 1.0)  # Blender scales a centimetre stage to metres
+    quad = UsdGeom.Mesh.Define(stage, "/Quad")
+    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    quad.CreateFaceVertexCountsAttr([4])
+    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    box = UsdLux.RectLight.Define(stage, "/Box")
+    box.CreateWidthAttr(2.0)
+    box.CreateHeightAttr(0.5)
+    box.CreateIntensityAttr(31.830988)
+    box.CreateNormalizeAttr(True)
+    UsdGeom.Xformable(box.GetPrim()).AddTranslateOp().Set(Gf.Vec3d(0, 0, 3))
+    disk = UsdLux.DiskLight.Define(stage, "/Round")
+    disk.CreateRadiusAttr(0.4)
+    disk.CreateIntensityAttr(5.0)
+    xf = UsdGeom.Xformable(disk.GetPrim())
+    xf.AddTranslateOp().Set(Gf.Vec3d(2, 0, 1))
+    xf.AddRotateYOp().Set(-90.0)
+    stage.GetRootLayer().Save()
+
+    lights = inspect(run, path, "--disp", MAP)["lights"]
+    blender = subprocess.run([sys.executable, "-c", BLENDER_AREA, str(path)], capture_output=True,
+                             text=True, timeout=300)
+    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
+    assert line, blender.stderr[-2000:]
+    theirs = json.loads(line[len("RESULT "):])
+    vec = lambda said, after: np.array([float(x) for x in said.split(after + " (")[1].split(")")[0].split(",")])
+    radiance = lambda said: float(said.split("radiance ")[1].split(",")[0])
+    for said, lamp in ((lights[0], theirs["Box"]), (lights[1], theirs["Round"])):
+        assert lamp["type"] == "AREA", lamp
+        # Z-up stage, Blender Z-up: the same coordinates.
+        assert np.allclose(vec(said, "at"), lamp["at"], atol=1e-4), (said, lamp)
+        assert np.allclose(vec(said, "shining along"), lamp["down"], atol=1e-4), (said, lamp)
+    box, round_ = radiance(lights[0]), radiance(lights[1])
+    assert abs(box - theirs["Box"]["energy"] / (np.pi * 2.0 * 0.5)) < 2e-3 * box, (lights[0], theirs["Box"])
+    assert round_ == 5.0 and abs(theirs["Round"]["energy"] - np.pi * 5.0) < 1e-3, (lights[1], theirs["Round"])
+    assert theirs["Box"]["shape"] == "RECTANGLE" and (theirs["Box"]["size"], theirs["Box"]["size_y"]) == (2.0, 0.5)
+    assert theirs["Round"]["shape"] == "DISK" and abs(theirs["Round"]["size"] - 0.8) < 1e-6

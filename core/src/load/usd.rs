@@ -75,8 +75,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
             warn(
                 path,
                 &format!(
-                    "{n} light{} not read: {} (the beauty renders a DomeLight, DistantLights and \
-                     SphereLights; rect, disk, cylinder and mesh lights are not rendered)",
+                    "{n} light{} not read: {} (the beauty renders dome, distant, sphere, rect \
+                     and disk lights; cylinder, mesh, portal and plugin lights are not rendered)",
                     if n == 1 { " is" } else { "s are" },
                     loader.unread_lights.join(", ")
                 ),
@@ -846,8 +846,10 @@ impl Loader<'_> {
             t @ ("DomeLight" | "DomeLight_1") => self.dome_prim(prim, world, t == "DomeLight_1")?,
             "DistantLight" => self.sun_prim(prim, world)?,
             "SphereLight" => self.sphere_prim(prim, world)?,
-            t @ ("RectLight" | "DiskLight" | "CylinderLight" | "GeometryLight" | "PortalLight"
-            | "PluginLight") => self.unread_lights.push(format!("{} ({t})", prim.path())),
+            t @ ("RectLight" | "DiskLight") => self.area_prim(prim, world, t == "DiskLight")?,
+            t @ ("CylinderLight" | "GeometryLight" | "PortalLight" | "PluginLight") => {
+                self.unread_lights.push(format!("{} ({t})", prim.path()))
+            }
             _ => {}
         }
         for child in children(self.path, prim)? {
@@ -1169,6 +1171,80 @@ impl Loader<'_> {
                     spot,
                 },
                 power,
+                color: Vec3::from_array(color),
+            },
+        });
+        Ok(())
+    }
+
+    /// A `RectLight` (`inputs:width` × `inputs:height`, 1 × 1) or `DiskLight` (`inputs:radius`,
+    /// 0.5) centred on its prim's origin in its XY plane, scaled with the prim, shining along
+    /// its −Z: of radiance UsdLux's `inputs:intensity × 2^inputs:exposure` (1 where not
+    /// authored; the luminance of `inputs:color` times), over its area where
+    /// `inputs:normalize`d (Blender writes an area lamp of P watts as intensity P / π,
+    /// normalized: Cycles' radiance P / (π × area)). A rect light's texture is not read (a
+    /// warning); one whose numbers are not usable is left out, with a warning.
+    fn area_prim(&mut self, prim: &Prim, world: DMat4, disk: bool) -> Result<()> {
+        let (path, at) = (self.path, prim.path().clone());
+        let (intensity, rgb) = self.light_power(&at, 1.0)?;
+        let number = |name: &str, default: f64| -> Result<f64> {
+            match input_value(path, self.stage, &at, name)? {
+                None => Ok(default),
+                Some(v) => scalar(&v)
+                    .filter(|x| x.is_finite() && *x >= 0.0)
+                    .ok_or_else(|| {
+                        let what = format!(
+                            "inputs:{name} is {}, expected a size >= 0 (re-export)",
+                            kind(&v)
+                        );
+                        prim_err(path, &at, what)
+                    }),
+            }
+        };
+        let (half_w, half_h) = match disk {
+            true => {
+                let r = number("radius", 0.5)?;
+                (r, r)
+            }
+            false => (0.5 * number("width", 1.0)?, 0.5 * number("height", 1.0)?),
+        };
+        if !disk && input_value(path, self.stage, &at, "texture:file")?.is_some() {
+            warn(
+                path,
+                &format!("{at}: its texture is not read; it shines its colour evenly"),
+            );
+        }
+        let normalize = matches!(
+            input_value(path, self.stage, &at, "normalize")?,
+            Some(Value::Bool(true))
+        );
+        let u = (world.transform_vector3(DVec3::X) * half_w).as_vec3();
+        let v = (world.transform_vector3(DVec3::Y) * half_h).as_vec3();
+        let (area, _) = crate::render::lights::area_and_normal(u, v, disk);
+        let (luminance, color) = crate::mesh::split_color(rgb.as_vec3())
+            .map_or((f64::NAN, [1.0; 3]), |(l, c)| (l as f64, c));
+        let radiance = match normalize {
+            true => intensity / area as f64,
+            false => intensity,
+        } * luminance;
+        let radiance = radiance as f32;
+        let pos = world.transform_point3(DVec3::ZERO).as_vec3();
+        if !(radiance.is_finite() && radiance >= 0.0 && area > 0.0 && pos.is_finite()) {
+            warn(
+                path,
+                &format!(
+                    "{at}: its radiance comes to {radiance} over an area of {area} (intensity, \
+                     exposure, colour ({}, {}, {}), size), not usable; left out",
+                    rgb.x, rgb.y, rgb.z
+                ),
+            );
+            return Ok(());
+        }
+        self.mesh.lights.push(crate::mesh::SceneLight {
+            name: at.to_string(),
+            light: Light {
+                shape: LightShape::Area { pos, u, v, disk },
+                power: radiance,
                 color: Vec3::from_array(color),
             },
         });

@@ -1730,6 +1730,71 @@ def SphereLight "Nothing"
     assert_eq!(l(4).power, 2.0);
 }
 
+/// `RectLight`s and `DiskLight`s light as one-sided area lights down their −Z, of UsdLux's
+/// radiance (over their area when normalized: Blender writes a 100 W area lamp as 31.83,
+/// normalized, a radiance of 100 / (π × area)); a rect light's size is its width and height
+/// along X and Y, a disk's its radius, both scaled with the prim.
+#[test]
+fn rect_and_disk_lights_are_area_lights() {
+    use crate::render::lights::{area_and_normal, LightShape};
+    let d = dir("areas");
+    let lights = r#"def RectLight "Box"
+{
+    float inputs:intensity = 31.830988
+    bool inputs:normalize = 1
+    float inputs:width = 2
+    float inputs:height = 0.5
+    double3 xformOp:translate = (0, 0, 3)
+    uniform token[] xformOpOrder = ["xformOp:translate"]
+}
+def DiskLight "Round"
+{
+    float inputs:intensity = 31.830988
+    bool inputs:normalize = 1
+    double3 xformOp:scale = (2, 2, 2)
+    uniform token[] xformOpOrder = ["xformOp:scale"]
+}"#;
+    let p = write(&d, "areas.usda", &quad_with_cameras("Y", lights));
+    let m = load_mesh(&p, &MeshOptions::default()).unwrap();
+    let [rect, disk] = [m.lights[0].light, m.lights[1].light];
+    let LightShape::Area {
+        pos,
+        u,
+        v,
+        disk: false,
+    } = rect.shape
+    else {
+        panic!("{rect:?}")
+    };
+    assert_eq!(
+        (pos, u, v),
+        (
+            Vec3::new(0.0, 0.0, 3.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.25, 0.0)
+        )
+    );
+    let (area, n) = area_and_normal(u, v, false);
+    assert_eq!((area, n), (1.0, Vec3::NEG_Z));
+    assert!(
+        (rect.power - 100.0 / std::f32::consts::PI).abs() < 1e-3,
+        "{rect:?}"
+    );
+    let LightShape::Area {
+        u, v, disk: true, ..
+    } = disk.shape
+    else {
+        panic!("{disk:?}")
+    };
+    // Radius 0.5 scaled by 2: an area of π.
+    let (area, _) = area_and_normal(u, v, true);
+    assert!((area - std::f32::consts::PI).abs() < 1e-5);
+    assert!(
+        (disk.power - 100.0 / std::f32::consts::PI / area).abs() < 1e-3,
+        "{disk:?}"
+    );
+}
+
 /// A `DistantLight` becomes the key light: towards its +Z as its transform turns it (45° up
 /// and a quarter turn: azimuth 90°, +X), its irradiance `intensity × 2^exposure` (normalized)
 /// or that times the disc's solid angle (UsdLux's fallbacks: 50 000 × 6.7 × 10⁻⁵ sr for a

@@ -1,6 +1,6 @@
 //! The beauty pass: a progressive path tracer over any intersector. Lighting: the environment
-//! (`env`) and up to `lights::MAX_LIGHTS` directional, point, sphere and spot lights (one
-//! sampled an event, `lights::LightSet`); material: `shading::Material` (Lambert +
+//! (`env`) and up to `lights::MAX_LIGHTS` directional, point, sphere, spot and area lights
+//! (one sampled an event, `lights::LightSet`); material: `shading::Material` (Lambert +
 //! GGX, mirror below `MIRROR_ROUGHNESS`), one per material of the asset, its base colour,
 //! roughness and metallic times optional textures at the hit's UV (`BeautyScene::material_at`),
 //! its shading normal bent by an optional normal map (`shade_hit`), and an optional glow

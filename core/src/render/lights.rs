@@ -1,13 +1,14 @@
 //! The beauty's lights besides the environment: directional lights (a direction, or a disc as
-//! wide as the sun), points, spheres and spots, up to `MAX_LIGHTS`. Each surface event samples
+//! wide as the sun), points, spheres, spots and one-sided rectangles and disks, up to
+//! `MAX_LIGHTS`. Each surface event samples
 //! one of them, picked with a fixed chance (`LightSet::new`: by what each casts on the asset's
 //! centre), so that a rig of several lights costs one shadow ray an event, as one light does.
 //!
 //! A directional disc is also met by BSDF samples that leave the scene (`LightSet::escape`),
 //! and the two estimates share it by MIS (power heuristic, the pick's chance in the light
-//! sample's density). Points, spheres and spots are found by their shadow rays alone: BSDF
-//! samples do not meet them, so a mirror does not reflect them (a rough surface's highlight
-//! from them is whole: nothing else counts that light).
+//! sample's density). Points, spheres, spots and area lights are found by their shadow rays
+//! alone: BSDF samples do not meet them, so a mirror does not reflect them (a rough surface's
+//! highlight from them is whole: nothing else counts that light).
 //!
 //! Mirrored in `shaders/beauty.wgsl` (`Light`, `light_sample`, `lights_escape`), which reads
 //! the same numbers from the lighting uniform (`gpu::layout::GpuLight`).
@@ -31,6 +32,15 @@ pub enum LightShape {
         pos: Vec3,
         radius: f32,
         spot: Option<Spot>,
+    },
+    /// A one-sided emitter of even radiance centred on `pos`: the rectangle `pos ± u ± v`, or
+    /// (`disk`) the ellipse `pos + cos φ u + sin φ v`, shining on the side `v × u` points to
+    /// (a USD `RectLight`'s or `DiskLight`'s −Z, with `u` along its X and `v` along its Y).
+    Area {
+        pos: Vec3,
+        u: Vec3,
+        v: Vec3,
+        disk: bool,
     },
 }
 
@@ -68,7 +78,8 @@ impl Spot {
 
 /// One light: its shape, what it casts (a directional light's irradiance at normal incidence;
 /// a local light's intensity, the irradiance it casts at normal incidence one unit away, along
-/// a spot's axis), both as luminance, and its colour of unit luminance (`mesh::split_color`).
+/// a spot's axis; an area light's radiance), as luminance, and its colour of unit luminance
+/// (`mesh::split_color`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
     pub shape: LightShape,
@@ -123,6 +134,12 @@ impl Light {
     fn weight_at(&self, p: Vec3) -> f32 {
         match self.shape {
             LightShape::Distant { .. } => self.power,
+            LightShape::Area { pos, u, v, disk } => {
+                let (area, n) = area_and_normal(u, v, disk);
+                let to = p - pos;
+                let d2 = to.length_squared().max(area).max(1e-12);
+                self.power * area * (to.dot(n) / d2.sqrt()).max(0.0) / d2
+            }
             LightShape::Local { pos, radius, spot } => {
                 let to = p - pos;
                 let d2 = to.length_squared().max(radius * radius).max(1e-12);
@@ -134,7 +151,7 @@ impl Light {
 
     /// A direction towards the light from `p` for random numbers `u`, and what it brings (not
     /// yet over the pick's chance); `None` from inside a sphere light.
-    fn sample(&self, p: Vec3, u: Vec2) -> Option<LightSample> {
+    fn sample(&self, p: Vec3, u2: Vec2) -> Option<LightSample> {
         match self.shape {
             LightShape::Distant { dir, cos_radius } => {
                 let k = KeyLight {
@@ -144,11 +161,38 @@ impl Light {
                     color: self.color,
                 };
                 Some(LightSample {
-                    dir: k.sample_dir(u),
+                    dir: k.sample_dir(u2),
                     t_max: f32::INFINITY,
                     e: self.power,
                     color: self.color,
                     mis_pdf: k.pdf(),
+                })
+            }
+            LightShape::Area { pos, u, v, disk } => {
+                // A point uniform over the shape: its radiance times the shape's area and its
+                // cosine over the squared distance (the density's inverse in solid angle).
+                let q = match disk {
+                    false => pos + u * (2.0 * u2.x - 1.0) + v * (2.0 * u2.y - 1.0),
+                    true => {
+                        let (r, phi) = (u2.x.sqrt(), 2.0 * std::f32::consts::PI * u2.y);
+                        pos + (u * phi.cos() + v * phi.sin()) * r
+                    }
+                };
+                let (area, n) = area_and_normal(u, v, disk);
+                let to = q - p;
+                let d2 = to.length_squared();
+                let d = d2.sqrt();
+                if d.is_nan() || d <= 0.0 {
+                    return None;
+                }
+                let dir = to / d;
+                let cos_light = (-dir).dot(n).max(0.0);
+                Some(LightSample {
+                    dir,
+                    t_max: d,
+                    e: self.power * area * cos_light / d2,
+                    color: self.color,
+                    mis_pdf: None,
                 })
             }
             LightShape::Local { pos, radius, spot } => {
@@ -173,9 +217,9 @@ impl Light {
                 // the cancellation of 1 − √(1 − s²) for a small, far sphere.
                 let s2 = (radius * radius) / d2;
                 let one_minus_cos = s2 / (1.0 + (1.0 - s2).max(0.0).sqrt());
-                let cos = 1.0 - u.x * one_minus_cos;
+                let cos = 1.0 - u2.x * one_minus_cos;
                 let sin = (1.0 - cos * cos).max(0.0).sqrt();
-                let phi = 2.0 * std::f32::consts::PI * u.y;
+                let phi = 2.0 * std::f32::consts::PI * u2.y;
                 let (t, b) = shading::onb(centre);
                 let dir =
                     (t * (sin * phi.cos()) + b * (sin * phi.sin()) + centre * cos).normalize();
@@ -211,9 +255,25 @@ impl Light {
                     ..s
                 }),
             },
+            LightShape::Area { pos, u, v, disk } => LightShape::Area {
+                pos: pivot + rot * (pos - pivot),
+                u: rot * u,
+                v: rot * v,
+                disk,
+            },
         };
         Light { shape, ..*self }
     }
+}
+
+/// An area light's area and the unit normal of the side it shines on (`LightShape::Area`).
+pub fn area_and_normal(u: Vec3, v: Vec3, disk: bool) -> (f32, Vec3) {
+    let c = v.cross(u);
+    let area = match disk {
+        true => std::f32::consts::PI * c.length(),
+        false => 4.0 * c.length(),
+    };
+    (area, c.normalize_or_zero())
 }
 
 /// The colour of a black body at `kelvin` (clamped to 1 000–10 000 K, as UsdLux's table is), in
@@ -388,7 +448,7 @@ impl LightSet {
             LightShape::Distant { dir, cos_radius } => {
                 cos_radius < 1.0 && wi.dot(dir) >= cos_radius
             }
-            LightShape::Local { .. } => false,
+            LightShape::Local { .. } | LightShape::Area { .. } => false,
         })
     }
 
@@ -475,6 +535,55 @@ mod tests {
         assert!(sphere
             .sample(Vec3::new(0.0, 400.2, 0.0), Vec2::ZERO)
             .is_none());
+    }
+
+    /// An area light casts its radiance times its area and its cosine over the squared
+    /// distance: far off, a rectangle facing the point is a point of that intensity whatever
+    /// the sample; seen from behind, nothing; up close under a disk, the mean of its samples is
+    /// the disk's irradiance, π L R² / (h² + R²).
+    #[test]
+    fn area_lights_cast_their_radiance_over_their_area() {
+        let rect = Light {
+            shape: LightShape::Area {
+                pos: Vec3::new(0.0, 100.0, 0.0),
+                u: Vec3::new(0.5, 0.0, 0.0),
+                v: Vec3::new(0.0, 0.0, -0.25),
+                disk: false,
+            },
+            power: 3.0,
+            color: Vec3::ONE,
+        };
+        // v × u = −Y: it shines down on the origin.
+        for u in [Vec2::new(0.1, 0.9), Vec2::new(0.7, 0.3)] {
+            let s = rect.sample(Vec3::ZERO, u).unwrap();
+            assert!((s.e / (3.0 * 0.5 / 1e4) - 1.0).abs() < 1e-4, "{}", s.e);
+        }
+        let above = rect
+            .sample(Vec3::new(0.0, 200.0, 0.0), Vec2::splat(0.5))
+            .unwrap();
+        assert_eq!(above.e, 0.0);
+        let disk = Light {
+            shape: LightShape::Area {
+                pos: Vec3::new(0.0, 2.0, 0.0),
+                u: Vec3::X,
+                v: Vec3::NEG_Z,
+                disk: true,
+            },
+            power: 4.0,
+            color: Vec3::ONE,
+        };
+        let n = 256;
+        let mut sum = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let u = Vec2::new((i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32);
+                let s = disk.sample(Vec3::ZERO, u).unwrap();
+                sum += s.e * s.dir.y;
+            }
+        }
+        let want = std::f32::consts::PI * 4.0 / 5.0;
+        let got = sum / (n * n) as f32;
+        assert!((got / want - 1.0).abs() < 1e-3, "{got} against {want}");
     }
 
     /// Picks follow the chances (by what each light casts on the centre, floored), `u` is
