@@ -586,6 +586,41 @@ mod tests {
         assert!((got / want - 1.0).abs() < 1e-3, "{got} against {want}");
     }
 
+    /// A turntable turns local lights about the pivot and directional ones (and a spot's axis,
+    /// an area light's sides) about the up axis, the chances kept.
+    #[test]
+    fn lights_turn_about_the_pivot() {
+        let spot = Light {
+            shape: LightShape::Local {
+                pos: Vec3::new(2.0, 1.0, 0.0),
+                radius: 0.0,
+                spot: Some(Spot::blended(Vec3::NEG_X, 0.5, 0.2)),
+            },
+            power: 1.0,
+            color: Vec3::ONE,
+        };
+        let sun = Light::from(KeyLight::from_angles(90.0, 0.0, 1.0, false));
+        let set = LightSet::new(&[spot, sun], Vec3::ZERO);
+        let turned = set.turned(
+            Vec3::Y,
+            Vec3::new(1.0, 0.0, 0.0),
+            std::f32::consts::FRAC_PI_2,
+        );
+        let LightShape::Local {
+            pos, spot: Some(s), ..
+        } = turned.lights()[0].shape
+        else {
+            unreachable!()
+        };
+        assert!((pos - Vec3::new(1.0, 1.0, -1.0)).length() < 1e-6, "{pos}");
+        assert!((s.axis - Vec3::Z).length() < 1e-6, "{}", s.axis);
+        let LightShape::Distant { dir, .. } = turned.lights()[1].shape else {
+            unreachable!()
+        };
+        assert!((dir - Vec3::NEG_Z).length() < 1e-6, "{dir}");
+        assert_eq!(turned.chance(0), set.chance(0));
+    }
+
     /// Picks follow the chances (by what each light casts on the centre, floored), `u` is
     /// stretched back over its share, and one light is always picked with `u` as it is.
     #[test]
