@@ -490,10 +490,14 @@ fn ground_light(
     let Some(g) = s.ground else { return (0.0, 0.0) };
     let origin = p + g.up * s.eps;
     let (mut lit, mut all) = (0.0, 0.0);
-    if let Some(ls) = s
-        .lights
-        .sample(origin, rand2(ctx, 0, KEY_DIM, Purpose::Light))
-    {
+    // No random numbers are drawn for lights there are none of.
+    let light = (!s.lights.is_empty())
+        .then(|| {
+            s.lights
+                .sample(origin, rand2(ctx, 0, KEY_DIM, Purpose::Light))
+        })
+        .flatten();
+    if let Some(ls) = light {
         let cos = ls.dir.dot(g.up);
         if cos > 0.0 && ls.e > 0.0 {
             all += ls.e * cos;
@@ -562,10 +566,13 @@ fn surface_radiance(
             ..*ctx
         };
 
-        if let Some(ls) = s
-            .lights
-            .sample(p, rand2(ctx, bounce, KEY_DIM, Purpose::Light))
-        {
+        let light = (!s.lights.is_empty())
+            .then(|| {
+                s.lights
+                    .sample(p, rand2(ctx, bounce, KEY_DIM, Purpose::Light))
+            })
+            .flatten();
+        if let Some(ls) = light {
             let kd = ls.dir;
             let wi_l = shading::to_local(kd, t, b, ns);
             let f = if kd.dot(ng) > 0.0 && ls.e > 0.0 {
