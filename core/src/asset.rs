@@ -194,7 +194,8 @@ pub fn expand_paths(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
 /// 2: crease strips on UV seams keep each side's UV.
 /// 3: a crease strip's texel size is at most half its widest rung arc.
 /// 4: a prism's flags carry its material (`bake::PRISM_MATERIAL_SHIFT`).
-pub const PIPELINE_REVISION: u32 = 4;
+/// 5: normals within `weld::NORMAL_SNAP` at one position are unified before welding.
+pub const PIPELINE_REVISION: u32 = 5;
 
 /// blake3 of everything the table depends on.
 pub fn input_hash(spec: &AssetSpec, repair: &RepairOptions) -> Result<[u8; 32]> {

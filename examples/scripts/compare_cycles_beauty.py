@@ -1,6 +1,6 @@
-"""Compare prismbake's lookdev beauty against Blender Cycles' on one glTF asset: the same
-displaced surface, camera, material and HDRI environment, rendered by both; prints one JSON
-line of the differences.
+"""Compare prismbake's lookdev beauty against Blender Cycles' on one glTF or USD asset: the
+same displaced surface, camera, material, HDRI environment and the file's lights (as Blender's
+importer makes them), rendered by both; prints one JSON line of the differences.
 
     .venv/bin/python examples/scripts/compare_cycles_beauty.py examples/sphere/sphere.glb \
         [--res 128] [--spp 256] [--roughness 0.5] [--metallic 0] [--env-rotate 0]
@@ -67,7 +67,10 @@ def read_rgba(path, name="RGBA"):
 def render_cycles(a, disp, out_exr, env):
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=os.path.abspath(a.asset))
+    if pathlib.Path(a.asset).suffix in (".usd", ".usda", ".usdc"):
+        bpy.ops.wm.usd_import(filepath=os.path.abspath(a.asset))
+    else:
+        bpy.ops.import_scene.gltf(filepath=os.path.abspath(a.asset))
     sc = bpy.context.scene
     cams = [o for o in sc.objects if o.type == "CAMERA"]
     if not cams:

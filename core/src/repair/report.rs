@@ -74,6 +74,9 @@ pub struct RepairReport {
     pub output_triangles: usize,
     /// Input vertices merged into an earlier equal one (position, normal and UV).
     pub welded_vertices: usize,
+    /// Input vertices whose normal was made the mean of the normals within `NORMAL_SNAP` of
+    /// it at the same position (an exporter's per-corner noise, not a hard edge).
+    pub unified_normals: usize,
     /// Vertices no face referenced (after dropping faces), removed to keep arrays compact.
     pub unreferenced_vertices: usize,
     /// Input faces dropped because an index was out of range or a position not finite.
@@ -147,6 +150,14 @@ impl RepairReport {
             if self.is_clean() { " (clean)" } else { "" }
         );
         let _ = writeln!(s, "  welded vertices: {}", self.welded_vertices);
+        if self.unified_normals > 0 {
+            let _ = writeln!(
+                s,
+                "  normals unified (equal to {} at one position): {}",
+                super::weld::NORMAL_SNAP,
+                self.unified_normals
+            );
+        }
         if self.unreferenced_vertices > 0 {
             let _ = writeln!(
                 s,

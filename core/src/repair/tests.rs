@@ -340,6 +340,40 @@ fn weld_merges_duplicated_quad_vertices() {
     assert_eq!((rep2.welded_vertices, out2.positions.len()), (0, 5));
 }
 
+/// A quad written with a normal per face corner, the copies of its shared corners differing by
+/// 1e-5 (an exporter's noise): the normals are made one, the copies weld, and nothing is
+/// stitched; copies 0.01 apart (a real, if slight, hard edge) stay apart and are stitched.
+#[test]
+fn normals_within_the_snap_are_one_normal_and_others_stay_hard() {
+    let q = quad();
+    let p: Vec<Vec3> = [0, 1, 2, 0, 2, 3].iter().map(|&i| q.positions[i]).collect();
+    let uv: Vec<Vec2> = p.iter().map(|v| v.truncate()).collect();
+    let tilted = |d: f32| {
+        let n = |k: usize| match k {
+            3..=5 => (Vec3::Z + Vec3::new(d, -d, 0.0)).normalize(),
+            _ => Vec3::Z,
+        };
+        mesh(
+            p.clone(),
+            (0..6).map(n).collect(),
+            uv.clone(),
+            vec![[0, 1, 2], [3, 4, 5]],
+        )
+    };
+    let (out, rep) = repair(tilted(1e-5), &RepairOptions::default());
+    assert_eq!(
+        (rep.unified_normals, rep.welded_vertices),
+        (4, 2),
+        "{}",
+        rep.to_text()
+    );
+    assert_eq!(out.positions.len(), 4);
+    assert_eq!(rep.inserted_triangles, 0, "{}", rep.to_text());
+    let (_, rep) = repair(tilted(1e-2), &RepairOptions::default());
+    assert_eq!((rep.unified_normals, rep.welded_vertices), (0, 0));
+    assert!(rep.inserted_triangles > 0, "{}", rep.to_text());
+}
+
 // Would break if degenerate faces reached the bake (NaN face normals, zero texel sizes).
 #[test]
 fn zero_area_and_repeated_index_faces_are_dropped_and_listed() {

@@ -3,7 +3,10 @@
 //! Equality is exact equality of quantised keys: positions on a grid of 1e-6 of the bounds'
 //! diagonal, normals and UVs on a grid of 1e-6 (they are O(1) quantities). Values that straddle
 //! a grid line stay apart; loaders write duplicated vertices bit-identically, which is the case
-//! this is for.
+//! this is for. Before that, normals at one position that differ by less than `NORMAL_SNAP` in
+//! every component are made their mean: exporters that write a normal per face corner (Blender's
+//! USD export) leave ~1e-5 of noise between the copies of one smooth vertex, which would
+//! otherwise be stitched as hundreds of hard edges of no angle (and marched slowly).
 
 use super::{RepairReport, Work, INSERTED_ORIGIN};
 use crate::mesh::{BaseMesh, FACE_INSERTED, FACE_UV_DEGENERATE};
@@ -18,6 +21,62 @@ const WELD_CELL: f32 = 1e-6;
 const ZERO_AREA_REL: f32 = 1e-12;
 /// UV area below which a face samples the map along a line (UV space is O(1)).
 const ZERO_UV_AREA: f32 = 1e-12;
+
+/// Normals at one position closer than this in every component (about 0.006°) are one normal.
+pub const NORMAL_SNAP: f32 = 1e-4;
+
+/// Each vertex's normal, the mean of those within `NORMAL_SNAP` of it at its position (by
+/// `quant`'s grid); how many changed.
+fn unified_normals(mesh: &BaseMesh, quant: &Quantizer) -> (Vec<Vec3>, usize) {
+    let normal = |i: usize| mesh.normals.get(i).copied().unwrap_or(Vec3::ZERO);
+    let mut at: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for (i, p) in mesh.positions.iter().enumerate() {
+        if p.is_finite() {
+            at.entry(quant.position_key(*p)).or_default().push(i);
+        }
+    }
+    let mut out: Vec<Vec3> = (0..mesh.positions.len()).map(normal).collect();
+    let mut changed = 0;
+    for group in at.values().filter(|g| g.len() > 1) {
+        // Greedy clusters around their first member.
+        let mut clusters: Vec<(Vec3, Vec<usize>)> = vec![];
+        for &i in group {
+            let n = normal(i);
+            match clusters
+                .iter_mut()
+                .find(|(first, _)| (*first - n).abs().max_element() < NORMAL_SNAP)
+            {
+                Some((_, members)) => members.push(i),
+                None => clusters.push((n, vec![i])),
+            }
+        }
+        for (first, members) in clusters.iter().filter(|(_, m)| m.len() > 1) {
+            // Copies that already match to the weld grid (a UV seam's, bit for bit or an ulp
+            // apart) are left as they are: a clean mesh comes out unchanged.
+            if members
+                .iter()
+                .all(|&i| (normal(i) - *first).abs().max_element() <= WELD_CELL)
+            {
+                continue;
+            }
+            let mean = members
+                .iter()
+                .map(|&i| normal(i))
+                .sum::<Vec3>()
+                .normalize_or_zero();
+            if mean == Vec3::ZERO {
+                continue;
+            }
+            for &i in members {
+                if out[i] != mean {
+                    out[i] = mean;
+                    changed += 1;
+                }
+            }
+        }
+    }
+    (out, changed)
+}
 
 /// Maps positions to integer cells relative to the mesh bounds.
 #[derive(Clone, Copy, Debug)]
@@ -69,7 +128,17 @@ pub(super) fn weld(
     report: &mut RepairReport,
 ) -> Work {
     let nv = mesh.positions.len();
-    let normal = |i: usize| mesh.normals.get(i).copied().unwrap_or(Vec3::ZERO);
+    let (normals, changed) = match enabled {
+        true => unified_normals(mesh, quant),
+        false => (
+            (0..nv)
+                .map(|i| mesh.normals.get(i).copied().unwrap_or(Vec3::ZERO))
+                .collect(),
+            0,
+        ),
+    };
+    report.unified_normals = changed;
+    let normal = |i: usize| normals[i];
     let uv = |i: usize| mesh.uvs.get(i).copied().unwrap_or(Vec2::ZERO);
     let mut remap = Vec::with_capacity(nv);
     let mut w = Work {
