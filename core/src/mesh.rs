@@ -116,6 +116,11 @@ impl SceneLight {
         use crate::render::lights::LightShape;
         let l = &self.light;
         let v = |v: glam::Vec3| format!("({:.3}, {:.3}, {:.3})", v.x, v.y, v.z);
+        // A size to four decimals, without f32's noise (1.4999999) or trailing zeros.
+        let size = |x: f32| {
+            let s = format!("{x:.4}");
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        };
         let tint = match l.color == glam::Vec3::ONE {
             true => String::new(),
             false => format!(", colour {}", v(l.color)),
@@ -134,7 +139,7 @@ impl SceneLight {
                 v: side,
                 disk,
             } => {
-                let (w, h) = (2.0 * u.length(), 2.0 * side.length());
+                let (w, h) = (size(2.0 * u.length()), size(2.0 * side.length()));
                 let size = match disk {
                     true => format!("{w} × {h} across"),
                     false => format!("{w} × {h}"),
@@ -155,7 +160,7 @@ impl SceneLight {
                     (None, false) => "point",
                 };
                 let size = match radius > 0.0 {
-                    true => format!(", radius {radius}"),
+                    true => format!(", radius {}", size(radius)),
                     false => String::new(),
                 };
                 let cone = spot.map_or(String::new(), |s| {
