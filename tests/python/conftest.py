@@ -4,6 +4,7 @@ import os
 import pathlib
 import struct
 import subprocess
+import sys
 
 import pytest
 
@@ -16,6 +17,19 @@ def prismbake():
     path = os.environ.get("PRISMBAKE_BIN", str(ROOT / "target" / "debug" / "prismbake"))
     assert os.path.isfile(path), f"{path} is missing: run `cargo build` first"
     return path
+
+
+@pytest.fixture
+def blender():
+    """`blender(script, *args)`: run `script` under the real bpy (a fresh Python, its arguments
+    `args`) and return the JSON it prints on its `RESULT ` line."""
+    def _blender(script, *args):
+        proc = subprocess.run([sys.executable, "-c", script, *map(str, args)], capture_output=True,
+                              text=True, timeout=300)
+        line = next((l for l in proc.stdout.splitlines() if l.startswith("RESULT ")), None)
+        assert line, proc.stderr[-2000:]
+        return json.loads(line[len("RESULT "):])
+    return _blender
 
 
 @pytest.fixture

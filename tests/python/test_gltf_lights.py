@@ -2,8 +2,6 @@
 glTF importer makes it a sun: the same direction, strength (lux / 683, W/m²) in the same colour,
 and width."""
 import json
-import subprocess
-import sys
 import textwrap
 
 import numpy as np
@@ -23,7 +21,7 @@ BLENDER = textwrap.dedent(
 )
 
 
-def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_path, edited_sphere):
+def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, blender, tmp_path, edited_sphere):
     # Turned 40° about +Y after 30° down about +X: azimuth 40°, elevation 30°.
     q = (np.array([0, np.sin(np.radians(20)), 0, np.cos(np.radians(20))]),
          np.array([np.sin(np.radians(-15)), 0, 0, np.cos(np.radians(-15))]))
@@ -50,11 +48,7 @@ def test_a_directional_light_is_the_key_light_as_blender_imports_it(run, tmp_pat
     assert abs(az - 40.0) < 0.1 and abs(el - 30.0) < 0.1, key
     assert summary["beauty_rays"]["key_shadow_rays"] > 0, summary
 
-    blender = subprocess.run([sys.executable, "-c", BLENDER, str(asset)], capture_output=True, text=True,
-                             timeout=300)
-    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
-    assert line, blender.stderr[-2000:]
-    theirs = json.loads(line[len("RESULT "):])
+    theirs = blender(BLENDER, asset)
     assert theirs["type"] == "SUN", theirs
     # What each casts: our irradiance (the light's luminance) times our colour of unit luminance,
     # Blender's strength times its colour.
@@ -87,7 +81,7 @@ BLENDER_LOCAL = textwrap.dedent(
 )
 
 
-def test_point_and_spot_lights_light_as_blender_imports_them(run, tmp_path, edited_sphere):
+def test_point_and_spot_lights_light_as_blender_imports_them(run, blender, tmp_path, edited_sphere):
     """A glTF point light and a spot light beside the sphere light the beauty where Blender's
     importer puts its lamps: at the same places, of the same intensity (candela / 683 W/sr
     each, Blender's 4π times that in watts), a spot's cone as wide as Blender's spot size."""
@@ -114,11 +108,7 @@ def test_point_and_spot_lights_light_as_blender_imports_them(run, tmp_path, edit
     assert len(lights) == 2 and lights[0].startswith("point 'BulbNode' at (1.500, 2.000, 0.500)"), lights
     assert lights[1].startswith("spot 'ConeNode' at (0.000, 2.500, 2.500)"), lights
 
-    blender = subprocess.run([sys.executable, "-c", BLENDER_LOCAL, str(asset)], capture_output=True,
-                             text=True, timeout=300)
-    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
-    assert line, blender.stderr[-2000:]
-    theirs = json.loads(line[len("RESULT "):])
+    theirs = blender(BLENDER_LOCAL, asset)
     bulb, cone = theirs["BulbNode"], theirs["ConeNode"]
     assert bulb["type"] == "POINT" and cone["type"] == "SPOT", theirs
     # Blender is Z-up: glTF (x, y, z) is Blender (x, -z, y).

@@ -90,6 +90,19 @@ def mismatch(a, b):
     return float(np.mean((a > 0.5) != (b > 0.5)))
 
 
+def quad_stage(path):
+    """A new stage at `path` holding a 2 × 2 quad `/Quad` (corners ±1 in x and y, its `st` the
+    unit square), for the light tests to add to."""
+    stage = Usd.Stage.CreateNew(str(path))
+    quad = UsdGeom.Mesh.Define(stage, "/Quad")
+    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    quad.CreateFaceVertexCountsAttr([4])
+    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
+    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
+                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    return stage
+
+
 def inspect(run, mesh, *flags):
     return json.loads(run("inspect", mesh, *flags, "--json", check=0).stdout)
 
@@ -653,7 +666,7 @@ BLENDER_DOME = textwrap.dedent(
 )
 
 
-def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
+def test_usd_lights_light_the_beauty_as_blender_imports_them(run, blender, tmp_path):
     """A `UsdLux.DomeLight` written by usd-core (texture, colour, intensity, exposure, turned
     30° about the up axis) is the beauty's environment; Blender's own USD importer makes of it
     a world whose texture is tinted by the same colour × strength (but for the exposure, which
@@ -665,14 +678,8 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     sky = tmp_path / "sky.exr"
     sky.write_bytes((ROOT / "examples" / "maps" / "bumps_512.exr").read_bytes())
     path = tmp_path / "dome.usda"
-    stage = Usd.Stage.CreateNew(str(path))
+    stage = quad_stage(path)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
-    quad = UsdGeom.Mesh.Define(stage, "/Quad")
-    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
-    quad.CreateFaceVertexCountsAttr([4])
-    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
-    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
     from pxr import UsdLux
     dome = UsdLux.DomeLight.Define(stage, "/Lights/Sky")
     dome.CreateTextureFileAttr(Sdf.AssetPath("sky.exr"))
@@ -697,11 +704,7 @@ def test_usd_lights_light_the_beauty_as_blender_imports_them(run, tmp_path):
     turn = float(said.split("turned ")[1].rstrip("°)"))
     assert tint == [4.0, 2.0, 1.0] and abs(turn - 30.0) < 1e-3, said
 
-    blender = subprocess.run([sys.executable, "-c", BLENDER_DOME, str(path)], capture_output=True,
-                             text=True, timeout=300)
-    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
-    assert line, blender.stderr[-2000:]
-    theirs = json.loads(line[len("RESULT "):])
+    theirs = blender(BLENDER_DOME, path)
     assert pathlib.Path(theirs["image"]).resolve() == sky.resolve(), theirs
     # Blender 5.0's importer leaves `inputs:exposure` out (UsdLux scales by 2^exposure).
     assert np.allclose(np.array(theirs["tint"]) * 2.0, tint, rtol=1e-4), (theirs, tint)
@@ -736,13 +739,7 @@ def test_a_lights_colour_temperature_tints_it_as_usd_lux_does(run, tmp_path):
     channel, times their `inputs:color`; without the switch the temperature is not read."""
     from pxr import UsdLux
     path = tmp_path / "warm.usda"
-    stage = Usd.Stage.CreateNew(str(path))
-    quad = UsdGeom.Mesh.Define(stage, "/Quad")
-    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
-    quad.CreateFaceVertexCountsAttr([4])
-    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
-    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
+    stage = quad_stage(path)
     sun = UsdLux.DistantLight.Define(stage, "/Sun")
     sun.CreateEnableColorTemperatureAttr(True)
     sun.CreateColorTemperatureAttr(3000.0)
@@ -781,7 +778,7 @@ BLENDER_AREA = textwrap.dedent(
 )
 
 
-def test_rect_and_disk_lights_light_as_blender_imports_them(run, tmp_path):
+def test_rect_and_disk_lights_light_as_blender_imports_them(run, blender, tmp_path):
     """A normalized `RectLight` and a `DiskLight` written by usd-core light the beauty where
     Blender's importer puts its area lamps, shining the same way. The normalized rect light
     has the radiance a Cycles area lamp of Blender's power has (P / (π × area)). The disk is
@@ -790,15 +787,9 @@ def test_rect_and_disk_lights_light_as_blender_imports_them(run, tmp_path):
     by the disk's area, and the test pins that rather than copying it."""
     from pxr import UsdLux
     path = tmp_path / "areas.usda"
-    stage = Usd.Stage.CreateNew(str(path))
+    stage = quad_stage(path)
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.z)
     UsdGeom.SetStageMetersPerUnit(stage, 1.0)  # Blender scales a centimetre stage to metres
-    quad = UsdGeom.Mesh.Define(stage, "/Quad")
-    quad.CreatePointsAttr([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
-    quad.CreateFaceVertexCountsAttr([4])
-    quad.CreateFaceVertexIndicesAttr([0, 1, 2, 3])
-    UsdGeom.PrimvarsAPI(quad).CreatePrimvar("st", Sdf.ValueTypeNames.TexCoord2fArray,
-                                            UsdGeom.Tokens.vertex).Set([(0, 0), (1, 0), (1, 1), (0, 1)])
     box = UsdLux.RectLight.Define(stage, "/Box")
     box.CreateWidthAttr(2.0)
     box.CreateHeightAttr(0.5)
@@ -814,11 +805,7 @@ def test_rect_and_disk_lights_light_as_blender_imports_them(run, tmp_path):
     stage.GetRootLayer().Save()
 
     lights = inspect(run, path, "--disp", MAP)["lights"]
-    blender = subprocess.run([sys.executable, "-c", BLENDER_AREA, str(path)], capture_output=True,
-                             text=True, timeout=300)
-    line = next((l for l in blender.stdout.splitlines() if l.startswith("RESULT ")), None)
-    assert line, blender.stderr[-2000:]
-    theirs = json.loads(line[len("RESULT "):])
+    theirs = blender(BLENDER_AREA, path)
     vec = lambda said, after: np.array([float(x) for x in said.split(after + " (")[1].split(")")[0].split(",")])
     radiance = lambda said: float(said.split("radiance ")[1].split(",")[0])
     for said, lamp in ((lights[0], theirs["Box"]), (lights[1], theirs["Round"])):
