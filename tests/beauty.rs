@@ -1584,6 +1584,49 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
     }
 }
 
+/// `usda` (a quad scene with its lights) written to `dir/NAME.usda` and its 9² beauty, head on
+/// from 3 units through 10°, lit by its own lights alone (a black environment, one bounce), its
+/// surface a white Lambertian of albedo 0.8 without specular, `spp` samples a pixel: the
+/// centre pixel, and the summary.
+fn lit_quad_centre(dir: &Path, usda: &str, name: &str, spp: &str) -> ([f32; 4], serde_json::Value) {
+    let map = write_flat_map(dir);
+    let black = dir.join("black.exr");
+    write_constant_env(&black, 0.0);
+    let path = dir.join(format!("{name}.usda"));
+    std::fs::write(&path, usda).unwrap();
+    let out = dir.join(name);
+    let mut args = vec!["render", s(&path), "--disp", s(&map), "--scale", "0"];
+    args.extend([
+        "--aov",
+        "beauty",
+        "--res",
+        "9x9",
+        "--spp",
+        spp,
+        "--bounces",
+        "1",
+    ]);
+    args.extend([
+        "--base-color",
+        "0.8,0.8,0.8",
+        "--roughness",
+        "1",
+        "--specular",
+        "0",
+    ]);
+    args.extend([
+        "--env",
+        s(&black),
+        "--camera-from",
+        "0,0,3",
+        "--camera-to",
+        "0,0,0",
+    ]);
+    args.extend(["--fov", "10", "--json", "-o", s(&out)]);
+    let summary = run(&args).assert_success().json();
+    (read_rgba(&out.join("beauty.exr"))[4 * 9 + 4], summary)
+}
+
 /// A point light lights by the inverse square: a USD `SphereLight` marked `treatAsPoint`,
 /// normalized, of intensity 16 (4 W/sr) two units above a white quad's centre casts 1 W/m²
 /// there, and a Lambertian surface of albedo 0.8 under it sends 0.8 / π towards the camera
@@ -1593,8 +1636,6 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
 fn a_point_light_lights_by_the_inverse_square() {
     let dir = temp_dir("point-light");
     let map = write_flat_map(&dir);
-    let black = dir.join("black.exr");
-    write_constant_env(&black, 0.0);
     let scene = |shaping: &str| {
         quad_usda(&format!(
             "def SphereLight \"Bulb\" (\n    prepend apiSchemas = [\"ShapingAPI\"]\n)\n{{\n    \
@@ -1604,43 +1645,8 @@ fn a_point_light_lights_by_the_inverse_square() {
              uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
         ))
     };
-    let centre = |usda: &str, name: &str| {
-        let path = dir.join(format!("{name}.usda"));
-        std::fs::write(&path, usda).unwrap();
-        let out = dir.join(name);
-        let mut args = vec!["render", s(&path), "--disp", s(&map), "--scale", "0"];
-        args.extend([
-            "--aov",
-            "beauty",
-            "--res",
-            "9x9",
-            "--spp",
-            "4",
-            "--bounces",
-            "1",
-        ]);
-        args.extend([
-            "--base-color",
-            "0.8,0.8,0.8",
-            "--roughness",
-            "1",
-            "--specular",
-            "0",
-        ]);
-        args.extend([
-            "--env",
-            s(&black),
-            "--camera-from",
-            "0,0,3",
-            "--camera-to",
-            "0,0,0",
-        ]);
-        args.extend(["--fov", "10", "--json", "-o", s(&out)]);
-        let o = run(&args);
-        let summary = o.assert_success().json();
-        (read_rgba(&out.join("beauty.exr"))[4 * 9 + 4], summary)
-    };
-    let (rgba, summary) = centre(&scene(""), "point");
+    let centre = |usda: String, name: &str| lit_quad_centre(&dir, &usda, name, "4");
+    let (rgba, summary) = centre(scene(""), "point");
     let want = 0.8 / std::f32::consts::PI;
     assert!(
         (rgba[0] / want - 1.0).abs() < 0.01,
@@ -1655,7 +1661,7 @@ fn a_point_light_lights_by_the_inverse_square() {
                 float xformOp:rotateX = 180\n    \
                 uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateX\"]";
     let (rgba, _) = centre(
-        &scene(away).replace(
+        scene(away).replace(
             "    uniform token[] xformOpOrder = [\"xformOp:translate\"]\n",
             "",
         ),
@@ -1699,49 +1705,14 @@ fn a_point_light_lights_by_the_inverse_square() {
 #[test]
 fn a_disk_light_lights_by_its_solid_angle() {
     let dir = temp_dir("disk-light");
-    let map = write_flat_map(&dir);
-    let black = dir.join("black.exr");
-    write_constant_env(&black, 0.0);
     let centre = |turn: &str, name: &str| {
-        let path = dir.join(format!("{name}.usda"));
         let light = format!(
             "def DiskLight \"Panel\"\n{{\n    float inputs:intensity = 4\n    \
              float inputs:radius = 1\n    double3 xformOp:translate = (0, 0, 2)\n    \
              float xformOp:rotateX = {turn}\n    \
              uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateX\"]\n}}\n"
         );
-        std::fs::write(&path, quad_usda(&light)).unwrap();
-        let out = dir.join(name);
-        let mut args = vec!["render", s(&path), "--disp", s(&map), "--scale", "0"];
-        args.extend([
-            "--aov",
-            "beauty",
-            "--res",
-            "9x9",
-            "--spp",
-            "64",
-            "--bounces",
-            "1",
-        ]);
-        args.extend([
-            "--base-color",
-            "0.8,0.8,0.8",
-            "--roughness",
-            "1",
-            "--specular",
-            "0",
-        ]);
-        args.extend([
-            "--env",
-            s(&black),
-            "--camera-from",
-            "0,0,3",
-            "--camera-to",
-            "0,0,0",
-        ]);
-        args.extend(["--fov", "10", "--json", "-o", s(&out)]);
-        let summary = run(&args).assert_success().json();
-        (read_rgba(&out.join("beauty.exr"))[4 * 9 + 4], summary)
+        lit_quad_centre(&dir, &quad_usda(&light), name, "64")
     };
     let (rgba, summary) = centre("0", "down");
     let want = 0.8 / std::f32::consts::PI * (std::f32::consts::PI * 4.0 / 5.0);
