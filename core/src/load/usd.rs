@@ -1027,22 +1027,14 @@ impl Loader<'_> {
         let (intensity, rgb) = self.light_power(&at, 50_000.0)?;
         let (luminance, color) = crate::mesh::split_color(rgb.as_vec3())
             .map_or((f64::NAN, [1.0; 3]), |(l, c)| (l as f64, c));
-        let angle = match input_value(path, self.stage, &at, "angle")? {
-            None => 0.53,
-            Some(v) => scalar(&v)
-                .filter(|x| x.is_finite() && *x >= 0.0)
-                .ok_or_else(|| {
-                    let what = format!(
-                        "inputs:angle is {}, expected degrees >= 0 (re-export)",
-                        kind(&v)
-                    );
-                    prim_err(path, &at, what)
-                })?,
-        };
-        let normalize = matches!(
-            input_value(path, self.stage, &at, "normalize")?,
-            Some(Value::Bool(true))
-        );
+        let angle = self.light_number(
+            &at,
+            "angle",
+            0.53,
+            |x| x.is_finite() && x >= 0.0,
+            "expected degrees >= 0",
+        )?;
+        let normalize = self.light_flag(&at, "normalize")?;
         let solid_angle = std::f64::consts::TAU * (1.0 - (0.5 * angle).to_radians().cos());
         let irradiance = match normalize || angle == 0.0 {
             true => intensity,
@@ -1111,22 +1103,13 @@ impl Loader<'_> {
     fn sphere_prim(&mut self, prim: &Prim, world: DMat4) -> Result<()> {
         let (path, at) = (self.path, prim.path().clone());
         let (intensity, rgb) = self.light_power(&at, 1.0)?;
-        let number = |name: &str, default: f64, ok: fn(f64) -> bool| -> Result<f64> {
-            match input_value(path, self.stage, &at, name)? {
-                None => Ok(default),
-                Some(v) => scalar(&v).filter(|x| ok(*x)).ok_or_else(|| {
-                    let what = format!("inputs:{name} is {}, out of range (re-export)", kind(&v));
-                    prim_err(path, &at, what)
-                }),
-            }
+        let number = |name: &str, default: f64, ok: fn(f64) -> bool| {
+            self.light_number(&at, name, default, ok, "out of range")
         };
         let radius = number("radius", 0.5, |r| r.is_finite() && r >= 0.0)?;
         let cone = number("shaping:cone:angle", 90.0, |a| a.is_finite() && a > 0.0)?;
         let softness = number("shaping:cone:softness", 0.0, |s| (0.0..=1.0).contains(&s))?;
-        let normalize = matches!(
-            input_value(path, self.stage, &at, "normalize")?,
-            Some(Value::Bool(true))
-        );
+        let normalize = self.light_flag(&at, "normalize")?;
         let as_point = matches!(value(path, prim, "treatAsPoint")?, Some(Value::Bool(true)));
         let scale = world.transform_vector3(DVec3::X).length();
         let r = radius * scale;
@@ -1187,19 +1170,9 @@ impl Loader<'_> {
     fn area_prim(&mut self, prim: &Prim, world: DMat4, disk: bool) -> Result<()> {
         let (path, at) = (self.path, prim.path().clone());
         let (intensity, rgb) = self.light_power(&at, 1.0)?;
-        let number = |name: &str, default: f64| -> Result<f64> {
-            match input_value(path, self.stage, &at, name)? {
-                None => Ok(default),
-                Some(v) => scalar(&v)
-                    .filter(|x| x.is_finite() && *x >= 0.0)
-                    .ok_or_else(|| {
-                        let what = format!(
-                            "inputs:{name} is {}, expected a size >= 0 (re-export)",
-                            kind(&v)
-                        );
-                        prim_err(path, &at, what)
-                    }),
-            }
+        let number = |name: &str, default: f64| {
+            let ok = |x: f64| x.is_finite() && x >= 0.0;
+            self.light_number(&at, name, default, ok, "expected a size >= 0")
         };
         let (half_w, half_h) = match disk {
             true => {
@@ -1214,10 +1187,7 @@ impl Loader<'_> {
                 &format!("{at}: its texture is not read; it shines its colour evenly"),
             );
         }
-        let normalize = matches!(
-            input_value(path, self.stage, &at, "normalize")?,
-            Some(Value::Bool(true))
-        );
+        let normalize = self.light_flag(&at, "normalize")?;
         let u = (world.transform_vector3(DVec3::X) * half_w).as_vec3();
         let v = (world.transform_vector3(DVec3::Y) * half_h).as_vec3();
         let (area, _) = crate::render::lights::area_and_normal(u, v, disk);
@@ -1257,17 +1227,8 @@ impl Loader<'_> {
     /// (`lights::blackbody`); a value that is not a number is an error naming it.
     fn light_power(&self, at: &sdf::Path, intensity: f64) -> Result<(f64, DVec3)> {
         let path = self.path;
-        let number = |name: &str, default: f64| -> Result<f64> {
-            match input_value(path, self.stage, at, name)? {
-                None => Ok(default),
-                Some(v) => scalar(&v).filter(|x| x.is_finite()).ok_or_else(|| {
-                    let what = format!(
-                        "inputs:{name} is {}, expected a number (re-export)",
-                        kind(&v)
-                    );
-                    prim_err(path, at, what)
-                }),
-            }
+        let number = |name: &str, default: f64| {
+            self.light_number(at, name, default, f64::is_finite, "expected a number")
         };
         let intensity = number("intensity", intensity)? * number("exposure", 0.0)?.exp2();
         let color = match input_value(path, self.stage, at, "color")? {
@@ -1277,14 +1238,42 @@ impl Loader<'_> {
                 prim_err(path, at, what)
             })?,
         };
-        let color = match input_value(path, self.stage, at, "enableColorTemperature")? {
-            Some(Value::Bool(true)) => {
+        let color = match self.light_flag(at, "enableColorTemperature")? {
+            true => {
                 let kelvin = number("colorTemperature", 6500.0)?;
                 color * crate::render::lights::blackbody(kelvin as f32).as_dvec3()
             }
-            _ => color,
+            false => color,
         };
         Ok((intensity, color))
+    }
+
+    /// A light's number input `inputs:NAME` (following connections), `default` where not
+    /// authored; one that is not a number, or that `ok` refuses, is an error naming it and
+    /// saying what was `expected`.
+    fn light_number(
+        &self,
+        at: &sdf::Path,
+        name: &str,
+        default: f64,
+        ok: fn(f64) -> bool,
+        expected: &str,
+    ) -> Result<f64> {
+        match input_value(self.path, self.stage, at, name)? {
+            None => Ok(default),
+            Some(v) => scalar(&v).filter(|x| ok(*x)).ok_or_else(|| {
+                let what = format!("inputs:{name} is {}, {expected} (re-export)", kind(&v));
+                prim_err(self.path, at, what)
+            }),
+        }
+    }
+
+    /// Whether a light's bool input `inputs:NAME` is authored true.
+    fn light_flag(&self, at: &sdf::Path, name: &str) -> Result<bool> {
+        Ok(matches!(
+            input_value(self.path, self.stage, at, name)?,
+            Some(Value::Bool(true))
+        ))
     }
 
     fn z_up(&self) -> bool {
