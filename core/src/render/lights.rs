@@ -129,6 +129,20 @@ pub struct LightSample {
 }
 
 impl Light {
+    /// A directional light as the `KeyLight` whose sampling and disc it shares; `None` for
+    /// another shape.
+    fn as_key(&self) -> Option<KeyLight> {
+        match self.shape {
+            LightShape::Distant { dir, cos_radius } => Some(KeyLight {
+                dir,
+                irradiance: self.power,
+                cos_radius,
+                color: self.color,
+            }),
+            _ => None,
+        }
+    }
+
     /// What the light casts on a point at `p` facing it, as luminance: the weight it is picked
     /// by (`LightSet::new`).
     fn weight_at(&self, p: Vec3) -> f32 {
@@ -153,13 +167,8 @@ impl Light {
     /// yet over the pick's chance); `None` from inside a sphere light.
     fn sample(&self, p: Vec3, u2: Vec2) -> Option<LightSample> {
         match self.shape {
-            LightShape::Distant { dir, cos_radius } => {
-                let k = KeyLight {
-                    dir,
-                    irradiance: self.power,
-                    cos_radius,
-                    color: self.color,
-                };
+            LightShape::Distant { .. } => {
+                let k = self.as_key()?;
                 Some(LightSample {
                     dir: k.sample_dir(u2),
                     t_max: f32::INFINITY,
@@ -425,14 +434,8 @@ impl LightSet {
     pub fn escape(&self, wi: Vec3, bsdf_pdf: Option<f32>) -> Vec3 {
         let mut l = Vec3::ZERO;
         for (i, light) in self.lights().iter().enumerate() {
-            let LightShape::Distant { dir, cos_radius } = light.shape else {
+            let Some(k) = light.as_key() else {
                 continue;
-            };
-            let k = KeyLight {
-                dir,
-                irradiance: light.power,
-                cos_radius,
-                color: light.color,
             };
             if let (Some(radiance), Some(pdf)) = (k.radiance_along(wi), k.pdf()) {
                 let w = bsdf_pdf.map_or(1.0, |b| power_heuristic(b, pdf * self.prob[i]));
