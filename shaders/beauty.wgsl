@@ -16,8 +16,10 @@
 //              NVIDIA H200 19–27% less time per sample than the fused kernel)
 //
 // Lighting: the environment (env.wgsl, next-event estimation combined with BSDF sampling by
-// the power heuristic) and an optional directional key light (shadow rays only); material:
-// shading.wgsl, its base colour times the base-colour texture at the hit (texture.wgsl); an optional shadow-catcher ground seen by camera rays only. Random numbers are
+// the power heuristic) and up to eight lights, one sampled an event (lights::LightSet; discs,
+// spheres and area lights also met by BSDF samples, by MIS); material: shading.wgsl, its base
+// colour times the base-colour texture at the hit (texture.wgsl); an optional shadow-catcher
+// ground seen by camera rays only. Random numbers are
 // `random(pixel, sample, bounce * DIMS + k, purpose, seed)`, as on the CPU.
 //
 // Departure from a literal transcription, and why: the CPU's `trace_sample`,
@@ -48,6 +50,7 @@ const PATH_GROUND: u32 = 2u;    // SampleResult::ground is Some
 const PATH_BSDF_OK: u32 = 4u;   // this step's BSDF sample is usable
 const PATH_BSDF_DELTA: u32 = 8u;
 const PATH_LAST: u32 = 16u;     // this step is the path's last surface event
+const PATH_MEETS_LIGHT: u32 = 32u;  // this step's BSDF sample meets a sphere or area light
 
 // Ray slots of a step: key-light shadow, environment shadow, continuation.
 const SLOT_KEY: u32 = 0u;
@@ -155,7 +158,8 @@ fn spot_falloff(l: Light, d: vec3f) -> f32 {
     return t * t * (3.0 - 2.0 * t);
 }
 
-// lights::LightSample; mis_pdf 0: none (a delta, a local light); ok false: no sample.
+// lights::LightSample; mis_pdf 0: none (a point-like sun, a point, a point spot); ok false:
+// no sample.
 struct LightSample {
     dir: vec3f,
     t_max: f32,
@@ -201,7 +205,11 @@ fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
         }
         out.dir = to_q / dq;
         out.t_max = dq;
-        out.e = l.power * area * max(dot(-out.dir, n), 0.0) / dq2;
+        let cos_light = max(dot(-out.dir, n), 0.0);
+        out.e = l.power * area * cos_light / dq2;
+        if (cos_light > 0.0) {
+            out.mis_pdf = dq2 / (area * cos_light);
+        }
         out.ok = true;
         return out;
     }
@@ -238,6 +246,81 @@ fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
     out.dir = dir;
     out.t_max = max(near, 0.0);
     out.e = radiance * solid_angle * cone;
+    out.mis_pdf = 1.0 / solid_angle;
+    return out;
+}
+
+// lights::LightMet; ok false: not met.
+struct LightMet {
+    t: f32,
+    radiance: f32,
+    pdf: f32,
+    ok: bool,
+}
+
+// lights::Light::met: where a ray from `o` along `d` meets light `l`'s surface, the near side
+// of a sphere or the front of a rectangle or disk.
+fn light_met_one(l: Light, o: vec3f, d: vec3f) -> LightMet {
+    var out = LightMet(0.0, 0.0, 0.0, false);
+    if (l.kind == 1u || l.kind == 2u) {
+        let radius = l.size;
+        if (radius <= 0.0) {
+            return out;
+        }
+        let to = l.pos - o;
+        let d2 = dot(to, to);
+        let r2 = radius * radius;
+        let b_half = dot(d, to);
+        let disc = b_half * b_half - (d2 - r2);
+        if (!(d2 > r2 && b_half > 0.0 && disc >= 0.0)) {
+            return out;
+        }
+        let s2 = r2 / d2;
+        let one_minus_cos = s2 / (1.0 + sqrt(max(1.0 - s2, 0.0)));
+        var cone = 1.0;
+        if (l.kind == 2u) {
+            cone = spot_falloff(l, -to / sqrt(d2));
+        }
+        out.t = max(b_half - sqrt(disc), 0.0);
+        out.radiance = l.power / (PI * r2) * cone;
+        out.pdf = 1.0 / (2.0 * PI * one_minus_cos);
+        out.ok = true;
+        return out;
+    }
+    if (l.kind >= 3u) {
+        let u_vec = l.axis;
+        let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
+        let c = cross(v_vec, u_vec);
+        var area = 4.0 * length(c);
+        if (l.kind == 4u) {
+            area = PI * length(c);
+        }
+        var n = vec3f(0.0);
+        if (length(c) > 0.0) {
+            n = normalize(c);
+        }
+        let cos_light = -dot(d, n);
+        if (!(cos_light > 0.0)) {
+            return out;
+        }
+        let t = dot(o - l.pos, n) / cos_light;
+        if (!(t > 0.0 && t < T_FAR)) {
+            return out;
+        }
+        let local = o + d * t - l.pos;
+        let a = dot(local, u_vec) / dot(u_vec, u_vec);
+        let b = dot(local, v_vec) / dot(v_vec, v_vec);
+        var inside = abs(a) <= 1.0 && abs(b) <= 1.0;
+        if (l.kind == 4u) {
+            inside = a * a + b * b <= 1.0;
+        }
+        if (inside) {
+            out.t = t;
+            out.radiance = l.power;
+            out.pdf = t * t / (area * cos_light);
+            out.ok = true;
+        }
+    }
     return out;
 }
 
@@ -285,6 +368,37 @@ fn lights_seen_along(wi: vec3f) -> bool {
     for (var i = 0u; i < lighting.light_count; i += 1u) {
         let li = lighting.lights[i];
         if (li.kind == 0u && li.size < 1.0 && dot(wi, li.pos) >= li.size) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// lights::LightSet::met: radiance of the spheres and area lights a BSDF sample from `o` along
+// `wi` (density `pdf`, a delta lobe or not) meets before `t_max`, each MIS-weighted against
+// its light samples.
+fn lights_met(o: vec3f, wi: vec3f, t_max: f32, pdf: f32, delta: bool) -> vec3f {
+    var l = vec3f(0.0);
+    for (var i = 0u; i < lighting.light_count; i += 1u) {
+        let li = lighting.lights[i];
+        let m = light_met_one(li, o, wi);
+        if (!m.ok || m.t >= t_max) {
+            continue;
+        }
+        var w = 1.0;
+        if (!delta) {
+            w = power_heuristic(pdf, m.pdf * li.prob);
+        }
+        l += li.color * (m.radiance * w);
+    }
+    return l;
+}
+
+// lights::LightSet::meets_local: whether a BSDF sample from `o` along `wi` meets a sphere or
+// an area light at all.
+fn lights_meet_local(o: vec3f, wi: vec3f) -> bool {
+    for (var i = 0u; i < lighting.light_count; i += 1u) {
+        if (light_met_one(lighting.lights[i], o, wi).ok) {
             return true;
         }
     }
@@ -427,7 +541,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
     (*s).env_term = vec3f(0.0);
     (*s).key_e = 0.0;
     (*s).env_e = 0.0;
-    (*s).flags &= ~(PATH_BSDF_OK | PATH_BSDF_DELTA | PATH_LAST);
+    (*s).flags &= ~(PATH_BSDF_OK | PATH_BSDF_DELTA | PATH_LAST | PATH_MEETS_LIGHT);
     if ((*s).step == STEP_CAMERA) {
         (*s).rays += 1u;
         q2 = query(path_camera_ray(*s), 0u, false);
@@ -521,10 +635,16 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
             (*s).wi = wi;
             let last = bounce + 1u == lighting.bounces;
             let ray = shadow_ray(offset_origin(p, ng, wi, eps), wi);
+            // The spheres and area lights the ray meets before the surface count by MIS.
+            let meets = lighting.light_count != 0u && lights_meet_local(ray.origin, wi);
+            if (meets) {
+                (*s).flags |= PATH_MEETS_LIGHT;
+            }
             if (last) {
                 (*s).flags |= PATH_LAST;
-                if (lighting.emissive != 0u) {
-                    // Last event: the surface the ray meets counts with its glow.
+                if (lighting.emissive != 0u || meets) {
+                    // Last event: the surface the ray meets counts with its glow, and the
+                    // lights before it.
                     (*s).rays += 1u;
                     q2 = query(ray, bounce + 1u, false);
                 } else if (env_lights) {
@@ -611,19 +731,24 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
             (*s).throughput *= (*s).bs_weight;
             let throughput = (*s).throughput;
             let delta = has(*s, PATH_BSDF_DELTA);
+            var met = vec3f(0.0);
+            if (has(*s, PATH_MEETS_LIGHT)) {
+                met = lights_met(qs.next.origin, wi, select(next_t, T_FAR, next_prism == NO_PRISM), (*s).bs_pdf, delta);
+            }
             if (has(*s, PATH_LAST)) {
                 if (live_next && next_prism == NO_PRISM) {
-                    (*s).radiance += throughput * escape_radiance(wi, (*s).bs_pdf, delta);
+                    (*s).radiance += throughput * (escape_radiance(wi, (*s).bs_pdf, delta) + met);
                 } else if (live_next) {
-                    (*s).radiance += throughput * glow;
+                    (*s).radiance += throughput * (glow + met);
                 }
             } else if (next_prism != NO_PRISM) {
+                (*s).radiance += throughput * met;
                 (*s).radiance += throughput * glow;
                 (*s).dir = wi;
                 (*s).bounce += 1u;
                 (*s).step = STEP_SURFACE;
             } else {
-                (*s).radiance += throughput * escape_radiance(wi, (*s).bs_pdf, delta);
+                (*s).radiance += throughput * (escape_radiance(wi, (*s).bs_pdf, delta) + met);
             }
         }
     }

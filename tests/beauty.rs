@@ -1584,11 +1584,27 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
     }
 }
 
+/// A white Lambertian of albedo 0.8 without specular (`lit_quad_centre`'s material).
+const WHITE_LAMBERT: [&str; 6] = [
+    "--base-color",
+    "0.8,0.8,0.8",
+    "--roughness",
+    "1",
+    "--specular",
+    "0",
+];
+
 /// `usda` (a quad scene with its lights) written to `dir/NAME.usda` and its 9² beauty, head on
 /// from 3 units through 10°, lit by its own lights alone (a black environment, one bounce), its
-/// surface a white Lambertian of albedo 0.8 without specular, `spp` samples a pixel: the
-/// centre pixel, and the summary.
-fn lit_quad_centre(dir: &Path, usda: &str, name: &str, spp: &str) -> ([f32; 4], serde_json::Value) {
+/// surface `material` (the overrides' arguments), `spp` samples a pixel: the centre pixel, and
+/// the summary.
+fn lit_quad_centre(
+    dir: &Path,
+    usda: &str,
+    name: &str,
+    spp: &str,
+    material: &[&str],
+) -> ([f32; 4], serde_json::Value) {
     let map = write_flat_map(dir);
     let black = dir.join("black.exr");
     write_constant_env(&black, 0.0);
@@ -1606,14 +1622,7 @@ fn lit_quad_centre(dir: &Path, usda: &str, name: &str, spp: &str) -> ([f32; 4], 
         "--bounces",
         "1",
     ]);
-    args.extend([
-        "--base-color",
-        "0.8,0.8,0.8",
-        "--roughness",
-        "1",
-        "--specular",
-        "0",
-    ]);
+    args.extend(material);
     args.extend([
         "--env",
         s(&black),
@@ -1645,7 +1654,7 @@ fn a_point_light_lights_by_the_inverse_square() {
              uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
         ))
     };
-    let centre = |usda: String, name: &str| lit_quad_centre(&dir, &usda, name, "4");
+    let centre = |usda: String, name: &str| lit_quad_centre(&dir, &usda, name, "4", &WHITE_LAMBERT);
     let (rgba, summary) = centre(scene(""), "point");
     let want = 0.8 / std::f32::consts::PI;
     assert!(
@@ -1712,7 +1721,7 @@ fn a_disk_light_lights_by_its_solid_angle() {
              float xformOp:rotateX = {turn}\n    \
              uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateX\"]\n}}\n"
         );
-        lit_quad_centre(&dir, &quad_usda(&light), name, "64")
+        lit_quad_centre(&dir, &quad_usda(&light), name, "64", &WHITE_LAMBERT)
     };
     let (rgba, summary) = centre("0", "down");
     let want = 0.8 / std::f32::consts::PI * (std::f32::consts::PI * 4.0 / 5.0);
@@ -1729,6 +1738,65 @@ fn a_disk_light_lights_by_its_solid_angle() {
     );
     let (rgba, _) = centre("180", "up");
     assert_eq!(rgba[0], 0.0, "{rgba:?}");
+}
+
+/// A mirror reflects a sphere and an area light: a white metal quad of no roughness under a
+/// `DiskLight` of radiance 4 shining down on it shows the camera, whose reflected ray meets the
+/// disk, radiance 4 (Fresnel 1 for a white metal; the camera's rays pass through the light); a
+/// `SphereLight` of radius 0.5 and radiance 2 there shows 2, its spot's cone only where it
+/// points at the quad; a point light, with no surface to meet, is not seen.
+#[test]
+fn a_mirror_reflects_spheres_and_area_lights() {
+    let dir = temp_dir("mirror-lights");
+    let mirror = [
+        "--base-color",
+        "1,1,1",
+        "--metallic",
+        "1",
+        "--roughness",
+        "0",
+    ];
+    let lamp = |kind: &str, inputs: &str, schema: &str| {
+        format!(
+            "def {kind} \"Lamp\"{schema}\n{{\n    {inputs}\n    \
+             double3 xformOp:translate = (0, 0, 2)\n    \
+             uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
+        )
+    };
+    let centre =
+        |light: String, name: &str| lit_quad_centre(&dir, &quad_usda(&light), name, "4", &mirror).0;
+    let near = |got: [f32; 4], want: f32, what: &str| {
+        for c in &got[..3] {
+            assert!(
+                (c / want - 1.0).abs() < 0.01,
+                "{what}: {got:?} against {want}"
+            );
+        }
+    };
+    let disk = "float inputs:intensity = 4\n    float inputs:radius = 1";
+    near(centre(lamp("DiskLight", disk, ""), "disk"), 4.0, "disk");
+    let sphere = "float inputs:intensity = 2\n    float inputs:radius = 0.5";
+    near(
+        centre(lamp("SphereLight", sphere, ""), "sphere"),
+        2.0,
+        "sphere",
+    );
+    let shaping = " (\n    prepend apiSchemas = [\"ShapingAPI\"]\n)";
+    let spot = |angle: &str| format!("{sphere}\n    float inputs:shaping:cone:angle = {angle}");
+    near(
+        centre(lamp("SphereLight", &spot("30"), shaping), "spot"),
+        2.0,
+        "spot",
+    );
+    // A cone of 30° about −Z, turned to point along +X: the quad lies outside it.
+    let aside = lamp("SphereLight", &spot("30"), shaping).replace(
+        "uniform token[] xformOpOrder = [\"xformOp:translate\"]",
+        "float xformOp:rotateY = 90\n    \
+         uniform token[] xformOpOrder = [\"xformOp:translate\", \"xformOp:rotateY\"]",
+    );
+    assert_eq!(centre(aside, "spot-aside")[0], 0.0);
+    let point = format!("{sphere}\n    bool treatAsPoint = 1");
+    assert_eq!(centre(lamp("SphereLight", &point, ""), "point")[0], 0.0);
 }
 
 /// A USD file's `DomeLight` lights the beauty where `--env` is not given (`inspect` lists it,

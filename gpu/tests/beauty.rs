@@ -315,7 +315,7 @@ impl From<KeyLight> for Lights {
 /// A rig of every kind of light about the sphere (radius about 1, at the origin): a warm sun
 /// disc, a point above, a blue sphere light beside it, a spot aimed at it from the front, a
 /// point-like rim light behind, a rectangle and a disk. Each shadow ray goes as far as its
-/// light; BSDF samples meet only the sun's disc.
+/// light; BSDF samples meet the sun's disc, the sphere and the area lights.
 #[test]
 fn a_rig_of_every_kind_of_light_matches_the_cpu() {
     let spot = Spot {
@@ -706,6 +706,49 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
             &keyed,
             &settings,
             &format!("{label}, key disc alone"),
+        );
+        // The same surface under a softbox behind the camera, facing the asset, and a sphere
+        // light above it: BSDF samples meet both (the mirror's only way to see them), weighted
+        // against their shadow rays by MIS; the last bounce finds how far its surface is
+        // wherever its ray meets one of them.
+        let (lo, hi) = ex.scene.table.bounds();
+        let centre = (lo + hi) * 0.5;
+        let size = (hi - lo).length();
+        let back = (ex.cam.from - centre).normalize();
+        let side = back.cross(Vec3::Y).normalize();
+        let rise = side.cross(back);
+        let softbox = Light {
+            shape: LightShape::Area {
+                pos: centre + back * (1.5 * size),
+                u: rise * (0.6 * size),
+                v: side * (0.8 * size),
+                disk: false,
+            },
+            power: 2.0,
+            color: Vec3::new(1.0, 0.9, 0.8),
+        };
+        let sphere = Light {
+            shape: LightShape::Local {
+                pos: centre + rise * size + back * (0.3 * size),
+                radius: 0.15 * size,
+                spot: None,
+            },
+            power: 4.0 * size * size,
+            color: Vec3::new(0.6, 0.9, 1.5),
+        };
+        let lamps = BeautyScene {
+            env: &backdrop,
+            env_lights: false,
+            lights: LightSet::new(&[softbox, sphere], centre),
+            bounces: 2,
+            ..bscene
+        };
+        check(
+            rel,
+            &ex,
+            &lamps,
+            &settings,
+            &format!("{label}, softbox and sphere light"),
         );
         // The same surface glowing before the backdrop: all its light is its own emission,
         // seen directly, at each bounce's hit, and by the last bounce's closest-hit ray (the

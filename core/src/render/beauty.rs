@@ -5,8 +5,9 @@
 //! roughness and metallic times optional textures at the hit's UV (`BeautyScene::material_at`),
 //! its shading normal bent by an optional normal map (`shade_hit`), and an optional glow
 //! (`emission_at`, met by camera and BSDF rays, not sampled as a light); `bounces` surface
-//! events; next-event estimation of the environment and a light (a directional disc is met by
-//! BSDF samples too) combined with BSDF sampling by MIS (power heuristic). An optional
+//! events; next-event estimation of the environment and a light (directional discs, spheres
+//! and area lights are met by BSDF samples too) combined with BSDF sampling by MIS (power
+//! heuristic). An optional
 //! shadow-catcher ground plane at the asset's lowest point records how much light the asset
 //! takes away (alpha), nothing else.
 //!
@@ -630,14 +631,24 @@ fn surface_radiance(
         throughput *= bs.weight;
         let ray = shadow_ray(offset_origin(p, ng, wi, s.eps), wi);
         let key_seen = s.lights.seen_along(wi);
+        // The spheres and area lights the ray meets before the surface count by MIS.
+        let meets_local = s.lights.meets_local(ray.origin, wi);
+        let met = |t: f32| match meets_local {
+            true => s
+                .lights
+                .met(ray.origin, wi, t, (!bs.delta).then_some(bs.pdf)),
+            false => Vec3::ZERO,
+        };
         if bounce + 1 == s.bounces {
-            if s.emissive {
-                // Last event: the surface the ray meets counts with its glow.
+            if s.emissive || meets_local {
+                // Last event: the surface the ray meets counts with its glow, and the lights
+                // before it.
                 n.rays += 1;
                 radiance += throughput
                     * match isect.intersect(&ray, &bctx) {
-                        Some(h) => s.emission_at(&h),
-                        None => escape_radiance(s, wi, &bs),
+                        Some(h) if s.emissive => s.emission_at(&h) + met(h.t),
+                        Some(h) => met(h.t),
+                        None => escape_radiance(s, wi, &bs) + met(f32::INFINITY),
                     };
                 break;
             }
@@ -657,11 +668,12 @@ fn surface_radiance(
         n.rays += 1;
         match isect.intersect(&ray, &bctx) {
             Some(h) => {
+                radiance += throughput * met(h.t);
                 hit = s.shade_hit(h);
                 dir = wi;
             }
             None => {
-                radiance += throughput * escape_radiance(s, wi, &bs);
+                radiance += throughput * (escape_radiance(s, wi, &bs) + met(f32::INFINITY));
                 break;
             }
         }

@@ -4,14 +4,16 @@
 //! one of them, picked with a fixed chance (`LightSet::new`: by what each casts on the asset's
 //! centre), so that a rig of several lights costs one shadow ray an event, as one light does.
 //!
-//! A directional disc is also met by BSDF samples that leave the scene (`LightSet::escape`),
-//! and the two estimates share it by MIS (power heuristic, the pick's chance in the light
-//! sample's density). Points, spheres, spots and area lights are found by their shadow rays
-//! alone: BSDF samples do not meet them, so a mirror does not reflect them (a rough surface's
-//! highlight from them is whole: nothing else counts that light).
+//! A light with a surface is also met by BSDF samples: a directional disc by those that leave
+//! the scene (`LightSet::escape`), a sphere or an area light by those that reach it before the
+//! surface they meet (`LightSet::met`), so a mirror reflects them. The two estimates share
+//! each such light by MIS (power heuristic, the pick's chance in the light sample's density).
+//! Points and point spots have no surface: their shadow rays alone find them. Lights cast no
+//! shadow on the asset or on each other (a ray passes through them), as in Cycles, and camera
+//! rays do not see them.
 //!
-//! Mirrored in `shaders/beauty.wgsl` (`Light`, `light_sample`, `lights_escape`), which reads
-//! the same numbers from the lighting uniform (`gpu::layout::GpuLight`).
+//! Mirrored in `shaders/beauty.wgsl` (`Light`, `light_sample`, `lights_escape`, `lights_met`),
+//! which reads the same numbers from the lighting uniform (`gpu::layout::GpuLight`).
 
 use super::beauty::KeyLight;
 use super::shading::{self, power_heuristic};
@@ -124,8 +126,21 @@ pub struct LightSample {
     pub e: f32,
     pub color: Vec3,
     /// The sample's density in solid angle times the pick's chance, for MIS against BSDF
-    /// samples; `None` where BSDF samples do not meet the light (a delta, a local light).
+    /// samples; `None` where BSDF samples do not meet the light (a point-like sun, a point,
+    /// a point spot).
     pub mis_pdf: Option<f32>,
+}
+
+/// Where a ray meets a light's surface (`Light::met`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightMet {
+    /// Distance along the ray.
+    pub t: f32,
+    /// The radiance towards the ray's origin (luminance; times the light's `color` for RGB).
+    pub radiance: f32,
+    /// The density in solid angle of the light's own samples from the ray's origin in the
+    /// ray's direction (not yet times the pick's chance).
+    pub pdf: f32,
 }
 
 impl Light {
@@ -201,7 +216,9 @@ impl Light {
                     t_max: d,
                     e: self.power * area * cos_light / d2,
                     color: self.color,
-                    mis_pdf: None,
+                    // A uniform point's density in solid angle: d² / (A cos) (∞ edge on,
+                    // where it brings nothing).
+                    mis_pdf: Some(d2 / (area * cos_light)),
                 })
             }
             LightShape::Local { pos, radius, spot } => {
@@ -243,7 +260,63 @@ impl Light {
                     t_max: near.max(0.0),
                     e: radiance * solid_angle * cone,
                     color: self.color,
-                    mis_pdf: None,
+                    mis_pdf: Some(1.0 / solid_angle),
+                })
+            }
+        }
+    }
+
+    /// Where a ray from `o` along the unit direction `d` meets the light's surface, for BSDF
+    /// samples: the near side of a sphere (`None` from inside it, as `sample` gives nothing
+    /// there), the front of a rectangle or disk (`None` from behind); points, point spots and
+    /// directional lights have no surface here.
+    pub fn met(&self, o: Vec3, d: Vec3) -> Option<LightMet> {
+        match self.shape {
+            LightShape::Distant { .. } => None,
+            LightShape::Local { pos, radius, spot } => {
+                if radius <= 0.0 {
+                    return None;
+                }
+                let to = pos - o;
+                let d2 = to.length_squared();
+                let r2 = radius * radius;
+                let b_half = d.dot(to);
+                let disc = b_half * b_half - (d2 - r2);
+                if !(d2 > r2 && b_half > 0.0 && disc >= 0.0) {
+                    return None;
+                }
+                let t = b_half - disc.sqrt();
+                let s2 = r2 / d2;
+                let one_minus_cos = s2 / (1.0 + (1.0 - s2).max(0.0).sqrt());
+                let cone = spot.map_or(1.0, |s| s.falloff(-to / d2.sqrt()));
+                Some(LightMet {
+                    t: t.max(0.0),
+                    radiance: self.power / (std::f32::consts::PI * r2) * cone,
+                    pdf: 1.0 / (2.0 * std::f32::consts::PI * one_minus_cos),
+                })
+            }
+            LightShape::Area { pos, u, v, disk } => {
+                let (area, n) = area_and_normal(u, v, disk);
+                let cos_light = -d.dot(n);
+                if cos_light.is_nan() || cos_light <= 0.0 {
+                    return None;
+                }
+                let t = (o - pos).dot(n) / cos_light;
+                if !(t > 0.0 && t.is_finite()) {
+                    return None;
+                }
+                // Where on the shape, in its half-extents (its sides are at right angles).
+                let local = o + d * t - pos;
+                let a = local.dot(u) / u.length_squared();
+                let b = local.dot(v) / v.length_squared();
+                let inside = match disk {
+                    true => a * a + b * b <= 1.0,
+                    false => a.abs() <= 1.0 && b.abs() <= 1.0,
+                };
+                inside.then(|| LightMet {
+                    t,
+                    radiance: self.power,
+                    pdf: t * t / (area * cos_light),
                 })
             }
         }
@@ -455,6 +528,29 @@ impl LightSet {
         })
     }
 
+    /// Radiance of the spheres and area lights a BSDF sample from `o` along `wi` meets before
+    /// `t_max` (the surface it meets; +∞ if none), each weighted by MIS against its light
+    /// samples (`bsdf_pdf` as in `escape`). Lights do not hide one another.
+    pub fn met(&self, o: Vec3, wi: Vec3, t_max: f32, bsdf_pdf: Option<f32>) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for (i, light) in self.lights().iter().enumerate() {
+            let Some(m) = light.met(o, wi) else {
+                continue;
+            };
+            if m.t < t_max {
+                let w = bsdf_pdf.map_or(1.0, |b| power_heuristic(b, m.pdf * self.prob[i]));
+                l += light.color * (m.radiance * w);
+            }
+        }
+        l
+    }
+
+    /// Whether a BSDF sample from `o` along `wi` meets a sphere or an area light at all: then
+    /// the last event's ray must find how far the surface is, not only whether there is one.
+    pub fn meets_local(&self, o: Vec3, wi: Vec3) -> bool {
+        self.lights().iter().any(|l| l.met(o, wi).is_some())
+    }
+
     /// The same lights turned by `angle` radians about `up` through `pivot` (the chances stay).
     pub fn turned(&self, up: Vec3, pivot: Vec3, angle: f32) -> Self {
         let rot = Quat::from_axis_angle(up, angle);
@@ -644,6 +740,95 @@ mod tests {
         let set = LightSet::new(&[sun(1.0), sun(0.0)], Vec3::ZERO);
         let (p0, p1) = (set.chance(0).0, set.chance(1).0);
         assert!((p1 - 0.025 / 1.025).abs() < 1e-6 && (p0 + p1 - 1.0).abs() < 1e-6);
+    }
+
+    /// A BSDF sample along a light sample's direction meets the light where the shadow ray
+    /// stops, sees the radiance the sample brought over its density, and the two MIS weights
+    /// sum to one: for a sphere, a spot on a sphere, a rectangle and a disk. Points have no
+    /// surface to meet; area lights are not met from behind nor spheres from inside.
+    #[test]
+    fn bsdf_samples_meet_spheres_and_area_lights() {
+        let p = Vec3::new(0.3, -0.2, 0.1);
+        let sphere = |pos, spot| Light {
+            shape: LightShape::Local {
+                pos,
+                radius: 0.4,
+                spot,
+            },
+            power: 5.0,
+            color: Vec3::new(1.2, 1.0, 0.8),
+        };
+        let area = |pos, disk| Light {
+            shape: LightShape::Area {
+                pos,
+                u: Vec3::new(0.6, 0.0, 0.0),
+                v: Vec3::new(0.0, 0.3, -0.4),
+                disk,
+            },
+            power: 2.0,
+            color: Vec3::ONE,
+        };
+        let lights = [
+            sphere(Vec3::new(0.5, 3.0, -1.0), None),
+            sphere(
+                Vec3::new(3.0, 1.0, 2.0),
+                Some(Spot::blended(
+                    Vec3::new(-1.0, -0.3, -0.5).normalize(),
+                    0.6,
+                    0.5,
+                )),
+            ),
+            area(Vec3::new(-1.0, 2.0, 0.5), false),
+            area(Vec3::new(-2.0, 1.0, 3.0), true),
+        ];
+        let set = LightSet::new(&lights, Vec3::ZERO);
+        for (i, light) in lights.iter().enumerate() {
+            for u in [
+                Vec2::new(0.1, 0.2),
+                Vec2::new(0.8, 0.55),
+                Vec2::new(0.45, 0.95),
+            ] {
+                let s = light.sample(p, u).unwrap();
+                let m = light
+                    .met(p, s.dir)
+                    .unwrap_or_else(|| panic!("light {i}, {u}"));
+                assert!((m.t / s.t_max - 1.0).abs() < 1e-3, "light {i}: {m:?} {s:?}");
+                assert!(
+                    (m.radiance / m.pdf / s.e - 1.0).abs() < 1e-3,
+                    "light {i}: {m:?} {s:?}"
+                );
+                let prob = set.chance(i).0;
+                let bsdf = 0.37;
+                let nee = power_heuristic(s.mis_pdf.unwrap() * prob, bsdf);
+                let seen = set.met(p, s.dir, f32::INFINITY, Some(bsdf));
+                // Only this light lies along the direction.
+                let bsdf_w = seen.x / (light.color.x * m.radiance);
+                assert!(
+                    (nee + bsdf_w - 1.0).abs() < 1e-4,
+                    "light {i}: {nee} + {bsdf_w}"
+                );
+                assert_eq!(set.met(p, s.dir, m.t * 0.99, Some(bsdf)), Vec3::ZERO);
+                assert_eq!(
+                    set.met(p, s.dir, f32::INFINITY, None),
+                    light.color * m.radiance
+                );
+            }
+        }
+        let point = Light {
+            shape: LightShape::Local {
+                pos: Vec3::Y,
+                radius: 0.0,
+                spot: None,
+            },
+            ..lights[0]
+        };
+        assert_eq!(point.met(Vec3::ZERO, Vec3::Y), None);
+        // The rectangle shines along v × u: down and towards +Z; from above it is dark.
+        let behind = Vec3::new(-1.0, 3.0, 0.5);
+        assert_eq!(lights[2].met(behind, Vec3::NEG_Y), None);
+        assert!(lights[2].met(Vec3::new(-1.0, 1.0, 0.5), Vec3::Y).is_some());
+        assert_eq!(lights[0].met(Vec3::new(0.5, 3.1, -1.0), Vec3::Y), None);
+        assert!(!set.meets_local(p, Vec3::NEG_Y));
     }
 
     /// The NEE and BSDF weights of a disc sum to one for any direction within it, with the
