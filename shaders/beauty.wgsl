@@ -109,6 +109,9 @@ struct PathState {
     normal: vec3f,
     // The camera hit's reflectance (shading::guide_albedo), zero without one.
     albedo: vec3f,
+    // The surface event's geometric normal (facing its rays), for the lights' chances there
+    // (lights::LightSet::at, at the continuation's origin).
+    event_n: vec3f,
 }
 
 // One pixel's path record in the wavefront schedule (gpu::layout::PATH_RECORD_BYTES).
@@ -324,29 +327,100 @@ fn light_met_one(l: Light, o: vec3f, d: vec3f) -> LightMet {
     return out;
 }
 
-// lights::LightSet::sample: one light picked by u.x (lights::LightSet::pick), its sample with
-// what it brings and its density over the pick's chance.
-fn light_sample(p: vec3f, u: vec2f) -> LightSample {
+// lights::Light::weight_at: what light `l`'s centre casts on `q` across a surface of normal
+// `n` (luminance), the weight it is picked by there.
+fn light_weight(l: Light, q: vec3f, n: vec3f) -> f32 {
+    if (l.kind == 0u) {
+        return l.power * max(dot(n, l.pos), 0.0);
+    }
+    if (l.kind >= 3u) {
+        let u_vec = l.axis;
+        let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
+        let c = cross(v_vec, u_vec);
+        var area = 4.0 * length(c);
+        if (l.kind == 4u) {
+            area = PI * length(c);
+        }
+        var normal = vec3f(0.0);
+        if (length(c) > 0.0) {
+            normal = normalize(c);
+        }
+        let to = q - l.pos;
+        let d2 = max(max(dot(to, to), area), 1e-12);
+        let d = sqrt(d2);
+        let cosines = max(dot(to, normal) / d, 0.0) * max(-dot(to, n) / d, 0.0);
+        return l.power * area * cosines / d2;
+    }
+    let to = q - l.pos;
+    let d2 = max(max(dot(to, to), l.size * l.size), 1e-12);
+    let d = sqrt(d2);
+    var cone = 1.0;
+    if (l.kind == 2u) {
+        cone = spot_falloff(l, to / d);
+    }
+    return l.power * cone * max(-dot(to, n) / d, 0.0) / d2;
+}
+
+// lights::LightSet::at: each light's chance of being picked at a surface event whose rays leave
+// from `q` across a surface of normal `n` (lights::CHANCE_FLOOR).
+struct Chances {
+    p: array<f32, 8>,
+}
+
+fn light_chances(q: vec3f, n: vec3f) -> Chances {
+    var c: Chances;
+    let count = lighting.light_count;
+    var total = 0.0;
+    for (var i = 0u; i < count; i += 1u) {
+        let x = light_weight(lighting.lights[i], q, n);
+        // Not finite, or negative: no weight.
+        var w = 0.0;
+        if (x > 0.0 && x <= 3.4028235e38) {
+            w = x;
+        }
+        c.p[i] = w;
+        total += w;
+    }
+    let floor = CHANCE_FLOOR / f32(count);
+    var sum = 0.0;
+    for (var i = 0u; i < count; i += 1u) {
+        var share = 1.0;
+        if (total > 0.0) {
+            share = max(c.p[i] / total, floor);
+        }
+        c.p[i] = share;
+        sum += share;
+    }
+    for (var i = 0u; i < count; i += 1u) {
+        c.p[i] = c.p[i] / sum;
+    }
+    return c;
+}
+
+// lights::LightsAt::sample: one light picked by u.x under the chances `c`
+// (lights::LightsAt::pick), its sample with what it brings and its density over the pick's
+// chance.
+fn light_sample(c: Chances, p: vec3f, u: vec2f) -> LightSample {
     let n = lighting.light_count;
     var i = 0u;
-    while (i + 1u < n && u.x >= lighting.lights[i].cdf) {
+    var start = 0.0;
+    while (i + 1u < n && u.x >= start + c.p[i]) {
+        start += c.p[i];
         i += 1u;
     }
     let l = lighting.lights[i];
-    var start = 0.0;
-    if (i > 0u) {
-        start = lighting.lights[i - 1u].cdf;
-    }
-    let ux = clamp((u.x - start) / l.prob, 0.0, 1.0 - 5.9604645e-8);
+    let prob = c.p[i];
+    let ux = clamp((u.x - start) / prob, 0.0, 1.0 - 5.9604645e-8);
     var s = light_sample_one(l, p, vec2f(ux, u.y));
-    s.e = s.e / l.prob;
-    s.mis_pdf = s.mis_pdf * l.prob;
+    s.e = s.e / prob;
+    s.mis_pdf = s.mis_pdf * prob;
     return s;
 }
 
-// lights::LightSet::escape: radiance of the directional discs a BSDF sample leaving along
-// `wi` meets, each MIS-weighted against its light samples (weight 1 for a delta lobe).
-fn lights_escape(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
+// lights::LightsAt::escape: radiance of the directional discs a BSDF sample leaving along
+// `wi` meets, each MIS-weighted against its light samples under the chances `c` (weight 1 for
+// a delta lobe).
+fn lights_escape(c: Chances, wi: vec3f, pdf: f32, delta: bool) -> vec3f {
     var l = vec3f(0.0);
     for (var i = 0u; i < lighting.light_count; i += 1u) {
         let li = lighting.lights[i];
@@ -356,7 +430,7 @@ fn lights_escape(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
         }
         var w = 1.0;
         if (!delta) {
-            w = power_heuristic(pdf, lp * li.prob);
+            w = power_heuristic(pdf, lp * c.p[i]);
         }
         l += li.color * (li.power * lp * w);
     }
@@ -374,10 +448,10 @@ fn lights_seen_along(wi: vec3f) -> bool {
     return false;
 }
 
-// lights::LightSet::met: radiance of the spheres and area lights a BSDF sample from `o` along
+// lights::LightsAt::met: radiance of the spheres and area lights a BSDF sample from `o` along
 // `wi` (density `pdf`, a delta lobe or not) meets before `t_max`, each MIS-weighted against
-// its light samples.
-fn lights_met(o: vec3f, wi: vec3f, t_max: f32, pdf: f32, delta: bool) -> vec3f {
+// its light samples under the chances `c`.
+fn lights_met(c: Chances, o: vec3f, wi: vec3f, t_max: f32, pdf: f32, delta: bool) -> vec3f {
     var l = vec3f(0.0);
     for (var i = 0u; i < lighting.light_count; i += 1u) {
         let li = lighting.lights[i];
@@ -387,7 +461,7 @@ fn lights_met(o: vec3f, wi: vec3f, t_max: f32, pdf: f32, delta: bool) -> vec3f {
         }
         var w = 1.0;
         if (!delta) {
-            w = power_heuristic(pdf, m.pdf * li.prob);
+            w = power_heuristic(pdf, m.pdf * c.p[i]);
         }
         l += li.color * (m.radiance * w);
     }
@@ -408,7 +482,7 @@ fn lights_meet_local(o: vec3f, wi: vec3f) -> bool {
 // beauty::escape_radiance: light a BSDF sample (direction `wi`, density `pdf`, a delta lobe
 // or not) meets when it leaves the scene, the environment and the directional discs, each
 // weighted by MIS against its own light samples.
-fn escape_radiance(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
+fn escape_radiance(c: Chances, wi: vec3f, pdf: f32, delta: bool) -> vec3f {
     var l = vec3f(0.0);
     if (lighting.env_lights != 0u) {
         var w = 1.0;
@@ -417,7 +491,7 @@ fn escape_radiance(wi: vec3f, pdf: f32, delta: bool) -> vec3f {
         }
         l += env_radiance(wi) * w;
     }
-    return l + lights_escape(wi, pdf, delta);
+    return l + lights_escape(c, wi, pdf, delta);
 }
 
 // beauty::shadow_ray (t_max = +∞).
@@ -550,7 +624,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let up = lighting.ground_up;
         let origin = (*s).ground_p + up * eps;
         if (lighting.light_count != 0u) {
-            let ls = light_sample(origin, rand2(ctx, 0u, KEY_DIM, PURPOSE_LIGHT));
+            let ls = light_sample(light_chances(origin, up), origin, rand2(ctx, 0u, KEY_DIM, PURPOSE_LIGHT));
             let cos_k = dot(ls.dir, up);
             if (ls.ok && cos_k > 0.0 && ls.e > 0.0) {
                 (*s).key_e = ls.e * cos_k;
@@ -586,8 +660,11 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
         let p = hit.position;
+        (*s).event_n = ng;
         if (lighting.light_count != 0u) {
-            let ls = light_sample(p, rand2(ctx, bounce, KEY_DIM, PURPOSE_LIGHT));
+            // The lights' chances at the point the event's rays leave from (towards ng's side).
+            let chances = light_chances(offset_origin(p, ng, ng, eps), ng);
+            let ls = light_sample(chances, p, rand2(ctx, bounce, KEY_DIM, PURPOSE_LIGHT));
             let kd = ls.dir;
             let wi_l = to_local(kd, basis.t, basis.b, ns);
             var f = vec3f(0.0);
@@ -731,13 +808,18 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
             (*s).throughput *= (*s).bs_weight;
             let throughput = (*s).throughput;
             let delta = has(*s, PATH_BSDF_DELTA);
+            // The event's chances again, at the continuation's origin (where `ask` took them).
+            var chances: Chances;
+            if (lighting.light_count != 0u) {
+                chances = light_chances(qs.next.origin, (*s).event_n);
+            }
             var met = vec3f(0.0);
             if (has(*s, PATH_MEETS_LIGHT)) {
-                met = lights_met(qs.next.origin, wi, select(next_t, T_FAR, next_prism == NO_PRISM), (*s).bs_pdf, delta);
+                met = lights_met(chances, qs.next.origin, wi, select(next_t, T_FAR, next_prism == NO_PRISM), (*s).bs_pdf, delta);
             }
             if (has(*s, PATH_LAST)) {
                 if (live_next && next_prism == NO_PRISM) {
-                    (*s).radiance += throughput * (escape_radiance(wi, (*s).bs_pdf, delta) + met);
+                    (*s).radiance += throughput * (escape_radiance(chances, wi, (*s).bs_pdf, delta) + met);
                 } else if (live_next) {
                     (*s).radiance += throughput * (glow + met);
                 }
@@ -748,7 +830,7 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
                 (*s).bounce += 1u;
                 (*s).step = STEP_SURFACE;
             } else {
-                (*s).radiance += throughput * (escape_radiance(wi, (*s).bs_pdf, delta) + met);
+                (*s).radiance += throughput * (escape_radiance(chances, wi, (*s).bs_pdf, delta) + met);
             }
         }
     }
@@ -784,7 +866,7 @@ fn new_path(px: PixelRef) -> PathState {
     let camera = camera_ray(vec2f(f32(px.x), f32(px.y)) + pixel_jitter(px.ctx.pixel, px.ctx.sample));
     return PathState(vec3f(1.0), STEP_CAMERA, camera.dir, 0u, camera.origin, 0u,
         vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0, vec3f(0.0), 0.0,
-        vec3f(0.0), 0u, 0u, 0u, vec3f(0.0), vec3f(0.0));
+        vec3f(0.0), 0u, 0u, 0u, vec3f(0.0), vec3f(0.0), vec3f(0.0));
 }
 
 // One ray of a step: Pdm::intersect with surface data (the continuation), or Pdm::occluded

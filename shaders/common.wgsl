@@ -113,9 +113,12 @@ struct Light {
     size: f32,
     cos_inner: f32,
     cos_outer: f32,
-    prob: f32,           // LightSet::chance
-    cdf: f32,
+    _pad0: f32,
+    _pad1: f32,
 }
+
+// lights::CHANCE_FLOOR: the share of an even chance every light keeps at any point.
+const CHANCE_FLOOR: f32 = 0.05;
 
 // GpuLighting, 624 bytes: everything beauty needs besides the scene, the materials and the
 // environment tables (render::beauty::BeautyScene).

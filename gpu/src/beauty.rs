@@ -41,9 +41,8 @@ use wgpu::util::DeviceExt;
 pub fn lighting_uniform(s: &BeautyScene, layout: &TextureLayout) -> GpuLighting {
     let ground = s.ground;
     let mut lights = [GpuLight::default(); MAX_LIGHTS];
-    for (i, (l, slot)) in s.lights.lights().iter().zip(&mut lights).enumerate() {
-        let (prob, cdf) = s.lights.chance(i);
-        *slot = gpu_light(l, prob, cdf);
+    for (l, slot) in s.lights.lights().iter().zip(&mut lights) {
+        *slot = gpu_light(l);
     }
     GpuLighting {
         light_count: s.lights.len() as u32,
@@ -61,13 +60,11 @@ pub fn lighting_uniform(s: &BeautyScene, layout: &TextureLayout) -> GpuLighting 
     }
 }
 
-/// One light as the kernel reads it (`GpuLight`), with its pick's chance and running sum.
-pub fn gpu_light(l: &Light, prob: f32, cdf: f32) -> GpuLight {
+/// One light as the kernel reads it (`GpuLight`).
+pub fn gpu_light(l: &Light) -> GpuLight {
     let base = GpuLight {
         color: l.color.to_array(),
         power: l.power,
-        prob,
-        cdf,
         ..Default::default()
     };
     match l.shape {

@@ -16,14 +16,14 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// Tile of one dispatch on a software adapter, in pixels per side: lavapipe's time does not
-/// depend on it, so it keeps the buffers small (512² × 416 B = 104 MiB of beauty path records).
+/// depend on it, so it keeps the buffers small (512² × 432 B = 108 MiB of beauty path records).
 pub const MAX_TILE: u32 = 512;
 
 /// Tile of one dispatch on a hardware adapter: a 2048² frame in one dispatch. Each dispatch
 /// waits for its slowest lanes (the long marches of a few rays); on an NVIDIA H200 a 2048²
 /// AOV frame took 6.4–11.7 ms in one dispatch against 10.7–18.6 ms in sixteen 512² ones
 /// (docs/gpu.md, "A real GPU"). A 2048² frame costs 192 MiB of AOV tile, 256 MiB of
-/// read-back and, once beauty runs, 384 MiB of sums and 1664 MiB of path records (smaller
+/// read-back and, once beauty runs, 384 MiB of sums and 1728 MiB of path records (smaller
 /// frames only what they use, `TileBuffers`); `PRISMBAKE_GPU_TILE` lowers it for small GPUs.
 pub const HARDWARE_TILE: u32 = 2048;
 
@@ -1318,7 +1318,7 @@ mod tests {
         assert_eq!(tile_side(None, true, big), MAX_TILE);
         assert_eq!(tile_side(None, false, big), HARDWARE_TILE);
         assert_eq!(tile_side(Some(1024), false, big), 1024);
-        // WebGPU's default binding limit (128 MiB) holds 568² beauty path records of 416
+        // WebGPU's default binding limit (128 MiB) holds 557² beauty path records of 432
         // bytes: cut to a multiple of the workgroup.
         let pixel = PATH_RECORD_BYTES;
         let t = tile_side(None, false, 128 << 20);

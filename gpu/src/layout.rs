@@ -23,7 +23,7 @@ pub const WORKGROUP: u32 = 8;
 /// `shaders/beauty.wgsl`: the path's state between dispatches, its three ray slots and their
 /// answers). Only the GPU reads it; the host sizes the buffer (tile² records) and the layout
 /// test checks this against the WGSL.
-pub const PATH_RECORD_BYTES: u64 = 416;
+pub const PATH_RECORD_BYTES: u64 = 432;
 
 /// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
 /// index of its stitch record (`StitchField::record_index`).
@@ -273,8 +273,8 @@ pub struct GpuAovPixel {
 /// disc's radius), 1 a point or sphere (`pos` its centre, `size` its radius), 2 a spot (also
 /// `axis`, `cos_inner`, `cos_outer`), 3 a rectangle and 4 a disk (`pos` its centre, `axis` its
 /// `u`, and `size`, `cos_inner`, `cos_outer` the three components of its `v`); `power`,
-/// `color` as `Light`'s; `prob` its chance and `cdf` the running sum up to it
-/// (`LightSet::chance`).
+/// `color` as `Light`'s. Its chance of being picked is the kernel's to find at each surface
+/// event (`LightSet::at`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
@@ -286,8 +286,8 @@ pub struct GpuLight {
     pub size: f32,
     pub cos_inner: f32,
     pub cos_outer: f32,
-    pub prob: f32,
-    pub cdf: f32,
+    pub _pad0: f32,
+    pub _pad1: f32,
 }
 
 /// Everything the beauty kernel needs besides the scene, the materials and the environment
@@ -539,8 +539,8 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 size,
                 cos_inner,
                 cos_outer,
-                prob,
-                cdf
+                _pad0,
+                _pad1
             }
         ),
         layout!(

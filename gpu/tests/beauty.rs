@@ -299,8 +299,8 @@ fn preview_agrees(rel: &str, label: &str, gpu: &BeautyImage) {
     );
 }
 
-/// The lights of `sphere_under_the_sky`: one key light, or a rig picked by what each casts on
-/// the sphere's centre.
+/// The lights of `sphere_under_the_sky`: one key light, or a rig, each light picked by what it
+/// casts on the surface event's point.
 enum Lights {
     One(KeyLight),
     Rig(Vec<Light>),
@@ -410,10 +410,7 @@ fn sphere_under_the_sky(
         env_lights: true,
         lights: match key.into() {
             Lights::One(k) => LightSet::one(k),
-            Lights::Rig(lights) => {
-                let (lo, hi) = ex.scene.table.bounds();
-                LightSet::new(&lights, (lo + hi) * 0.5)
-            }
+            Lights::Rig(lights) => LightSet::new(&lights),
         },
         materials: &[SurfaceMaterial::from(Material::default())],
         textures: &[],
@@ -739,7 +736,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
         let lamps = BeautyScene {
             env: &backdrop,
             env_lights: false,
-            lights: LightSet::new(&[softbox, sphere], centre),
+            lights: LightSet::new(&[softbox, sphere]),
             bounces: 2,
             ..bscene
         };

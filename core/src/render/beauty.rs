@@ -24,7 +24,7 @@
 
 use super::camera::Camera;
 use super::env::{env_pdf, env_radiance, env_radiance_smooth, env_sample, EnvFrame, EnvMap};
-use super::lights::LightSet;
+use super::lights::{LightSet, LightsAt};
 use super::shading::{
     self, bsdf_eval, bsdf_pdf, bsdf_sample, offset_origin, onb, power_heuristic, Material,
 };
@@ -495,6 +495,7 @@ fn ground_light(
     let light = (!s.lights.is_empty())
         .then(|| {
             s.lights
+                .at(origin, g.up)
                 .sample(origin, rand2(ctx, 0, KEY_DIM, Purpose::Light))
         })
         .flatten();
@@ -525,8 +526,9 @@ fn ground_light(
 
 /// Light a BSDF sample `bs` (direction `wi`) meets when it leaves the scene: the environment
 /// and the directional discs `wi` lies within, each weighted by MIS against its own light
-/// samples (weight 1 for a delta lobe, which light samples never find).
-fn escape_radiance(s: &BeautyScene, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 {
+/// samples (weight 1 for a delta lobe, which light samples never find; `lights`: the event's
+/// chances).
+fn escape_radiance(s: &BeautyScene, lights: &LightsAt, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 {
     let mut l = Vec3::ZERO;
     if s.env_lights {
         let w = if bs.delta {
@@ -536,7 +538,7 @@ fn escape_radiance(s: &BeautyScene, wi: Vec3, bs: &shading::BsdfSample) -> Vec3 
         };
         l += env_radiance(s.env, s.env_frame, wi) * w;
     }
-    l + s.lights.escape(wi, (!bs.delta).then_some(bs.pdf))
+    l + lights.escape(wi, (!bs.delta).then_some(bs.pdf))
 }
 
 /// Radiance leaving a camera hit towards the camera: the path tracer proper.
@@ -567,11 +569,10 @@ fn surface_radiance(
             ..*ctx
         };
 
+        // The lights' chances at the point the event's rays leave from (towards ng's side).
+        let lights = s.lights.at(offset_origin(p, ng, ng, s.eps), ng);
         let light = (!s.lights.is_empty())
-            .then(|| {
-                s.lights
-                    .sample(p, rand2(ctx, bounce, KEY_DIM, Purpose::Light))
-            })
+            .then(|| lights.sample(p, rand2(ctx, bounce, KEY_DIM, Purpose::Light)))
             .flatten();
         if let Some(ls) = light {
             let kd = ls.dir;
@@ -634,9 +635,7 @@ fn surface_radiance(
         // The spheres and area lights the ray meets before the surface count by MIS.
         let meets_local = s.lights.meets_local(ray.origin, wi);
         let met = |t: f32| match meets_local {
-            true => s
-                .lights
-                .met(ray.origin, wi, t, (!bs.delta).then_some(bs.pdf)),
+            true => lights.met(ray.origin, wi, t, (!bs.delta).then_some(bs.pdf)),
             false => Vec3::ZERO,
         };
         if bounce + 1 == s.bounces {
@@ -648,7 +647,7 @@ fn surface_radiance(
                     * match isect.intersect(&ray, &bctx) {
                         Some(h) if s.emissive => s.emission_at(&h) + met(h.t),
                         Some(h) => met(h.t),
-                        None => escape_radiance(s, wi, &bs) + met(f32::INFINITY),
+                        None => escape_radiance(s, &lights, wi, &bs) + met(f32::INFINITY),
                     };
                 break;
             }
@@ -660,7 +659,7 @@ fn surface_radiance(
                     n.key_shadow_rays += 1;
                 }
                 if !isect.occluded(&ray, &bctx) {
-                    radiance += throughput * escape_radiance(s, wi, &bs);
+                    radiance += throughput * escape_radiance(s, &lights, wi, &bs);
                 }
             }
             break;
@@ -673,7 +672,8 @@ fn surface_radiance(
                 dir = wi;
             }
             None => {
-                radiance += throughput * (escape_radiance(s, wi, &bs) + met(f32::INFINITY));
+                radiance +=
+                    throughput * (escape_radiance(s, &lights, wi, &bs) + met(f32::INFINITY));
                 break;
             }
         }

@@ -1,12 +1,12 @@
 //! The beauty's lights besides the environment: directional lights (a direction, or a disc as
 //! wide as the sun), points, spheres, spots and one-sided rectangles and disks, up to
-//! `MAX_LIGHTS`. Each surface event samples
-//! one of them, picked with a fixed chance (`LightSet::new`: by what each casts on the asset's
-//! centre), so that a rig of several lights costs one shadow ray an event, as one light does.
+//! `MAX_LIGHTS`. Each surface event samples one of them, picked by what each casts on that
+//! point across its surface (`LightSet::at`), so that a rig of several lights costs one shadow
+//! ray an event, as one light does, and the shadow ray goes where the light is.
 //!
 //! A light with a surface is also met by BSDF samples: a directional disc by those that leave
-//! the scene (`LightSet::escape`), a sphere or an area light by those that reach it before the
-//! surface they meet (`LightSet::met`), so a mirror reflects them. The two estimates share
+//! the scene (`LightsAt::escape`), a sphere or an area light by those that reach it before the
+//! surface they meet (`LightsAt::met`), so a mirror reflects them. The two estimates share
 //! each such light by MIS (power heuristic, the pick's chance in the light sample's density).
 //! Points and point spots have no surface: their shadow rays alone find them. Lights cast no
 //! shadow on the asset or on each other (a ray passes through them), as in Cycles, and camera
@@ -158,22 +158,25 @@ impl Light {
         }
     }
 
-    /// What the light casts on a point at `p` facing it, as luminance: the weight it is picked
-    /// by (`LightSet::new`).
-    fn weight_at(&self, p: Vec3) -> f32 {
+    /// What the light's centre casts on a point at `p` across a surface of unit normal `n`, as
+    /// luminance: the weight it is picked by there (`LightSet::at`).
+    fn weight_at(&self, p: Vec3, n: Vec3) -> f32 {
         match self.shape {
-            LightShape::Distant { .. } => self.power,
+            LightShape::Distant { dir, .. } => self.power * n.dot(dir).max(0.0),
             LightShape::Area { pos, u, v, disk } => {
-                let (area, n) = area_and_normal(u, v, disk);
+                let (area, normal) = area_and_normal(u, v, disk);
                 let to = p - pos;
                 let d2 = to.length_squared().max(area).max(1e-12);
-                self.power * area * (to.dot(n) / d2.sqrt()).max(0.0) / d2
+                let d = d2.sqrt();
+                let cosines = (to.dot(normal) / d).max(0.0) * (-to.dot(n) / d).max(0.0);
+                self.power * area * cosines / d2
             }
             LightShape::Local { pos, radius, spot } => {
                 let to = p - pos;
                 let d2 = to.length_squared().max(radius * radius).max(1e-12);
-                let cone = spot.map_or(1.0, |s| s.falloff(to / d2.sqrt()));
-                self.power * cone / d2
+                let d = d2.sqrt();
+                let cone = spot.map_or(1.0, |s| s.falloff(to / d));
+                self.power * cone * (-to.dot(n) / d).max(0.0) / d2
             }
         }
     }
@@ -395,15 +398,17 @@ pub fn blackbody(kelvin: f32) -> Vec3 {
     rgb / shading::luminance(rgb)
 }
 
-/// The lights a beauty samples and each one's chance of being picked.
+/// The lights a beauty samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LightSet {
     lights: [Light; MAX_LIGHTS],
-    /// Each light's chance, and their running sum (the last is 1).
-    prob: [f32; MAX_LIGHTS],
-    cdf: [f32; MAX_LIGHTS],
     count: usize,
 }
+
+/// The share of an even chance every light keeps at any point (`LightSet::at`), so that a light
+/// that seems to cast nothing there (its centre below the horizon, a spot's axis aimed past)
+/// still lights what it reaches.
+pub const CHANCE_FLOOR: f32 = 0.05;
 
 impl LightSet {
     /// No lights.
@@ -411,46 +416,18 @@ impl LightSet {
         Self::default()
     }
 
-    /// `lights` (the first `MAX_LIGHTS`), each picked with a chance in proportion to what it
-    /// casts on a point at `centre` facing it (the asset's centre), but at least 1/20 of an
-    /// even share, so that a light that casts little there (a spot aimed past it) still
-    /// lights what it reaches.
-    pub fn new(lights: &[Light], centre: Vec3) -> Self {
+    /// `lights`, the first `MAX_LIGHTS` of them.
+    pub fn new(lights: &[Light]) -> Self {
         let mut set = Self::default();
         let lights = &lights[..lights.len().min(MAX_LIGHTS)];
         set.count = lights.len();
-        if lights.is_empty() {
-            return set;
-        }
-        let weights: Vec<f32> = lights
-            .iter()
-            .map(|l| l.weight_at(centre))
-            .map(|w| if w.is_finite() { w.max(0.0) } else { 0.0 })
-            .collect();
-        let total: f32 = weights.iter().sum();
-        let floor = 0.05 / lights.len() as f32;
-        let shares: Vec<f32> = weights
-            .iter()
-            .map(|w| match total > 0.0 {
-                true => (w / total).max(floor),
-                false => 1.0,
-            })
-            .collect();
-        let sum: f32 = shares.iter().sum();
-        let mut run = 0.0;
-        for (i, (l, s)) in lights.iter().zip(&shares).enumerate() {
-            set.lights[i] = *l;
-            set.prob[i] = s / sum;
-            run += set.prob[i];
-            set.cdf[i] = run;
-        }
-        set.cdf[lights.len() - 1] = 1.0;
+        set.lights[..lights.len()].copy_from_slice(lights);
         set
     }
 
     /// One light, always picked.
     pub fn one(light: impl Into<Light>) -> Self {
-        Self::new(&[light.into()], Vec3::ZERO)
+        Self::new(&[light.into()])
     }
 
     pub fn len(&self) -> usize {
@@ -466,56 +443,36 @@ impl LightSet {
         &self.lights[..self.count]
     }
 
-    /// Light `i`'s chance of being picked, and the running sum up to it.
-    pub fn chance(&self, i: usize) -> (f32, f32) {
-        (self.prob[i], self.cdf[i])
-    }
-
-    /// The light a random number `u` picks, its chance, and `u` stretched back over [0, 1)
-    /// within its share (so one light leaves `u` as it is).
+    /// The lights as seen from a surface event at `q` (the point its rays leave from: the hit
+    /// lifted off the surface) whose geometric normal is `n`: each picked with a chance in
+    /// proportion to what it casts on `q` across a surface of normal `n` (its centre's
+    /// cosine there, and a spot's cone, an area light's own cosine, the inverse square), but
+    /// at least `CHANCE_FLOOR` of an even share; an even chance where none casts anything.
+    /// Light samples and the MIS weights of the BSDF samples that meet a light both take
+    /// their chances from here.
     #[inline]
-    pub fn pick(&self, u: f32) -> (usize, f32, f32) {
-        let mut i = 0;
-        while i + 1 < self.count && u >= self.cdf[i] {
-            i += 1;
+    pub fn at(&self, q: Vec3, n: Vec3) -> LightsAt<'_> {
+        let mut prob = [0.0; MAX_LIGHTS];
+        let mut total = 0.0;
+        for (w, l) in prob.iter_mut().zip(self.lights()) {
+            let x = l.weight_at(q, n);
+            *w = if x.is_finite() { x.max(0.0) } else { 0.0 };
+            total += *w;
         }
-        let start = if i == 0 { 0.0 } else { self.cdf[i - 1] };
-        let p = self.prob[i];
-        let v = ((u - start) / p).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
-        (i, p, v)
-    }
-
-    /// A sample of one light, picked by `u.x`, towards it from `p`: what it brings is over
-    /// the pick's chance, and so is its density for MIS.
-    #[inline]
-    pub fn sample(&self, p: Vec3, u: Vec2) -> Option<LightSample> {
-        if self.count == 0 {
-            return None;
-        }
-        let (i, prob, ux) = self.pick(u.x);
-        let s = self.lights[i].sample(p, Vec2::new(ux, u.y))?;
-        Some(LightSample {
-            e: s.e / prob,
-            mis_pdf: s.mis_pdf.map(|pdf| pdf * prob),
-            ..s
-        })
-    }
-
-    /// Radiance of the directional discs a BSDF sample leaving the scene along `wi` meets,
-    /// each weighted by MIS against its light samples (`bsdf_pdf`: the BSDF sample's density;
-    /// `None` for a delta lobe, which light samples never find: weight 1).
-    pub fn escape(&self, wi: Vec3, bsdf_pdf: Option<f32>) -> Vec3 {
-        let mut l = Vec3::ZERO;
-        for (i, light) in self.lights().iter().enumerate() {
-            let Some(k) = light.as_key() else {
-                continue;
+        let count = self.count as f32;
+        let floor = CHANCE_FLOOR / count;
+        let mut sum = 0.0;
+        for w in prob[..self.count].iter_mut() {
+            *w = match total > 0.0 {
+                true => (*w / total).max(floor),
+                false => 1.0,
             };
-            if let (Some(radiance), Some(pdf)) = (k.radiance_along(wi), k.pdf()) {
-                let w = bsdf_pdf.map_or(1.0, |b| power_heuristic(b, pdf * self.prob[i]));
-                l += radiance * w;
-            }
+            sum += *w;
         }
-        l
+        for w in prob[..self.count].iter_mut() {
+            *w /= sum;
+        }
+        LightsAt { set: self, prob }
     }
 
     /// Whether a BSDF sample leaving the scene along `wi` meets some directional disc.
@@ -528,12 +485,90 @@ impl LightSet {
         })
     }
 
+    /// Whether a BSDF sample from `o` along `wi` meets a sphere or an area light at all: then
+    /// the last event's ray must find how far the surface is, not only whether there is one.
+    pub fn meets_local(&self, o: Vec3, wi: Vec3) -> bool {
+        self.lights().iter().any(|l| l.met(o, wi).is_some())
+    }
+
+    /// The same lights turned by `angle` radians about `up` through `pivot`.
+    pub fn turned(&self, up: Vec3, pivot: Vec3, angle: f32) -> Self {
+        let rot = Quat::from_axis_angle(up, angle);
+        let mut set = *self;
+        for l in set.lights[..self.count].iter_mut() {
+            *l = l.turned(rot, pivot);
+        }
+        set
+    }
+}
+
+/// A light set with each light's chance of being picked at one surface event (`LightSet::at`).
+#[derive(Clone, Copy, Debug)]
+pub struct LightsAt<'a> {
+    set: &'a LightSet,
+    prob: [f32; MAX_LIGHTS],
+}
+
+impl LightsAt<'_> {
+    /// Light `i`'s chance of being picked.
+    pub fn chance(&self, i: usize) -> f32 {
+        self.prob[i]
+    }
+
+    /// The light a random number `u` picks, its chance, and `u` stretched back over [0, 1)
+    /// within its share (so one light leaves `u` as it is).
+    #[inline]
+    pub fn pick(&self, u: f32) -> (usize, f32, f32) {
+        let n = self.set.count;
+        let (mut i, mut start) = (0, 0.0);
+        while i + 1 < n && u >= start + self.prob[i] {
+            start += self.prob[i];
+            i += 1;
+        }
+        let p = self.prob[i];
+        let v = ((u - start) / p).clamp(0.0, 1.0 - f32::EPSILON / 2.0);
+        (i, p, v)
+    }
+
+    /// A sample of one light, picked by `u.x`, towards it from `p`: what it brings is over
+    /// the pick's chance, and so is its density for MIS.
+    #[inline]
+    pub fn sample(&self, p: Vec3, u: Vec2) -> Option<LightSample> {
+        if self.set.count == 0 {
+            return None;
+        }
+        let (i, prob, ux) = self.pick(u.x);
+        let s = self.set.lights[i].sample(p, Vec2::new(ux, u.y))?;
+        Some(LightSample {
+            e: s.e / prob,
+            mis_pdf: s.mis_pdf.map(|pdf| pdf * prob),
+            ..s
+        })
+    }
+
+    /// Radiance of the directional discs a BSDF sample leaving the scene along `wi` meets,
+    /// each weighted by MIS against its light samples (`bsdf_pdf`: the BSDF sample's density;
+    /// `None` for a delta lobe, which light samples never find: weight 1).
+    pub fn escape(&self, wi: Vec3, bsdf_pdf: Option<f32>) -> Vec3 {
+        let mut l = Vec3::ZERO;
+        for (i, light) in self.set.lights().iter().enumerate() {
+            let Some(k) = light.as_key() else {
+                continue;
+            };
+            if let (Some(radiance), Some(pdf)) = (k.radiance_along(wi), k.pdf()) {
+                let w = bsdf_pdf.map_or(1.0, |b| power_heuristic(b, pdf * self.prob[i]));
+                l += radiance * w;
+            }
+        }
+        l
+    }
+
     /// Radiance of the spheres and area lights a BSDF sample from `o` along `wi` meets before
     /// `t_max` (the surface it meets; +∞ if none), each weighted by MIS against its light
     /// samples (`bsdf_pdf` as in `escape`). Lights do not hide one another.
     pub fn met(&self, o: Vec3, wi: Vec3, t_max: f32, bsdf_pdf: Option<f32>) -> Vec3 {
         let mut l = Vec3::ZERO;
-        for (i, light) in self.lights().iter().enumerate() {
+        for (i, light) in self.set.lights().iter().enumerate() {
             let Some(m) = light.met(o, wi) else {
                 continue;
             };
@@ -543,22 +578,6 @@ impl LightSet {
             }
         }
         l
-    }
-
-    /// Whether a BSDF sample from `o` along `wi` meets a sphere or an area light at all: then
-    /// the last event's ray must find how far the surface is, not only whether there is one.
-    pub fn meets_local(&self, o: Vec3, wi: Vec3) -> bool {
-        self.lights().iter().any(|l| l.met(o, wi).is_some())
-    }
-
-    /// The same lights turned by `angle` radians about `up` through `pivot` (the chances stay).
-    pub fn turned(&self, up: Vec3, pivot: Vec3, angle: f32) -> Self {
-        let rot = Quat::from_axis_angle(up, angle);
-        let mut set = *self;
-        for l in set.lights[..self.count].iter_mut() {
-            *l = l.turned(rot, pivot);
-        }
-        set
     }
 }
 
@@ -686,7 +705,7 @@ mod tests {
     }
 
     /// A turntable turns local lights about the pivot and directional ones (and a spot's axis,
-    /// an area light's sides) about the up axis, the chances kept.
+    /// an area light's sides) about the up axis.
     #[test]
     fn lights_turn_about_the_pivot() {
         let spot = Light {
@@ -699,7 +718,7 @@ mod tests {
             color: Vec3::ONE,
         };
         let sun = Light::from(KeyLight::from_angles(90.0, 0.0, 1.0, false));
-        let set = LightSet::new(&[spot, sun], Vec3::ZERO);
+        let set = LightSet::new(&[spot, sun]);
         let turned = set.turned(
             Vec3::Y,
             Vec3::new(1.0, 0.0, 0.0),
@@ -717,29 +736,66 @@ mod tests {
             unreachable!()
         };
         assert!((dir - Vec3::NEG_Z).length() < 1e-6, "{dir}");
-        assert_eq!(turned.chance(0), set.chance(0));
     }
 
-    /// Picks follow the chances (by what each light casts on the centre, floored), `u` is
-    /// stretched back over its share, and one light is always picked with `u` as it is.
+    /// Picks follow the chances at the point (by what each light casts there across the
+    /// surface, floored), `u` is stretched back over its share, and one light is always picked
+    /// with `u` as it is.
     #[test]
-    fn lights_are_picked_by_what_they_cast_on_the_centre() {
+    fn lights_are_picked_by_what_they_cast_on_the_point() {
         let sun = |power| Light {
             power,
             ..Light::default()
         };
-        let set = LightSet::new(&[sun(3.0), sun(1.0)], Vec3::ZERO);
-        assert_eq!(set.chance(0), (0.75, 0.75));
-        assert_eq!(set.pick(0.375), (0, 0.75, 0.5));
-        let (i, p, v) = set.pick(0.875);
+        let up = Vec3::Y;
+        let set = LightSet::new(&[sun(3.0), sun(1.0)]);
+        let at = set.at(Vec3::ZERO, up);
+        assert_eq!((at.chance(0), at.chance(1)), (0.75, 0.25));
+        assert_eq!(at.pick(0.375), (0, 0.75, 0.5));
+        let (i, p, v) = at.pick(0.875);
         assert_eq!((i, p), (1, 0.25));
         assert!((v - 0.5).abs() < 1e-6);
         let one = LightSet::one(sun(1.0));
-        assert_eq!(one.pick(0.123), (0, 1.0, 0.123));
-        // A light that casts nothing on the centre keeps a floor of 1/20 of an even share.
-        let set = LightSet::new(&[sun(1.0), sun(0.0)], Vec3::ZERO);
-        let (p0, p1) = (set.chance(0).0, set.chance(1).0);
-        assert!((p1 - 0.025 / 1.025).abs() < 1e-6 && (p0 + p1 - 1.0).abs() < 1e-6);
+        assert_eq!(one.at(Vec3::ZERO, up).pick(0.123), (0, 1.0, 0.123));
+        // A light that casts nothing keeps a floor of 1/20 of an even share.
+        let floored = |at: LightsAt| {
+            let (p0, p1) = (at.chance(0), at.chance(1));
+            (p1 - 0.025 / 1.025).abs() < 1e-6 && (p0 + p1 - 1.0).abs() < 1e-6
+        };
+        assert!(floored(
+            LightSet::new(&[sun(1.0), sun(0.0)]).at(Vec3::ZERO, up)
+        ));
+        // A surface facing away from a light: its chance is the floor there, and no light
+        // casting anything leaves even chances.
+        let towards = |dir: Vec3| Light {
+            shape: LightShape::Distant {
+                dir,
+                cos_radius: 1.0,
+            },
+            ..sun(1.0)
+        };
+        let sides = LightSet::new(&[towards(Vec3::Y), towards(Vec3::NEG_Y)]);
+        assert!(floored(sides.at(Vec3::ZERO, up)));
+        let below = set.at(Vec3::ZERO, Vec3::NEG_Y);
+        assert_eq!((below.chance(0), below.chance(1)), (0.5, 0.5));
+        // Two equal points: the nearer one is picked by the inverse square, and a spot aimed
+        // away keeps the floor.
+        let point = |y: f32, spot| Light {
+            shape: LightShape::Local {
+                pos: Vec3::new(0.0, y, 0.0),
+                radius: 0.0,
+                spot,
+            },
+            power: 1.0,
+            color: Vec3::ONE,
+        };
+        let two = LightSet::new(&[point(1.0, None), point(2.0, None)]);
+        let at = two.at(Vec3::ZERO, up);
+        assert!((at.chance(0) - 0.8).abs() < 1e-6, "{}", at.chance(0));
+        let aside = Some(Spot::blended(Vec3::X, 0.3, 0.0));
+        assert!(floored(
+            LightSet::new(&[point(1.0, None), point(1.0, aside)]).at(Vec3::ZERO, up)
+        ));
     }
 
     /// A BSDF sample along a light sample's direction meets the light where the shadow ray
@@ -781,7 +837,8 @@ mod tests {
             area(Vec3::new(-1.0, 2.0, 0.5), false),
             area(Vec3::new(-2.0, 1.0, 3.0), true),
         ];
-        let set = LightSet::new(&lights, Vec3::ZERO);
+        let set = LightSet::new(&lights);
+        let at = set.at(p, Vec3::new(0.0, 0.6, 0.8));
         for (i, light) in lights.iter().enumerate() {
             for u in [
                 Vec2::new(0.1, 0.2),
@@ -797,19 +854,19 @@ mod tests {
                     (m.radiance / m.pdf / s.e - 1.0).abs() < 1e-3,
                     "light {i}: {m:?} {s:?}"
                 );
-                let prob = set.chance(i).0;
+                let prob = at.chance(i);
                 let bsdf = 0.37;
                 let nee = power_heuristic(s.mis_pdf.unwrap() * prob, bsdf);
-                let seen = set.met(p, s.dir, f32::INFINITY, Some(bsdf));
+                let seen = at.met(p, s.dir, f32::INFINITY, Some(bsdf));
                 // Only this light lies along the direction.
                 let bsdf_w = seen.x / (light.color.x * m.radiance);
                 assert!(
                     (nee + bsdf_w - 1.0).abs() < 1e-4,
                     "light {i}: {nee} + {bsdf_w}"
                 );
-                assert_eq!(set.met(p, s.dir, m.t * 0.99, Some(bsdf)), Vec3::ZERO);
+                assert_eq!(at.met(p, s.dir, m.t * 0.99, Some(bsdf)), Vec3::ZERO);
                 assert_eq!(
-                    set.met(p, s.dir, f32::INFINITY, None),
+                    at.met(p, s.dir, f32::INFINITY, None),
                     light.color * m.radiance
                 );
             }
@@ -836,11 +893,12 @@ mod tests {
     #[test]
     fn a_discs_two_estimates_share_it() {
         let disc = Light::from(KeyLight::from_angles(0.0, 60.0, 2.0, false).with_angle(10.0));
-        let set = LightSet::new(&[disc, Light::default()], Vec3::ZERO);
-        let s = set.sample(Vec3::ZERO, Vec2::new(0.2, 0.4)).unwrap();
+        let set = LightSet::new(&[disc, Light::default()]);
+        let at = set.at(Vec3::ZERO, Vec3::Y);
+        let s = at.sample(Vec3::ZERO, Vec2::new(0.2, 0.4)).unwrap();
         let bsdf = 0.7;
         let nee = power_heuristic(s.mis_pdf.unwrap(), bsdf);
-        let radiance = set.escape(s.dir, Some(bsdf));
+        let radiance = at.escape(s.dir, Some(bsdf));
         let LightShape::Distant { cos_radius, .. } = disc.shape else {
             unreachable!()
         };

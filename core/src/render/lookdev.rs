@@ -1236,7 +1236,6 @@ pub fn render_all(
                 })
                 .chain(s.lights.iter().map(|l| l.light))
                 .collect::<Vec<_>>(),
-            (lo + hi) * 0.5,
         ),
         materials: &materials,
         emissive: materials.iter().any(|m| m.emission != Vec3::ZERO),
