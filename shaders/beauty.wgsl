@@ -16,7 +16,7 @@
 //              NVIDIA H200 19–27% less time per sample than the fused kernel)
 //
 // Lighting: the environment (env.wgsl, next-event estimation combined with BSDF sampling by
-// the power heuristic) and up to eight lights, one sampled an event (lights::LightSet; discs,
+// the power heuristic) and up to sixteen lights, one sampled an event (lights::LightSet; discs,
 // spheres and area lights also met by BSDF samples, by MIS); material: shading.wgsl, its base
 // colour times the base-colour texture at the hit (texture.wgsl); an optional shadow-catcher
 // ground seen by camera rays only. Random numbers are
@@ -364,7 +364,7 @@ fn light_weight(l: Light, q: vec3f, n: vec3f) -> f32 {
 // lights::LightSet::at: each light's chance of being picked at a surface event whose rays leave
 // from `q` across a surface of normal `n` (lights::CHANCE_FLOOR).
 struct Chances {
-    p: array<f32, 8>,
+    p: array<f32, 16>,  // render::lights::MAX_LIGHTS
 }
 
 fn light_chances(q: vec3f, n: vec3f) -> Chances {

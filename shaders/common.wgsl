@@ -120,7 +120,7 @@ struct Light {
 // lights::CHANCE_FLOOR: the share of an even chance every light keeps at any point.
 const CHANCE_FLOOR: f32 = 0.05;
 
-// GpuLighting, 624 bytes: everything beauty needs besides the scene, the materials and the
+// GpuLighting, 1136 bytes: everything beauty needs besides the scene, the materials and the
 // environment tables (render::beauty::BeautyScene).
 struct Lighting {
     _pad0: u32,
@@ -149,7 +149,7 @@ struct Lighting {
     _pad5: u32,
     _pad6: u32,
     _pad7: u32,
-    lights: array<Light, 8>, // render::lights::MAX_LIGHTS
+    lights: array<Light, 16>, // render::lights::MAX_LIGHTS
 }
 
 // GpuMaterialTexture, 48 bytes: one texture of a material in texture_texels (texture.wgsl;

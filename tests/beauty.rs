@@ -1640,7 +1640,7 @@ fn lit_quad_centre(
 /// normalized, of intensity 16 (4 W/sr) two units above a white quad's centre casts 1 W/m²
 /// there, and a Lambertian surface of albedo 0.8 under it sends 0.8 / π towards the camera
 /// (no environment, no specular); a spot of the same intensity aimed away casts nothing; the
-/// summary names the lights, and past eight a warning names those left out.
+/// summary names the lights, and past sixteen a warning names those left out.
 #[test]
 fn a_point_light_lights_by_the_inverse_square() {
     let dir = temp_dir("point-light");
@@ -1677,8 +1677,9 @@ fn a_point_light_lights_by_the_inverse_square() {
         "spot",
     );
     assert_eq!(rgba[0], 0.0, "{rgba:?}");
-    // A sun and nine bulbs: eight lights are rendered, and a warning names the two left out.
-    let many = (0..9)
+    // A sun and seventeen bulbs: sixteen lights are rendered, and a warning names the two left
+    // out.
+    let many = (0..17)
         .map(|i| format!("def SphereLight \"B{i}\"\n{{\n    float inputs:radius = 0.1\n}}\n"))
         .collect::<String>();
     let path = dir.join("many.usda");
@@ -1696,11 +1697,12 @@ fn a_point_light_lights_by_the_inverse_square() {
             .as_array()
             .unwrap()
             .len(),
-        7
+        15
     );
     assert!(
-        o.stderr
-            .contains("renders 8 lights, the key light and the first 7 others; left out: /B7, /B8"),
+        o.stderr.contains(
+            "renders 16 lights, the key light and the first 15 others; left out: /B15, /B16"
+        ),
         "{}",
         o.stderr
     );

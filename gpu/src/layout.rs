@@ -291,7 +291,7 @@ pub struct GpuLight {
 }
 
 /// Everything the beauty kernel needs besides the scene, the materials and the environment
-/// tables, 624 bytes
+/// tables, 1136 bytes
 /// (uniform): `prismbake::render::beauty::BeautyScene` with its `Material` and its lights
 /// (`lights::MAX_LIGHTS` slots, `light_count` used), and the
 /// environment's size, total weight and frame (the rotation's sine and cosine computed on the
@@ -419,7 +419,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSceneParams>() == 32);
     assert!(std::mem::size_of::<GpuFrame>() == 128);
     assert!(std::mem::size_of::<GpuAovPixel>() == 48);
-    assert!(std::mem::size_of::<GpuLighting>() == 624);
+    assert!(std::mem::size_of::<GpuLighting>() == 1136);
     assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
     assert!(std::mem::size_of::<GpuMaterial>() == 320);

@@ -20,7 +20,7 @@ use super::shading::{self, power_heuristic};
 use glam::{Quat, Vec2, Vec3};
 
 /// The most lights a beauty samples (the GPU's lighting uniform holds this many).
-pub const MAX_LIGHTS: usize = 8;
+pub const MAX_LIGHTS: usize = 16;
 
 /// Where a light is and what shape it has.
 #[derive(Clone, Copy, Debug, PartialEq)]
