@@ -33,8 +33,8 @@ pub enum Projection {
     /// A pinhole with this vertical field of view, in degrees.
     Perspective { yfov_deg: f32 },
     /// Parallel rays along the view from a plane through the camera; the view is `height`
-    /// scene units tall (glTF: twice `ymag`; USD: `verticalAperture` / 10; Blender: the
-    /// orthographic scale of a square or portrait image).
+    /// scene units tall (USD: `verticalAperture` / 10; Blender: the orthographic scale of a
+    /// square or portrait image; glTF: `SceneCamera::larger_side`).
     Orthographic { height: f32 },
 }
 
@@ -51,6 +51,10 @@ pub struct SceneCamera {
     /// (`Camera::from_scene`; USD's default `expandAperture` conform policy). `None` (glTF):
     /// the projection's height whatever the image's shape.
     pub film_aspect: Option<f32>,
+    /// An orthographic view whose `height` spans the image's larger side, not its height (a
+    /// glTF camera: twice the larger of `xmag` and `ymag`, as Blender's importer makes its
+    /// orthographic scale, which Blender's automatic sensor fit lays along the larger side).
+    pub larger_side: bool,
 }
 
 /// A USD `DomeLight` (or `DomeLight_1`): the environment a beauty lights with where `--env` is

@@ -34,10 +34,16 @@ def test_the_beauty_agrees_with_cycles_under_the_same_hdri(prismbake, tmp_path):
 
 
 def test_an_orthographic_camera_frames_the_asset_as_in_cycles(prismbake, tmp_path, edited_sphere):
-    def orthographic(doc):
-        doc["cameras"][0] = {"name": "Camera", "type": "orthographic",
-                             "orthographic": {"xmag": 1.3, "ymag": 1.3, "znear": 0.05, "zfar": 100.0}}
-    asset = edited_sphere("ortho", orthographic)
+    def orthographic(xmag, ymag):
+        def edit(doc):
+            doc["cameras"][0] = {"name": "Camera", "type": "orthographic",
+                                 "orthographic": {"xmag": xmag, "ymag": ymag, "znear": 0.05, "zfar": 100.0}}
+        return edit
+    # Blender imports both as an orthographic scale of 2.6 across the square image's side.
+    wide = edited_sphere("ortho-wide", orthographic(1.3, 0.65))
+    same = compare(prismbake, tmp_path, asset=wide)
+    assert same["mask_mismatch"] < 0.01, same
+    asset = edited_sphere("ortho", orthographic(1.3, 1.3))
     same = compare(prismbake, tmp_path, asset=asset)
     assert same["mask_mismatch"] < 0.01, same
     for ratio in same["asset_mean_ratio"]:

@@ -100,7 +100,7 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         mesh.group_material.clear();
     }
     for (names, world, projection) in loader.cameras {
-        super::attach_camera(&mut mesh, names, world, projection, None);
+        super::attach_camera(&mut mesh, names, world, projection, None, true);
     }
     Ok(mesh)
 }
@@ -488,10 +488,18 @@ impl Loader<'_> {
                 ::gltf::camera::Projection::Perspective(p) => Projection::Perspective {
                     yfov_deg: p.yfov().to_degrees(),
                 },
-                // `ymag`: half the view's height.
-                ::gltf::camera::Projection::Orthographic(o) => Projection::Orthographic {
-                    height: 2.0 * o.ymag(),
-                },
+                // The larger of `xmag` and `ymag`: half the image's larger side
+                // (`SceneCamera::larger_side`), as Blender imports it. Either not positive:
+                // no view (`camera_fault` leaves the camera out).
+                ::gltf::camera::Projection::Orthographic(o) => {
+                    let (x, y) = (o.xmag(), o.ymag());
+                    Projection::Orthographic {
+                        height: match x > 0.0 && y > 0.0 {
+                            true => 2.0 * x.max(y),
+                            false => 0.0,
+                        },
+                    }
+                }
             };
             self.cameras.push((names, world, projection));
         }

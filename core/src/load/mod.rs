@@ -66,6 +66,7 @@ fn scene_camera(
     world: Mat4,
     projection: Projection,
     film_aspect: Option<f32>,
+    larger_side: bool,
 ) -> SceneCamera {
     let from = world.transform_point3(Vec3::ZERO);
     let forward = world
@@ -91,20 +92,23 @@ fn scene_camera(
             true => a * world.transform_vector3(Vec3::X).length() / local_up.length(),
             false => a,
         }),
+        larger_side: larger_side && orthographic,
     }
 }
 
 /// Add to `mesh`'s cameras the scene camera `names` at `world` with `projection` (an
-/// orthographic height in the camera's own units) and `film_aspect` (`SceneCamera`), once its
-/// geometry is loaded; one that cannot be rendered through is left out with a warning.
+/// orthographic height in the camera's own units), `film_aspect` and `larger_side`
+/// (`SceneCamera`), once its geometry is loaded; one that cannot be rendered through is left
+/// out with a warning.
 pub(crate) fn attach_camera(
     mesh: &mut BaseMesh,
     mut names: Vec<String>,
     world: Mat4,
     projection: Projection,
     film_aspect: Option<f32>,
+    larger_side: bool,
 ) {
-    let camera = scene_camera(mesh, world, projection, film_aspect);
+    let camera = scene_camera(mesh, world, projection, film_aspect, larger_side);
     let mut seen = std::collections::HashSet::new();
     names.retain(|n| seen.insert(n.clone()));
     match camera_fault(&camera) {

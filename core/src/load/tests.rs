@@ -702,7 +702,10 @@ fn gltf_perspective_camera_becomes_the_scene_camera() {
 /// Every camera is kept, in the order the scene's nodes are visited, under its node's name,
 /// `node #N` and its camera's name; `--camera` picks any of them by one of those, the first is
 /// the default, and a name that is missing or shared is an error listing them. An
-/// orthographic camera's view is twice its `ymag` tall, scaled with its node.
+/// orthographic camera's view spans twice the larger of its `xmag` and `ymag` across the
+/// image's larger side, scaled with its node, as Blender imports it (ortho scale 2 max(xmag,
+/// ymag), sensor fit Auto; checked with bpy 5.0.1): 6 units square, 6 × 3 in a 2:1 image,
+/// 3 × 6 in a 1:2 one. A perspective camera keeps its vertical field of view.
 #[test]
 fn gltf_cameras_are_picked_by_node_or_camera_name() {
     let dir = temp_dir("gltf-cameras");
@@ -729,7 +732,22 @@ fn gltf_cameras_are_picked_by_node_or_camera_name() {
     let names: Vec<&str> = m.cameras.iter().map(|c| c.names[0].as_str()).collect();
     assert_eq!(names, ["Wide", "Close", "Top", "Close"]);
     let top = m.pick_camera(Some("Top")).unwrap().expect("Top");
-    assert_eq!(top.projection, Projection::Orthographic { height: 4.5 });
+    assert_eq!(top.projection, Projection::Orthographic { height: 6.0 });
+    assert!(top.larger_side);
+    let tall =
+        |aspect: f32| match crate::render::camera::Camera::from_scene(&top, aspect).projection {
+            Projection::Orthographic { height } => height,
+            p => panic!("{p:?}"),
+        };
+    assert_eq!((tall(1.0), tall(2.0), tall(0.5)), (6.0, 3.0, 6.0));
+    let wide = m.pick_camera(Some("Wide")).unwrap().expect("Wide");
+    assert!(!wide.larger_side);
+    assert_eq!(
+        crate::render::camera::Camera::from_scene(&wide, 2.0).projection,
+        Projection::Perspective {
+            yfov_deg: 0.5f32.to_degrees()
+        }
+    );
     let z = |name: Option<&str>| m.pick_camera(name).map(|c| c.expect("a camera").from.z);
     assert_eq!(z(None).unwrap(), 5.0, "the first is the default");
     assert_eq!(z(Some("Wide")).unwrap(), 5.0);
@@ -843,7 +861,7 @@ fn a_gltf_directional_light_is_the_key_light() {
 #[test]
 fn a_gltf_camera_that_cannot_be_rendered_through_is_left_out() {
     let dir = temp_dir("gltf-bad-camera");
-    for ymag in [0.0, -1.0] {
+    for (xmag, ymag) in [(1.0, 0.0), (1.0, -1.0), (0.0, 1.0), (-2.0, 1.0)] {
         let mut doc = GltfDoc::default();
         let a_pos = doc.floats(&TRI, 3);
         let rest = json!({
@@ -851,10 +869,14 @@ fn a_gltf_camera_that_cannot_be_rendered_through_is_left_out() {
             "scenes": [{"nodes": [0, 1]}],
             "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 5.0]}],
             "meshes": [{"primitives": [{"attributes": {"POSITION": a_pos}}]}],
-            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": ymag, "znear": 0.1, "zfar": 10.0}}],
+            "cameras": [{"type": "orthographic", "orthographic": {"xmag": xmag, "ymag": ymag, "znear": 0.1, "zfar": 10.0}}],
         });
         let m = load_gltf_doc(&dir, "ortho.gltf", &doc, &rest, &MeshOptions::default()).unwrap();
-        assert!(m.cameras.is_empty(), "ymag {ymag}: {:?}", m.cameras);
+        assert!(
+            m.cameras.is_empty(),
+            "xmag {xmag}, ymag {ymag}: {:?}",
+            m.cameras
+        );
     }
     for (i, (yfov, z)) in [(0.0, 5.0), (-0.5, 5.0), (3.2, 5.0), (0.5, 1e39)]
         .into_iter()

@@ -86,7 +86,14 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         mesh.missing_uvs = loader.any_uv_missing;
         mesh.face_flags = vec![0; mesh.triangles.len()];
         for (names, world, projection, film_aspect) in loader.cameras {
-            super::attach_camera(&mut mesh, names, world.as_mat4(), projection, film_aspect);
+            super::attach_camera(
+                &mut mesh,
+                names,
+                world.as_mat4(),
+                projection,
+                film_aspect,
+                false,
+            );
         }
         Ok(mesh)
     })

@@ -53,7 +53,8 @@ pub struct Camera {
 impl Camera {
     /// The scene camera for an image of `aspect` (width over height): an image narrower than
     /// its film back (`SceneCamera::film_aspect`) gets a taller view, so that the film back's
-    /// whole width stays in it (USD's `expandAperture`).
+    /// whole width stays in it (USD's `expandAperture`); a view sized along the larger side
+    /// (`SceneCamera::larger_side`) is that much less tall in a landscape image.
     pub fn from_scene(c: &SceneCamera, aspect: f32) -> Self {
         let widen = c.film_aspect.map_or(1.0, |film| (film / aspect).max(1.0));
         Camera {
@@ -69,7 +70,10 @@ impl Camera {
                     },
                 },
                 Projection::Orthographic { height } => Projection::Orthographic {
-                    height: height * widen,
+                    height: match c.larger_side {
+                        true => height * widen * (1.0 / aspect).min(1.0),
+                        false => height * widen,
+                    },
                 },
             },
         }

@@ -395,8 +395,12 @@ pub fn describe_camera(loaded: &Loaded, o: &CameraOverride) -> String {
         Some(c) => match c.camera.projection {
             Projection::Perspective { .. } => format!("the file's camera '{}'", c.names[0]),
             Projection::Orthographic { height } => format!(
-                "the file's orthographic camera '{}' ({height} units tall)",
-                c.names[0]
+                "the file's orthographic camera '{}' ({height} units {})",
+                c.names[0],
+                match c.camera.larger_side {
+                    true => "across the image's larger side",
+                    false => "tall",
+                }
             ),
         },
         None => "framed from the bounds".to_string(),
