@@ -172,6 +172,37 @@ struct LightSample {
     ok: bool,
 }
 
+// An area light's sides (its `u` in `axis`, its `v` in `size`, `cos_inner`, `cos_outer`),
+// its area and the unit normal of the side it shines on (lights::area_and_normal).
+struct AreaShape {
+    u: vec3f,
+    v: vec3f,
+    area: f32,
+    n: vec3f,
+}
+
+fn area_shape(l: Light) -> AreaShape {
+    let u_vec = l.axis;
+    let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
+    let c = cross(v_vec, u_vec);
+    var area = 4.0 * length(c);
+    if (l.kind == 4u) {
+        area = PI * length(c);
+    }
+    var n = vec3f(0.0);
+    if (length(c) > 0.0) {
+        n = normalize(c);
+    }
+    return AreaShape(u_vec, v_vec, area, n);
+}
+
+// lights::cone_one_minus_cos: 1 − cos of the half-angle of the cone a sphere of squared radius
+// `r2` fills seen from squared distance `d2`.
+fn cone_one_minus_cos(r2: f32, d2: f32) -> f32 {
+    let s2 = r2 / d2;
+    return s2 / (1.0 + sqrt(max(1.0 - s2, 0.0)));
+}
+
 // lights::Light::sample: a direction towards light `l` from `p` (what it brings not yet over
 // the pick's chance).
 fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
@@ -185,20 +216,13 @@ fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
     }
     if (l.kind >= 3u) {
         // lights::Light::sample's area light: a point uniform over the rectangle or ellipse.
-        let u_vec = l.axis;
-        let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
-        var q = l.pos + u_vec * (2.0 * u.x - 1.0) + v_vec * (2.0 * u.y - 1.0);
-        let c = cross(v_vec, u_vec);
-        var area = 4.0 * length(c);
+        let shape = area_shape(l);
+        let area = shape.area;
+        var q = l.pos + shape.u * (2.0 * u.x - 1.0) + shape.v * (2.0 * u.y - 1.0);
         if (l.kind == 4u) {
             let r = sqrt(u.x);
             let phi = 2.0 * PI * u.y;
-            q = l.pos + (u_vec * cos(phi) + v_vec * sin(phi)) * r;
-            area = PI * length(c);
-        }
-        var n = vec3f(0.0);
-        if (length(c) > 0.0) {
-            n = normalize(c);
+            q = l.pos + (shape.u * cos(phi) + shape.v * sin(phi)) * r;
         }
         let to_q = q - p;
         let dq2 = dot(to_q, to_q);
@@ -208,7 +232,7 @@ fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
         }
         out.dir = to_q / dq;
         out.t_max = dq;
-        let cos_light = max(dot(-out.dir, n), 0.0);
+        let cos_light = max(dot(-out.dir, shape.n), 0.0);
         out.e = l.power * area * cos_light / dq2;
         if (cos_light > 0.0) {
             out.mis_pdf = dq2 / (area * cos_light);
@@ -235,8 +259,7 @@ fn light_sample_one(l: Light, p: vec3f, u: vec2f) -> LightSample {
         out.e = l.power * cone / d2;
         return out;
     }
-    let s2 = (radius * radius) / d2;
-    let one_minus_cos = s2 / (1.0 + sqrt(max(1.0 - s2, 0.0)));
+    let one_minus_cos = cone_one_minus_cos(radius * radius, d2);
     let c = 1.0 - u.x * one_minus_cos;
     let sn = sqrt(max(1.0 - c * c, 0.0));
     let phi = 2.0 * PI * u.y;
@@ -278,8 +301,7 @@ fn light_met_one(l: Light, o: vec3f, d: vec3f) -> LightMet {
         if (!(d2 > r2 && b_half > 0.0 && disc >= 0.0)) {
             return out;
         }
-        let s2 = r2 / d2;
-        let one_minus_cos = s2 / (1.0 + sqrt(max(1.0 - s2, 0.0)));
+        let one_minus_cos = cone_one_minus_cos(r2, d2);
         var cone = 1.0;
         if (l.kind == 2u) {
             cone = spot_falloff(l, -to / sqrt(d2));
@@ -291,17 +313,8 @@ fn light_met_one(l: Light, o: vec3f, d: vec3f) -> LightMet {
         return out;
     }
     if (l.kind >= 3u) {
-        let u_vec = l.axis;
-        let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
-        let c = cross(v_vec, u_vec);
-        var area = 4.0 * length(c);
-        if (l.kind == 4u) {
-            area = PI * length(c);
-        }
-        var n = vec3f(0.0);
-        if (length(c) > 0.0) {
-            n = normalize(c);
-        }
+        let shape = area_shape(l);
+        let n = shape.n;
         let cos_light = -dot(d, n);
         if (!(cos_light > 0.0)) {
             return out;
@@ -311,8 +324,8 @@ fn light_met_one(l: Light, o: vec3f, d: vec3f) -> LightMet {
             return out;
         }
         let local = o + d * t - l.pos;
-        let a = dot(local, u_vec) / dot(u_vec, u_vec);
-        let b = dot(local, v_vec) / dot(v_vec, v_vec);
+        let a = dot(local, shape.u) / dot(shape.u, shape.u);
+        let b = dot(local, shape.v) / dot(shape.v, shape.v);
         var inside = abs(a) <= 1.0 && abs(b) <= 1.0;
         if (l.kind == 4u) {
             inside = a * a + b * b <= 1.0;
@@ -320,7 +333,7 @@ fn light_met_one(l: Light, o: vec3f, d: vec3f) -> LightMet {
         if (inside) {
             out.t = t;
             out.radiance = l.power;
-            out.pdf = t * t / (area * cos_light);
+            out.pdf = t * t / (shape.area * cos_light);
             out.ok = true;
         }
     }
@@ -334,17 +347,9 @@ fn light_weight(l: Light, q: vec3f, n: vec3f) -> f32 {
         return l.power * max(dot(n, l.pos), 0.0);
     }
     if (l.kind >= 3u) {
-        let u_vec = l.axis;
-        let v_vec = vec3f(l.size, l.cos_inner, l.cos_outer);
-        let c = cross(v_vec, u_vec);
-        var area = 4.0 * length(c);
-        if (l.kind == 4u) {
-            area = PI * length(c);
-        }
-        var normal = vec3f(0.0);
-        if (length(c) > 0.0) {
-            normal = normalize(c);
-        }
+        let shape = area_shape(l);
+        let area = shape.area;
+        let normal = shape.n;
         let to = q - l.pos;
         let d2 = max(max(dot(to, to), area), 1e-12);
         let d = sqrt(d2);

@@ -1546,14 +1546,6 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
         assert!(px.len() > 200, "{name}: the square fills the view");
         px
     };
-    let mirror = [
-        "--base-color",
-        "1,1,1",
-        "--metallic",
-        "1",
-        "--roughness",
-        "0",
-    ];
     let lambert = [
         "--base-color",
         "1,1,1",
@@ -1565,7 +1557,7 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
     for device in ["cpu", "gpu"] {
         // Every reflected direction lies within 10° of the key's, inside its 30° radius.
         let want = 2.0 / (2.0 * std::f32::consts::PI * (1.0 - 30f32.to_radians().cos()));
-        for p in render("mirror", device, &mirror, "60") {
+        for p in render("mirror", device, &WHITE_MIRROR, "60") {
             assert!(
                 (p[0] - want).abs() < 1e-3 * want,
                 "{device}: mirror pixel {p:?}, the disc's radiance {want}"
@@ -1583,6 +1575,16 @@ fn a_key_disc_is_seen_in_a_mirror_and_counted_once() {
         );
     }
 }
+
+/// A white metal of no roughness: a perfect mirror of Fresnel 1.
+const WHITE_MIRROR: [&str; 6] = [
+    "--base-color",
+    "1,1,1",
+    "--metallic",
+    "1",
+    "--roughness",
+    "0",
+];
 
 /// A white Lambertian of albedo 0.8 without specular (`lit_quad_centre`'s material).
 const WHITE_LAMBERT: [&str; 6] = [
@@ -1750,14 +1752,6 @@ fn a_disk_light_lights_by_its_solid_angle() {
 #[test]
 fn a_mirror_reflects_spheres_and_area_lights() {
     let dir = temp_dir("mirror-lights");
-    let mirror = [
-        "--base-color",
-        "1,1,1",
-        "--metallic",
-        "1",
-        "--roughness",
-        "0",
-    ];
     let lamp = |kind: &str, inputs: &str, schema: &str| {
         format!(
             "def {kind} \"Lamp\"{schema}\n{{\n    {inputs}\n    \
@@ -1765,8 +1759,9 @@ fn a_mirror_reflects_spheres_and_area_lights() {
              uniform token[] xformOpOrder = [\"xformOp:translate\"]\n}}\n"
         )
     };
-    let centre =
-        |light: String, name: &str| lit_quad_centre(&dir, &quad_usda(&light), name, "4", &mirror).0;
+    let centre = |light: String, name: &str| {
+        lit_quad_centre(&dir, &quad_usda(&light), name, "4", &WHITE_MIRROR).0
+    };
     let near = |got: [f32; 4], want: f32, what: &str| {
         for c in &got[..3] {
             assert!(

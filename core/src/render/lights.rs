@@ -242,10 +242,8 @@ impl Light {
                         mis_pdf: None,
                     });
                 }
-                // Uniform over the cone the sphere fills; 1 − cos of its half-angle without
-                // the cancellation of 1 − √(1 − s²) for a small, far sphere.
-                let s2 = (radius * radius) / d2;
-                let one_minus_cos = s2 / (1.0 + (1.0 - s2).max(0.0).sqrt());
+                // Uniform over the cone the sphere fills.
+                let one_minus_cos = cone_one_minus_cos(radius * radius, d2);
                 let cos = 1.0 - u2.x * one_minus_cos;
                 let sin = (1.0 - cos * cos).max(0.0).sqrt();
                 let phi = 2.0 * std::f32::consts::PI * u2.y;
@@ -289,8 +287,7 @@ impl Light {
                     return None;
                 }
                 let t = b_half - disc.sqrt();
-                let s2 = r2 / d2;
-                let one_minus_cos = s2 / (1.0 + (1.0 - s2).max(0.0).sqrt());
+                let one_minus_cos = cone_one_minus_cos(r2, d2);
                 let cone = spot.map_or(1.0, |s| s.falloff(-to / d2.sqrt()));
                 Some(LightMet {
                     t: t.max(0.0),
@@ -349,6 +346,14 @@ impl Light {
         };
         Light { shape, ..*self }
     }
+}
+
+/// 1 − cos of the half-angle of the cone a sphere of squared radius `r2` fills seen from
+/// squared distance `d2`, without the cancellation of 1 − √(1 − s²) for a small, far sphere.
+#[inline]
+fn cone_one_minus_cos(r2: f32, d2: f32) -> f32 {
+    let s2 = r2 / d2;
+    s2 / (1.0 + (1.0 - s2).max(0.0).sqrt())
 }
 
 /// An area light's area and the unit normal of the side it shines on (`LightShape::Area`).
