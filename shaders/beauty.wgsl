@@ -664,6 +664,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let ns = facing.ns;
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
+        let l = lobes(m, wo_l.z);
         let p = hit.position;
         (*s).event_n = ng;
         if (lighting.light_count != 0u) {
@@ -674,7 +675,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
             let wi_l = to_local(kd, basis.t, basis.b, ns);
             var f = vec3f(0.0);
             if (ls.ok && dot(kd, ng) > 0.0 && ls.e > 0.0) {
-                f = bsdf_eval(m, wo_l, wi_l);
+                f = bsdf_eval(l, wo_l, wi_l);
             }
             if (max_element(f) > 0.0) {
                 (*s).key_shadow_rays += 1u;
@@ -682,7 +683,7 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
                 // A disc is also met by BSDF samples: the two share it by MIS.
                 var w = 1.0;
                 if (ls.mis_pdf > 0.0) {
-                    w = power_heuristic(ls.mis_pdf, bsdf_pdf(m, wo_l, wi_l));
+                    w = power_heuristic(ls.mis_pdf, bsdf_pdf(l, wo_l, wi_l));
                 }
                 (*s).key_term = throughput * f * ls.color * (ls.e * w);
             }
@@ -691,17 +692,17 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
             let es = env_sample(rand2(ctx, bounce, 0u, PURPOSE_LIGHT));
             if (es.pdf > 0.0 && dot(es.dir, ng) > 0.0) {
                 let wi_l = to_local(es.dir, basis.t, basis.b, ns);
-                let f = bsdf_eval(m, wo_l, wi_l);
+                let f = bsdf_eval(l, wo_l, wi_l);
                 if (max_element(f) > 0.0) {
                     (*s).env_shadow_rays += 1u;
                     q1 = query(shadow_ray(offset_origin(p, ng, es.dir, eps), es.dir), bounce + 1u, true);
-                    let w = power_heuristic(es.pdf, bsdf_pdf(m, wo_l, wi_l));
+                    let w = power_heuristic(es.pdf, bsdf_pdf(l, wo_l, wi_l));
                     (*s).env_term = throughput * f * env_radiance(es.dir) * (w / es.pdf);
                 }
             }
         }
         let u_lobe = random(ctx.pixel, ctx.sample, bounce * DIMS + 2u, PURPOSE_BSDF, ctx.seed);
-        let bs = bsdf_sample(m, wo_l, u_lobe, rand2(ctx, bounce, 3u, PURPOSE_BSDF));
+        let bs = bsdf_sample(l, wo_l, u_lobe, rand2(ctx, bounce, 3u, PURPOSE_BSDF));
         var ok = bs.ok;
         var wi = vec3f(0.0);
         if (ok) {

@@ -1,6 +1,7 @@
 // shading.wgsl — the material and MIS weights, the mirror of core/src/render/shading.rs
-// function by function: Lambert + GGX (Smith height-correlated G2, Schlick Fresnel, visible-
-// normal sampling, Heitz 2018), a perfect mirror below MIRROR_ROUGHNESS, the power heuristic
+// function by function (and of render::ggx_tables' lookups): a Lambert base under a dielectric
+// GGX coat and a GGX metal (Smith height-correlated G2, multiple-scattering energy from the
+// tables, visible-normal sampling, Heitz 2018), a perfect mirror below MIRROR_ROUGHNESS, the power heuristic
 // and the ray-origin offset. Directions are in the local shading frame (z = shading normal,
 // `onb`), `wo` towards the viewer, `wi` towards the light. The filmic tonemap and the sRGB
 // curve are applied on the host by the CPU's own writer (render::output::write_beauty).
@@ -99,19 +100,37 @@ fn fresnel_schlick(f0: vec3f, cos_theta: f32) -> vec3f {
     return f0 + (vec3f(1.0) - f0) * k;
 }
 
+// shading::ior_from_f0.
+fn ior_from_f0(f0: f32) -> f32 {
+    let s = sqrt(clamp(f0, 0.0, 0.99));
+    return (1.0 + s) / (1.0 - s);
+}
+
+// shading::fresnel_dielectric: unpolarised, from outside a medium of index eta ≥ 1.
+fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let c = clamp(cos_i, 0.0, 1.0);
+    let g = sqrt(max(eta * eta - 1.0 + c * c, 0.0));
+    let a = (g - c) / max(g + c, 1e-20);
+    let b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0);
+    return 0.5 * a * a * (1.0 + b * b);
+}
+
+// shading::fresnel_dielectric_mean (Kulla & Conty's fit).
+fn fresnel_dielectric_mean(eta: f32) -> f32 {
+    return (eta - 1.0) / (4.08567 + 1.00071 * eta);
+}
+
 fn reflect_about(wo: vec3f, n: vec3f) -> vec3f {
     return n * (2.0 * dot(wo, n)) - wo;
 }
 
-// shading::ggx_eval: D G2 F / (4 cos θo).
-fn ggx_eval(wo: vec3f, wi: vec3f, alpha: f32, f0: vec3f) -> vec3f {
+// shading::ggx_eval: D G2 / (4 cos θo), without the Fresnel.
+fn ggx_eval(wo: vec3f, wi: vec3f, alpha: f32) -> f32 {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
-        return vec3f(0.0);
+        return 0.0;
     }
     let h = normalize_glam(wo + wi);
-    let d = ggx_d(h, alpha);
-    let g = smith_g2(wo, wi, alpha);
-    return fresnel_schlick(f0, dot(wo, h)) * (d * g / (4.0 * wo.z));
+    return ggx_d(h, alpha) * smith_g2(wo, wi, alpha) / (4.0 * wo.z);
 }
 
 // shading::ggx_pdf: G1(wo) D(h) / (4 cos θo).
@@ -149,54 +168,160 @@ fn cosine_sample(u: vec2f) -> vec3f {
     return vec3f(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u.x, 0.0)));
 }
 
-fn diffuse_albedo(m: Material) -> vec3f {
-    return m.base_color * ((1.0 - m.metallic) * (1.0 - m.specular));
+// ggx_tables: E (32 × 32), its mean (32) and s (16 × 16 × 16), four values a vec4 (a uniform
+// array's stride is 16 bytes); layout::GpuBsdfTables.
+struct BsdfTables {
+    e: array<vec4f, 256>,
+    e_avg: array<vec4f, 8>,
+    s: array<vec4f, 1024>,
 }
 
-fn specular_f0(m: Material) -> vec3f {
-    return lerp3(vec3f(m.specular), m.base_color, m.metallic);
+@group(2) @binding(6) var<uniform> bsdf_tables: BsdfTables;
+
+// ggx_tables::cell: the grid points either side of x ∈ [0, 1] on n points, and the fraction.
+struct Cell {
+    i: u32,
+    j: u32,
+    t: f32,
+}
+
+fn cell(x: f32, n: u32) -> Cell {
+    let xs = clamp(x, 0.0, 1.0) * f32(n - 1u);
+    let i = min(u32(xs), n - 1u);
+    return Cell(i, min(i + 1u, n - 1u), xs - f32(i));
+}
+
+fn lerp1(a: f32, b: f32, t: f32) -> f32 {
+    return a + (b - a) * t;
+}
+
+fn table_e(i: u32) -> f32 {
+    return bsdf_tables.e[i >> 2u][i & 3u];
+}
+
+fn table_s(i: u32) -> f32 {
+    return bsdf_tables.s[i >> 2u][i & 3u];
+}
+
+// ggx_tables::ggx_e.
+fn ggx_e(rough: f32, mu: f32) -> f32 {
+    let x = cell(rough, 32u);
+    let y = cell(mu, 32u);
+    let lo = lerp1(table_e(y.i * 32u + x.i), table_e(y.i * 32u + x.j), x.t);
+    let hi = lerp1(table_e(y.j * 32u + x.i), table_e(y.j * 32u + x.j), x.t);
+    return lerp1(lo, hi, y.t);
+}
+
+// ggx_tables::ggx_e_avg.
+fn ggx_e_avg(rough: f32) -> f32 {
+    let x = cell(rough, 32u);
+    return lerp1(bsdf_tables.e_avg[x.i >> 2u][x.i & 3u], bsdf_tables.e_avg[x.j >> 2u][x.j & 3u], x.t);
+}
+
+fn s_plane(x: Cell, y: Cell, z: u32) -> f32 {
+    let lo = lerp1(table_s((z * 16u + y.i) * 16u + x.i), table_s((z * 16u + y.i) * 16u + x.j), x.t);
+    let hi = lerp1(table_s((z * 16u + y.j) * 16u + x.i), table_s((z * 16u + y.j) * 16u + x.j), x.t);
+    return lerp1(lo, hi, y.t);
+}
+
+// ggx_tables::ggx_s.
+fn ggx_s(rough: f32, mu: f32, zf: f32) -> f32 {
+    let x = cell(rough, 16u);
+    let y = cell(mu, 16u);
+    let z = cell(zf, 16u);
+    return lerp1(s_plane(x, y, z.i), s_plane(x, y, z.j), z.t);
+}
+
+// shading::Lobes: a material seen at one angle.
+struct Lobes {
+    diffuse: vec3f,
+    metal_f0: vec3f,
+    metal: vec3f,
+    eta: f32,
+    coat: f32,
+    coat_albedo: f32,
+    alpha: f32,
+    mirror: bool,
+    p_specular: f32,
+}
+
+// shading::multiple_scattering: 1 + Fms (1 − E)/E.
+fn multiple_scattering(fss: vec3f, e: f32, e_avg: f32) -> vec3f {
+    let missing = (1.0 - e) / max(e, 1e-4);
+    let fms = fss * e_avg / (vec3f(1.0) - fss * (1.0 - e_avg));
+    return vec3f(1.0) + fms * missing;
+}
+
+// shading::lobes: the lobes of m seen at cos θo = mu.
+fn lobes(m: Material, mu_in: f32) -> Lobes {
+    let rough = clamp(m.roughness, 0.0, 1.0);
+    let mu = clamp(mu_in, 0.0, 1.0);
+    let e = ggx_e(rough, mu);
+    let e_avg = ggx_e_avg(rough);
+    let metal_f0 = clamp(m.base_color, vec3f(0.0), vec3f(1.0));
+    let metal_mean = metal_f0 + (vec3f(1.0) - metal_f0) / 21.0;
+    let metal = multiple_scattering(metal_mean, e, e_avg) * m.metallic;
+    let f0 = clamp(m.specular, 0.0, 0.99);
+    var eta = 1.0;
+    var coat = 0.0;
+    var coat_albedo = 0.0;
+    if (f0 > 0.0) {
+        eta = ior_from_f0(f0);
+        let fss = clamp(fresnel_dielectric_mean(eta), f0, 1.0);
+        let k = multiple_scattering(vec3f(fss), e, e_avg).x;
+        let s = ggx_s(rough, mu, sqrt(sqrt(f0)));
+        coat = k * (1.0 - m.metallic);
+        coat_albedo = e * k * (f0 + (1.0 - f0) * s);
+    }
+    let diffuse = m.base_color * ((1.0 - m.metallic) * clamp(1.0 - coat_albedo, 0.0, 1.0));
+    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * coat_albedo;
+    let d = luminance(diffuse);
+    var p_specular = 0.0;
+    if (s > 0.0) {
+        if (d <= 0.0) {
+            p_specular = 1.0;
+        } else {
+            p_specular = clamp(s / (s + d), 0.1, 0.9);
+        }
+    }
+    return Lobes(diffuse, metal_f0, metal, eta, coat, coat_albedo, ggx_alpha(m.roughness), is_mirror(m), p_specular);
+}
+
+// shading::specular_fresnel: the metal's and the coat's Fresnel at cos θh = c, each weighted.
+fn specular_fresnel(l: Lobes, c: f32) -> vec3f {
+    return l.metal * fresnel_schlick(l.metal_f0, c) + vec3f(l.coat * fresnel_dielectric(c, l.eta));
 }
 
 // shading::guide_albedo: the denoiser's albedo guide.
 fn guide_albedo(m: Material) -> vec3f {
-    return min(diffuse_albedo(m) + specular_f0(m), vec3f(1.0));
-}
-
-fn specular_probability(m: Material) -> f32 {
-    let s = luminance(specular_f0(m));
-    let d = luminance(diffuse_albedo(m));
-    if (s <= 0.0) {
-        return 0.0;
-    }
-    if (d <= 0.0) {
-        return 1.0;
-    }
-    return clamp(s / (s + d), 0.1, 0.9);
+    let l = lobes(m, 1.0);
+    return min(l.diffuse + specular_fresnel(l, 1.0), vec3f(1.0));
 }
 
 // shading::bsdf_eval: BSDF × cos θi of the non-delta lobes.
-fn bsdf_eval(m: Material, wo: vec3f, wi: vec3f) -> vec3f {
+fn bsdf_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
         return vec3f(0.0);
     }
-    let diffuse = diffuse_albedo(m) * (INV_PI * wi.z);
-    if (is_mirror(m)) {
+    let diffuse = l.diffuse * (INV_PI * wi.z);
+    if (l.mirror) {
         return diffuse;
     }
-    return diffuse + ggx_eval(wo, wi, ggx_alpha(m.roughness), specular_f0(m));
+    let c = dot(wo, normalize_glam(wo + wi));
+    return diffuse + specular_fresnel(l, c) * ggx_eval(wo, wi, l.alpha);
 }
 
 // shading::bsdf_pdf.
-fn bsdf_pdf(m: Material, wo: vec3f, wi: vec3f) -> f32 {
+fn bsdf_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
         return 0.0;
     }
-    let ps = specular_probability(m);
+    let ps = l.p_specular;
     let diffuse = (1.0 - ps) * wi.z * INV_PI;
-    if (is_mirror(m)) {
+    if (l.mirror) {
         return diffuse;
     }
-    return diffuse + ps * ggx_pdf(wo, wi, ggx_alpha(m.roughness));
+    return diffuse + ps * ggx_pdf(wo, wi, l.alpha);
 }
 
 // shading::BsdfSample (`ok` false: the CPU's None).
@@ -209,28 +334,28 @@ struct BsdfSample {
 }
 
 // shading::bsdf_sample: u_lobe picks the lobe, u the direction in it.
-fn bsdf_sample(m: Material, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
+fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
     let none = BsdfSample(false, vec3f(0.0), vec3f(0.0), 0.0, false);
     if (wo.z <= 0.0) {
         return none;
     }
-    let ps = specular_probability(m);
+    let ps = l.p_specular;
     let specular = u_lobe < ps;
-    if (specular && is_mirror(m)) {
+    if (specular && l.mirror) {
         let wi = vec3f(-wo.x, -wo.y, wo.z);
-        return BsdfSample(true, wi, fresnel_schlick(specular_f0(m), wo.z) / ps, 0.0, true);
+        return BsdfSample(true, wi, specular_fresnel(l, wo.z) / ps, 0.0, true);
     }
     var wi: vec3f;
     if (specular) {
-        wi = ggx_sample(wo, ggx_alpha(m.roughness), u);
+        wi = ggx_sample(wo, l.alpha, u);
     } else {
         wi = cosine_sample(u);
     }
-    let pdf = bsdf_pdf(m, wo, wi);
+    let pdf = bsdf_pdf(l, wo, wi);
     if (wi.z <= 0.0 || pdf <= 0.0) {
         return none;
     }
-    return BsdfSample(true, wi, bsdf_eval(m, wo, wi) / pdf, pdf, false);
+    return BsdfSample(true, wi, bsdf_eval(l, wo, wi) / pdf, pdf, false);
 }
 
 // shading::power_heuristic (β = 2).

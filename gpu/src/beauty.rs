@@ -529,6 +529,10 @@ impl GpuBeautyScene {
                     binding: 5,
                     resource: wgpu::BindingResource::TextureView(&conditional),
                 }, // env_conditional
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: ctx.bsdf_tables.as_entire_binding(),
+                }, // bsdf_tables
             ],
         });
         // A buffer the driver refused (out of memory) shows here, not as a panic.

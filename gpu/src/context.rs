@@ -9,11 +9,14 @@
 //! work`). The beauty pipelines and their buffers are built on first use, so an AOV-only run
 //! never compiles them.
 
-use crate::layout::{GpuAovPixel, GpuBeautySums, GpuFrame, PATH_RECORD_BYTES, WORKGROUP};
+use crate::layout::{
+    GpuAovPixel, GpuBeautySums, GpuBsdfTables, GpuFrame, PATH_RECORD_BYTES, WORKGROUP,
+};
 use crate::timer::KernelTimer;
 use crate::{shaders, GpuError};
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
+use wgpu::util::DeviceExt;
 
 /// Tile of one dispatch on a software adapter, in pixels per side: lavapipe's time does not
 /// depend on it, so it keeps the buffers small (512² × 432 B = 108 MiB of beauty path records).
@@ -162,6 +165,8 @@ pub struct GpuContext {
     aov_layout: wgpu::BindGroupLayout,
     /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables, materials).
     pub(crate) lighting_layout: wgpu::BindGroupLayout,
+    /// The GGX tables every beauty binds (`GpuBsdfTables`), uploaded once.
+    pub(crate) bsdf_tables: wgpu::Buffer,
     beauty_layout: wgpu::BindGroupLayout,
     /// Group 3 of the beauty kernels (their path records).
     work_layout: wgpu::BindGroupLayout,
@@ -589,9 +594,15 @@ impl GpuContext {
                 storage_entry(3, true),  // materials: array<SurfaceMaterial>
                 texture_entry(4, FLOAT), // env_radiance_map: texture_2d<f32> (rgba32float)
                 texture_entry(5, FLOAT), // env_conditional: texture_2d<f32> (r32float)
+                uniform_entry(6),        // bsdf_tables: BsdfTables
             ],
         });
 
+        let bsdf_tables = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bsdf tables"),
+            contents: bytemuck::bytes_of(&*GpuBsdfTables::new()),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<GpuFrame>() as u64,
@@ -634,6 +645,7 @@ impl GpuContext {
             frame_buffer,
             aov_layout,
             lighting_layout,
+            bsdf_tables,
             beauty_layout,
             work_layout,
             beauty_fused: OnceLock::new(),

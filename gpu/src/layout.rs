@@ -388,6 +388,28 @@ pub fn texture_sampler_code(s: &prismbake::texture::Sampler) -> u32 {
     s.wrap[0].code() | (s.wrap[1].code() << 2) | ((s.nearest as u32) << 4)
 }
 
+/// The GGX tables (`prismbake::render::ggx_tables`) as `shading.wgsl`'s `BsdfTables` uniform,
+/// 20 608 bytes: four values a `vec4` (a uniform array's stride is 16 bytes), in the tables'
+/// own order.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GpuBsdfTables {
+    pub e: [[f32; 4]; 256],
+    pub e_avg: [[f32; 4]; 8],
+    pub s: [[f32; 4]; 1024],
+}
+
+impl GpuBsdfTables {
+    pub fn new() -> Box<GpuBsdfTables> {
+        use prismbake::render::ggx_tables::{GGX_E, GGX_E_AVG, GGX_S};
+        let mut t: Box<GpuBsdfTables> = bytemuck::zeroed_box();
+        bytemuck::cast_slice_mut::<_, f32>(&mut t.e).copy_from_slice(&GGX_E);
+        bytemuck::cast_slice_mut::<_, f32>(&mut t.e_avg).copy_from_slice(&GGX_E_AVG);
+        bytemuck::cast_slice_mut::<_, f32>(&mut t.s).copy_from_slice(&GGX_S);
+        t
+    }
+}
+
 /// One pixel's running beauty sums as the kernel accumulates them over samples, 96 bytes:
 /// `prismbake::render::beauty::PixelSums` plus the pixel's ray counts (`BeautyCounters`).
 #[repr(C)]
@@ -424,6 +446,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
     assert!(std::mem::size_of::<GpuMaterial>() == 320);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
+    assert!(std::mem::size_of::<GpuBsdfTables>() == 20_608);
 };
 
 /// One shared struct as the layout test sees it: WGSL name, Rust size, `(member, offset)`s.
@@ -610,6 +633,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 emission_tex
             }
         ),
+        layout!("BsdfTables", GpuBsdfTables { e, e_avg, s }),
         layout!(
             "BeautySums",
             GpuBeautySums {

@@ -563,6 +563,7 @@ fn surface_radiance(
         let (ng, ns) = facing_normals(&hit, dir);
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
+        let l = &shading::lobes(m, wo_l.z);
         let p = hit.position;
         let bctx = RayContext {
             bounce: bounce + 1,
@@ -578,7 +579,7 @@ fn surface_radiance(
             let kd = ls.dir;
             let wi_l = shading::to_local(kd, t, b, ns);
             let f = if kd.dot(ng) > 0.0 && ls.e > 0.0 {
-                bsdf_eval(m, wo_l, wi_l)
+                bsdf_eval(l, wo_l, wi_l)
             } else {
                 Vec3::ZERO
             };
@@ -589,7 +590,7 @@ fn surface_radiance(
                     // A disc is also met by BSDF samples (below): the two share it by MIS.
                     let w = ls
                         .mis_pdf
-                        .map_or(1.0, |pdf| power_heuristic(pdf, bsdf_pdf(m, wo_l, wi_l)));
+                        .map_or(1.0, |pdf| power_heuristic(pdf, bsdf_pdf(l, wo_l, wi_l)));
                     radiance += throughput * f * ls.color * (ls.e * w);
                 }
             }
@@ -598,14 +599,14 @@ fn surface_radiance(
             let es = env_sample(s.env, s.env_frame, rand2(ctx, bounce, 0, Purpose::Light));
             if es.pdf > 0.0 && es.dir.dot(ng) > 0.0 {
                 let wi_l = shading::to_local(es.dir, t, b, ns);
-                let f = bsdf_eval(m, wo_l, wi_l);
+                let f = bsdf_eval(l, wo_l, wi_l);
                 if f.max_element() > 0.0 {
                     n.env_shadow_rays += 1;
                     if !isect.occluded(
                         &shadow_ray(offset_origin(p, ng, es.dir, s.eps), es.dir),
                         &bctx,
                     ) {
-                        let w = power_heuristic(es.pdf, bsdf_pdf(m, wo_l, wi_l));
+                        let w = power_heuristic(es.pdf, bsdf_pdf(l, wo_l, wi_l));
                         radiance += throughput
                             * f
                             * env_radiance(s.env, s.env_frame, es.dir)
@@ -622,7 +623,7 @@ fn surface_radiance(
             Purpose::Bsdf,
             ctx.seed,
         );
-        let Some(bs) = bsdf_sample(m, wo_l, u_lobe, rand2(ctx, bounce, 3, Purpose::Bsdf)) else {
+        let Some(bs) = bsdf_sample(l, wo_l, u_lobe, rand2(ctx, bounce, 3, Purpose::Bsdf)) else {
             break;
         };
         let wi = shading::from_local(bs.wi, t, b, ns);

@@ -11,6 +11,8 @@ pub mod camera;
 pub mod contact_sheet;
 pub mod denoise;
 pub mod env;
+pub mod ggx_tables;
+mod ggx_tables_data;
 pub mod job;
 pub mod lights;
 pub mod lookdev;
