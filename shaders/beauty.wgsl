@@ -814,9 +814,10 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
             (*s).throughput *= (*s).bs_weight;
             let throughput = (*s).throughput;
             let delta = has(*s, PATH_BSDF_DELTA);
-            // The event's chances again, at the continuation's origin (where `ask` took them).
+            // The event's chances again, at the continuation's origin (where `ask` took them),
+            // where a met light or an escape (a disc) weighs by them.
             var chances: Chances;
-            if (lighting.light_count != 0u) {
+            if (lighting.light_count != 0u && (next_prism == NO_PRISM || has(*s, PATH_MEETS_LIGHT))) {
                 chances = light_chances(qs.next.origin, (*s).event_n);
             }
             var met = vec3f(0.0);
