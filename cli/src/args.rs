@@ -106,7 +106,10 @@ pub struct RenderArgs {
     /// Turn off PDM's stochastic thin-feature jitter.
     #[arg(long)]
     pub no_jitter: bool,
-    #[arg(long, value_enum, default_value = "smooth")]
+    /// The shading normal (beauty and normal AOV): `geometric`, the displaced surface's own
+    /// (what Cycles shades a displaced mesh with), or `smooth`, PDM's N′s = Ns − Ng + N′, which
+    /// hides the base mesh's facets.
+    #[arg(long, value_enum, default_value = "geometric")]
     pub normal: NormalArg,
     /// UV seams: `stitch` makes the displaced surface continuous across them (one agreed
     /// height on the edge, fading out over about a texel); `open` traces each face's own UVs,

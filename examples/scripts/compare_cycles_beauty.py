@@ -3,7 +3,7 @@ same displaced surface, camera, material, HDRI environment and the file's lights
 importer makes them), rendered by both; prints one JSON line of the differences.
 
     .venv/bin/python examples/scripts/compare_cycles_beauty.py examples/sphere/sphere.glb \
-        [--res 128] [--spp 256] [--roughness 0.5] [--metallic 0] [--env-rotate 0]
+        [--res 128] [--spp 256] [--roughness 0.5] [--metallic 0] [--env-rotate 0] [--file-materials]
 
 The environment is a generated 128 x 64 equirect OpenEXR whose colour changes with azimuth
 and elevation (red, green, blue and yellow quarters around the horizon, a blue sky above), so a
@@ -11,7 +11,9 @@ turned or mirrored environment shows in the asset's colour, not only in its shad
 true displacement with adaptive dicing at 0.5 px, 4 bounces, no clamping, no denoising, box
 pixel filter, the Environment Texture node (linear interpolation). prismbake: `render --aov
 beauty --env` with `--base-color`, `--roughness`, `--metallic`, `--specular 0.04`, `--bounces
-4`. Both write linear EXRs; the comparison reads those.
+4`. With `--file-materials` both keep the asset's own materials instead (Blender's importer's
+node trees, the displacement added to each; prismbake with no material flags): textures,
+normal maps, emission and all. Both write linear EXRs; the comparison reads those.
 
 Reports, over the asset's pixels (one pixel in from its silhouette, where pixels mix surface
 and sky): each renderer's mean RGB, their ratio, and the mean |difference| relative to the mean
@@ -78,16 +80,10 @@ def render_cycles(a, disp, out_exr, env):
     sc.camera = cams[0]
     img = bpy.data.images.load(os.path.abspath(disp["disp"]))
     img.colorspace_settings.name = "Non-Color"
-    for ob in [o for o in sc.objects if o.type == "MESH"]:
-        mat = bpy.data.materials.new("lookdev")
-        mat.use_nodes = True
+    def displace(mat):
+        # The height map through a Displacement node into the material's output.
         nt = mat.node_tree
-        bsdf = nt.nodes["Principled BSDF"]
-        bsdf.inputs["Base Color"].default_value = (*a.base_color, 1.0)
-        bsdf.inputs["Roughness"].default_value = a.roughness
-        bsdf.inputs["Metallic"].default_value = a.metallic
-        bsdf.inputs["IOR"].default_value = 1.5
-        out = nt.nodes["Material Output"]
+        out = next(n for n in nt.nodes if n.type == "OUTPUT_MATERIAL")
         tex = nt.nodes.new("ShaderNodeTexImage")
         tex.image = img
         tex.interpolation = "Linear"
@@ -97,8 +93,26 @@ def render_cycles(a, disp, out_exr, env):
         nt.links.new(tex.outputs["Color"], d.inputs["Height"])
         nt.links.new(d.outputs["Displacement"], out.inputs["Displacement"])
         mat.displacement_method = "DISPLACEMENT"
-        ob.data.materials.clear()
-        ob.data.materials.append(mat)
+
+    for ob in [o for o in sc.objects if o.type == "MESH"]:
+        if a.file_materials:
+            # The file's own materials, as Blender's importer built them (textures and all).
+            mats = [m for m in ob.data.materials if m is not None]
+            if not mats:
+                sys.exit(f"{ob.name} has no material to keep (drop --file-materials)")
+            for mat in mats:
+                displace(mat)
+        else:
+            mat = bpy.data.materials.new("lookdev")
+            mat.use_nodes = True
+            bsdf = mat.node_tree.nodes["Principled BSDF"]
+            bsdf.inputs["Base Color"].default_value = (*a.base_color, 1.0)
+            bsdf.inputs["Roughness"].default_value = a.roughness
+            bsdf.inputs["Metallic"].default_value = a.metallic
+            bsdf.inputs["IOR"].default_value = 1.5
+            displace(mat)
+            ob.data.materials.clear()
+            ob.data.materials.append(mat)
         m = ob.modifiers.new("subd", "SUBSURF")
         m.subdivision_type = "SIMPLE"
         m.use_adaptive_subdivision = True
@@ -151,6 +165,9 @@ def main():
     ap.add_argument("--prismbake", default=os.environ.get("PRISMBAKE_BIN", str(ROOT / "target/release/prismbake")))
     ap.add_argument("--keep", help="folder to keep the renders in")
     ap.add_argument("--extra", default="", help="more prismbake render flags in one string, e.g. \"--fov 30\"")
+    ap.add_argument("--file-materials", action="store_true",
+                    help="keep the asset's own materials (textures, normal maps, emission) in both "
+                         "renderers, in place of --base-color, --roughness, --metallic and F0 0.04")
     a = ap.parse_args()
     sidecar = pathlib.Path(a.asset).with_name(pathlib.Path(a.asset).stem + ".prismbake.toml")
     side = tomllib.loads(sidecar.read_text())
@@ -160,11 +177,13 @@ def main():
     env = out / "env.exr"
     write_env(env)
     cycles_s = render_cycles(a, disp, out / "cycles.exr", env)
+    material_flags = [] if a.file_materials else [
+        "--base-color", ",".join(map(str, a.base_color)), "--roughness", str(a.roughness),
+        "--metallic", str(a.metallic), "--specular", "0.04"]
     t = time.perf_counter()
     pb = subprocess.run([a.prismbake, "render", a.asset, "--aov", "beauty", "--env", str(env),
                          "--env-rotate", str(a.env_rotate), "--res", f"{a.res}x{a.res}", "--spp", str(a.spp),
-                         "--bounces", "4", "--base-color", ",".join(map(str, a.base_color)),
-                         "--roughness", str(a.roughness), "--metallic", str(a.metallic), "--specular", "0.04",
+                         "--bounces", "4", *material_flags,
                          "--threads", str(a.threads), "-o", str(out / "pb"), *a.extra.split()],
                         capture_output=True, text=True)
     pb_s = time.perf_counter() - t
@@ -183,7 +202,7 @@ def main():
     rel = lambda x, y: float(np.mean(np.abs(x - y)) / max(np.mean(np.abs(y)), 1e-9))
     res = {
         "asset": a.asset, "res": a.res, "spp": a.spp, "roughness": a.roughness, "metallic": a.metallic,
-        "env_rotate": a.env_rotate, "cycles_s": round(cycles_s, 2), "prismbake_s": round(pb_s, 2),
+        "env_rotate": a.env_rotate, "file_materials": a.file_materials, "cycles_s": round(cycles_s, 2), "prismbake_s": round(pb_s, 2),
         "asset_pixels": int(obj.sum()),
         # Pixels one renderer covers and the other does not (alpha over 0.5), of all pixels.
         "mask_mismatch": round(float(np.mean(mask != (cyc[..., 3] > 0.5))), 5),
