@@ -4,7 +4,7 @@
 //! (the layering of Blender's Principled BSDF).
 //!
 //! Three tables, each on a regular grid whose end points are the axes' ends (roughness and
-//! cos θo from 0 to 1), read by linear interpolation (`lookup`):
+//! cos θo from 0 to 1), read by linear interpolation (`ggx_e`, `ggx_e_avg`, `ggx_s`):
 //! * `GGX_E[μ][r]` (32 × 32): E(r, μ), the albedo of the lobe with F = 1 seen at cos θo = μ,
 //!   roughness r (α = r²);
 //! * `GGX_E_AVG[r]` (32): its cosine-weighted mean over μ, 2∫E(r, μ) μ dμ;
@@ -137,12 +137,13 @@ pub fn s_entry(rough: f32, mu: f32, z: f32, entry: u32, side: u32) -> f32 {
     (sum / (side * side) as f64) as f32
 }
 
-/// The axes' values at grid point `i`: roughness, cos θo and z (F0^¼, below 1 so that the
-/// index stays finite).
+/// The E table's axes at grid point (x, y): roughness and cos θo.
 pub fn e_axes(x: usize, y: usize) -> (f32, f32) {
     (grid(x, E_SIDE, 1e-4, 1.0), grid(y, E_SIDE, 1e-4, 1.0))
 }
 
+/// The s table's axes at grid point (x, y, z): roughness, cos θo and F0^¼ (below 1, so that
+/// the index stays finite).
 pub fn s_axes(x: usize, y: usize, z: usize) -> (f32, f32, f32) {
     (
         grid(x, S_SIDE, 1e-4, 1.0),
@@ -156,7 +157,7 @@ mod tests {
     use super::*;
 
     /// Recomputes a spread of entries (fewer samples than the stored ones) and compares: the
-    /// stored tables are what their definitions give, and `lookup` reads them the right way
+    /// stored tables are what their definitions give, and the lookups read them the right way
     /// round.
     #[test]
     fn stored_tables_match_their_definition() {
