@@ -166,9 +166,9 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 320 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
-// normal textures, its normal map's scale and bias (beauty::NormalTex), and its emission and
-// emission texture.
+// GpuMaterial, 336 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// normal textures, its normal map's scale and bias (beauty::NormalTex), its emission and
+// emission texture, and its specular tint.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -186,6 +186,8 @@ struct SurfaceMaterial {
     emission: vec3f,
     _pad3: u32,
     emission_tex: MaterialTexture,
+    specular_tint: vec3f,
+    _pad4: u32,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -17,6 +17,7 @@ struct Material {
     roughness: f32,
     metallic: f32,
     specular: f32,
+    specular_tint: vec3f,
 }
 
 // shading::luminance (Rec. 709).
@@ -232,14 +233,35 @@ fn ggx_s(rough: f32, mu: f32, zf: f32) -> f32 {
     return lerp1(s_plane(x, y, z.i), s_plane(x, y, z.j), z.t);
 }
 
+// shading::f82_b: the F82-tint term that takes Schlick's curve of f0 to tint times itself at
+// cos θ = 1/7.
+fn f82_b(f0: vec3f, tint: vec3f) -> vec3f {
+    let mu = 1.0 / 7.0;
+    let f = 1.0 - mu;
+    let f5 = (f * f) * (f * f) * f;
+    let schlick = f0 + (vec3f(1.0) - f0) * f5;
+    return schlick * (1.0 / (mu * f5 * f)) * (vec3f(1.0) - tint);
+}
+
+// shading::fresnel_f82: Schlick's less b cos θ (1 − cos θ)⁶, at least 0.
+fn fresnel_f82(f0: vec3f, b: vec3f, cos_theta: f32) -> vec3f {
+    let c = clamp(cos_theta, 0.0, 1.0);
+    let x = 1.0 - c;
+    let x3 = x * x * x;
+    return max(fresnel_schlick(f0, c) - b * (c * x3 * x3), vec3f(0.0));
+}
+
 // shading::Lobes: a material seen at one angle.
 struct Lobes {
     diffuse: vec3f,
     metal_f0: vec3f,
+    metal_b: vec3f,
     metal: vec3f,
     eta: f32,
-    coat: f32,
-    coat_albedo: f32,
+    f0: f32,
+    coat_f0: vec3f,
+    coat: vec3f,
+    coat_albedo: vec3f,
     alpha: f32,
     mirror: bool,
     p_specular: f32,
@@ -252,29 +274,38 @@ fn multiple_scattering(fss: vec3f, e: f32, e_avg: f32) -> vec3f {
     return vec3f(1.0) + fms * missing;
 }
 
+// shading::coat_blend.
+fn coat_blend(coat_f0: vec3f, s: f32) -> vec3f {
+    return coat_f0 + (vec3f(1.0) - coat_f0) * s;
+}
+
 // shading::lobes: the lobes of m seen at cos θo = mu.
 fn lobes(m: Material, mu_in: f32) -> Lobes {
     let rough = clamp(m.roughness, 0.0, 1.0);
     let mu = clamp(mu_in, 0.0, 1.0);
     let e = ggx_e(rough, mu);
     let e_avg = ggx_e_avg(rough);
+    let tint = clamp(m.specular_tint, vec3f(0.0), vec3f(1.0));
     let metal_f0 = clamp(m.base_color, vec3f(0.0), vec3f(1.0));
-    let metal_mean = metal_f0 + (vec3f(1.0) - metal_f0) / 21.0;
+    let metal_b = f82_b(metal_f0, tint);
+    let metal_mean = metal_f0 + (vec3f(1.0) - metal_f0) / 21.0 - metal_b / 126.0;
     let metal = multiple_scattering(metal_mean, e, e_avg) * m.metallic;
     let f0 = clamp(m.specular, 0.0, 0.99);
+    let coat_f0 = tint * f0;
     var eta = 1.0;
-    var coat = 0.0;
-    var coat_albedo = 0.0;
+    var coat = vec3f(0.0);
+    var coat_albedo = vec3f(0.0);
     if (f0 > 0.0) {
         eta = ior_from_f0(f0);
-        let fss = clamp(fresnel_dielectric_mean(eta), f0, 1.0);
-        let k = multiple_scattering(vec3f(fss), e, e_avg).x;
+        let s_mean = clamp((fresnel_dielectric_mean(eta) - f0) / (1.0 - f0), 0.0, 1.0);
+        let k = multiple_scattering(coat_blend(coat_f0, s_mean), e, e_avg);
         let s = ggx_s(rough, mu, sqrt(sqrt(f0)));
         coat = k * (1.0 - m.metallic);
-        coat_albedo = e * k * (f0 + (1.0 - f0) * s);
+        coat_albedo = k * coat_blend(coat_f0, s) * e;
     }
-    let diffuse = m.base_color * ((1.0 - m.metallic) * clamp(1.0 - coat_albedo, 0.0, 1.0));
-    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * coat_albedo;
+    let through = clamp(1.0 - max_element(coat_albedo), 0.0, 1.0);
+    let diffuse = m.base_color * ((1.0 - m.metallic) * through);
+    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * luminance(coat_albedo);
     let d = luminance(diffuse);
     var p_specular = 0.0;
     if (s > 0.0) {
@@ -284,12 +315,14 @@ fn lobes(m: Material, mu_in: f32) -> Lobes {
             p_specular = clamp(s / (s + d), 0.1, 0.9);
         }
     }
-    return Lobes(diffuse, metal_f0, metal, eta, coat, coat_albedo, ggx_alpha(m.roughness), is_mirror(m), p_specular);
+    return Lobes(diffuse, metal_f0, metal_b, metal, eta, f0, coat_f0, coat, coat_albedo,
+        ggx_alpha(m.roughness), is_mirror(m), p_specular);
 }
 
 // shading::specular_fresnel: the metal's and the coat's Fresnel at cos θh = c, each weighted.
 fn specular_fresnel(l: Lobes, c: f32) -> vec3f {
-    return l.metal * fresnel_schlick(l.metal_f0, c) + vec3f(l.coat * fresnel_dielectric(c, l.eta));
+    let s = clamp((fresnel_dielectric(c, l.eta) - l.f0) / (1.0 - l.f0), 0.0, 1.0);
+    return l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.coat * coat_blend(l.coat_f0, s);
 }
 
 // shading::guide_albedo: the denoiser's albedo guide.

@@ -98,7 +98,7 @@ fn material_index(prism: u32) -> u32 {
 // times their texture channels there (one lookup where both read the same texture).
 fn material_at(prism: u32, uv: vec2f) -> Material {
     let s = materials[material_index(prism)];
-    var m = Material(s.base_color, s.roughness, s.metallic, s.specular);
+    var m = Material(s.base_color, s.roughness, s.metallic, s.specular, s.specular_tint);
     if (s.color_tex.width != 0u) {
         m.base_color *= texture_sample(s.color_tex, uv);
     }

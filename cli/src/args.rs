@@ -221,6 +221,11 @@ pub struct LookArgs {
     /// and KHR_materials_specular, USD ior, .mtl Ni), else 0.04.
     #[arg(long)]
     pub specular: Option<f32>,
+    /// Specular tint of every material (linear R,G,B in [0, 1], Blender's Specular Tint: the
+    /// dielectric's F0 times it, a metal's edge towards it); default: each material's (glTF
+    /// KHR_materials_specular's colour), else white.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
+    pub specular_tint: Option<[f32; 3]>,
     /// Surface bounces per path, 1..=4 (1 = direct light only).
     #[arg(long, default_value_t = 2)]
     pub bounces: u32,

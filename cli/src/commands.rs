@@ -359,6 +359,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         emission: !l.no_emission,
         scene_lights: !l.no_scene_lights,
         specular: l.specular,
+        specular_tint: l.specular_tint.map(Vec3::from),
         bounces: l.bounces,
         ground: l.ground,
         exposure_ev: l.exposure,

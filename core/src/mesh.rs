@@ -279,6 +279,10 @@ pub struct MeshMaterial {
     /// gives (`ior_f0`; glTF's `KHR_materials_ior` times `KHR_materials_specular`'s factor,
     /// USD's `ior`, an `.mtl`'s `Ni`); `None`: the renderer's default.
     pub specular: Option<f32>,
+    /// The specular layer's tint (glTF `KHR_materials_specular`'s `specularColorFactor`, which
+    /// Blender imports as the Principled BSDF's Specular Tint): the dielectric's F0 times it,
+    /// a metal's reflectance at grazing angles towards it (F82); `None`: white.
+    pub specular_tint: Option<[f32; 3]>,
 }
 
 /// The reflectance at normal incidence of a dielectric of index of refraction `ior` in air,
@@ -302,6 +306,7 @@ impl MeshMaterial {
             emission: [0.0; 3],
             emission_texture: None,
             specular: None,
+            specular_tint: None,
         }
     }
 

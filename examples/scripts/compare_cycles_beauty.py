@@ -179,7 +179,7 @@ def main():
     cycles_s = render_cycles(a, disp, out / "cycles.exr", env)
     material_flags = [] if a.file_materials else [
         "--base-color", ",".join(map(str, a.base_color)), "--roughness", str(a.roughness),
-        "--metallic", str(a.metallic), "--specular", "0.04"]
+        "--metallic", str(a.metallic), "--specular", "0.04", "--specular-tint", "1,1,1"]
     t = time.perf_counter()
     pb = subprocess.run([a.prismbake, "render", a.asset, "--aov", "beauty", "--env", str(env),
                          "--env-rotate", str(a.env_rotate), "--res", f"{a.res}x{a.res}", "--spp", str(a.spp),

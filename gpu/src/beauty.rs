@@ -298,6 +298,7 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             normal_bias: m.normal_texture.map_or([0.0; 3], |n| n.bias.to_array()),
             emission: m.emission.to_array(),
             emission_tex: m.emission_texture.map_or(Default::default(), |i| tex(i, 0)),
+            specular_tint: m.material.specular_tint.to_array(),
             ..Default::default()
         })
         .collect()

@@ -356,10 +356,10 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 320 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// One material of a beauty scene, 336 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
-/// buffer, its normal map's scale and bias (`beauty::NormalTex`), and its emission and
-/// emission texture.
+/// buffer, its normal map's scale and bias (`beauty::NormalTex`), its emission and emission
+/// texture, and its specular tint.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -379,6 +379,8 @@ pub struct GpuMaterial {
     pub emission: [f32; 3],
     pub _pad3: u32,
     pub emission_tex: GpuMaterialTexture,
+    pub specular_tint: [f32; 3],
+    pub _pad4: u32,
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -444,7 +446,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuLighting>() == 1136);
     assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 320);
+    assert!(std::mem::size_of::<GpuMaterial>() == 336);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
     assert!(std::mem::size_of::<GpuBsdfTables>() == 20_608);
 };
@@ -630,7 +632,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 _pad2,
                 emission,
                 _pad3,
-                emission_tex
+                emission_tex,
+                specular_tint,
+                _pad4
             }
         ),
         layout!("BsdfTables", GpuBsdfTables { e, e_avg, s }),

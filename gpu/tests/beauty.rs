@@ -554,6 +554,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
         SurfaceMaterial {
             material: Material {
                 base_color: Vec3::new(1.0, 0.9, 0.8),
+                specular_tint: Vec3::new(0.4, 1.0, 0.7),
                 ..Material::default()
             },
             texture: Some(0),
@@ -569,6 +570,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 roughness: 0.35,
                 metallic: 1.0,
                 specular: 0.04,
+                specular_tint: Vec3::new(0.6, 0.9, 1.0),
             },
             normal_texture: Some(NormalTex {
                 texture: 3,
@@ -592,6 +594,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 roughness: 1.0,
                 metallic: 1.0,
                 specular: 0.04,
+                ..Material::default()
             },
             roughness_texture: channel(2, 1),
             metallic_texture: channel(2, 2),
@@ -652,6 +655,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
                 roughness: 0.3,
                 metallic: 1.0,
                 specular: 0.04,
+                specular_tint: Vec3::new(1.0, 0.7, 0.4),
             },
         ),
         (
@@ -661,6 +665,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
                 roughness: 0.0,
                 metallic: 0.5,
                 specular: 0.04,
+                specular_tint: Vec3::new(0.5, 0.8, 1.0),
             },
         ),
     ] {

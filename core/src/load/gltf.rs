@@ -87,12 +87,16 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                     .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
                     .transpose()?,
                 // KHR_materials_ior's F0 (1.5: 0.04), scaled by KHR_materials_specular's
-                // factor (its colour and textures are not read).
+                // factor (its textures are not read); its colour is the tint.
                 specular: match (m.ior(), m.specular().map(|s| s.specular_factor())) {
                     (None, None) => None,
                     (ior, factor) => crate::mesh::ior_f0(ior.unwrap_or(1.5))
                         .map(|f0| (f0 * factor.unwrap_or(1.0)).clamp(0.0, 1.0)),
                 },
+                specular_tint: m
+                    .specular()
+                    .map(|s| s.specular_color_factor())
+                    .filter(|c| *c != [1.0; 3]),
             })
         })
         .collect::<Result<_>>()?;

@@ -367,7 +367,8 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
              "normalTexture": {"index": 2, "scale": 0.5, "extensions":
                  {"KHR_texture_transform": {"offset": [0.5, 0.0], "texCoord": 0}}},
              "extensions": {"KHR_materials_ior": {"ior": 2.0},
-                            "KHR_materials_specular": {"specularFactor": 0.5}}},
+                            "KHR_materials_specular": {"specularFactor": 0.5,
+                                                       "specularColorFactor": [1.0, 0.5, 0.2]}}},
         ],
         "textures": [{"source": 0, "sampler": 0}, {"source": 1}, {"source": 2}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
@@ -445,6 +446,9 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         other.specular
     );
     assert_eq!(paint.specular, None);
+    // The specular colour is the tint (Blender's Specular Tint); none is white.
+    assert_eq!(other.specular_tint, Some([1.0, 0.5, 0.2]));
+    assert_eq!(paint.specular_tint, None);
     assert_eq!(
         other.texture_uses().len(),
         2,

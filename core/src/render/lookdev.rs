@@ -79,6 +79,9 @@ pub struct LookdevOptions {
     /// The dielectric reflectance F0 of every material (`--specular`); `None`: each
     /// material's own (its file's index of refraction), else `DEFAULT_SPECULAR`.
     pub specular: Option<f32>,
+    /// The specular tint of every material (`--specular-tint`); `None`: each material's own
+    /// (glTF `KHR_materials_specular`'s colour), else white.
+    pub specular_tint: Option<Vec3>,
     pub bounces: u32,
     pub ground: bool,
     /// The previews' exposure in stops (`--exposure`): PNGs and contact sheets show the
@@ -107,6 +110,7 @@ impl Default for LookdevOptions {
             emission: true,
             scene_lights: true,
             specular: None,
+            specular_tint: None,
             bounces: 2,
             ground: false,
             exposure_ev: 0.0,
@@ -135,6 +139,11 @@ impl LookdevOptions {
         }
         if let Some(v) = self.specular {
             unit("--specular", v)?;
+        }
+        if let Some(t) = self.specular_tint {
+            for v in t.to_array() {
+                unit("--specular-tint", v)?;
+            }
         }
         if !(1..=4).contains(&self.bounces) {
             return Err(Error::Param(format!(
@@ -260,6 +269,9 @@ pub struct MaterialDescription {
     pub metallic: f32,
     /// The dielectric reflectance F0.
     pub specular: f32,
+    /// The specular tint; absent when white.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub specular_tint: Option<[f32; 3]>,
     /// The texture multiplied into `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
@@ -294,6 +306,9 @@ impl MaterialDescription {
         };
         let normal =
             (self.normal_texture.as_ref()).map_or(String::new(), |t| format!(", normal map {t}"));
+        let tint = self.specular_tint.map_or(String::new(), |[r, g, b]| {
+            format!(" tinted ({r}, {g}, {b})")
+        });
         let glow = self.emission.map_or(String::new(), |[r, g, b]| {
             format!(
                 ", emission ({r}, {g}, {b}){}",
@@ -301,7 +316,7 @@ impl MaterialDescription {
             )
         });
         format!(
-            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{normal}{glow}",
+            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{tint}{normal}{glow}",
             times(&self.texture),
             self.roughness,
             times(&self.roughness_texture),
@@ -341,6 +356,8 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
                 roughness: m.material.roughness,
                 metallic: m.material.metallic,
                 specular: m.material.specular,
+                specular_tint: (m.material.specular_tint != Vec3::ONE)
+                    .then(|| m.material.specular_tint.to_array()),
                 texture: m.texture.map(|t| scene.textures[t as usize].describe()),
                 roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
                 metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
@@ -540,6 +557,7 @@ struct AssetMaterial {
     emission: Vec3,
     emission_texture: Option<u32>,
     specular: f32,
+    specular_tint: Vec3,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -565,6 +583,7 @@ impl AssetMaterial {
             emission: Vec3::ZERO,
             emission_texture: None,
             specular: DEFAULT_SPECULAR,
+            specular_tint: Vec3::ONE,
         }
     }
 }
@@ -706,6 +725,7 @@ fn asset_materials(
             emission: Vec3::from_array(m.emission),
             emission_texture,
             specular: m.specular.unwrap_or(DEFAULT_SPECULAR),
+            specular_tint: m.specular_tint.map_or(Vec3::ONE, Vec3::from),
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -1189,6 +1209,7 @@ pub fn render_all(
                 roughness: opts.roughness.unwrap_or(m.roughness),
                 metallic: opts.metallic.unwrap_or(m.metallic),
                 specular: opts.specular.unwrap_or(m.specular),
+                specular_tint: opts.specular_tint.unwrap_or(m.specular_tint),
             },
             texture: m.texture.filter(|_| opts.base_color.is_none()),
             roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),

@@ -31,6 +31,10 @@ pub struct Material {
     pub roughness: f32,
     pub metallic: f32,
     pub specular: f32,
+    /// The specular layer's tint (Blender's Specular Tint; white: none): the dielectric's F0
+    /// times it, and the metal's reflectance near grazing (at cos θ = 1/7, about 82°) the
+    /// tint times Schlick's there (the F82-tint model).
+    pub specular_tint: Vec3,
 }
 
 impl Default for Material {
@@ -40,6 +44,7 @@ impl Default for Material {
             roughness: 0.5,
             metallic: 0.0,
             specular: 0.04,
+            specular_tint: Vec3::ONE,
         }
     }
 }
@@ -203,25 +208,50 @@ pub fn cosine_sample(u: Vec2) -> Vec3 {
     Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u.x).max(0.0).sqrt())
 }
 
+/// The F82-tint model's b (Kutz et al. 2021, "Novel aspects of the Adobe Standard
+/// Material"; as Cycles has it): the term that takes Schlick's curve of `f0` to `tint` times
+/// itself at cos θ = 1/7, about 82° (`fresnel_f82`). Zero for a white tint.
+#[inline]
+pub fn f82_b(f0: Vec3, tint: Vec3) -> Vec3 {
+    const MU: f32 = 1.0 / 7.0;
+    let f = 1.0 - MU;
+    let f5 = (f * f) * (f * f) * f;
+    let schlick = f0 + (Vec3::ONE - f0) * f5;
+    schlick * (1.0 / (MU * f5 * f)) * (Vec3::ONE - tint)
+}
+
+/// Schlick's Fresnel of `f0` less the F82-tint term `b` cos θ (1 − cos θ)⁶, at least 0.
+#[inline]
+pub fn fresnel_f82(f0: Vec3, b: Vec3, cos_theta: f32) -> Vec3 {
+    let c = cos_theta.clamp(0.0, 1.0);
+    let x = 1.0 - c;
+    let x3 = x * x * x;
+    (fresnel_schlick(f0, c) - b * (c * x3 * x3)).max(Vec3::ZERO)
+}
+
 /// A material seen from one direction: the weights of its lobes, which depend on the view's
 /// angle. As in Blender's Principled BSDF, the metal (weight `metallic`, Schlick's Fresnel of
-/// the base colour) and the dielectric coat (weight 1 − metallic, the dielectric Fresnel of the
-/// index F0 stands for) share one GGX lobe, each scaled up by the energy that single
-/// scattering leaves out (Kulla & Conty: 1 + Fms (1 − E)/E, Fms from the mean Fresnel); the
-/// Lambert base gets what the coat lets through at this angle, 1 − E (1 + …) × its mean
-/// Fresnel over the lobe (`ggx_tables`).
+/// the base colour, bent by the specular tint at 82°) and the dielectric coat (weight
+/// 1 − metallic, the dielectric Fresnel of the index F0 stands for, rescaled to start from
+/// F0 times the tint) share one GGX lobe, each scaled up by the energy that single scattering
+/// leaves out (Kulla & Conty: 1 + Fms (1 − E)/E, Fms from the mean Fresnel); the Lambert base
+/// gets what the coat lets through at this angle, 1 − E (1 + …) × its mean Fresnel over the
+/// lobe (`ggx_tables`), in its brightest channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lobes {
     /// Reflectance of the Lambert lobe.
     pub diffuse: Vec3,
-    /// The metal's F0 (the base colour) and its weight.
+    /// The metal's F0 (the base colour), its F82-tint term (`f82_b`) and its weight.
     pub metal_f0: Vec3,
+    pub metal_b: Vec3,
     pub metal: Vec3,
-    /// The coat's relative index (1: no coat) and its weight.
+    /// The coat's index (1: no coat), the F0 it gives, the coat's tinted F0 and its weight.
     pub eta: f32,
-    pub coat: f32,
+    pub f0: f32,
+    pub coat_f0: Vec3,
+    pub coat: Vec3,
     /// The coat's albedo at this angle (what it takes from the diffuse, per unit weight).
-    pub coat_albedo: f32,
+    pub coat_albedo: Vec3,
     pub alpha: f32,
     /// A perfect mirror (a delta lobe: only sampled).
     pub mirror: bool,
@@ -238,28 +268,38 @@ pub fn multiple_scattering(fss: Vec3, e: f32, e_avg: f32) -> Vec3 {
     Vec3::ONE + fms * missing
 }
 
+/// The coat's Fresnel from the blend `s` between its tinted F0 and 1.
+#[inline]
+fn coat_blend(coat_f0: Vec3, s: f32) -> Vec3 {
+    coat_f0 + (Vec3::ONE - coat_f0) * s
+}
+
 /// The lobes of `m` seen at cos θo = `mu`.
 #[inline]
 pub fn lobes(m: &Material, mu: f32) -> Lobes {
     let rough = m.roughness.clamp(0.0, 1.0);
     let mu = mu.clamp(0.0, 1.0);
     let (e, e_avg) = (ggx_tables::ggx_e(rough, mu), ggx_tables::ggx_e_avg(rough));
+    let tint = m.specular_tint.clamp(Vec3::ZERO, Vec3::ONE);
     let metal_f0 = m.base_color.clamp(Vec3::ZERO, Vec3::ONE);
-    let metal_mean = metal_f0 + (Vec3::ONE - metal_f0) / 21.0;
+    let metal_b = f82_b(metal_f0, tint);
+    let metal_mean = metal_f0 + (Vec3::ONE - metal_f0) / 21.0 - metal_b / 126.0;
     let metal = multiple_scattering(metal_mean, e, e_avg) * m.metallic;
     let f0 = m.specular.clamp(0.0, 0.99);
+    let coat_f0 = tint * f0;
     let (eta, coat, coat_albedo) = if f0 > 0.0 {
         let eta = ior_from_f0(f0);
-        let fss = fresnel_dielectric_mean(eta).clamp(f0, 1.0);
-        let k = multiple_scattering(Vec3::splat(fss), e, e_avg).x;
+        let s_mean = ((fresnel_dielectric_mean(eta) - f0) / (1.0 - f0)).clamp(0.0, 1.0);
+        let k = multiple_scattering(coat_blend(coat_f0, s_mean), e, e_avg);
         let s = ggx_tables::ggx_s(rough, mu, f0.sqrt().sqrt());
-        (eta, k * (1.0 - m.metallic), e * k * (f0 + (1.0 - f0) * s))
+        (eta, k * (1.0 - m.metallic), k * coat_blend(coat_f0, s) * e)
     } else {
-        (1.0, 0.0, 0.0)
+        (1.0, Vec3::ZERO, Vec3::ZERO)
     };
-    let diffuse = m.base_color * ((1.0 - m.metallic) * (1.0 - coat_albedo).clamp(0.0, 1.0));
+    let through = (1.0 - coat_albedo.max_element()).clamp(0.0, 1.0);
+    let diffuse = m.base_color * ((1.0 - m.metallic) * through);
     // Sample the lobes by their albedos, keeping both in [0.1, 0.9] where both exist.
-    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * coat_albedo;
+    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * luminance(coat_albedo);
     let d = luminance(diffuse);
     let p_specular = if s <= 0.0 {
         0.0
@@ -271,8 +311,11 @@ pub fn lobes(m: &Material, mu: f32) -> Lobes {
     Lobes {
         diffuse,
         metal_f0,
+        metal_b,
         metal,
         eta,
+        f0,
+        coat_f0,
         coat,
         coat_albedo,
         alpha: ggx_alpha(m.roughness),
@@ -284,7 +327,8 @@ pub fn lobes(m: &Material, mu: f32) -> Lobes {
 /// The specular lobe's Fresnel at cos θh = `c`: the metal's and the coat's, each weighted.
 #[inline]
 pub fn specular_fresnel(l: &Lobes, c: f32) -> Vec3 {
-    l.metal * fresnel_schlick(l.metal_f0, c) + Vec3::splat(l.coat * fresnel_dielectric(c, l.eta))
+    let s = ((fresnel_dielectric(c, l.eta) - l.f0) / (1.0 - l.f0)).clamp(0.0, 1.0);
+    l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.coat * coat_blend(l.coat_f0, s)
 }
 
 /// The denoiser's albedo guide of a surface of `m`: what its lobes reflect at normal
@@ -562,6 +606,7 @@ mod tests {
             roughness: 1.0,
             metallic: 0.0,
             specular: 0.0,
+            ..Material::default()
         };
         let wo = dir_from_angle(0.8, 0.1);
         let n = 50_000;
@@ -612,6 +657,7 @@ mod tests {
                     roughness: rough,
                     metallic: 1.0,
                     specular: 0.04,
+                    ..Material::default()
                 };
                 let a = albedo(&metal, mu, 40_000);
                 assert!(
@@ -629,6 +675,51 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The specular tint (Blender's Specular Tint). A metal's Fresnel is Schlick's at normal
+    /// incidence and the tint times Schlick's at cos θ = 1/7 (the F82-tint model); a white
+    /// tint changes nothing. A dielectric's starts at F0 times the tint and still reaches 1 at
+    /// grazing; its diffuse loses what its brightest channel reflects.
+    #[test]
+    fn the_specular_tint_colours_the_metals_edge_and_the_coat() {
+        let gold = Material {
+            base_color: Vec3::new(1.0, 0.8, 0.3),
+            metallic: 1.0,
+            ..Material::default()
+        };
+        let tint = Vec3::new(1.0, 0.5, 0.2);
+        let tinted = Material {
+            specular_tint: tint,
+            ..gold
+        };
+        let (l, lt) = (lobes(&gold, 0.7), lobes(&tinted, 0.7));
+        let f = |l: &Lobes, c: f32| fresnel_f82(l.metal_f0, l.metal_b, c);
+        assert_eq!(l.metal_b, Vec3::ZERO);
+        assert!((f(&lt, 1.0) - gold.base_color).abs().max_element() < 1e-6);
+        let at82 = f(&lt, 1.0 / 7.0) / fresnel_schlick(gold.base_color, 1.0 / 7.0);
+        assert!((at82 - tint).abs().max_element() < 1e-5, "{at82}");
+        assert!((f(&lt, 0.0) - Vec3::ONE).abs().max_element() < 1e-6);
+        // Less light at the edge, so less to scatter again: the weight drops where the tint does.
+        assert!(lt.metal.x == l.metal.x && lt.metal.z < l.metal.z);
+
+        let plastic = Material {
+            specular_tint: tint,
+            ..Material::default()
+        };
+        let (l, lt) = (lobes(&Material::default(), 0.7), lobes(&plastic, 0.7));
+        let coat = |l: &Lobes, c: f32| specular_fresnel(l, c);
+        assert!((coat(&lt, 1.0) / lt.coat - tint * 0.04).abs().max_element() < 1e-6);
+        assert!((coat(&lt, 0.0) / lt.coat - Vec3::ONE).abs().max_element() < 1e-6);
+        assert!(
+            (coat(&l, 0.5) / l.coat - Vec3::splat(fresnel_dielectric(0.5, 1.5)))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        // The diffuse is layered under the coat's brightest channel (the untinted red).
+        assert!((lt.diffuse - l.diffuse).abs().max_element() < 1e-6);
+        assert!(lt.coat_albedo.z < lt.coat_albedo.x);
     }
 
     /// The dielectric Fresnel: F0 at normal incidence, 1 at grazing, and its cosine-weighted
