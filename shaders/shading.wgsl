@@ -116,6 +116,11 @@ fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     return 0.5 * a * a * (1.0 + b * b);
 }
 
+// shading::fresnel_blend: where f lies between f0 and 1, in [0, 1].
+fn fresnel_blend(f: f32, f0: f32) -> f32 {
+    return clamp((f - f0) / (1.0 - f0), 0.0, 1.0);
+}
+
 // shading::fresnel_dielectric_mean (Kulla & Conty's fit).
 fn fresnel_dielectric_mean(eta: f32) -> f32 {
     return (eta - 1.0) / (4.08567 + 1.00071 * eta);
@@ -297,7 +302,7 @@ fn lobes(m: Material, mu_in: f32) -> Lobes {
     var coat_albedo = vec3f(0.0);
     if (f0 > 0.0) {
         eta = ior_from_f0(f0);
-        let s_mean = clamp((fresnel_dielectric_mean(eta) - f0) / (1.0 - f0), 0.0, 1.0);
+        let s_mean = fresnel_blend(fresnel_dielectric_mean(eta), f0);
         let k = multiple_scattering(coat_blend(coat_f0, s_mean), e, e_avg);
         let s = ggx_s(rough, mu, sqrt(sqrt(f0)));
         coat = k * (1.0 - m.metallic);
@@ -321,7 +326,7 @@ fn lobes(m: Material, mu_in: f32) -> Lobes {
 
 // shading::specular_fresnel: the metal's and the coat's Fresnel at cos θh = c, each weighted.
 fn specular_fresnel(l: Lobes, c: f32) -> vec3f {
-    let s = clamp((fresnel_dielectric(c, l.eta) - l.f0) / (1.0 - l.f0), 0.0, 1.0);
+    let s = fresnel_blend(fresnel_dielectric(c, l.eta), l.f0);
     return l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.coat * coat_blend(l.coat_f0, s);
 }
 

@@ -532,7 +532,7 @@ impl GpuBeautyScene {
                 }, // env_conditional
                 wgpu::BindGroupEntry {
                     binding: 6,
-                    resource: ctx.bsdf_tables.as_entire_binding(),
+                    resource: ctx.bsdf_tables().as_entire_binding(),
                 }, // bsdf_tables
             ],
         });

@@ -165,8 +165,9 @@ pub struct GpuContext {
     aov_layout: wgpu::BindGroupLayout,
     /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables, materials).
     pub(crate) lighting_layout: wgpu::BindGroupLayout,
-    /// The GGX tables every beauty binds (`GpuBsdfTables`), uploaded once.
-    pub(crate) bsdf_tables: wgpu::Buffer,
+    /// The GGX tables every beauty binds (`GpuBsdfTables`), uploaded on the first beauty
+    /// (`bsdf_tables`).
+    bsdf_tables: OnceLock<wgpu::Buffer>,
     beauty_layout: wgpu::BindGroupLayout,
     /// Group 3 of the beauty kernels (their path records).
     work_layout: wgpu::BindGroupLayout,
@@ -472,6 +473,19 @@ pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 }
 
 impl GpuContext {
+    /// The GGX tables' uniform (`GpuBsdfTables`), uploaded on first use: an AOV-only run
+    /// never makes it.
+    pub(crate) fn bsdf_tables(&self) -> &wgpu::Buffer {
+        self.bsdf_tables.get_or_init(|| {
+            self.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("bsdf tables"),
+                    contents: bytemuck::bytes_of(&*GpuBsdfTables::new()),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+        })
+    }
+
     /// Pick an adapter (any wgpu adapter, software ones such as lavapipe included; wgpu's
     /// `WGPU_BACKEND`, `WGPU_ADAPTER_NAME` and `WGPU_POWER_PREF` environment variables apply),
     /// open a device with WebGPU's default limits (the adapter's own storage-binding and buffer
@@ -598,11 +612,6 @@ impl GpuContext {
             ],
         });
 
-        let bsdf_tables = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("bsdf tables"),
-            contents: bytemuck::bytes_of(&*GpuBsdfTables::new()),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
         let frame_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("frame"),
             size: std::mem::size_of::<GpuFrame>() as u64,
@@ -645,7 +654,7 @@ impl GpuContext {
             frame_buffer,
             aov_layout,
             lighting_layout,
-            bsdf_tables,
+            bsdf_tables: OnceLock::new(),
             beauty_layout,
             work_layout,
             beauty_fused: OnceLock::new(),

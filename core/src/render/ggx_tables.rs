@@ -17,7 +17,9 @@
 //! `e_entry`, `e_avg_entry` and `s_entry` with stratified visible-normal samples; the
 //! `stored_tables_match_their_definition` test recomputes entries and compares.
 
-use super::shading::{fresnel_dielectric, ggx_alpha, ggx_sample, ior_from_f0, smith_g1, smith_g2};
+use super::shading::{
+    fresnel_blend, fresnel_dielectric, ggx_alpha, ggx_sample, ior_from_f0, smith_g1, smith_g2,
+};
 use crate::rng::{random, Purpose};
 use glam::{Vec2, Vec3};
 
@@ -131,7 +133,7 @@ pub fn s_entry(rough: f32, mu: f32, z: f32, entry: u32, side: u32) -> f32 {
         .filter(|wi| wi.z > 0.0)
         .map(|wi| {
             let c = wo.dot((wo + wi).normalize());
-            (((fresnel_dielectric(c, eta) - f0) / (1.0 - f0)).clamp(0.0, 1.0)) as f64
+            fresnel_blend(fresnel_dielectric(c, eta), f0) as f64
         })
         .sum();
     (sum / (side * side) as f64) as f32

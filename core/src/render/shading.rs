@@ -145,6 +145,13 @@ pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
     0.5 * a * a * (1.0 + b * b)
 }
 
+/// Where a dielectric's reflectance `f` lies between its F0 `f0` and 1, in [0, 1]: the blend
+/// that carries its curve over to another F0 (Cycles' generalized Schlick of a true Fresnel).
+#[inline]
+pub fn fresnel_blend(f: f32, f0: f32) -> f32 {
+    ((f - f0) / (1.0 - f0)).clamp(0.0, 1.0)
+}
+
 /// The cosine-weighted mean of `fresnel_dielectric` over the hemisphere, for `eta` ≥ 1 (Kulla
 /// & Conty's fit, the one Cycles uses: within 0.006 of the integral for F0 from 0.02 to 0.25,
 /// 0.0023 at the usual 0.04).
@@ -289,7 +296,7 @@ pub fn lobes(m: &Material, mu: f32) -> Lobes {
     let coat_f0 = tint * f0;
     let (eta, coat, coat_albedo) = if f0 > 0.0 {
         let eta = ior_from_f0(f0);
-        let s_mean = ((fresnel_dielectric_mean(eta) - f0) / (1.0 - f0)).clamp(0.0, 1.0);
+        let s_mean = fresnel_blend(fresnel_dielectric_mean(eta), f0);
         let k = multiple_scattering(coat_blend(coat_f0, s_mean), e, e_avg);
         let s = ggx_tables::ggx_s(rough, mu, f0.sqrt().sqrt());
         (eta, k * (1.0 - m.metallic), k * coat_blend(coat_f0, s) * e)
@@ -327,7 +334,7 @@ pub fn lobes(m: &Material, mu: f32) -> Lobes {
 /// The specular lobe's Fresnel at cos θh = `c`: the metal's and the coat's, each weighted.
 #[inline]
 pub fn specular_fresnel(l: &Lobes, c: f32) -> Vec3 {
-    let s = ((fresnel_dielectric(c, l.eta) - l.f0) / (1.0 - l.f0)).clamp(0.0, 1.0);
+    let s = fresnel_blend(fresnel_dielectric(c, l.eta), l.f0);
     l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.coat * coat_blend(l.coat_f0, s)
 }
 
