@@ -79,6 +79,8 @@ struct Answer {
     shading_normal: vec3f,
     _pad: u32,
     uv: vec2f,     // the hit's texture coordinates (BeautyScene::material_at)
+    // The shading normal before the material's normal map bent it (the clearcoat's).
+    unmapped_normal: vec3f,
 }
 
 // A path between dispatches: beauty::trace_sample's locals, the SampleResult so far, the
@@ -664,7 +666,14 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let ns = facing.ns;
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
-        let l = lobes(m, wo_l.z);
+        // The clearcoat lies on the surface before its normal map bends it.
+        var l: Lobes;
+        if (m.clearcoat > 0.0 && any(hit.shading_normal != hit.unmapped_normal)) {
+            let nc = facing_normals(hit.geometric_normal, hit.unmapped_normal, (*s).dir).ns;
+            l = lobes_coated(m, wo_l, to_local(nc, basis.t, basis.b, ns));
+        } else {
+            l = lobes(m, wo_l.z);
+        }
         let p = hit.position;
         (*s).event_n = ng;
         if (lighting.light_count != 0u) {
@@ -764,11 +773,16 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
     // The glow of the surface the continuation found (beauty::BeautyScene::emission_at),
     // counted below where the CPU counts it: at the start of the surface's event, or as the
     // last bounce's light. One lookup site in the kernel.
+    let step = (*s).step;
     var glow = vec3f(0.0);
     if (lighting.emissive != 0u && next_prism != NO_PRISM) {
-        glow = emission_at(next_prism, next.uv);
+        // Seen along the camera ray, or the continuation's.
+        var seen_along = (*s).wi;
+        if (step == STEP_CAMERA) {
+            seen_along = (*s).dir;
+        }
+        glow = emission_at(next_prism, next.uv, next.geometric_normal, next.unmapped_normal, seen_along);
     }
-    let step = (*s).step;
     if (step == STEP_CAMERA) {
         let camera = path_camera_ray(*s);
         var gt = GroundHit(false, 0.0);
@@ -865,7 +879,7 @@ fn accumulate(i: u32, s: PathState) {
 }
 
 fn no_answer() -> Answer {
-    return Answer(vec3f(0.0), T_FAR, vec3f(0.0), NO_PRISM, vec3f(0.0), 0u, vec2f(0.0));
+    return Answer(vec3f(0.0), T_FAR, vec3f(0.0), NO_PRISM, vec3f(0.0), 0u, vec2f(0.0), vec3f(0.0));
 }
 
 // A new path: the camera step of the pixel's sample.
@@ -888,11 +902,14 @@ fn trace_query(q: QueryRec, px: PixelRef) -> Answer {
 // them.
 fn query_answer(q: QueryRec, found: Hit) -> Answer {
     var hit = found;
+    var unmapped = vec3f(0.0);
     if (q.any == 0u && hit.prism != NO_PRISM) {
         fill_surface(&hit);
+        unmapped = hit.shading_normal;
         hit = shade_hit(hit);
     }
-    return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u, hit.uv);
+    return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u, hit.uv,
+        unmapped);
 }
 
 // Workgroup edge = gpu::layout::WORKGROUP (the host dispatches div_ceil(tile, 8) groups).

@@ -166,9 +166,9 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 336 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// GpuMaterial, 352 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
 // normal textures, its normal map's scale and bias (beauty::NormalTex), its emission and
-// emission texture, and its specular tint.
+// emission texture, its specular tint, and its clearcoat's weight and roughness.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -187,7 +187,11 @@ struct SurfaceMaterial {
     _pad3: u32,
     emission_tex: MaterialTexture,
     specular_tint: vec3f,
+    clearcoat: f32,
+    clearcoat_roughness: f32,
     _pad4: u32,
+    _pad5: u32,
+    _pad6: u32,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -1,7 +1,8 @@
 // shading.wgsl — the material and MIS weights, the mirror of core/src/render/shading.rs
 // function by function (and of render::ggx_tables' lookups): a Lambert base under a dielectric
-// GGX coat and a GGX metal (Smith height-correlated G2, multiple-scattering energy from the
-// tables, visible-normal sampling, Heitz 2018), a perfect mirror below MIRROR_ROUGHNESS, the power heuristic
+// GGX layer and a GGX metal, an optional clearcoat over both (Smith height-correlated G2,
+// multiple-scattering energy from the tables, visible-normal sampling, Heitz 2018), a perfect
+// mirror below MIRROR_ROUGHNESS, the power heuristic
 // and the ray-origin offset. Directions are in the local shading frame (z = shading normal,
 // `onb`), `wo` towards the viewer, `wi` towards the light. The filmic tonemap and the sRGB
 // curve are applied on the host by the CPU's own writer (render::output::write_beauty).
@@ -18,7 +19,12 @@ struct Material {
     metallic: f32,
     specular: f32,
     specular_tint: vec3f,
+    clearcoat: f32,
+    clearcoat_roughness: f32,
 }
+
+// shading::CLEARCOAT_IOR.
+const CLEARCOAT_IOR: f32 = 1.5;
 
 // shading::luminance (Rec. 709).
 fn luminance(c: vec3f) -> f32 {
@@ -264,12 +270,40 @@ struct Lobes {
     metal: vec3f,
     eta: f32,
     f0: f32,
-    coat_f0: vec3f,
-    coat: vec3f,
-    coat_albedo: vec3f,
+    dielectric_f0: vec3f,
+    dielectric: vec3f,
+    dielectric_albedo: vec3f,
     alpha: f32,
     mirror: bool,
     p_specular: f32,
+    clearcoat: f32,
+    clearcoat_alpha: f32,
+    clearcoat_mirror: bool,
+    clearcoat_t: vec3f,
+    clearcoat_b: vec3f,
+    clearcoat_n: vec3f,
+    p_clearcoat: f32,
+}
+
+// Lobes::to_clearcoat: a local direction in the clearcoat's frame.
+fn to_clearcoat(l: Lobes, v: vec3f) -> vec3f {
+    return to_local(v, l.clearcoat_t, l.clearcoat_b, l.clearcoat_n);
+}
+
+// shading::clearcoat_albedo: the clearcoat's albedo estimate at cos θ = mu, per unit weight.
+fn clearcoat_albedo(roughness: f32, mu: f32) -> f32 {
+    let r = (CLEARCOAT_IOR - 1.0) / (CLEARCOAT_IOR + 1.0);
+    let f0 = r * r;
+    return f0 + (1.0 - f0) * ggx_s(clamp(roughness, 0.0, 1.0), mu, sqrt(sqrt(f0)));
+}
+
+// shading::clearcoat_through: what m's clearcoat lets through at cos θ = mu.
+fn clearcoat_through(m: Material, mu: f32) -> f32 {
+    let w = clamp(m.clearcoat, 0.0, 1.0);
+    if (w <= 0.0) {
+        return 1.0;
+    }
+    return clamp(1.0 - w * clearcoat_albedo(m.clearcoat_roughness, clamp(mu, 0.0, 1.0)), 0.0, 1.0);
 }
 
 // shading::multiple_scattering: 1 + Fms (1 − E)/E.
@@ -279,13 +313,34 @@ fn multiple_scattering(fss: vec3f, e: f32, e_avg: f32) -> vec3f {
     return vec3f(1.0) + fms * missing;
 }
 
-// shading::coat_blend.
-fn coat_blend(coat_f0: vec3f, s: f32) -> vec3f {
-    return coat_f0 + (vec3f(1.0) - coat_f0) * s;
+// shading::dielectric_blend.
+fn dielectric_blend(dielectric_f0: vec3f, s: f32) -> vec3f {
+    return dielectric_f0 + (vec3f(1.0) - dielectric_f0) * s;
 }
 
-// shading::lobes: the lobes of m seen at cos θo = mu.
-fn lobes(m: Material, mu_in: f32) -> Lobes {
+// shading::share: the chance of sampling a lobe of albedo a against one of b.
+fn share(a: f32, b: f32) -> f32 {
+    if (a <= 0.0) {
+        return 0.0;
+    }
+    if (b <= 0.0) {
+        return 1.0;
+    }
+    return clamp(a / (a + b), 0.1, 0.9);
+}
+
+// shading::lobes: the lobes of m seen at cos θo = mu, its clearcoat about the shading normal.
+fn lobes(m: Material, mu: f32) -> Lobes {
+    return lobes_about(m, mu, vec3f(0.0, 0.0, 1.0), mu);
+}
+
+// shading::lobes_coated: the lobes of m seen from wo, its clearcoat about clearcoat_n.
+fn lobes_coated(m: Material, wo: vec3f, clearcoat_n: vec3f) -> Lobes {
+    return lobes_about(m, wo.z, clearcoat_n, dot(wo, clearcoat_n));
+}
+
+// shading::lobes_about.
+fn lobes_about(m: Material, mu_in: f32, clearcoat_n: vec3f, mu_c: f32) -> Lobes {
     let rough = clamp(m.roughness, 0.0, 1.0);
     let mu = clamp(mu_in, 0.0, 1.0);
     let e = ggx_e(rough, mu);
@@ -296,48 +351,49 @@ fn lobes(m: Material, mu_in: f32) -> Lobes {
     let metal_mean = metal_f0 + (vec3f(1.0) - metal_f0) / 21.0 - metal_b / 126.0;
     let metal = multiple_scattering(metal_mean, e, e_avg) * m.metallic;
     let f0 = clamp(m.specular, 0.0, 0.99);
-    let coat_f0 = tint * f0;
+    let dielectric_f0 = tint * f0;
     var eta = 1.0;
-    var coat = vec3f(0.0);
-    var coat_albedo = vec3f(0.0);
+    var dielectric = vec3f(0.0);
+    var dielectric_albedo = vec3f(0.0);
     if (f0 > 0.0) {
         eta = ior_from_f0(f0);
         let s_mean = fresnel_blend(fresnel_dielectric_mean(eta), f0);
-        let k = multiple_scattering(coat_blend(coat_f0, s_mean), e, e_avg);
+        let k = multiple_scattering(dielectric_blend(dielectric_f0, s_mean), e, e_avg);
         let s = ggx_s(rough, mu, sqrt(sqrt(f0)));
-        coat = k * (1.0 - m.metallic);
-        coat_albedo = k * coat_blend(coat_f0, s) * e;
+        dielectric = k * (1.0 - m.metallic);
+        dielectric_albedo = k * dielectric_blend(dielectric_f0, s) * e;
     }
-    let through = clamp(1.0 - max_element(coat_albedo), 0.0, 1.0);
+    let through = clamp(1.0 - max_element(dielectric_albedo), 0.0, 1.0);
     let diffuse = m.base_color * ((1.0 - m.metallic) * through);
-    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * luminance(coat_albedo);
+    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * luminance(dielectric_albedo);
     let d = luminance(diffuse);
-    var p_specular = 0.0;
-    if (s > 0.0) {
-        if (d <= 0.0) {
-            p_specular = 1.0;
-        } else {
-            p_specular = clamp(s / (s + d), 0.1, 0.9);
-        }
-    }
-    return Lobes(diffuse, metal_f0, metal_b, metal, eta, f0, coat_f0, coat, coat_albedo,
-        ggx_alpha(m.roughness), is_mirror(m), p_specular);
+    let p_specular = share(s, d);
+    let clearcoat = clamp(m.clearcoat, 0.0, 1.0);
+    let under = clearcoat_through(m, mu_c);
+    let p_clearcoat = share(1.0 - under, under * (s + d));
+    let basis = onb(clearcoat_n);
+    return Lobes(diffuse * under, metal_f0, metal_b, metal * under, eta, f0, dielectric_f0,
+        dielectric * under, dielectric_albedo, ggx_alpha(m.roughness), is_mirror(m), p_specular,
+        clearcoat, ggx_alpha(m.clearcoat_roughness), m.clearcoat_roughness < MIRROR_ROUGHNESS,
+        basis.t, basis.b, clearcoat_n, p_clearcoat);
 }
 
-// shading::specular_fresnel: the metal's and the coat's Fresnel at cos θh = c, each weighted.
+// shading::specular_fresnel: the metal's and the dielectric's Fresnel at cos θh = c, each
+// weighted.
 fn specular_fresnel(l: Lobes, c: f32) -> vec3f {
     let s = fresnel_blend(fresnel_dielectric(c, l.eta), l.f0);
-    return l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.coat * coat_blend(l.coat_f0, s);
+    return l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.dielectric * dielectric_blend(l.dielectric_f0, s);
 }
 
 // shading::guide_albedo: the denoiser's albedo guide.
 fn guide_albedo(m: Material) -> vec3f {
     let l = lobes(m, 1.0);
-    return min(l.diffuse + specular_fresnel(l, 1.0), vec3f(1.0));
+    let clearcoat = l.clearcoat * fresnel_dielectric(1.0, CLEARCOAT_IOR);
+    return min(l.diffuse + specular_fresnel(l, 1.0) + vec3f(clearcoat), vec3f(1.0));
 }
 
-// shading::bsdf_eval: BSDF × cos θi of the non-delta lobes.
-fn bsdf_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
+// shading::base_eval: BSDF × cos θi of the layers under the clearcoat (non-delta lobes).
+fn base_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
         return vec3f(0.0);
     }
@@ -349,8 +405,26 @@ fn bsdf_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
     return diffuse + specular_fresnel(l, c) * ggx_eval(wo, wi, l.alpha);
 }
 
-// shading::bsdf_pdf.
-fn bsdf_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
+// shading::clearcoat_eval: the clearcoat's lobe × cos θi, directions in its frame.
+fn clearcoat_eval(l: Lobes, wo_c: vec3f, wi_c: vec3f) -> f32 {
+    if (l.clearcoat <= 0.0 || l.clearcoat_mirror || wo_c.z <= 0.0 || wi_c.z <= 0.0) {
+        return 0.0;
+    }
+    let c = dot(wo_c, normalize_glam(wo_c + wi_c));
+    return l.clearcoat * fresnel_dielectric(c, CLEARCOAT_IOR) * ggx_eval(wo_c, wi_c, l.clearcoat_alpha);
+}
+
+// shading::bsdf_eval: BSDF × cos θi of the non-delta lobes.
+fn bsdf_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
+    let f = base_eval(l, wo, wi);
+    if (l.clearcoat <= 0.0) {
+        return f;
+    }
+    return f + vec3f(clearcoat_eval(l, to_clearcoat(l, wo), to_clearcoat(l, wi)));
+}
+
+// shading::base_pdf.
+fn base_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
     if (wo.z <= 0.0 || wi.z <= 0.0) {
         return 0.0;
     }
@@ -362,6 +436,21 @@ fn bsdf_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
     return diffuse + ps * ggx_pdf(wo, wi, l.alpha);
 }
 
+// shading::bsdf_pdf.
+fn bsdf_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
+    let pc = l.p_clearcoat;
+    let base = (1.0 - pc) * base_pdf(l, wo, wi);
+    if (pc <= 0.0 || l.clearcoat_mirror) {
+        return base;
+    }
+    let wo_c = to_clearcoat(l, wo);
+    let wi_c = to_clearcoat(l, wi);
+    if (wo_c.z <= 0.0 || wi_c.z <= 0.0) {
+        return base;
+    }
+    return base + pc * ggx_pdf(wo_c, wi_c, l.clearcoat_alpha);
+}
+
 // shading::BsdfSample (`ok` false: the CPU's None).
 struct BsdfSample {
     ok: bool,
@@ -371,26 +460,46 @@ struct BsdfSample {
     delta: bool,
 }
 
-// shading::bsdf_sample: u_lobe picks the lobe, u the direction in it.
+// shading::bsdf_sample: u_lobe picks the lobe (the clearcoat below p_clearcoat, then the
+// specular or the diffuse under it), u the direction in it.
 fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
     let none = BsdfSample(false, vec3f(0.0), vec3f(0.0), 0.0, false);
-    if (wo.z <= 0.0) {
-        return none;
-    }
-    let ps = l.p_specular;
-    let specular = u_lobe < ps;
-    if (specular && l.mirror) {
-        let wi = vec3f(-wo.x, -wo.y, wo.z);
-        return BsdfSample(true, wi, specular_fresnel(l, wo.z) / ps, 0.0, true);
-    }
+    let pc = l.p_clearcoat;
     var wi: vec3f;
-    if (specular) {
-        wi = ggx_sample(wo, l.alpha, u);
+    if (u_lobe < pc) {
+        let wo_c = to_clearcoat(l, wo);
+        if (wo_c.z <= 0.0) {
+            return none;
+        }
+        var wi_c: vec3f;
+        if (l.clearcoat_mirror) {
+            wi_c = vec3f(-wo_c.x, -wo_c.y, wo_c.z);
+        } else {
+            wi_c = ggx_sample(wo_c, l.clearcoat_alpha, u);
+        }
+        wi = from_local(wi_c, l.clearcoat_t, l.clearcoat_b, l.clearcoat_n);
+        if (l.clearcoat_mirror) {
+            let f = l.clearcoat * fresnel_dielectric(wo_c.z, CLEARCOAT_IOR);
+            return BsdfSample(true, wi, vec3f(f / pc), 0.0, true);
+        }
     } else {
-        wi = cosine_sample(u);
+        if (wo.z <= 0.0) {
+            return none;
+        }
+        let ps = l.p_specular;
+        let specular = (u_lobe - pc) < ps * (1.0 - pc);
+        if (specular && l.mirror) {
+            let wm = vec3f(-wo.x, -wo.y, wo.z);
+            return BsdfSample(true, wm, specular_fresnel(l, wo.z) / (ps * (1.0 - pc)), 0.0, true);
+        }
+        if (specular) {
+            wi = ggx_sample(wo, l.alpha, u);
+        } else {
+            wi = cosine_sample(u);
+        }
     }
     let pdf = bsdf_pdf(l, wo, wi);
-    if (wi.z <= 0.0 || pdf <= 0.0) {
+    if (pdf <= 0.0) {
         return none;
     }
     return BsdfSample(true, wi, bsdf_eval(l, wo, wi) / pdf, pdf, false);

@@ -98,7 +98,8 @@ fn material_index(prism: u32) -> u32 {
 // times their texture channels there (one lookup where both read the same texture).
 fn material_at(prism: u32, uv: vec2f) -> Material {
     let s = materials[material_index(prism)];
-    var m = Material(s.base_color, s.roughness, s.metallic, s.specular, s.specular_tint);
+    var m = Material(s.base_color, s.roughness, s.metallic, s.specular, s.specular_tint,
+        s.clearcoat, s.clearcoat_roughness);
     if (s.color_tex.width != 0u) {
         m.base_color *= texture_sample(s.color_tex, uv);
     }
@@ -118,13 +119,22 @@ fn material_at(prism: u32, uv: vec2f) -> Material {
     return m;
 }
 
-// BeautyScene::emission_at: the radiance the surface of prism `prism` emits at `uv`.
-fn emission_at(prism: u32, uv: vec2f) -> vec3f {
+// BeautyScene::emission_at: the radiance the surface of prism `prism` emits at `uv` towards
+// -dir, under what its clearcoat lets through at that angle (about `unmapped`, the hit's
+// shading normal before its normal map, turned by facing_normals with `geometric`).
+fn emission_at(prism: u32, uv: vec2f, geometric: vec3f, unmapped: vec3f, dir: vec3f) -> vec3f {
     let s = materials[material_index(prism)];
+    var glow = s.emission;
     if (s.emission_tex.width != 0u) {
-        return s.emission * texture_sample(s.emission_tex, uv);
+        glow = s.emission * texture_sample(s.emission_tex, uv);
     }
-    return s.emission;
+    if (s.clearcoat <= 0.0 || all(glow == vec3f(0.0))) {
+        return glow;
+    }
+    let mu = dot(facing_normals(geometric, unmapped, dir).ns, -dir);
+    let m = Material(s.base_color, s.roughness, s.metallic, s.specular, s.specular_tint,
+        s.clearcoat, s.clearcoat_roughness);
+    return glow * clearcoat_through(m, mu);
 }
 
 // The tangent of corner `k` of prism `prism` (tangent::corner_tangents: xyz and the

@@ -226,6 +226,14 @@ pub struct LookArgs {
     /// KHR_materials_specular's colour), else white.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
     pub specular_tint: Option<[f32; 3]>,
+    /// Clearcoat weight of every material, in [0, 1] (Blender's Coat Weight: a glossy
+    /// dielectric layer over the rest, index 1.5); default: each material's (glTF
+    /// KHR_materials_clearcoat, USD clearcoat, .mtl Pc), else none.
+    #[arg(long, value_name = "W")]
+    pub clearcoat: Option<f32>,
+    /// Clearcoat roughness of every material, in [0, 1]; default: each material's, else 0.03.
+    #[arg(long, value_name = "R")]
+    pub clearcoat_roughness: Option<f32>,
     /// Surface bounces per path, 1..=4 (1 = direct light only).
     #[arg(long, default_value_t = 2)]
     pub bounces: u32,

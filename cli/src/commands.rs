@@ -360,6 +360,8 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         scene_lights: !l.no_scene_lights,
         specular: l.specular,
         specular_tint: l.specular_tint.map(Vec3::from),
+        clearcoat: l.clearcoat,
+        clearcoat_roughness: l.clearcoat_roughness,
         bounces: l.bounces,
         ground: l.ground,
         exposure_ev: l.exposure,

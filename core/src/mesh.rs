@@ -283,6 +283,11 @@ pub struct MeshMaterial {
     /// Blender imports as the Principled BSDF's Specular Tint): the dielectric's F0 times it,
     /// a metal's reflectance at grazing angles towards it (F82); `None`: white.
     pub specular_tint: Option<[f32; 3]>,
+    /// The clearcoat's weight in [0, 1] (glTF `KHR_materials_clearcoat`'s `clearcoatFactor`,
+    /// USD's `clearcoat`, an `.mtl`'s `Pc`; 0: none) and its roughness (`clearcoatRoughness…`,
+    /// `Pcr`). Their textures are not read.
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
 }
 
 /// The reflectance at normal incidence of a dielectric of index of refraction `ior` in air,
@@ -307,6 +312,8 @@ impl MeshMaterial {
             emission_texture: None,
             specular: None,
             specular_tint: None,
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
         }
     }
 

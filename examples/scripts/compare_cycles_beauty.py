@@ -3,14 +3,16 @@ same displaced surface, camera, material, HDRI environment and the file's lights
 importer makes them), rendered by both; prints one JSON line of the differences.
 
     .venv/bin/python examples/scripts/compare_cycles_beauty.py examples/sphere/sphere.glb \
-        [--res 128] [--spp 256] [--roughness 0.5] [--metallic 0] [--env-rotate 0] [--file-materials]
+        [--res 128] [--spp 256] [--roughness 0.5] [--metallic 0] [--clearcoat 0]
+        [--clearcoat-roughness 0.03] [--env-rotate 0] [--file-materials]
 
 The environment is a generated 128 x 64 equirect OpenEXR whose colour changes with azimuth
 and elevation (red, green, blue and yellow quarters around the horizon, a blue sky above), so a
 turned or mirrored environment shows in the asset's colour, not only in its shading. Cycles: Principled BSDF (base colour, roughness, metallic, IOR 1.5, i.e. F0 = 0.04),
 true displacement with adaptive dicing at 0.5 px, 4 bounces, no clamping, no denoising, box
 pixel filter, the Environment Texture node (linear interpolation). prismbake: `render --aov
-beauty --env` with `--base-color`, `--roughness`, `--metallic`, `--specular 0.04`, `--bounces
+beauty --env` with `--base-color`, `--roughness`, `--metallic`, `--specular 0.04`,
+`--clearcoat`, `--clearcoat-roughness` (Blender's Coat Weight and Coat Roughness), `--bounces
 4`. With `--file-materials` both keep the asset's own materials instead (Blender's importer's
 node trees, the displacement added to each; prismbake with no material flags): textures,
 normal maps, emission and all. Both write linear EXRs; the comparison reads those.
@@ -110,6 +112,8 @@ def render_cycles(a, disp, out_exr, env):
             bsdf.inputs["Roughness"].default_value = a.roughness
             bsdf.inputs["Metallic"].default_value = a.metallic
             bsdf.inputs["IOR"].default_value = 1.5
+            bsdf.inputs["Coat Weight"].default_value = a.clearcoat
+            bsdf.inputs["Coat Roughness"].default_value = a.clearcoat_roughness
             displace(mat)
             ob.data.materials.clear()
             ob.data.materials.append(mat)
@@ -160,6 +164,8 @@ def main():
     ap.add_argument("--roughness", type=float, default=0.5)
     ap.add_argument("--metallic", type=float, default=0.0)
     ap.add_argument("--base-color", type=lambda s: tuple(float(x) for x in s.split(",")), default=(0.8, 0.8, 0.8))
+    ap.add_argument("--clearcoat", type=float, default=0.0, help="Coat Weight / --clearcoat")
+    ap.add_argument("--clearcoat-roughness", type=float, default=0.03)
     ap.add_argument("--env-rotate", type=float, default=0.0, help="passed to prismbake's --env-rotate")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--prismbake", default=os.environ.get("PRISMBAKE_BIN", str(ROOT / "target/release/prismbake")))
@@ -179,7 +185,8 @@ def main():
     cycles_s = render_cycles(a, disp, out / "cycles.exr", env)
     material_flags = [] if a.file_materials else [
         "--base-color", ",".join(map(str, a.base_color)), "--roughness", str(a.roughness),
-        "--metallic", str(a.metallic), "--specular", "0.04", "--specular-tint", "1,1,1"]
+        "--metallic", str(a.metallic), "--specular", "0.04", "--specular-tint", "1,1,1",
+        "--clearcoat", str(a.clearcoat), "--clearcoat-roughness", str(a.clearcoat_roughness)]
     t = time.perf_counter()
     pb = subprocess.run([a.prismbake, "render", a.asset, "--aov", "beauty", "--env", str(env),
                          "--env-rotate", str(a.env_rotate), "--res", f"{a.res}x{a.res}", "--spp", str(a.spp),

@@ -299,6 +299,8 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             emission: m.emission.to_array(),
             emission_tex: m.emission_texture.map_or(Default::default(), |i| tex(i, 0)),
             specular_tint: m.material.specular_tint.to_array(),
+            clearcoat: m.material.clearcoat,
+            clearcoat_roughness: m.material.clearcoat_roughness,
             ..Default::default()
         })
         .collect()

@@ -23,7 +23,7 @@ pub const WORKGROUP: u32 = 8;
 /// `shaders/beauty.wgsl`: the path's state between dispatches, its three ray slots and their
 /// answers). Only the GPU reads it; the host sizes the buffer (tile² records) and the layout
 /// test checks this against the WGSL.
-pub const PATH_RECORD_BYTES: u64 = 432;
+pub const PATH_RECORD_BYTES: u64 = 448;
 
 /// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
 /// index of its stitch record (`StitchField::record_index`).
@@ -356,10 +356,10 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 336 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// One material of a beauty scene, 352 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
 /// buffer, its normal map's scale and bias (`beauty::NormalTex`), its emission and emission
-/// texture, and its specular tint.
+/// texture, its specular tint, and its clearcoat's weight and roughness.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -380,7 +380,11 @@ pub struct GpuMaterial {
     pub _pad3: u32,
     pub emission_tex: GpuMaterialTexture,
     pub specular_tint: [f32; 3],
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
     pub _pad4: u32,
+    pub _pad5: u32,
+    pub _pad6: u32,
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -446,7 +450,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuLighting>() == 1136);
     assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 336);
+    assert!(std::mem::size_of::<GpuMaterial>() == 352);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
     assert!(std::mem::size_of::<GpuBsdfTables>() == 20_608);
 };
@@ -634,7 +638,11 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 _pad3,
                 emission_tex,
                 specular_tint,
-                _pad4
+                clearcoat,
+                clearcoat_roughness,
+                _pad4,
+                _pad5,
+                _pad6
             }
         ),
         layout!("BsdfTables", GpuBsdfTables { e, e_avg, s }),

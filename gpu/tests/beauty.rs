@@ -555,6 +555,9 @@ fn materials_and_textures_per_prism_match_the_cpu() {
             material: Material {
                 base_color: Vec3::new(1.0, 0.9, 0.8),
                 specular_tint: Vec3::new(0.4, 1.0, 0.7),
+                // Its glow dims under the clearcoat at grazing angles.
+                clearcoat: 0.9,
+                clearcoat_roughness: 0.25,
                 ..Material::default()
             },
             texture: Some(0),
@@ -571,6 +574,9 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 metallic: 1.0,
                 specular: 0.04,
                 specular_tint: Vec3::new(0.6, 0.9, 1.0),
+                // A rough clearcoat over the bumps, about the normal before they bend it.
+                clearcoat: 0.8,
+                clearcoat_roughness: 0.15,
             },
             normal_texture: Some(NormalTex {
                 texture: 3,
@@ -656,6 +662,7 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
                 metallic: 1.0,
                 specular: 0.04,
                 specular_tint: Vec3::new(1.0, 0.7, 0.4),
+                ..Material::default()
             },
         ),
         (
@@ -666,6 +673,18 @@ fn metal_and_mirror_under_a_sun_match_the_cpu() {
                 metallic: 0.5,
                 specular: 0.04,
                 specular_tint: Vec3::new(0.5, 0.8, 1.0),
+                ..Material::default()
+            },
+        ),
+        (
+            // A mirror clearcoat (a delta lobe) over a rough dark dielectric.
+            "clearcoat",
+            Material {
+                base_color: Vec3::new(0.1, 0.05, 0.3),
+                roughness: 0.6,
+                clearcoat: 1.0,
+                clearcoat_roughness: 0.0,
+                ..Material::default()
             },
         ),
     ] {

@@ -97,6 +97,8 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                     .specular()
                     .map(|s| s.specular_color_factor())
                     .filter(|c| *c != [1.0; 3]),
+                clearcoat: clearcoat_factor(&m, "clearcoatFactor"),
+                clearcoat_roughness: clearcoat_factor(&m, "clearcoatRoughnessFactor"),
             })
         })
         .collect::<Result<_>>()?;
@@ -107,6 +109,16 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
         super::attach_camera(&mut mesh, names, world, projection, None, true);
     }
     Ok(mesh)
+}
+
+/// A factor of `m`'s `KHR_materials_clearcoat` (which the gltf crate has no accessor for),
+/// clamped to [0, 1]; 0 where the extension or the factor is absent or not a number, as the
+/// extension's defaults say.
+fn clearcoat_factor(m: &gltf::Material, key: &str) -> f32 {
+    m.extension_value("KHR_materials_clearcoat")
+        .and_then(|e| e.get(key))
+        .and_then(|v| v.as_f64())
+        .map_or(0.0, |v| (v as f32).clamp(0.0, 1.0))
 }
 
 /// A textureInfo's texture (`texture_ref`), with its `KHR_texture_transform`.

@@ -6,7 +6,8 @@
 //! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
 //! importer does; `-clamp on` clamps it, `-s`/`-o` scale and offset its UVs) and the
 //! PBR extension's `Pr`/`Pm` (roughness, metallic) and their maps `map_Pr`/`map_Pm` (data
-//! textures, one channel: `-imfchan`, else red), `Ke`/`map_Ke` (emission), and a
+//! textures, one channel: `-imfchan`, else red), `Pc`/`Pcr` (the clearcoat's weight and
+//! roughness), `Ke`/`map_Ke` (emission), and a
 //! tangent-space normal map: `norm`, or
 //! `map_Bump`/`bump` as Blender's exporter and importer use them (`-bm` its strength; a grey
 //! bump map is not read, `render::lookdev::grey_normal_map`). A missing .mtl or an undefined
@@ -120,7 +121,8 @@ struct MtlMap {
     strength: f32,
 }
 
-/// One .mtl file's `newmtl` entries (`Kd`, `Ke`, `Pr`, `Pm` and their maps, `norm`; the
+/// One .mtl file's `newmtl` entries (`Kd`, `Ke`, `Pr`, `Pm` and their maps, `Pc`, `Pcr`,
+/// `norm`; the
 /// rest is ignored). A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the
 /// channel its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey
 /// image's one channel); `-clamp on` clamps its UVs, `-s` scales and `-o` offsets them, `-bm`
@@ -225,6 +227,11 @@ fn parse_mtl(
             }
             "Pr" => m.roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
             "Pm" => m.metallic = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
+            // The clearcoat's weight and roughness, as Blender's importer reads them.
+            "Pc" => m.clearcoat = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
+            "Pcr" => {
+                m.clearcoat_roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0)
+            }
             // A map replaces its value (the factor becomes 1), as Kd's does.
             "map_Kd" => {
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;

@@ -1967,7 +1967,8 @@ fn mesh_displacement(path: &Path, stage: &Stage, prim: &Prim) -> Result<Option<U
 /// The material bound to a mesh prim as the beauty reads it, if it is a `UsdPreviewSurface`:
 /// `diffuseColor` (a value, or a `UsdUVTexture`'s `rgb` read through the mesh's UV primvar
 /// `uv_name`), `roughness` and `metallic` (values, UsdPreviewSurface's defaults where
-/// unauthored, or one channel of a `UsdUVTexture`). Returns the material prim too.
+/// unauthored, or one channel of a `UsdUVTexture`), `ior`, `clearcoat` and
+/// `clearcoatRoughness` (values), and the emission. Returns the material prim too.
 fn mesh_material(
     path: &Path,
     stage: &Stage,
@@ -2026,6 +2027,9 @@ fn mesh_material(
     {
         m.specular = crate::mesh::ior_f0(ior as f32);
     }
+    // clearcoat and clearcoatRoughness (values; UsdPreviewSurface's defaults 0 and 0.01).
+    m.clearcoat = float("clearcoat", 0.0)?;
+    m.clearcoat_roughness = float("clearcoatRoughness", 0.01)?;
     // emissiveColor: a value (UsdPreviewSurface's default: black), or a texture's colour.
     let emissive = property_path(path, &surface, "inputs:emissiveColor")?;
     match connected_output(path, stage, &emissive)? {

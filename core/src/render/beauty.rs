@@ -260,15 +260,22 @@ impl BeautyScene<'_> {
         m
     }
 
-    /// The radiance a hit's surface emits (either side): its material's emission times its
-    /// emission texture there.
+    /// The radiance a hit's surface emits (either side) towards `-dir`: its material's
+    /// emission times its emission texture there, under what its clearcoat (if any) lets
+    /// through at that angle (`shading::clearcoat_through`, about the hit's shading normal
+    /// before a normal map bends it).
     #[inline]
-    pub fn emission_at(&self, hit: &Hit) -> Vec3 {
+    pub fn emission_at(&self, hit: &Hit, dir: Vec3) -> Vec3 {
         let s = &self.materials[self.material_index(hit.prism)];
-        match s.emission_texture {
+        let glow = match s.emission_texture {
             Some(t) => s.emission * self.textures[t as usize].sample(hit.uv),
             None => s.emission,
+        };
+        if s.material.clearcoat <= 0.0 || glow == Vec3::ZERO {
+            return glow;
         }
+        let mu = facing_normals(hit, dir).1.dot(-dir);
+        glow * shading::clearcoat_through(&s.material, mu)
     }
 
     /// The hit as the beauty shades it: its shading normal bent by its material's normal map,
@@ -541,7 +548,8 @@ fn escape_radiance(s: &BeautyScene, lights: &LightsAt, wi: Vec3, bs: &shading::B
     l + lights.escape(wi, (!bs.delta).then_some(bs.pdf))
 }
 
-/// Radiance leaving a camera hit towards the camera: the path tracer proper.
+/// Radiance leaving a camera hit (as the intersector found it: `shade_hit` applies its normal
+/// map here) towards the camera: the path tracer proper.
 fn surface_radiance(
     isect: &dyn Intersector,
     s: &BeautyScene,
@@ -556,14 +564,23 @@ fn surface_radiance(
     let mut radiance = Vec3::ZERO;
     for bounce in 0..s.bounces {
         if s.emissive {
-            radiance += throughput * s.emission_at(&hit);
+            radiance += throughput * s.emission_at(&hit, dir);
         }
         let m = &s.material_at(&hit);
         let wo = -dir;
-        let (ng, ns) = facing_normals(&hit, dir);
+        // The clearcoat lies on the surface before its normal map bends it.
+        let unmapped = hit.shading_normal;
+        let shaded = s.shade_hit(hit);
+        let (ng, ns) = facing_normals(&shaded, dir);
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
-        let l = &shading::lobes(m, wo_l.z);
+        let l = &match m.clearcoat > 0.0 && shaded.shading_normal != unmapped {
+            true => {
+                let nc = facing_normals(&hit, dir).1;
+                shading::lobes_coated(m, wo_l, shading::to_local(nc, t, b, ns))
+            }
+            false => shading::lobes(m, wo_l.z),
+        };
         let p = hit.position;
         let bctx = RayContext {
             bounce: bounce + 1,
@@ -646,7 +663,7 @@ fn surface_radiance(
                 n.rays += 1;
                 radiance += throughput
                     * match isect.intersect(&ray, &bctx) {
-                        Some(h) if s.emissive => s.emission_at(&h) + met(h.t),
+                        Some(h) if s.emissive => s.emission_at(&h, wi) + met(h.t),
                         Some(h) => met(h.t),
                         None => escape_radiance(s, &lights, wi, &bs) + met(f32::INFINITY),
                     };
@@ -669,7 +686,7 @@ fn surface_radiance(
         match isect.intersect(&ray, &bctx) {
             Some(h) => {
                 radiance += throughput * met(h.t);
-                hit = s.shade_hit(h);
+                hit = h;
                 dir = wi;
             }
             None => {
@@ -690,13 +707,13 @@ fn trace_sample(
     n: &mut BeautyCounters,
 ) -> SampleResult {
     n.rays += 1;
-    let hit = isect.intersect(ray, ctx).map(|h| s.shade_hit(h));
+    let hit = isect.intersect(ray, ctx);
     let ground_t = s.ground.as_ref().and_then(|g| ground_hit(g, ray));
     match (hit, ground_t) {
         (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => SampleResult {
             radiance: surface_radiance(isect, s, h, ray.dir, ctx, n),
             surface: true,
-            normal: facing_normals(&h, ray.dir).1,
+            normal: facing_normals(&s.shade_hit(h), ray.dir).1,
             albedo: shading::guide_albedo(&s.material_at(&h)),
             ..Default::default()
         },

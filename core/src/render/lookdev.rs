@@ -23,7 +23,7 @@ use super::job::{
     RenderSummary,
 };
 use super::lights::{Light, LightSet, MAX_LIGHTS};
-use super::shading::Material;
+use super::shading::{Material, DEFAULT_CLEARCOAT_ROUGHNESS};
 use super::{contact_sheet, output, render_aovs, Aov, AovImage, RenderSettings};
 use crate::accel::Scene;
 use crate::asset;
@@ -82,6 +82,11 @@ pub struct LookdevOptions {
     /// The specular tint of every material (`--specular-tint`); `None`: each material's own
     /// (glTF `KHR_materials_specular`'s colour), else white.
     pub specular_tint: Option<Vec3>,
+    /// The clearcoat weight and roughness of every material (`--clearcoat`,
+    /// `--clearcoat-roughness`); `None`: each material's own (glTF `KHR_materials_clearcoat`,
+    /// USD's `clearcoat`), else none and `DEFAULT_CLEARCOAT_ROUGHNESS`.
+    pub clearcoat: Option<f32>,
+    pub clearcoat_roughness: Option<f32>,
     pub bounces: u32,
     pub ground: bool,
     /// The previews' exposure in stops (`--exposure`): PNGs and contact sheets show the
@@ -111,6 +116,8 @@ impl Default for LookdevOptions {
             scene_lights: true,
             specular: None,
             specular_tint: None,
+            clearcoat: None,
+            clearcoat_roughness: None,
             bounces: 2,
             ground: false,
             exposure_ev: 0.0,
@@ -132,6 +139,8 @@ impl LookdevOptions {
         for (name, v) in [
             ("--roughness", self.roughness),
             ("--metallic", self.metallic),
+            ("--clearcoat", self.clearcoat),
+            ("--clearcoat-roughness", self.clearcoat_roughness),
         ] {
             if let Some(v) = v {
                 unit(name, v)?;
@@ -272,6 +281,9 @@ pub struct MaterialDescription {
     /// The specular tint; absent when white.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub specular_tint: Option<[f32; 3]>,
+    /// The clearcoat's weight and roughness; absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clearcoat: Option<[f32; 2]>,
     /// The texture multiplied into `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
@@ -309,6 +321,9 @@ impl MaterialDescription {
         let tint = self.specular_tint.map_or(String::new(), |[r, g, b]| {
             format!(" tinted ({r}, {g}, {b})")
         });
+        let coat = self.clearcoat.map_or(String::new(), |[w, r]| {
+            format!(", clearcoat {w} roughness {r}")
+        });
         let glow = self.emission.map_or(String::new(), |[r, g, b]| {
             format!(
                 ", emission ({r}, {g}, {b}){}",
@@ -316,7 +331,7 @@ impl MaterialDescription {
             )
         });
         format!(
-            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{tint}{normal}{glow}",
+            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{tint}{coat}{normal}{glow}",
             times(&self.texture),
             self.roughness,
             times(&self.roughness_texture),
@@ -358,6 +373,8 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
                 specular: m.material.specular,
                 specular_tint: (m.material.specular_tint != Vec3::ONE)
                     .then(|| m.material.specular_tint.to_array()),
+                clearcoat: (m.material.clearcoat > 0.0)
+                    .then_some([m.material.clearcoat, m.material.clearcoat_roughness]),
                 texture: m.texture.map(|t| scene.textures[t as usize].describe()),
                 roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
                 metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
@@ -558,6 +575,8 @@ struct AssetMaterial {
     emission_texture: Option<u32>,
     specular: f32,
     specular_tint: Vec3,
+    clearcoat: f32,
+    clearcoat_roughness: f32,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -584,6 +603,8 @@ impl AssetMaterial {
             emission_texture: None,
             specular: DEFAULT_SPECULAR,
             specular_tint: Vec3::ONE,
+            clearcoat: 0.0,
+            clearcoat_roughness: DEFAULT_CLEARCOAT_ROUGHNESS,
         }
     }
 }
@@ -627,6 +648,12 @@ pub fn check_material_values(
             &[m.metallic][..],
         ),
         ("emission", "--no-emission", opts.emission, &m.emission[..]),
+        (
+            "clearcoat",
+            "--clearcoat W --clearcoat-roughness R",
+            opts.clearcoat.is_none() || opts.clearcoat_roughness.is_none(),
+            &[m.clearcoat, m.clearcoat_roughness][..],
+        ),
     ];
     for (what, flag, read, v) in values {
         if read && v.iter().any(|x| !x.is_finite()) {
@@ -726,6 +753,8 @@ fn asset_materials(
             emission_texture,
             specular: m.specular.unwrap_or(DEFAULT_SPECULAR),
             specular_tint: m.specular_tint.map_or(Vec3::ONE, Vec3::from),
+            clearcoat: m.clearcoat,
+            clearcoat_roughness: m.clearcoat_roughness,
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -1210,6 +1239,12 @@ pub fn render_all(
                 metallic: opts.metallic.unwrap_or(m.metallic),
                 specular: opts.specular.unwrap_or(m.specular),
                 specular_tint: opts.specular_tint.unwrap_or(m.specular_tint),
+                clearcoat: opts.clearcoat.unwrap_or(m.clearcoat),
+                // A clearcoat the material does not have gets Blender's default roughness.
+                clearcoat_roughness: opts.clearcoat_roughness.unwrap_or(match m.clearcoat > 0.0 {
+                    true => m.clearcoat_roughness,
+                    false => DEFAULT_CLEARCOAT_ROUGHNESS,
+                }),
             },
             texture: m.texture.filter(|_| opts.base_color.is_none()),
             roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),

@@ -1,6 +1,7 @@
 //! Pure shading functions of the beauty renderer: Blender's Principled BSDF without its
-//! extras (a Lambert base under a dielectric GGX coat, a GGX metal, Smith height-correlated
-//! masking, multiple-scattering energy, visible-normal sampling; `Lobes`), MIS weights and the
+//! extras (a Lambert base under a dielectric GGX layer, a GGX metal, an optional clearcoat over
+//! both, Smith height-correlated masking, multiple-scattering energy, visible-normal
+//! sampling; `Lobes`), MIS weights and the
 //! filmic tonemap. Each takes plain data (f32, glam vectors, `Material`) and allocates nothing,
 //! so that the WGSL mirror can follow it function by function under the same names.
 //!
@@ -35,7 +36,21 @@ pub struct Material {
     /// times it, and the metal's reflectance near grazing (at cos θ = 1/7, about 82°) the
     /// tint times Schlick's there (the F82-tint model).
     pub specular_tint: Vec3,
+    /// The clearcoat's weight in [0, 1] (glTF `KHR_materials_clearcoat`, Blender's Coat
+    /// Weight; 0: none): a dielectric GGX layer of index `CLEARCOAT_IOR` over everything else,
+    /// which it darkens by what it reflects.
+    pub clearcoat: f32,
+    /// The clearcoat's perceptual roughness (α = roughness²).
+    pub clearcoat_roughness: f32,
 }
+
+/// The clearcoat's index of refraction (glTF's `KHR_materials_clearcoat` fixes it; Blender's
+/// Coat IOR default).
+pub const CLEARCOAT_IOR: f32 = 1.5;
+
+/// The clearcoat roughness where a material names none but asks for a clearcoat
+/// (`--clearcoat` alone): Blender's Coat Roughness default.
+pub const DEFAULT_CLEARCOAT_ROUGHNESS: f32 = 0.03;
 
 impl Default for Material {
     fn default() -> Self {
@@ -45,6 +60,8 @@ impl Default for Material {
             metallic: 0.0,
             specular: 0.04,
             specular_tint: Vec3::ONE,
+            clearcoat: 0.0,
+            clearcoat_roughness: DEFAULT_CLEARCOAT_ROUGHNESS,
         }
     }
 }
@@ -243,7 +260,11 @@ pub fn fresnel_f82(f0: Vec3, b: Vec3, cos_theta: f32) -> Vec3 {
 /// F0 times the tint) share one GGX lobe, each scaled up by the energy that single scattering
 /// leaves out (Kulla & Conty: 1 + Fms (1 − E)/E, Fms from the mean Fresnel); the Lambert base
 /// gets what the coat lets through at this angle, 1 − E (1 + …) × its mean Fresnel over the
-/// lobe (`ggx_tables`), in its brightest channel.
+/// lobe (`ggx_tables`), in its brightest channel. A clearcoat (Blender's Coat) lies over all
+/// three: its own GGX lobe about its own normal (the surface's before a normal map bends it),
+/// the dielectric Fresnel of `CLEARCOAT_IOR`, no multiple-scattering scale, and the layers
+/// under it (and the surface's glow) darkened by its albedo estimate at the view's angle
+/// (`clearcoat_through`), as Cycles layers it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Lobes {
     /// Reflectance of the Lambert lobe.
@@ -252,18 +273,59 @@ pub struct Lobes {
     pub metal_f0: Vec3,
     pub metal_b: Vec3,
     pub metal: Vec3,
-    /// The coat's index (1: no coat), the F0 it gives, the coat's tinted F0 and its weight.
+    /// The dielectric layer's index (1: none), the F0 it gives, its tinted F0 and its weight.
     pub eta: f32,
     pub f0: f32,
-    pub coat_f0: Vec3,
-    pub coat: Vec3,
-    /// The coat's albedo at this angle (what it takes from the diffuse, per unit weight).
-    pub coat_albedo: Vec3,
+    pub dielectric_f0: Vec3,
+    pub dielectric: Vec3,
+    /// The dielectric layer's albedo at this angle (what it takes from the diffuse, per unit
+    /// weight).
+    pub dielectric_albedo: Vec3,
     pub alpha: f32,
     /// A perfect mirror (a delta lobe: only sampled).
     pub mirror: bool,
-    /// Probability of sampling the specular lobe.
+    /// Probability of sampling the specular lobe rather than the diffuse, when the layers
+    /// under the clearcoat are sampled.
     pub p_specular: f32,
+    /// The clearcoat's weight (0: none), α, whether it is a perfect mirror, and its frame in
+    /// the local shading frame (`clearcoat_n` its normal; `Vec3::Z` where it is the shading
+    /// normal, which makes the frame the identity).
+    pub clearcoat: f32,
+    pub clearcoat_alpha: f32,
+    pub clearcoat_mirror: bool,
+    pub clearcoat_t: Vec3,
+    pub clearcoat_b: Vec3,
+    pub clearcoat_n: Vec3,
+    /// Probability of sampling the clearcoat's lobe.
+    pub p_clearcoat: f32,
+}
+
+impl Lobes {
+    /// A local direction in the clearcoat's frame.
+    #[inline]
+    pub fn to_clearcoat(&self, v: Vec3) -> Vec3 {
+        to_local(v, self.clearcoat_t, self.clearcoat_b, self.clearcoat_n)
+    }
+}
+
+/// The clearcoat's albedo estimate seen at cos θ = `mu`, per unit weight: its Fresnel's mean
+/// over the lobe, F0 + (1 − F0) s (`ggx_tables::ggx_s`), as Cycles estimates a dielectric
+/// lobe's albedo (without the lobe's own single-scattering loss).
+#[inline]
+pub fn clearcoat_albedo(roughness: f32, mu: f32) -> f32 {
+    let f0 = ((CLEARCOAT_IOR - 1.0) / (CLEARCOAT_IOR + 1.0)).powi(2);
+    f0 + (1.0 - f0) * ggx_tables::ggx_s(roughness.clamp(0.0, 1.0), mu, f0.sqrt().sqrt())
+}
+
+/// What `m`'s clearcoat lets through to the layers under it (and to the surface's glow) seen
+/// at cos θ = `mu` from its normal: 1 − weight × its albedo; 1 without a clearcoat.
+#[inline]
+pub fn clearcoat_through(m: &Material, mu: f32) -> f32 {
+    let w = m.clearcoat.clamp(0.0, 1.0);
+    if w <= 0.0 {
+        return 1.0;
+    }
+    (1.0 - w * clearcoat_albedo(m.clearcoat_roughness, mu.clamp(0.0, 1.0))).clamp(0.0, 1.0)
 }
 
 /// 1 + Fms (1 − E)/E: the scale that gives a lobe of mean Fresnel `fss` the energy single
@@ -275,15 +337,29 @@ pub fn multiple_scattering(fss: Vec3, e: f32, e_avg: f32) -> Vec3 {
     Vec3::ONE + fms * missing
 }
 
-/// The coat's Fresnel from the blend `s` between its tinted F0 and 1.
+/// The dielectric layer's Fresnel from the blend `s` between its tinted F0 and 1.
 #[inline]
-fn coat_blend(coat_f0: Vec3, s: f32) -> Vec3 {
-    coat_f0 + (Vec3::ONE - coat_f0) * s
+fn dielectric_blend(dielectric_f0: Vec3, s: f32) -> Vec3 {
+    dielectric_f0 + (Vec3::ONE - dielectric_f0) * s
 }
 
-/// The lobes of `m` seen at cos θo = `mu`.
+/// The lobes of `m` seen at cos θo = `mu`, its clearcoat (if any) about the shading normal.
 #[inline]
 pub fn lobes(m: &Material, mu: f32) -> Lobes {
+    lobes_about(m, mu, Vec3::Z, mu)
+}
+
+/// The lobes of `m` seen from the local direction `wo`, its clearcoat about the local normal
+/// `clearcoat_n` (the shading normal before a normal map bent it).
+#[inline]
+pub fn lobes_coated(m: &Material, wo: Vec3, clearcoat_n: Vec3) -> Lobes {
+    lobes_about(m, wo.z, clearcoat_n, wo.dot(clearcoat_n))
+}
+
+/// The lobes of `m` seen at cos θo = `mu` from the shading normal and `mu_c` from the
+/// clearcoat's normal `clearcoat_n`.
+#[inline]
+fn lobes_about(m: &Material, mu: f32, clearcoat_n: Vec3, mu_c: f32) -> Lobes {
     let rough = m.roughness.clamp(0.0, 1.0);
     let mu = mu.clamp(0.0, 1.0);
     let (e, e_avg) = (ggx_tables::ggx_e(rough, mu), ggx_tables::ggx_e_avg(rough));
@@ -293,49 +369,74 @@ pub fn lobes(m: &Material, mu: f32) -> Lobes {
     let metal_mean = metal_f0 + (Vec3::ONE - metal_f0) / 21.0 - metal_b / 126.0;
     let metal = multiple_scattering(metal_mean, e, e_avg) * m.metallic;
     let f0 = m.specular.clamp(0.0, 0.99);
-    let coat_f0 = tint * f0;
-    let (eta, coat, coat_albedo) = if f0 > 0.0 {
+    let dielectric_f0 = tint * f0;
+    let (eta, dielectric, dielectric_albedo) = if f0 > 0.0 {
         let eta = ior_from_f0(f0);
         let s_mean = fresnel_blend(fresnel_dielectric_mean(eta), f0);
-        let k = multiple_scattering(coat_blend(coat_f0, s_mean), e, e_avg);
+        let k = multiple_scattering(dielectric_blend(dielectric_f0, s_mean), e, e_avg);
         let s = ggx_tables::ggx_s(rough, mu, f0.sqrt().sqrt());
-        (eta, k * (1.0 - m.metallic), k * coat_blend(coat_f0, s) * e)
+        (
+            eta,
+            k * (1.0 - m.metallic),
+            k * dielectric_blend(dielectric_f0, s) * e,
+        )
     } else {
         (1.0, Vec3::ZERO, Vec3::ZERO)
     };
-    let through = (1.0 - coat_albedo.max_element()).clamp(0.0, 1.0);
+    let through = (1.0 - dielectric_albedo.max_element()).clamp(0.0, 1.0);
     let diffuse = m.base_color * ((1.0 - m.metallic) * through);
-    // Sample the lobes by their albedos, keeping both in [0.1, 0.9] where both exist.
-    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * luminance(coat_albedo);
+    // Sample the lobes by their albedos, keeping each pair in [0.1, 0.9] where both exist.
+    let s = luminance(metal * metal_f0) * e + (1.0 - m.metallic) * luminance(dielectric_albedo);
     let d = luminance(diffuse);
-    let p_specular = if s <= 0.0 {
-        0.0
-    } else if d <= 0.0 {
-        1.0
-    } else {
-        (s / (s + d)).clamp(0.1, 0.9)
-    };
+    let p_specular = share(s, d);
+    // The clearcoat over them, and what it lets through.
+    let clearcoat = m.clearcoat.clamp(0.0, 1.0);
+    let under = clearcoat_through(m, mu_c);
+    let p_clearcoat = share(1.0 - under, under * (s + d));
+    let (clearcoat_t, clearcoat_b) = onb(clearcoat_n);
     Lobes {
-        diffuse,
+        diffuse: diffuse * under,
         metal_f0,
         metal_b,
-        metal,
+        metal: metal * under,
         eta,
         f0,
-        coat_f0,
-        coat,
-        coat_albedo,
+        dielectric_f0,
+        dielectric: dielectric * under,
+        dielectric_albedo,
         alpha: ggx_alpha(m.roughness),
         mirror: is_mirror(m),
         p_specular,
+        clearcoat,
+        clearcoat_alpha: ggx_alpha(m.clearcoat_roughness),
+        clearcoat_mirror: m.clearcoat_roughness < MIRROR_ROUGHNESS,
+        clearcoat_t,
+        clearcoat_b,
+        clearcoat_n,
+        p_clearcoat,
     }
 }
 
-/// The specular lobe's Fresnel at cos θh = `c`: the metal's and the coat's, each weighted.
+/// The chance of sampling a lobe of albedo `a` against one of `b`: their shares, kept in
+/// [0.1, 0.9] where both exist.
+#[inline]
+fn share(a: f32, b: f32) -> f32 {
+    if a <= 0.0 {
+        0.0
+    } else if b <= 0.0 {
+        1.0
+    } else {
+        (a / (a + b)).clamp(0.1, 0.9)
+    }
+}
+
+/// The specular lobe's Fresnel at cos θh = `c`: the metal's and the dielectric's, each
+/// weighted.
 #[inline]
 pub fn specular_fresnel(l: &Lobes, c: f32) -> Vec3 {
     let s = fresnel_blend(fresnel_dielectric(c, l.eta), l.f0);
-    l.metal * fresnel_f82(l.metal_f0, l.metal_b, c) + l.coat * coat_blend(l.coat_f0, s)
+    l.metal * fresnel_f82(l.metal_f0, l.metal_b, c)
+        + l.dielectric * dielectric_blend(l.dielectric_f0, s)
 }
 
 /// The denoiser's albedo guide of a surface of `m`: what its lobes reflect at normal
@@ -343,12 +444,13 @@ pub fn specular_fresnel(l: &Lobes, c: f32) -> Vec3 {
 #[inline]
 pub fn guide_albedo(m: &Material) -> Vec3 {
     let l = lobes(m, 1.0);
-    (l.diffuse + specular_fresnel(&l, 1.0)).min(Vec3::ONE)
+    let clearcoat = l.clearcoat * fresnel_dielectric(1.0, CLEARCOAT_IOR);
+    (l.diffuse + specular_fresnel(&l, 1.0) + Vec3::splat(clearcoat)).min(Vec3::ONE)
 }
 
-/// BSDF times cos θi for the non-delta lobes (the mirror lobe is a delta: only sampled).
+/// The layers under the clearcoat: BSDF times cos θi of their non-delta lobes.
 #[inline]
-pub fn bsdf_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
+fn base_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
     if wo.z <= 0.0 || wi.z <= 0.0 {
         return Vec3::ZERO;
     }
@@ -361,9 +463,29 @@ pub fn bsdf_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
     }
 }
 
-/// Density of `bsdf_sample` producing `wi` through a non-delta lobe.
+/// The clearcoat's lobe times cos θi, for directions in its frame (zero where it is a mirror).
 #[inline]
-pub fn bsdf_pdf(l: &Lobes, wo: Vec3, wi: Vec3) -> f32 {
+fn clearcoat_eval(l: &Lobes, wo_c: Vec3, wi_c: Vec3) -> f32 {
+    if l.clearcoat <= 0.0 || l.clearcoat_mirror || wo_c.z <= 0.0 || wi_c.z <= 0.0 {
+        return 0.0;
+    }
+    let c = wo_c.dot((wo_c + wi_c).normalize());
+    l.clearcoat * fresnel_dielectric(c, CLEARCOAT_IOR) * ggx_eval(wo_c, wi_c, l.clearcoat_alpha)
+}
+
+/// BSDF times cos θi for the non-delta lobes (a mirror lobe is a delta: only sampled).
+#[inline]
+pub fn bsdf_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
+    let f = base_eval(l, wo, wi);
+    if l.clearcoat <= 0.0 {
+        return f;
+    }
+    f + Vec3::splat(clearcoat_eval(l, l.to_clearcoat(wo), l.to_clearcoat(wi)))
+}
+
+/// Density of the layers under the clearcoat producing `wi` through a non-delta lobe.
+#[inline]
+fn base_pdf(l: &Lobes, wo: Vec3, wi: Vec3) -> f32 {
     if wo.z <= 0.0 || wi.z <= 0.0 {
         return 0.0;
     }
@@ -376,8 +498,23 @@ pub fn bsdf_pdf(l: &Lobes, wo: Vec3, wi: Vec3) -> f32 {
     }
 }
 
+/// Density of `bsdf_sample` producing `wi` through a non-delta lobe.
+#[inline]
+pub fn bsdf_pdf(l: &Lobes, wo: Vec3, wi: Vec3) -> f32 {
+    let pc = l.p_clearcoat;
+    let base = (1.0 - pc) * base_pdf(l, wo, wi);
+    if pc <= 0.0 || l.clearcoat_mirror {
+        return base;
+    }
+    let (wo_c, wi_c) = (l.to_clearcoat(wo), l.to_clearcoat(wi));
+    if wo_c.z <= 0.0 || wi_c.z <= 0.0 {
+        return base;
+    }
+    base + pc * ggx_pdf(wo_c, wi_c, l.clearcoat_alpha)
+}
+
 /// A sampled direction: `weight` = f·cos/pdf (the throughput factor), `pdf` the solid-angle
-/// density (0 with `delta` for the mirror lobe, which MIS must not weight).
+/// density (0 with `delta` for a mirror lobe, which MIS must not weight).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BsdfSample {
     pub wi: Vec3,
@@ -386,31 +523,56 @@ pub struct BsdfSample {
     pub delta: bool,
 }
 
-/// Sample the lobes: `u_lobe` picks the lobe, `u` the direction within it.
+/// Sample the lobes: `u_lobe` picks the lobe (the clearcoat below `p_clearcoat`, then the
+/// specular or the diffuse under it), `u` the direction within it.
 #[inline]
 pub fn bsdf_sample(l: &Lobes, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSample> {
-    if wo.z <= 0.0 {
-        return None;
-    }
-    let ps = l.p_specular;
-    let specular = u_lobe < ps;
-    if specular && l.mirror {
-        let wi = Vec3::new(-wo.x, -wo.y, wo.z);
-        let weight = specular_fresnel(l, wo.z) / ps;
-        return Some(BsdfSample {
-            wi,
-            weight,
-            pdf: 0.0,
-            delta: true,
-        });
-    }
-    let wi = if specular {
-        ggx_sample(wo, l.alpha, u)
+    let pc = l.p_clearcoat;
+    let wi = if u_lobe < pc {
+        let wo_c = l.to_clearcoat(wo);
+        if wo_c.z <= 0.0 {
+            return None;
+        }
+        let wi_c = if l.clearcoat_mirror {
+            Vec3::new(-wo_c.x, -wo_c.y, wo_c.z)
+        } else {
+            ggx_sample(wo_c, l.clearcoat_alpha, u)
+        };
+        let wi = from_local(wi_c, l.clearcoat_t, l.clearcoat_b, l.clearcoat_n);
+        if l.clearcoat_mirror {
+            let f = l.clearcoat * fresnel_dielectric(wo_c.z, CLEARCOAT_IOR);
+            return Some(BsdfSample {
+                wi,
+                weight: Vec3::splat(f / pc),
+                pdf: 0.0,
+                delta: true,
+            });
+        }
+        wi
     } else {
-        cosine_sample(u)
+        if wo.z <= 0.0 {
+            return None;
+        }
+        let ps = l.p_specular;
+        let specular = (u_lobe - pc) < ps * (1.0 - pc);
+        if specular && l.mirror {
+            let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+            let weight = specular_fresnel(l, wo.z) / (ps * (1.0 - pc));
+            return Some(BsdfSample {
+                wi,
+                weight,
+                pdf: 0.0,
+                delta: true,
+            });
+        }
+        if specular {
+            ggx_sample(wo, l.alpha, u)
+        } else {
+            cosine_sample(u)
+        }
     };
     let pdf = bsdf_pdf(l, wo, wi);
-    if wi.z <= 0.0 || pdf <= 0.0 {
+    if pdf <= 0.0 {
         return None;
     }
     Some(BsdfSample {
@@ -529,10 +691,24 @@ mod tests {
     /// lobe probability applied twice) biases every beauty render.
     #[test]
     fn ggx_sample_weight_matches_eval_over_pdf() {
-        for (k, rough) in [0.05f32, 0.3, 0.7, 1.0].into_iter().enumerate() {
+        // The last two with a clearcoat, the last about a normal of its own.
+        let nc = dir_from_angle(0.3, 0.8);
+        for (k, (rough, clearcoat, n)) in [
+            (0.05f32, 0.0, Vec3::Z),
+            (0.3, 0.0, Vec3::Z),
+            (0.7, 0.0, Vec3::Z),
+            (1.0, 0.0, Vec3::Z),
+            (0.4, 0.7, Vec3::Z),
+            (0.01, 1.0, nc),
+        ]
+        .into_iter()
+        .enumerate()
+        {
             let m = Material {
                 roughness: rough,
                 metallic: 0.5,
+                clearcoat,
+                clearcoat_roughness: 0.2,
                 ..Material::default()
             };
             for i in 0..2000u32 {
@@ -540,7 +716,7 @@ mod tests {
                     1.5 * random(i, k as u32, 2, Purpose::Bench, 3),
                     6.0 * random(i, 0, 3, Purpose::Bench, 3),
                 );
-                let l = lobes(&m, wo.z);
+                let l = lobes_coated(&m, wo, n);
                 let Some(s) = bsdf_sample(
                     &l,
                     wo,
@@ -549,6 +725,9 @@ mod tests {
                 ) else {
                     continue;
                 };
+                if s.delta {
+                    continue;
+                }
                 let want = bsdf_eval(&l, wo, s.wi) / bsdf_pdf(&l, wo, s.wi);
                 assert!(
                     (s.weight - want).length() <= 1e-4 * want.length().max(1.0),
@@ -653,8 +832,8 @@ mod tests {
 
     /// White furnaces. A white metal reflects all the light at every roughness and angle: the
     /// multiple-scattering scale gives back what single scattering loses (up to 69% at
-    /// roughness 1, head on). A white dielectric, its diffuse base under its coat, reflects all
-    /// of it to within the coat's albedo estimate (Blender's layering).
+    /// roughness 1, head on). A white dielectric, its diffuse base under its dielectric layer,
+    /// reflects all of it to within that layer's albedo estimate (Blender's layering).
     #[test]
     fn white_furnaces_keep_their_energy() {
         for rough in [0.1f32, 0.3, 0.6, 1.0] {
@@ -715,18 +894,106 @@ mod tests {
             ..Material::default()
         };
         let (l, lt) = (lobes(&Material::default(), 0.7), lobes(&plastic, 0.7));
-        let coat = |l: &Lobes, c: f32| specular_fresnel(l, c);
-        assert!((coat(&lt, 1.0) / lt.coat - tint * 0.04).abs().max_element() < 1e-6);
-        assert!((coat(&lt, 0.0) / lt.coat - Vec3::ONE).abs().max_element() < 1e-6);
+        let f = |l: &Lobes, c: f32| specular_fresnel(l, c);
         assert!(
-            (coat(&l, 0.5) / l.coat - Vec3::splat(fresnel_dielectric(0.5, 1.5)))
+            (f(&lt, 1.0) / lt.dielectric - tint * 0.04)
                 .abs()
                 .max_element()
                 < 1e-6
         );
-        // The diffuse is layered under the coat's brightest channel (the untinted red).
+        assert!(
+            (f(&lt, 0.0) / lt.dielectric - Vec3::ONE)
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        assert!(
+            (f(&l, 0.5) / l.dielectric - Vec3::splat(fresnel_dielectric(0.5, 1.5)))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        // The diffuse is layered under the dielectric's brightest channel (the untinted red).
         assert!((lt.diffuse - l.diffuse).abs().max_element() < 1e-6);
-        assert!(lt.coat_albedo.z < lt.coat_albedo.x);
+        assert!(lt.dielectric_albedo.z < lt.dielectric_albedo.x);
+    }
+
+    /// The clearcoat (Blender's Coat) over the other layers, about its own normal.
+    #[test]
+    fn the_clearcoat_layers_over_the_rest() {
+        // Without a clearcoat nothing changes; its roughness alone does nothing.
+        let plain = Material::default();
+        let rough_only = Material {
+            clearcoat_roughness: 0.7,
+            ..plain
+        };
+        let (a, b) = (lobes(&plain, 0.6), lobes(&rough_only, 0.6));
+        assert_eq!(a.p_clearcoat, 0.0);
+        let wo = dir_from_angle(0.6f32.acos(), 0.0);
+        for i in 0..200 {
+            let wi = dir_from_angle(1.5 * random(i, 0, 0, Purpose::Bench, 5), i as f32);
+            assert_eq!(bsdf_eval(&a, wo, wi), bsdf_eval(&b, wo, wi));
+            assert_eq!(bsdf_pdf(&a, wo, wi), bsdf_pdf(&b, wo, wi));
+        }
+
+        // A white Lambert base under a smooth clearcoat keeps all the light: what the coat
+        // reflects (F at this angle) is what it takes from the base. A rough one loses some
+        // (Cycles' albedo estimate leaves out the lobe's own loss), never gains.
+        let white = Material {
+            base_color: Vec3::ONE,
+            specular: 0.0,
+            clearcoat: 1.0,
+            clearcoat_roughness: 0.05,
+            ..Material::default()
+        };
+        for mu in [0.2f32, 0.6, 0.95] {
+            let a = albedo(&white, mu, 40_000);
+            assert!(
+                (a - Vec3::ONE).abs().max_element() < 0.01,
+                "cos θo {mu}: {a}"
+            );
+            let rough = Material {
+                clearcoat_roughness: 0.6,
+                ..white
+            };
+            let a = albedo(&rough, mu, 40_000);
+            assert!(a.x > 0.9 && a.x < 1.005, "rough coat, cos θo {mu}: {a}");
+        }
+
+        // A mirror coat over black: a delta lobe reflecting the dielectric Fresnel of 1.5
+        // about the coat's normal, which may differ from the shading normal.
+        let black = Material {
+            base_color: Vec3::ZERO,
+            specular: 0.0,
+            clearcoat: 0.8,
+            clearcoat_roughness: 0.0,
+            ..Material::default()
+        };
+        let wo = dir_from_angle(0.5, 0.2);
+        let nc = dir_from_angle(0.2, 1.9);
+        let l = lobes_coated(&black, wo, nc);
+        assert_eq!(l.p_clearcoat, 1.0);
+        let s = bsdf_sample(&l, wo, 0.3, Vec2::new(0.4, 0.6)).unwrap();
+        let want = 0.8 * fresnel_dielectric(wo.dot(nc), CLEARCOAT_IOR);
+        assert!(s.delta && (s.weight - Vec3::splat(want)).abs().max_element() < 1e-6);
+        assert!(
+            (s.wi - reflect(wo, nc)).length() < 1e-5,
+            "{} vs {}",
+            s.wi,
+            reflect(wo, nc)
+        );
+        assert_eq!(bsdf_eval(&l, wo, s.wi), Vec3::ZERO);
+
+        // The base is darkened by the coat's albedo estimate at the view's angle.
+        let coated = Material {
+            clearcoat: 0.5,
+            ..Material::default()
+        };
+        let (l0, l1) = (lobes(&plain, 0.4), lobes(&coated, 0.4));
+        let under = clearcoat_through(&coated, 0.4);
+        assert!(under < 1.0 - 0.5 * fresnel_dielectric(0.4, 1.5) + 1e-3 && under > 0.9);
+        assert!((l1.diffuse - l0.diffuse * under).abs().max_element() < 1e-6);
+        assert!((l1.dielectric - l0.dielectric * under).abs().max_element() < 1e-6);
     }
 
     /// The dielectric Fresnel: F0 at normal incidence, 1 at grazing, and its cosine-weighted
