@@ -1493,6 +1493,104 @@ fn a_materials_index_of_refraction_sets_its_reflectance() {
     );
 }
 
+/// The clearcoat (glTF `KHR_materials_clearcoat`): on the square of a red material without one
+/// and a blue one with a mirror coat of weight 0.5, both bases black and without specular,
+/// under an even white sky, the red half is black and the blue one shows half the coat's
+/// Fresnel head on (index 1.5: 0.04); `--clearcoat 1` gives both halves 0.04, and a white
+/// Lambert base under it keeps all the light (the coat takes from the base what it reflects):
+/// 1. On the CPU and the GPU; the summary and `inspect` name the coat.
+#[test]
+fn a_clearcoat_reflects_its_fresnel_and_takes_it_from_the_base() {
+    let dir = temp_dir("clearcoat");
+    let gltf = std::fs::read_to_string(two_material_square(&dir)).unwrap();
+    let square = dir.join("coat.gltf");
+    let coated = gltf.replace(
+        r#""roughnessFactor":0.6}},
+        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6}}"#,
+        r#""roughnessFactor":0.6}},
+        {"name":"blue","pbrMetallicRoughness":{"baseColorFactor":[0.05,0.05,0.8,1],"metallicFactor":0,"roughnessFactor":0.6},
+         "extensions":{"KHR_materials_clearcoat":{"clearcoatFactor":0.5}}}"#,
+    );
+    assert_ne!(coated, gltf);
+    std::fs::write(&square, coated).unwrap();
+    let sky = dir.join("sky.exr");
+    write_constant_env(&sky, 1.0);
+    // A black base needs few samples: only the coat's delta lobe reflects.
+    let render = |name: &str, base: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let spp = if base == "0,0,0" { "2" } else { "32" };
+        let flags = [
+            "--env",
+            s(&sky),
+            "--base-color",
+            base,
+            "--specular",
+            "0",
+            "--bounces",
+            "1",
+        ];
+        let o = render_square(&square, "0", spp, &out, &[&flags[..], extra].concat());
+        o.assert_success();
+        let px = read_rgba(&out.join("beauty.exr"));
+        // The red triangle holds the bottom-right corner, the blue one the top-left: the
+        // mean green of each, away from the diagonal between them.
+        let half = |inside: &dyn Fn(usize) -> bool| {
+            let v: Vec<f64> = (0..32 * 32)
+                .filter(|&i| inside(i % 32 + i / 32) && px[i][3] >= 0.999)
+                .map(|i| px[i][1] as f64)
+                .collect();
+            assert!(v.len() > 100, "{name}: {} pixels", v.len());
+            v.iter().sum::<f64>() / v.len() as f64
+        };
+        (o.json(), half(&|d| d > 34), half(&|d| d < 28))
+    };
+    for device in ["cpu", "gpu"] {
+        let (summary, red, blue) = render(device, "0,0,0", &["--device", device]);
+        eprintln!("{device}: red half {red}, blue half {blue}");
+        assert_eq!(red, 0.0, "{device}: no coat over black");
+        assert!((blue - 0.02).abs() < 0.02 * 0.02, "{device}: blue {blue}");
+        let coats: Vec<_> = summary["materials"]
+            .as_array()
+            .expect("materials")
+            .iter()
+            .map(|m| m.get("clearcoat").cloned())
+            .collect();
+        assert_eq!(
+            coats,
+            [None, Some(serde_json::json!([0.5, 0.0]))],
+            "{summary}"
+        );
+        let all = [
+            "--clearcoat",
+            "1",
+            "--clearcoat-roughness",
+            "0",
+            "--device",
+            device,
+        ];
+        let (_, red, blue) = render(&format!("{device}-all"), "0,0,0", &all);
+        for v in [red, blue] {
+            assert!((v - 0.04).abs() < 0.02 * 0.04, "{device}: {red} {blue}");
+        }
+        let (_, red, blue) = render(&format!("{device}-white"), "1,1,1", &all);
+        for v in [red, blue] {
+            assert!((v - 1.0).abs() < 0.01, "{device}: white base {red} {blue}");
+        }
+    }
+    let info = run(&[
+        "inspect",
+        s(&square),
+        "--disp",
+        s(&example("maps/scales_256.png")),
+    ]);
+    info.assert_success();
+    assert!(
+        info.stdout.contains("clearcoat 0.5 roughness 0"),
+        "{}",
+        info.stdout
+    );
+}
+
 /// A key light with an angle is a disc of even radiance (its irradiance over its solid angle)
 /// that BSDF samples meet as well as shadow rays, the two shared by MIS: a mirror square facing
 /// it shows the disc at exactly that radiance (it showed nothing when only shadow rays found

@@ -368,7 +368,9 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
                  {"KHR_texture_transform": {"offset": [0.5, 0.0], "texCoord": 0}}},
              "extensions": {"KHR_materials_ior": {"ior": 2.0},
                             "KHR_materials_specular": {"specularFactor": 0.5,
-                                                       "specularColorFactor": [1.0, 0.5, 0.2]}}},
+                                                       "specularColorFactor": [1.0, 0.5, 0.2]},
+                            "KHR_materials_clearcoat": {"clearcoatFactor": 0.75,
+                                                        "clearcoatRoughnessFactor": 0.125}}},
         ],
         "textures": [{"source": 0, "sampler": 0}, {"source": 1}, {"source": 2}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
@@ -449,6 +451,9 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     // The specular colour is the tint (Blender's Specular Tint); none is white.
     assert_eq!(other.specular_tint, Some([1.0, 0.5, 0.2]));
     assert_eq!(paint.specular_tint, None);
+    // KHR_materials_clearcoat's factors (the crate has no accessor: read from its JSON).
+    assert_eq!((other.clearcoat, other.clearcoat_roughness), (0.75, 0.125));
+    assert_eq!((paint.clearcoat, paint.clearcoat_roughness), (0.0, 0.0));
     assert_eq!(
         other.texture_uses().len(),
         2,
@@ -940,7 +945,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         usemtl nowhere\nf 1 2 4\n\
         usemtl paint\nf 2 3 4\n";
     let mtl = "# two materials\n\
-        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNi 2\nNs 250\nPr 0.3\n\
+        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNi 2\nNs 250\nPr 0.3\nPc 0.6\nPcr 0.2\n\
         newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
         map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\nmap_Bump -bm 0.5 normal.png\nmap_Ke glow.png\n";
     std::fs::write(&path, obj).unwrap();
@@ -957,6 +962,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!(paint.name, "paint");
     assert_eq!(paint.base_color, [0.5, 0.25, 0.125, 1.0]);
     assert_eq!((paint.roughness, paint.metallic), (0.3, 0.0));
+    assert_eq!((paint.clearcoat, paint.clearcoat_roughness), (0.6, 0.2));
     assert_eq!(paint.base_color_texture, None);
     assert_eq!(rust.name, "rust metal");
     // map_Kd replaces Kd (as Blender's importer does); -clamp on clamps; -s is a transform.

@@ -512,6 +512,8 @@ fn preview_surface_materials_are_read_per_mesh() {
                 color3f inputs:diffuseColor = (1, 0.75, 0.25)
                 color3f inputs:emissiveColor = (2, 1, 0.5)
                 float inputs:ior = 2
+                float inputs:clearcoat = 0.5
+                float inputs:clearcoatRoughness = 0.25
                 float inputs:roughness = 0.2
                 float inputs:metallic = 1
                 token outputs:surface
@@ -573,6 +575,9 @@ fn preview_surface_materials_are_read_per_mesh() {
     assert_eq!((gold.emission, stone.emission), ([2.0, 1.0, 0.5], [0.0; 3]));
     // ior 2: F0 1/9.
     assert!((gold.specular.unwrap() - 1.0 / 9.0).abs() < 1e-7);
+    // clearcoat and its roughness; UsdPreviewSurface's defaults (0, 0.01) where unauthored.
+    assert_eq!((gold.clearcoat, gold.clearcoat_roughness), (0.5, 0.25));
+    assert_eq!((stone.clearcoat, stone.clearcoat_roughness), (0.0, 0.01));
     assert_eq!(stone.specular, None);
     assert_eq!(gold.base_color, [1.0, 0.75, 0.25, 1.0]);
     assert_eq!((gold.roughness, gold.metallic), (0.2, 1.0));
