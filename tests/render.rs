@@ -408,6 +408,19 @@ fn bad_render_input() {
         s(&out),
     ])
     .assert_error(&["--roughness"]);
+    for (flag, value) in [("--clearcoat", "1.5"), ("--clearcoat-roughness", "nan")] {
+        run(&[
+            "render",
+            s(&sphere),
+            "--aov",
+            "beauty",
+            flag,
+            value,
+            "-o",
+            s(&out),
+        ])
+        .assert_error(&[flag, "[0, 1]"]);
+    }
     run(&["render", s(&sphere), "--method", "magic", "-o", s(&out)]).assert_error(&["magic"]);
     run(&[
         "render",
