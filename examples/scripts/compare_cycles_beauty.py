@@ -15,7 +15,8 @@ beauty --env` with `--base-color`, `--roughness`, `--metallic`, `--specular 0.04
 `--clearcoat`, `--clearcoat-roughness` (Blender's Coat Weight and Coat Roughness), `--bounces
 4`. With `--file-materials` both keep the asset's own materials instead (Blender's importer's
 node trees, the displacement added to each; prismbake with no material flags): textures,
-normal maps, emission and all. Both write linear EXRs; the comparison reads those.
+normal maps, emission and all; a `--clearcoat` above 0 is then set on each (Blender: every
+Principled BSDF's Coat Weight and Roughness). Both write linear EXRs; the comparison reads those.
 
 Reports, over the asset's pixels (one pixel in from its silhouette, where pixels mix surface
 and sky): each renderer's mean RGB, their ratio, and the mean |difference| relative to the mean
@@ -104,6 +105,12 @@ def render_cycles(a, disp, out_exr, env):
                 sys.exit(f"{ob.name} has no material to keep (drop --file-materials)")
             for mat in mats:
                 displace(mat)
+                # --clearcoat over the file's materials: each Principled BSDF's Coat.
+                if a.clearcoat > 0:
+                    for n in mat.node_tree.nodes:
+                        if n.type == "BSDF_PRINCIPLED":
+                            n.inputs["Coat Weight"].default_value = a.clearcoat
+                            n.inputs["Coat Roughness"].default_value = a.clearcoat_roughness
         else:
             mat = bpy.data.materials.new("lookdev")
             mat.use_nodes = True
@@ -183,10 +190,10 @@ def main():
     env = out / "env.exr"
     write_env(env)
     cycles_s = render_cycles(a, disp, out / "cycles.exr", env)
-    material_flags = [] if a.file_materials else [
+    coat = ["--clearcoat", str(a.clearcoat), "--clearcoat-roughness", str(a.clearcoat_roughness)]
+    material_flags = (coat if a.clearcoat > 0 else []) if a.file_materials else [
         "--base-color", ",".join(map(str, a.base_color)), "--roughness", str(a.roughness),
-        "--metallic", str(a.metallic), "--specular", "0.04", "--specular-tint", "1,1,1",
-        "--clearcoat", str(a.clearcoat), "--clearcoat-roughness", str(a.clearcoat_roughness)]
+        "--metallic", str(a.metallic), "--specular", "0.04", "--specular-tint", "1,1,1", *coat]
     t = time.perf_counter()
     pb = subprocess.run([a.prismbake, "render", a.asset, "--aov", "beauty", "--env", str(env),
                          "--env-rotate", str(a.env_rotate), "--res", f"{a.res}x{a.res}", "--spp", str(a.spp),
