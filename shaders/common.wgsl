@@ -166,9 +166,10 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 352 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// GpuMaterial, 448 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
 // normal textures, its normal map's scale and bias (beauty::NormalTex), its emission and
-// emission texture, its specular tint, and its clearcoat's weight and roughness.
+// emission texture, its specular tint, and its clearcoat's weight and roughness and their
+// textures.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -192,6 +193,8 @@ struct SurfaceMaterial {
     _pad4: u32,
     _pad5: u32,
     _pad6: u32,
+    clearcoat_tex: MaterialTexture,
+    clearcoat_roughness_tex: MaterialTexture,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -95,7 +95,8 @@ fn material_index(prism: u32) -> u32 {
 
 // BeautyScene::material_at: the material at a hit on prism `prism` with texture coordinates
 // `uv`: its prism's, the base colour times the texture at `uv`, the roughness and metallic
-// times their texture channels there (one lookup where both read the same texture).
+// times their texture channels there (one lookup where both read the same texture), and the
+// clearcoat's weight and roughness times theirs (the same).
 fn material_at(prism: u32, uv: vec2f) -> Material {
     let s = materials[material_index(prism)];
     var m = Material(s.base_color, s.roughness, s.metallic, s.specular, s.specular_tint,
@@ -116,6 +117,19 @@ fn material_at(prism: u32, uv: vec2f) -> Material {
         }
         m.metallic *= v[min(s.metallic_tex.channel, 2u)];
     }
+    var coat = vec3f(1.0);
+    let has_coat = s.clearcoat_tex.width != 0u;
+    if (has_coat) {
+        coat = texture_sample(s.clearcoat_tex, uv);
+        m.clearcoat *= coat[min(s.clearcoat_tex.channel, 2u)];
+    }
+    if (s.clearcoat_roughness_tex.width != 0u) {
+        var v = coat;
+        if (!has_coat || s.clearcoat_roughness_tex.offset != s.clearcoat_tex.offset) {
+            v = texture_sample(s.clearcoat_roughness_tex, uv);
+        }
+        m.clearcoat_roughness *= v[min(s.clearcoat_roughness_tex.channel, 2u)];
+    }
     return m;
 }
 
@@ -132,9 +146,7 @@ fn emission_at(prism: u32, uv: vec2f, geometric: vec3f, unmapped: vec3f, dir: ve
         return glow;
     }
     let mu = dot(facing_normals(geometric, unmapped, dir).ns, -dir);
-    let m = Material(s.base_color, s.roughness, s.metallic, s.specular, s.specular_tint,
-        s.clearcoat, s.clearcoat_roughness);
-    return glow * clearcoat_through(m, mu);
+    return glow * clearcoat_through(material_at(prism, uv), mu);
 }
 
 // The tangent of corner `k` of prism `prism` (tangent::corner_tangents: xyz and the

@@ -1585,7 +1585,7 @@ fn a_clearcoat_reflects_its_fresnel_and_takes_it_from_the_base() {
     ]);
     info.assert_success();
     assert!(
-        info.stdout.contains("clearcoat 0.5 roughness 0"),
+        info.stdout.contains("clearcoat 0.5, clearcoat roughness 0"),
         "{}",
         info.stdout
     );

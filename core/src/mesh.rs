@@ -285,9 +285,13 @@ pub struct MeshMaterial {
     pub specular_tint: Option<[f32; 3]>,
     /// The clearcoat's weight in [0, 1] (glTF `KHR_materials_clearcoat`'s `clearcoatFactor`,
     /// USD's `clearcoat`, an `.mtl`'s `Pc`; 0: none) and its roughness (`clearcoatRoughness…`,
-    /// `Pcr`). Their textures are not read.
+    /// `Pcr`).
     pub clearcoat: f32,
     pub clearcoat_roughness: f32,
+    /// Texture channels multiplied into them (glTF's `clearcoatTexture`'s red,
+    /// `clearcoatRoughnessTexture`'s green).
+    pub clearcoat_texture: Option<crate::texture::ChannelRef>,
+    pub clearcoat_roughness_texture: Option<crate::texture::ChannelRef>,
 }
 
 /// The reflectance at normal incidence of a dielectric of index of refraction `ior` in air,
@@ -314,11 +318,13 @@ impl MeshMaterial {
             specular_tint: None,
             clearcoat: 0.0,
             clearcoat_roughness: 0.0,
+            clearcoat_texture: None,
+            clearcoat_roughness_texture: None,
         }
     }
 
     /// Its textures, each with the input it feeds, in the order base colour, roughness,
-    /// metallic, normal, emission (one image may feed two).
+    /// metallic, normal, emission, clearcoat, clearcoat roughness (one image may feed two).
     pub fn textures(&self) -> Vec<(crate::texture::TextureSlot, &crate::texture::TextureRef)> {
         use crate::texture::TextureSlot;
         let mut out = vec![];
@@ -337,6 +343,12 @@ impl MeshMaterial {
         if let Some(t) = &self.emission_texture {
             out.push((TextureSlot::Emission, t));
         }
+        if let Some(c) = &self.clearcoat_texture {
+            out.push((TextureSlot::Clearcoat, &c.texture));
+        }
+        if let Some(c) = &self.clearcoat_roughness_texture {
+            out.push((TextureSlot::ClearcoatRoughness, &c.texture));
+        }
         out
     }
 
@@ -349,6 +361,10 @@ impl MeshMaterial {
             self.metallic_texture.as_mut().map(|c| &mut c.texture),
             self.normal_texture.as_mut().map(|n| &mut n.texture),
             self.emission_texture.as_mut(),
+            self.clearcoat_texture.as_mut().map(|c| &mut c.texture),
+            self.clearcoat_roughness_texture
+                .as_mut()
+                .map(|c| &mut c.texture),
         ];
         for t in refs.into_iter().flatten() {
             t.tex_coord = set;

@@ -98,10 +98,14 @@ pub enum TextureSlot {
     Normal,
     /// Emitted radiance, multiplied into the emission colour.
     Emission,
+    /// One channel multiplied into the clearcoat's weight, or its roughness.
+    Clearcoat,
+    ClearcoatRoughness,
 }
 
 impl TextureSlot {
-    /// "base-colour", "roughness", "metallic", "normal", "emission".
+    /// "base-colour", "roughness", "metallic", "normal", "emission", "clearcoat",
+    /// "clearcoat-roughness".
     pub fn name(self) -> &'static str {
         match self {
             TextureSlot::BaseColor => "base-colour",
@@ -109,6 +113,8 @@ impl TextureSlot {
             TextureSlot::Metallic => "metallic",
             TextureSlot::Normal => "normal",
             TextureSlot::Emission => "emission",
+            TextureSlot::Clearcoat => "clearcoat",
+            TextureSlot::ClearcoatRoughness => "clearcoat-roughness",
         }
     }
 
@@ -120,6 +126,8 @@ impl TextureSlot {
             TextureSlot::Metallic => "--metallic M",
             TextureSlot::Normal => "--no-normal-maps",
             TextureSlot::Emission => "--no-emission",
+            TextureSlot::Clearcoat => "--clearcoat W",
+            TextureSlot::ClearcoatRoughness => "--clearcoat-roughness R",
         }
     }
 }

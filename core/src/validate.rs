@@ -522,6 +522,12 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                 specular: m.specular.unwrap_or(lookdev::DEFAULT_SPECULAR),
                 specular_tint: m.specular_tint,
                 clearcoat: (m.clearcoat > 0.0).then_some([m.clearcoat, m.clearcoat_roughness]),
+                clearcoat_texture: (m.clearcoat_texture.as_ref())
+                    .filter(|_| m.clearcoat > 0.0)
+                    .map(describe_channel_ref),
+                clearcoat_roughness_texture: (m.clearcoat_roughness_texture.as_ref())
+                    .filter(|_| m.clearcoat > 0.0)
+                    .map(describe_channel_ref),
                 texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
                 roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
                 metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
@@ -550,6 +556,8 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                 specular: lookdev::DEFAULT_SPECULAR,
                 specular_tint: None,
                 clearcoat: None,
+                clearcoat_texture: None,
+                clearcoat_roughness_texture: None,
                 texture: None,
                 roughness_texture: None,
                 metallic_texture: None,

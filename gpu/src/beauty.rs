@@ -301,6 +301,8 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             specular_tint: m.material.specular_tint.to_array(),
             clearcoat: m.material.clearcoat,
             clearcoat_roughness: m.material.clearcoat_roughness,
+            clearcoat_tex: channel(m.clearcoat_texture),
+            clearcoat_roughness_tex: channel(m.clearcoat_roughness_texture),
             ..Default::default()
         })
         .collect()

@@ -356,10 +356,10 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 352 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// One material of a beauty scene, 448 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
 /// buffer, its normal map's scale and bias (`beauty::NormalTex`), its emission and emission
-/// texture, its specular tint, and its clearcoat's weight and roughness.
+/// texture, its specular tint, and its clearcoat's weight and roughness and their textures.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -385,6 +385,8 @@ pub struct GpuMaterial {
     pub _pad4: u32,
     pub _pad5: u32,
     pub _pad6: u32,
+    pub clearcoat_tex: GpuMaterialTexture,
+    pub clearcoat_roughness_tex: GpuMaterialTexture,
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -450,7 +452,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuLighting>() == 1136);
     assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 352);
+    assert!(std::mem::size_of::<GpuMaterial>() == 448);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
     assert!(std::mem::size_of::<GpuBsdfTables>() == 20_608);
 };
@@ -642,7 +644,9 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 clearcoat_roughness,
                 _pad4,
                 _pad5,
-                _pad6
+                _pad6,
+                clearcoat_tex,
+                clearcoat_roughness_tex
             }
         ),
         layout!("BsdfTables", GpuBsdfTables { e, e_avg, s }),

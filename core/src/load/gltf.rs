@@ -99,6 +99,23 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                     .filter(|c| *c != [1.0; 3]),
                 clearcoat: clearcoat_factor(&m, "clearcoatFactor"),
                 clearcoat_roughness: clearcoat_factor(&m, "clearcoatRoughnessFactor"),
+                // The weight in the red channel, the roughness in the green (the extension's).
+                clearcoat_texture: clearcoat_channel(
+                    path,
+                    &doc,
+                    &loader_buffers,
+                    &m,
+                    "clearcoatTexture",
+                    0,
+                )?,
+                clearcoat_roughness_texture: clearcoat_channel(
+                    path,
+                    &doc,
+                    &loader_buffers,
+                    &m,
+                    "clearcoatRoughnessTexture",
+                    1,
+                )?,
             })
         })
         .collect::<Result<_>>()?;
@@ -119,6 +136,62 @@ fn clearcoat_factor(m: &gltf::Material, key: &str) -> f32 {
         .and_then(|e| e.get(key))
         .and_then(|v| v.as_f64())
         .map_or(0.0, |v| (v as f32).clamp(0.0, 1.0))
+}
+
+/// One channel of a texture of `m`'s `KHR_materials_clearcoat` (`key` its textureInfo, read
+/// from the extension's JSON with its `texCoord` and `KHR_texture_transform`); `None` where
+/// the extension or the texture is absent. A malformed textureInfo or a texture index past
+/// the file's textures is an error naming both.
+fn clearcoat_channel(
+    path: &Path,
+    doc: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    m: &::gltf::Material,
+    key: &str,
+    channel: u8,
+) -> Result<Option<ChannelRef>> {
+    let Some(v) = m
+        .extension_value("KHR_materials_clearcoat")
+        .and_then(|e| e.get(key))
+    else {
+        return Ok(None);
+    };
+    let name = m.name().unwrap_or("(unnamed)");
+    let bad = |why: String| {
+        Error::invalid(
+            path,
+            format!(
+                "material '{name}': KHR_materials_clearcoat's {key} {why} (fix or re-export the \
+                 asset, or override the clearcoat with --clearcoat and --clearcoat-roughness)"
+            ),
+        )
+    };
+    let info: ::gltf::json::texture::Info =
+        serde_json::from_value(v.clone()).map_err(|e| bad(format!("is malformed: {e}")))?;
+    let index = info.index.value();
+    let texture = doc
+        .textures()
+        .nth(index)
+        .ok_or_else(|| bad(format!("names texture #{index}, past the file's textures")))?;
+    let transform = info
+        .extensions
+        .as_ref()
+        .and_then(|e| e.texture_transform.as_ref())
+        .map(|t| {
+            (
+                UvTransform::gltf(t.offset.0, t.rotation.0, t.scale.0),
+                t.tex_coord,
+            )
+        });
+    let texture = texture_ref(
+        path,
+        buffers,
+        texture,
+        info.tex_coord,
+        transform,
+        ColorSpace::Raw,
+    )?;
+    Ok(Some(ChannelRef { texture, channel }))
 }
 
 /// A textureInfo's texture (`texture_ref`), with its `KHR_texture_transform`.

@@ -370,7 +370,10 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
                             "KHR_materials_specular": {"specularFactor": 0.5,
                                                        "specularColorFactor": [1.0, 0.5, 0.2]},
                             "KHR_materials_clearcoat": {"clearcoatFactor": 0.75,
-                                                        "clearcoatRoughnessFactor": 0.125}}},
+                                                        "clearcoatRoughnessFactor": 0.125,
+                                                        "clearcoatTexture": {"index": 1},
+                                                        "clearcoatRoughnessTexture": {"index": 1,
+                                                            "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}},
         ],
         "textures": [{"source": 0, "sampler": 0}, {"source": 1}, {"source": 2}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
@@ -454,10 +457,26 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     // KHR_materials_clearcoat's factors (the crate has no accessor: read from its JSON).
     assert_eq!((other.clearcoat, other.clearcoat_roughness), (0.75, 0.125));
     assert_eq!((paint.clearcoat, paint.clearcoat_roughness), (0.0, 0.0));
+    // Its textures: the weight in the red channel, the roughness in the green, each data
+    // with its own KHR_texture_transform.
+    let (cw, cr) = (
+        other.clearcoat_texture.clone().unwrap(),
+        other.clearcoat_roughness_texture.clone().unwrap(),
+    );
+    assert_eq!((cw.channel, cr.channel), (0, 1));
+    assert_eq!(cw.texture.data, TextureData::File(dir.join("orm.png")));
+    assert_eq!(cw.texture.color_space, crate::texture::ColorSpace::Raw);
+    assert_eq!(cw.texture.transform, UvTransform::IDENTITY);
+    assert_eq!(
+        cr.texture.transform,
+        UvTransform::gltf([0.0, 0.0], 0.0, [2.0, 2.0])
+    );
+    assert_eq!(paint.clearcoat_texture, None);
     assert_eq!(
         other.texture_uses().len(),
-        2,
-        "one image, two inputs; the normal map"
+        3,
+        "one image, three inputs (roughness, metallic, clearcoat); the same image scaled (the \
+         clearcoat's roughness); the normal map"
     );
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
@@ -471,12 +490,63 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         "(0.9, 0.8, 0.7)",
         "uv_set = 0",
         "--base-color",
-        // The metallic-roughness texture: one note for both inputs, both factors, both flags.
-        "material 'material 1': its roughness and metallic texture (orm.png) reads TEXCOORD_0",
-        "roughness factor 0.25 and metallic factor 0.5",
-        "--roughness R, --metallic M",
+        // The metallic-roughness texture, also the clearcoat's: one note for its inputs, their
+        // factors, their flags.
+        "material 'material 1': its roughness and metallic and clearcoat texture (orm.png) \
+         reads TEXCOORD_0",
+        "roughness factor 0.25 and metallic factor 0.5 and clearcoat factor 0.75",
+        "--roughness R, --metallic M, --clearcoat W",
+        "its clearcoat-roughness texture (orm.png)",
+        "clearcoat roughness factor 0.125",
     ] {
         assert!(w.contains(part), "no '{part}' in: {w}");
+    }
+}
+
+/// A clearcoat texture the gltf crate does not validate (it reads no KHR_materials_clearcoat):
+/// an index past the file's textures, or a textureInfo that is not one, is an error naming
+/// the material, the input and the flags that override it; never a panic.
+#[test]
+fn a_gltf_clearcoat_texture_past_the_files_textures_is_an_error() {
+    let dir = temp_dir("gltf-clearcoat-texture");
+    for (name, info, needle) in [
+        (
+            "past",
+            json!({"index": 3}),
+            "names texture #3, past the file's textures",
+        ),
+        ("malformed", json!({"texCoord": 0}), "is malformed"),
+    ] {
+        let mut doc = GltfDoc::default();
+        let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);
+        let rest = json!({
+            "scene": 0,
+            "scenes": [{"nodes": [0]}],
+            "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [
+                {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
+            "materials": [{"name": "lacquer",
+                "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                                                            "clearcoatRoughnessTexture": info}}}],
+        });
+        let e = load_gltf_doc(
+            &dir,
+            &format!("{name}.gltf"),
+            &doc,
+            &rest,
+            &MeshOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        for part in [
+            &format!("{name}.gltf"),
+            "material 'lacquer'",
+            "clearcoatRoughnessTexture",
+            needle,
+            "--clearcoat-roughness",
+        ] {
+            assert!(e.contains(part), "no '{part}' in: {e}");
+        }
     }
 }
 

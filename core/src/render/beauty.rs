@@ -177,6 +177,9 @@ pub struct SurfaceMaterial {
     pub texture: Option<u32>,
     pub roughness_texture: Option<TexChannel>,
     pub metallic_texture: Option<TexChannel>,
+    /// Texture channels that multiply the clearcoat's weight and roughness.
+    pub clearcoat_texture: Option<TexChannel>,
+    pub clearcoat_roughness_texture: Option<TexChannel>,
     pub normal_texture: Option<NormalTex>,
     /// Emitted radiance, linear RGB, times `emission_texture` at the hit if any (an index
     /// into `BeautyScene::textures`).
@@ -237,7 +240,8 @@ impl BeautyScene<'_> {
 
     /// The material at a hit: its prism's, the base colour times the texture at its UV, the
     /// roughness and metallic times their texture channels there (one lookup where both read
-    /// the same texture, as glTF's metallic-roughness texture does).
+    /// the same texture, as glTF's metallic-roughness texture does), and the clearcoat's
+    /// weight and roughness times theirs (the same).
     #[inline]
     pub fn material_at(&self, hit: &Hit) -> Material {
         let s = &self.materials[self.material_index(hit.prism)];
@@ -257,6 +261,17 @@ impl BeautyScene<'_> {
             };
             m.metallic *= v[c.channel as usize];
         }
+        let coat = s.clearcoat_texture.map(|c| (c, sample(c.texture)));
+        if let Some((c, v)) = coat {
+            m.clearcoat *= v[c.channel as usize];
+        }
+        if let Some(c) = s.clearcoat_roughness_texture {
+            let v = match coat {
+                Some((w, v)) if w.texture == c.texture => v,
+                _ => sample(c.texture),
+            };
+            m.clearcoat_roughness *= v[c.channel as usize];
+        }
         m
     }
 
@@ -275,7 +290,7 @@ impl BeautyScene<'_> {
             return glow;
         }
         let mu = facing_normals(hit, dir).1.dot(-dir);
-        glow * shading::clearcoat_through(&s.material, mu)
+        glow * shading::clearcoat_through(&self.material_at(hit), mu)
     }
 
     /// The hit as the beauty shades it: its shading normal bent by its material's normal map,

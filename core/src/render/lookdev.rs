@@ -284,6 +284,11 @@ pub struct MaterialDescription {
     /// The clearcoat's weight and roughness; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub clearcoat: Option<[f32; 2]>,
+    /// The texture channels multiplied into them; absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clearcoat_texture: Option<String>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clearcoat_roughness_texture: Option<String>,
     /// The texture multiplied into `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
@@ -322,7 +327,11 @@ impl MaterialDescription {
             format!(" tinted ({r}, {g}, {b})")
         });
         let coat = self.clearcoat.map_or(String::new(), |[w, r]| {
-            format!(", clearcoat {w} roughness {r}")
+            format!(
+                ", clearcoat {w}{}, clearcoat roughness {r}{}",
+                times(&self.clearcoat_texture),
+                times(&self.clearcoat_roughness_texture)
+            )
         });
         let glow = self.emission.map_or(String::new(), |[r, g, b]| {
             format!(
@@ -375,6 +384,12 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
                     .then(|| m.material.specular_tint.to_array()),
                 clearcoat: (m.material.clearcoat > 0.0)
                     .then_some([m.material.clearcoat, m.material.clearcoat_roughness]),
+                clearcoat_texture: (m.clearcoat_texture)
+                    .filter(|_| m.material.clearcoat > 0.0)
+                    .map(|c| describe_channel(scene, c)),
+                clearcoat_roughness_texture: (m.clearcoat_roughness_texture)
+                    .filter(|_| m.material.clearcoat > 0.0)
+                    .map(|c| describe_channel(scene, c)),
                 texture: m.texture.map(|t| scene.textures[t as usize].describe()),
                 roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
                 metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
@@ -515,6 +530,10 @@ pub fn texture_notes(
                         let [r, g, b] = m.emission;
                         format!("emission ({r}, {g}, {b})")
                     }
+                    TextureSlot::Clearcoat => format!("clearcoat factor {}", m.clearcoat),
+                    TextureSlot::ClearcoatRoughness => {
+                        format!("clearcoat roughness factor {}", m.clearcoat_roughness)
+                    }
                 })
                 .collect::<Vec<_>>()
                 .join(" and ");
@@ -577,6 +596,8 @@ struct AssetMaterial {
     specular_tint: Vec3,
     clearcoat: f32,
     clearcoat_roughness: f32,
+    clearcoat_texture: Option<TexChannel>,
+    clearcoat_roughness_texture: Option<TexChannel>,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -605,6 +626,8 @@ impl AssetMaterial {
             specular_tint: Vec3::ONE,
             clearcoat: 0.0,
             clearcoat_roughness: DEFAULT_CLEARCOAT_ROUGHNESS,
+            clearcoat_texture: None,
+            clearcoat_roughness_texture: None,
         }
     }
 }
@@ -691,6 +714,8 @@ fn asset_materials(
         TextureSlot::Metallic => opts.metallic.is_none(),
         TextureSlot::Normal => opts.normal_maps,
         TextureSlot::Emission => opts.emission,
+        TextureSlot::Clearcoat => opts.clearcoat.is_none(),
+        TextureSlot::ClearcoatRoughness => opts.clearcoat_roughness.is_none(),
     };
     if let Some(w) = material_warning(mesh, uv_set, &reads) {
         eprintln!("warning: {}: {w}", mesh.source.display());
@@ -710,10 +735,15 @@ fn asset_materials(
             Some(t) => decode(t, TextureSlot::BaseColor)?,
             None => None,
         };
-        let mut channels = [None; 2];
+        let mut channels = [None; 4];
         let inputs = [
             (&m.roughness_texture, TextureSlot::Roughness),
             (&m.metallic_texture, TextureSlot::Metallic),
+            (&m.clearcoat_texture, TextureSlot::Clearcoat),
+            (
+                &m.clearcoat_roughness_texture,
+                TextureSlot::ClearcoatRoughness,
+            ),
         ];
         for (out, (c, slot)) in channels.iter_mut().zip(inputs) {
             if let Some(c) = c {
@@ -723,7 +753,8 @@ fn asset_materials(
                 });
             }
         }
-        let [roughness_texture, metallic_texture] = channels;
+        let [roughness_texture, metallic_texture, clearcoat_texture, clearcoat_roughness_texture] =
+            channels;
         let normal_texture = match &m.normal_texture {
             Some(n) => decode(&n.texture, TextureSlot::Normal)?.map(|texture| NormalTex {
                 texture,
@@ -755,6 +786,8 @@ fn asset_materials(
             specular_tint: m.specular_tint.map_or(Vec3::ONE, Vec3::from),
             clearcoat: m.clearcoat,
             clearcoat_roughness: m.clearcoat_roughness,
+            clearcoat_texture,
+            clearcoat_roughness_texture,
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -1249,6 +1282,10 @@ pub fn render_all(
             texture: m.texture.filter(|_| opts.base_color.is_none()),
             roughness_texture: m.roughness_texture.filter(|_| opts.roughness.is_none()),
             metallic_texture: m.metallic_texture.filter(|_| opts.metallic.is_none()),
+            clearcoat_texture: m.clearcoat_texture.filter(|_| opts.clearcoat.is_none()),
+            clearcoat_roughness_texture: m
+                .clearcoat_roughness_texture
+                .filter(|_| opts.clearcoat_roughness.is_none()),
             normal_texture: m.normal_texture.filter(|_| opts.normal_maps),
             emission: match opts.emission {
                 true => m.emission,
