@@ -79,8 +79,8 @@ struct Answer {
     shading_normal: vec3f,
     _pad: u32,
     uv: vec2f,     // the hit's texture coordinates (BeautyScene::material_at)
-    // The shading normal before the material's normal map bent it (the clearcoat's).
-    unmapped_normal: vec3f,
+    // The normal the clearcoat lies on (BeautyScene::clearcoat_normal).
+    coat_normal: vec3f,
 }
 
 // A path between dispatches: beauty::trace_sample's locals, the SampleResult so far, the
@@ -666,10 +666,10 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let ns = facing.ns;
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
-        // The clearcoat lies on the surface before its normal map bends it.
+        // The clearcoat lies on the surface before its normal map bends it, bent by its own.
         var l: Lobes;
-        if (m.clearcoat > 0.0 && any(hit.shading_normal != hit.unmapped_normal)) {
-            let nc = facing_normals(hit.geometric_normal, hit.unmapped_normal, (*s).dir).ns;
+        if (m.clearcoat > 0.0 && any(hit.shading_normal != hit.coat_normal)) {
+            let nc = facing_normals(hit.geometric_normal, hit.coat_normal, (*s).dir).ns;
             l = lobes_coated(m, wo_l, to_local(nc, basis.t, basis.b, ns));
         } else {
             l = lobes(m, wo_l.z);
@@ -781,7 +781,7 @@ fn use_answers(s: ptr<function, PathState>, px: PixelRef, qs: Queries, next: Ans
         if (step == STEP_CAMERA) {
             seen_along = (*s).dir;
         }
-        glow = emission_at(next_prism, next.uv, next.geometric_normal, next.unmapped_normal, seen_along);
+        glow = emission_at(next_prism, next.uv, next.geometric_normal, next.coat_normal, seen_along);
     }
     if (step == STEP_CAMERA) {
         let camera = path_camera_ray(*s);
@@ -902,14 +902,14 @@ fn trace_query(q: QueryRec, px: PixelRef) -> Answer {
 // them.
 fn query_answer(q: QueryRec, found: Hit) -> Answer {
     var hit = found;
-    var unmapped = vec3f(0.0);
+    var coat = vec3f(0.0);
     if (q.any == 0u && hit.prism != NO_PRISM) {
         fill_surface(&hit);
-        unmapped = hit.shading_normal;
+        coat = clearcoat_normal(hit);
         hit = shade_hit(hit);
     }
     return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u, hit.uv,
-        unmapped);
+        coat);
 }
 
 // Workgroup edge = gpu::layout::WORKGROUP (the host dispatches div_ceil(tile, 8) groups).

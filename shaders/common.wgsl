@@ -166,10 +166,10 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 448 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// GpuMaterial, 528 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
 // normal textures, its normal map's scale and bias (beauty::NormalTex), its emission and
-// emission texture, its specular tint, and its clearcoat's weight and roughness and their
-// textures.
+// emission texture, its specular tint, and its clearcoat's weight and roughness, their
+// textures, and its normal map with that map's scale and bias.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -195,6 +195,11 @@ struct SurfaceMaterial {
     _pad6: u32,
     clearcoat_tex: MaterialTexture,
     clearcoat_roughness_tex: MaterialTexture,
+    clearcoat_normal_tex: MaterialTexture,
+    clearcoat_normal_scale: vec3f,
+    _pad7: u32,
+    clearcoat_normal_bias: vec3f,
+    _pad8: u32,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

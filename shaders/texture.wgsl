@@ -134,9 +134,9 @@ fn material_at(prism: u32, uv: vec2f) -> Material {
 }
 
 // BeautyScene::emission_at: the radiance the surface of prism `prism` emits at `uv` towards
-// -dir, under what its clearcoat lets through at that angle (about `unmapped`, the hit's
-// shading normal before its normal map, turned by facing_normals with `geometric`).
-fn emission_at(prism: u32, uv: vec2f, geometric: vec3f, unmapped: vec3f, dir: vec3f) -> vec3f {
+// -dir, under what its clearcoat lets through at that angle (about `coat_normal`, the hit's
+// clearcoat_normal, turned by facing_normals with `geometric`).
+fn emission_at(prism: u32, uv: vec2f, geometric: vec3f, coat_normal: vec3f, dir: vec3f) -> vec3f {
     let s = materials[material_index(prism)];
     var glow = s.emission;
     if (s.emission_tex.width != 0u) {
@@ -145,7 +145,7 @@ fn emission_at(prism: u32, uv: vec2f, geometric: vec3f, unmapped: vec3f, dir: ve
     if (s.clearcoat <= 0.0 || all(glow == vec3f(0.0))) {
         return glow;
     }
-    let mu = dot(facing_normals(geometric, unmapped, dir).ns, -dir);
+    let mu = dot(facing_normals(geometric, coat_normal, dir).ns, -dir);
     return glow * clearcoat_through(material_at(prism, uv), mu);
 }
 
@@ -157,9 +157,25 @@ fn corner_tangent(prism: u32, k: u32) -> vec4f {
         texture_texels[i + 3u]);
 }
 
-// BeautyScene::shade_hit: the hit's shading normal bent by its material's normal map (texel
-// times scale plus bias, in the tangent frame tangent::frame_at makes about the shading
-// normal), left as it is where the frame or the mapped normal degenerates.
+// BeautyScene::bent_normal: the hit's shading normal bent by the normal map `tex` (texel
+// times `scale` plus `bias`, in the tangent frame tangent::frame_at makes about the shading
+// normal); the zero vector where the frame or the mapped normal degenerates.
+fn bent_normal(hit: Hit, tex: MaterialTexture, scale: vec3f, bias: vec3f) -> vec3f {
+    let b = hit.bary;
+    let t4 = corner_tangent(hit.prism, 0u) * b.x + corner_tangent(hit.prism, 1u) * b.y
+        + corner_tangent(hit.prism, 2u) * b.z;
+    let n = hit.shading_normal;
+    let t = normalize_or_zero(t4.xyz - n * dot(n, t4.xyz));
+    if (all(t == vec3f(0.0))) {
+        return vec3f(0.0);
+    }
+    let bt = cross(n, t) * select(1.0, -1.0, t4.w < 0.0);
+    let c = texture_sample(tex, hit.uv) * scale + bias;
+    return normalize_or_zero(t * c.x + bt * c.y + n * c.z);
+}
+
+// BeautyScene::shade_hit: the hit's shading normal bent by its material's normal map, left as
+// it is where that degenerates.
 fn shade_hit(found: Hit) -> Hit {
     var hit = found;
     // One word read where the material has no normal map (most hits, every scene without).
@@ -168,19 +184,25 @@ fn shade_hit(found: Hit) -> Hit {
         return hit;
     }
     let s = materials[mi];
-    let b = hit.bary;
-    let t4 = corner_tangent(hit.prism, 0u) * b.x + corner_tangent(hit.prism, 1u) * b.y
-        + corner_tangent(hit.prism, 2u) * b.z;
-    let n = hit.shading_normal;
-    let t = normalize_or_zero(t4.xyz - n * dot(n, t4.xyz));
-    if (all(t == vec3f(0.0))) {
-        return hit;
-    }
-    let bt = cross(n, t) * select(1.0, -1.0, t4.w < 0.0);
-    let c = texture_sample(s.normal_tex, hit.uv) * s.normal_scale + s.normal_bias;
-    let mapped = normalize_or_zero(t * c.x + bt * c.y + n * c.z);
+    let mapped = bent_normal(hit, s.normal_tex, s.normal_scale, s.normal_bias);
     if (any(mapped != vec3f(0.0))) {
         hit.shading_normal = mapped;
     }
     return hit;
+}
+
+// BeautyScene::clearcoat_normal: the normal a hit's clearcoat lies on (the hit as traversal
+// found it): its shading normal bent by the material's clearcoat normal map, if any.
+fn clearcoat_normal(hit: Hit) -> vec3f {
+    let mi = material_index(hit.prism);
+    if (materials[mi].clearcoat_normal_tex.width == 0u || hit.prism >= arrayLength(&prisms)) {
+        return hit.shading_normal;
+    }
+    let s = materials[mi];
+    let mapped = bent_normal(hit, s.clearcoat_normal_tex, s.clearcoat_normal_scale,
+        s.clearcoat_normal_bias);
+    if (any(mapped != vec3f(0.0))) {
+        return mapped;
+    }
+    return hit.shading_normal;
 }

@@ -292,6 +292,10 @@ pub struct MeshMaterial {
     /// `clearcoatRoughnessTexture`'s green).
     pub clearcoat_texture: Option<crate::texture::ChannelRef>,
     pub clearcoat_roughness_texture: Option<crate::texture::ChannelRef>,
+    /// The clearcoat's own tangent-space normal map (glTF's `clearcoatNormalTexture`), which
+    /// bends its normal (the surface's before `normal_texture` bends it); `None`: it lies on
+    /// that unbent surface.
+    pub clearcoat_normal_texture: Option<crate::texture::NormalMapRef>,
 }
 
 /// The reflectance at normal incidence of a dielectric of index of refraction `ior` in air,
@@ -320,11 +324,13 @@ impl MeshMaterial {
             clearcoat_roughness: 0.0,
             clearcoat_texture: None,
             clearcoat_roughness_texture: None,
+            clearcoat_normal_texture: None,
         }
     }
 
     /// Its textures, each with the input it feeds, in the order base colour, roughness,
-    /// metallic, normal, emission, clearcoat, clearcoat roughness (one image may feed two).
+    /// metallic, normal, emission, clearcoat, clearcoat roughness, clearcoat normal (one image
+    /// may feed two).
     pub fn textures(&self) -> Vec<(crate::texture::TextureSlot, &crate::texture::TextureRef)> {
         use crate::texture::TextureSlot;
         let mut out = vec![];
@@ -349,6 +355,9 @@ impl MeshMaterial {
         if let Some(c) = &self.clearcoat_roughness_texture {
             out.push((TextureSlot::ClearcoatRoughness, &c.texture));
         }
+        if let Some(n) = &self.clearcoat_normal_texture {
+            out.push((TextureSlot::ClearcoatNormal, &n.texture));
+        }
         out
     }
 
@@ -365,6 +374,9 @@ impl MeshMaterial {
             self.clearcoat_roughness_texture
                 .as_mut()
                 .map(|c| &mut c.texture),
+            self.clearcoat_normal_texture
+                .as_mut()
+                .map(|n| &mut n.texture),
         ];
         for t in refs.into_iter().flatten() {
             t.tex_coord = set;
@@ -578,6 +590,9 @@ mod tests {
             metallic_texture: channel("metal"),
             normal_texture: Some(NormalMapRef::unit(t("normal"), 1.0)),
             emission_texture: Some(t("glow")),
+            clearcoat_texture: channel("coat"),
+            clearcoat_roughness_texture: channel("coat roughness"),
+            clearcoat_normal_texture: Some(NormalMapRef::unit(t("coat normal"), 1.0)),
             ..MeshMaterial::plain("m".into(), [1.0; 4], 0.5, 0.0)
         };
         m.set_tex_coord(2);
@@ -586,7 +601,7 @@ mod tests {
             .iter()
             .map(|(slot, t)| (*slot, t.tex_coord))
             .collect();
-        assert_eq!(sets.len(), 5, "{sets:?}");
+        assert_eq!(sets.len(), 8, "{sets:?}");
         assert!(sets.iter().all(|&(_, set)| set == 2), "{sets:?}");
     }
 }

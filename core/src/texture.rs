@@ -101,11 +101,13 @@ pub enum TextureSlot {
     /// One channel multiplied into the clearcoat's weight, or its roughness.
     Clearcoat,
     ClearcoatRoughness,
+    /// A tangent-space normal map of the clearcoat's own (`NormalMapRef`).
+    ClearcoatNormal,
 }
 
 impl TextureSlot {
     /// "base-colour", "roughness", "metallic", "normal", "emission", "clearcoat",
-    /// "clearcoat-roughness".
+    /// "clearcoat-roughness", "clearcoat-normal".
     pub fn name(self) -> &'static str {
         match self {
             TextureSlot::BaseColor => "base-colour",
@@ -115,6 +117,7 @@ impl TextureSlot {
             TextureSlot::Emission => "emission",
             TextureSlot::Clearcoat => "clearcoat",
             TextureSlot::ClearcoatRoughness => "clearcoat-roughness",
+            TextureSlot::ClearcoatNormal => "clearcoat-normal",
         }
     }
 
@@ -128,6 +131,7 @@ impl TextureSlot {
             TextureSlot::Emission => "--no-emission",
             TextureSlot::Clearcoat => "--clearcoat W",
             TextureSlot::ClearcoatRoughness => "--clearcoat-roughness R",
+            TextureSlot::ClearcoatNormal => "--no-normal-maps",
         }
     }
 }

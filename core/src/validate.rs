@@ -141,7 +141,11 @@ fn texture_check(mesh: &BaseMesh, uv_set: u32) -> Check {
                 continue;
             }
             match ColorMap::load(&mesh.source, t, slots[0]) {
-                Ok(c) if slots.contains(&TextureSlot::Normal) && c.is_grey() => {
+                Ok(c)
+                    if (slots.contains(&TextureSlot::Normal)
+                        || slots.contains(&TextureSlot::ClearcoatNormal))
+                        && c.is_grey() =>
+                {
                     warnings.push(format!("material '{}': {}", m.name, grey_normal_map(t)))
                 }
                 Ok(c) => {
@@ -528,6 +532,9 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                 clearcoat_roughness_texture: (m.clearcoat_roughness_texture.as_ref())
                     .filter(|_| m.clearcoat > 0.0)
                     .map(describe_channel_ref),
+                clearcoat_normal_texture: (m.clearcoat_normal_texture.as_ref())
+                    .filter(|_| m.clearcoat > 0.0)
+                    .map(|n| format!("{}, {}", n.texture.name, n.describe_mapping())),
                 texture: m.base_color_texture.as_ref().map(|t| t.name.clone()),
                 roughness_texture: m.roughness_texture.as_ref().map(describe_channel_ref),
                 metallic_texture: m.metallic_texture.as_ref().map(describe_channel_ref),
@@ -558,6 +565,7 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                 clearcoat: None,
                 clearcoat_texture: None,
                 clearcoat_roughness_texture: None,
+                clearcoat_normal_texture: None,
                 texture: None,
                 roughness_texture: None,
                 metallic_texture: None,

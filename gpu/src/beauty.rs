@@ -303,6 +303,14 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             clearcoat_roughness: m.material.clearcoat_roughness,
             clearcoat_tex: channel(m.clearcoat_texture),
             clearcoat_roughness_tex: channel(m.clearcoat_roughness_texture),
+            clearcoat_normal_tex: m
+                .clearcoat_normal_texture
+                .filter(|_| !s.tangents.is_empty())
+                .map_or(Default::default(), |n| tex(n.texture, 0)),
+            clearcoat_normal_scale: (m.clearcoat_normal_texture)
+                .map_or([0.0; 3], |n| n.scale.to_array()),
+            clearcoat_normal_bias: (m.clearcoat_normal_texture)
+                .map_or([0.0; 3], |n| n.bias.to_array()),
             ..Default::default()
         })
         .collect()

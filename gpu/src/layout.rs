@@ -356,10 +356,11 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 448 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// One material of a beauty scene, 528 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
 /// buffer, its normal map's scale and bias (`beauty::NormalTex`), its emission and emission
-/// texture, its specular tint, and its clearcoat's weight and roughness and their textures.
+/// texture, its specular tint, and its clearcoat's weight and roughness, their textures, and
+/// its normal map with that map's scale and bias.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -387,6 +388,11 @@ pub struct GpuMaterial {
     pub _pad6: u32,
     pub clearcoat_tex: GpuMaterialTexture,
     pub clearcoat_roughness_tex: GpuMaterialTexture,
+    pub clearcoat_normal_tex: GpuMaterialTexture,
+    pub clearcoat_normal_scale: [f32; 3],
+    pub _pad7: u32,
+    pub clearcoat_normal_bias: [f32; 3],
+    pub _pad8: u32,
 }
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
@@ -452,7 +458,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuLighting>() == 1136);
     assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 448);
+    assert!(std::mem::size_of::<GpuMaterial>() == 528);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
     assert!(std::mem::size_of::<GpuBsdfTables>() == 20_608);
 };
@@ -646,7 +652,12 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 _pad5,
                 _pad6,
                 clearcoat_tex,
-                clearcoat_roughness_tex
+                clearcoat_roughness_tex,
+                clearcoat_normal_tex,
+                clearcoat_normal_scale,
+                _pad7,
+                clearcoat_normal_bias,
+                _pad8
             }
         ),
         layout!("BsdfTables", GpuBsdfTables { e, e_avg, s }),

@@ -561,9 +561,15 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 ..Material::default()
             },
             texture: Some(0),
-            // Both of the coat's channels from one texture (one lookup).
+            // Both of the coat's channels from one texture (one lookup), and the coat's own
+            // normal map (the glow's angle is the coat's).
             clearcoat_texture: channel(2, 0),
             clearcoat_roughness_texture: channel(2, 1),
+            clearcoat_normal_texture: Some(NormalTex {
+                texture: 3,
+                scale: Vec3::new(1.0, 1.0, 2.0),
+                bias: Vec3::new(-0.5, -0.5, -1.0),
+            }),
             // Glowing through the second texture (counted at every hit and, the scene being
             // emissive, by the last bounce's closest-hit ray).
             emission: Vec3::new(0.5, 0.4, 0.3),
@@ -586,8 +592,14 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 scale: Vec3::new(1.6, 1.6, 2.0),
                 bias: Vec3::new(-0.8, -0.8, -1.0),
             }),
-            // The coat's roughness alone from a texture (another one than the weight's).
+            // The coat's roughness alone from a texture (another one than the weight's), its
+            // own normal map the base's mirrored.
             clearcoat_roughness_texture: channel(1, 2),
+            clearcoat_normal_texture: Some(NormalTex {
+                texture: 3,
+                scale: Vec3::new(-1.6, 1.6, 2.0),
+                bias: Vec3::new(0.8, -0.8, -1.0),
+            }),
             ..Default::default()
         },
         SurfaceMaterial {

@@ -116,6 +116,14 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                     "clearcoatRoughnessTexture",
                     1,
                 )?,
+                clearcoat_normal_texture: clearcoat_texture(
+                    path,
+                    &doc,
+                    &loader_buffers,
+                    &m,
+                    "clearcoatNormalTexture",
+                )?
+                .map(|(texture, scale)| NormalMapRef::unit(texture, scale)),
             })
         })
         .collect::<Result<_>>()?;
@@ -138,10 +146,7 @@ fn clearcoat_factor(m: &gltf::Material, key: &str) -> f32 {
         .map_or(0.0, |v| (v as f32).clamp(0.0, 1.0))
 }
 
-/// One channel of a texture of `m`'s `KHR_materials_clearcoat` (`key` its textureInfo, read
-/// from the extension's JSON with its `texCoord` and `KHR_texture_transform`); `None` where
-/// the extension or the texture is absent. A malformed textureInfo or a texture index past
-/// the file's textures is an error naming both.
+/// One channel of a texture of `m`'s `KHR_materials_clearcoat` (`clearcoat_texture`).
 fn clearcoat_channel(
     path: &Path,
     doc: &::gltf::Document,
@@ -150,6 +155,22 @@ fn clearcoat_channel(
     key: &str,
     channel: u8,
 ) -> Result<Option<ChannelRef>> {
+    Ok(clearcoat_texture(path, doc, buffers, m, key)?
+        .map(|(texture, _)| ChannelRef { texture, channel }))
+}
+
+/// The texture `key` of `m`'s `KHR_materials_clearcoat`, read from the extension's JSON (the
+/// gltf crate has no accessor) with its `texCoord`, `KHR_texture_transform` and `scale` (a
+/// normalTextureInfo's; 1 where absent); `None` where the extension or the texture is absent.
+/// A malformed textureInfo or a texture index past the file's textures is an error naming
+/// both.
+fn clearcoat_texture(
+    path: &Path,
+    doc: &::gltf::Document,
+    buffers: &[Vec<u8>],
+    m: &::gltf::Material,
+    key: &str,
+) -> Result<Option<(TextureRef, f32)>> {
     let Some(v) = m
         .extension_value("KHR_materials_clearcoat")
         .and_then(|e| e.get(key))
@@ -168,6 +189,14 @@ fn clearcoat_channel(
     };
     let info: ::gltf::json::texture::Info =
         serde_json::from_value(v.clone()).map_err(|e| bad(format!("is malformed: {e}")))?;
+    let scale = match v.get("scale") {
+        None => 1.0,
+        Some(s) => s
+            .as_f64()
+            .filter(|s| s.is_finite())
+            .ok_or_else(|| bad(format!("has a scale that is not a number ({s})")))?
+            as f32,
+    };
     let index = info.index.value();
     let texture = doc
         .textures()
@@ -191,7 +220,7 @@ fn clearcoat_channel(
         transform,
         ColorSpace::Raw,
     )?;
-    Ok(Some(ChannelRef { texture, channel }))
+    Ok(Some((texture, scale)))
 }
 
 /// A textureInfo's texture (`texture_ref`), with its `KHR_texture_transform`.

@@ -373,7 +373,8 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
                                                         "clearcoatRoughnessFactor": 0.125,
                                                         "clearcoatTexture": {"index": 1},
                                                         "clearcoatRoughnessTexture": {"index": 1,
-                                                            "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}}}}},
+                                                            "extensions": {"KHR_texture_transform": {"scale": [2.0, 2.0]}}},
+                                                        "clearcoatNormalTexture": {"index": 2, "scale": 0.5}}}},
         ],
         "textures": [{"source": 0, "sampler": 0}, {"source": 1}, {"source": 2}],
         "samplers": [{"magFilter": 9728, "wrapS": 33648, "wrapT": 33071}],
@@ -472,11 +473,16 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         UvTransform::gltf([0.0, 0.0], 0.0, [2.0, 2.0])
     );
     assert_eq!(paint.clearcoat_texture, None);
+    // Its normal map: data, x and y times its scale (a normalTextureInfo's).
+    let cn = other.clearcoat_normal_texture.clone().unwrap();
+    assert_eq!(cn.texture.data, TextureData::File(dir.join("normal.png")));
+    assert_eq!((cn.scale, cn.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
+    assert_eq!(paint.clearcoat_normal_texture, None);
     assert_eq!(
         other.texture_uses().len(),
-        3,
+        4,
         "one image, three inputs (roughness, metallic, clearcoat); the same image scaled (the \
-         clearcoat's roughness); the normal map"
+         clearcoat's roughness); the normal map, offset; the same image as the clearcoat's"
     );
     use crate::render::lookdev::material_warning;
     // Read through UV set 0: nothing to say.
@@ -516,6 +522,11 @@ fn a_gltf_clearcoat_texture_past_the_files_textures_is_an_error() {
             "names texture #3, past the file's textures",
         ),
         ("malformed", json!({"texCoord": 0}), "is malformed"),
+        (
+            "scale",
+            json!({"index": 0, "scale": "big"}),
+            "has a scale that is not a number",
+        ),
     ] {
         let mut doc = GltfDoc::default();
         let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);

@@ -180,6 +180,9 @@ pub struct SurfaceMaterial {
     /// Texture channels that multiply the clearcoat's weight and roughness.
     pub clearcoat_texture: Option<TexChannel>,
     pub clearcoat_roughness_texture: Option<TexChannel>,
+    /// The clearcoat's own normal map, which bends its normal (the shading normal before
+    /// `normal_texture` bends it).
+    pub clearcoat_normal_texture: Option<NormalTex>,
     pub normal_texture: Option<NormalTex>,
     /// Emitted radiance, linear RGB, times `emission_texture` at the hit if any (an index
     /// into `BeautyScene::textures`).
@@ -277,8 +280,7 @@ impl BeautyScene<'_> {
 
     /// The radiance a hit's surface emits (either side) towards `-dir`: its material's
     /// emission times its emission texture there, under what its clearcoat (if any) lets
-    /// through at that angle (`shading::clearcoat_through`, about the hit's shading normal
-    /// before a normal map bends it).
+    /// through at that angle (`shading::clearcoat_through`, about `clearcoat_normal`).
     #[inline]
     pub fn emission_at(&self, hit: &Hit, dir: Vec3) -> Vec3 {
         let s = &self.materials[self.material_index(hit.prism)];
@@ -289,15 +291,16 @@ impl BeautyScene<'_> {
         if s.material.clearcoat <= 0.0 || glow == Vec3::ZERO {
             return glow;
         }
-        let mu = facing_normals(hit, dir).1.dot(-dir);
+        let coat = Hit {
+            shading_normal: self.clearcoat_normal(hit),
+            ..*hit
+        };
+        let mu = facing_normals(&coat, dir).1.dot(-dir);
         glow * shading::clearcoat_through(&self.material_at(hit), mu)
     }
 
     /// The hit as the beauty shades it: its shading normal bent by its material's normal map,
-    /// if any. The map's texel, times its scale plus its bias, is the normal in the tangent
-    /// frame at the hit (`tangent::frame_at`: the prism's MikkTSpace tangent made
-    /// perpendicular to the shading normal). Left as it is where the frame or the mapped
-    /// normal degenerates (a tangent along the normal, a texel that maps to zero).
+    /// if any (`bent_normal`).
     #[inline]
     pub fn shade_hit(&self, mut hit: Hit) -> Hit {
         // No material has a normal map (the tangents are made only where one has).
@@ -305,20 +308,38 @@ impl BeautyScene<'_> {
             return hit;
         }
         let s = &self.materials[self.material_index(hit.prism)];
-        let (Some(nm), Some(corners)) = (s.normal_texture, self.tangents.get(hit.prism as usize))
-        else {
-            return hit;
-        };
-        let n = hit.shading_normal;
-        let Some((t, b)) = crate::tangent::frame_at(corners, hit.bary, n) else {
-            return hit;
-        };
-        let c = self.textures[nm.texture as usize].sample(hit.uv) * nm.scale + nm.bias;
-        let mapped = (t * c.x + b * c.y + n * c.z).normalize_or_zero();
-        if mapped != Vec3::ZERO {
-            hit.shading_normal = mapped;
+        if let Some(n) = s.normal_texture.and_then(|nm| self.bent_normal(&hit, nm)) {
+            hit.shading_normal = n;
         }
         hit
+    }
+
+    /// The normal a hit's clearcoat lies on (as the intersector found the hit): its shading
+    /// normal bent by the material's clearcoat normal map, if any, else that normal unbent.
+    #[inline]
+    pub fn clearcoat_normal(&self, hit: &Hit) -> Vec3 {
+        if self.tangents.is_empty() {
+            return hit.shading_normal;
+        }
+        let s = &self.materials[self.material_index(hit.prism)];
+        (s.clearcoat_normal_texture)
+            .and_then(|nm| self.bent_normal(hit, nm))
+            .unwrap_or(hit.shading_normal)
+    }
+
+    /// A hit's shading normal bent by the normal map `nm`: the map's texel, times its scale
+    /// plus its bias, is the normal in the tangent frame at the hit (`tangent::frame_at`: the
+    /// prism's MikkTSpace tangent made perpendicular to the shading normal). `None` where the
+    /// frame or the mapped normal degenerates (a tangent along the normal, a texel that maps
+    /// to zero).
+    #[inline]
+    fn bent_normal(&self, hit: &Hit, nm: NormalTex) -> Option<Vec3> {
+        let corners = self.tangents.get(hit.prism as usize)?;
+        let n = hit.shading_normal;
+        let (t, b) = crate::tangent::frame_at(corners, hit.bary, n)?;
+        let c = self.textures[nm.texture as usize].sample(hit.uv) * nm.scale + nm.bias;
+        let mapped = (t * c.x + b * c.y + n * c.z).normalize_or_zero();
+        (mapped != Vec3::ZERO).then_some(mapped)
     }
 }
 
@@ -583,15 +604,22 @@ fn surface_radiance(
         }
         let m = &s.material_at(&hit);
         let wo = -dir;
-        // The clearcoat lies on the surface before its normal map bends it.
-        let unmapped = hit.shading_normal;
+        // The clearcoat lies on the surface before its normal map bends it, bent by its own.
         let shaded = s.shade_hit(hit);
         let (ng, ns) = facing_normals(&shaded, dir);
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
-        let l = &match m.clearcoat > 0.0 && shaded.shading_normal != unmapped {
+        let coat_n = match m.clearcoat > 0.0 {
+            true => s.clearcoat_normal(&hit),
+            false => shaded.shading_normal,
+        };
+        let l = &match coat_n != shaded.shading_normal {
             true => {
-                let nc = facing_normals(&hit, dir).1;
+                let coat = Hit {
+                    shading_normal: coat_n,
+                    ..hit
+                };
+                let nc = facing_normals(&coat, dir).1;
                 shading::lobes_coated(m, wo_l, shading::to_local(nc, t, b, ns))
             }
             false => shading::lobes(m, wo_l.z),

@@ -289,6 +289,9 @@ pub struct MaterialDescription {
     pub clearcoat_texture: Option<String>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub clearcoat_roughness_texture: Option<String>,
+    /// "coat_normal, ..., strength 1": the clearcoat's own normal map; absent without one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clearcoat_normal_texture: Option<String>,
     /// The texture multiplied into `base_color`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub texture: Option<String>,
@@ -328,9 +331,11 @@ impl MaterialDescription {
         });
         let coat = self.clearcoat.map_or(String::new(), |[w, r]| {
             format!(
-                ", clearcoat {w}{}, clearcoat roughness {r}{}",
+                ", clearcoat {w}{}, clearcoat roughness {r}{}{}",
                 times(&self.clearcoat_texture),
-                times(&self.clearcoat_roughness_texture)
+                times(&self.clearcoat_roughness_texture),
+                (self.clearcoat_normal_texture.as_ref())
+                    .map_or(String::new(), |t| format!(", clearcoat normal map {t}"))
             )
         });
         let glow = self.emission.map_or(String::new(), |[r, g, b]| {
@@ -390,6 +395,12 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
                 clearcoat_roughness_texture: (m.clearcoat_roughness_texture)
                     .filter(|_| m.material.clearcoat > 0.0)
                     .map(|c| describe_channel(scene, c)),
+                clearcoat_normal_texture: (m.clearcoat_normal_texture)
+                    .filter(|_| m.material.clearcoat > 0.0)
+                    .zip(a.clearcoat_normal_mapping.as_deref())
+                    .map(|(n, how)| {
+                        format!("{}, {how}", scene.textures[n.texture as usize].describe())
+                    }),
                 texture: m.texture.map(|t| scene.textures[t as usize].describe()),
                 roughness_texture: m.roughness_texture.map(|c| describe_channel(scene, c)),
                 metallic_texture: m.metallic_texture.map(|c| describe_channel(scene, c)),
@@ -534,6 +545,7 @@ pub fn texture_notes(
                     TextureSlot::ClearcoatRoughness => {
                         format!("clearcoat roughness factor {}", m.clearcoat_roughness)
                     }
+                    TextureSlot::ClearcoatNormal => "clearcoat on its unbent normal".to_string(),
                 })
                 .collect::<Vec<_>>()
                 .join(" and ");
@@ -590,6 +602,8 @@ struct AssetMaterial {
     normal_texture: Option<NormalTex>,
     /// How its normal map's texels become normals, for the summary ("strength 1").
     normal_mapping: Option<String>,
+    /// The same for its clearcoat's normal map.
+    clearcoat_normal_mapping: Option<String>,
     emission: Vec3,
     emission_texture: Option<u32>,
     specular: f32,
@@ -598,6 +612,7 @@ struct AssetMaterial {
     clearcoat_roughness: f32,
     clearcoat_texture: Option<TexChannel>,
     clearcoat_roughness_texture: Option<TexChannel>,
+    clearcoat_normal_texture: Option<NormalTex>,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -620,6 +635,7 @@ impl AssetMaterial {
             metallic_texture: None,
             normal_texture: None,
             normal_mapping: None,
+            clearcoat_normal_mapping: None,
             emission: Vec3::ZERO,
             emission_texture: None,
             specular: DEFAULT_SPECULAR,
@@ -628,6 +644,7 @@ impl AssetMaterial {
             clearcoat_roughness: DEFAULT_CLEARCOAT_ROUGHNESS,
             clearcoat_texture: None,
             clearcoat_roughness_texture: None,
+            clearcoat_normal_texture: None,
         }
     }
 }
@@ -716,6 +733,7 @@ fn asset_materials(
         TextureSlot::Emission => opts.emission,
         TextureSlot::Clearcoat => opts.clearcoat.is_none(),
         TextureSlot::ClearcoatRoughness => opts.clearcoat_roughness.is_none(),
+        TextureSlot::ClearcoatNormal => opts.normal_maps,
     };
     if let Some(w) = material_warning(mesh, uv_set, &reads) {
         eprintln!("warning: {}: {w}", mesh.source.display());
@@ -763,6 +781,14 @@ fn asset_materials(
             }),
             None => None,
         };
+        let clearcoat_normal_texture = match &m.clearcoat_normal_texture {
+            Some(n) => decode(&n.texture, TextureSlot::ClearcoatNormal)?.map(|texture| NormalTex {
+                texture,
+                scale: Vec3::from_array(n.scale),
+                bias: Vec3::from_array(n.bias),
+            }),
+            None => None,
+        };
         let emission_texture = match &m.emission_texture {
             Some(t) => decode(t, TextureSlot::Emission)?,
             None => None,
@@ -788,6 +814,10 @@ fn asset_materials(
             clearcoat_roughness: m.clearcoat_roughness,
             clearcoat_texture,
             clearcoat_roughness_texture,
+            clearcoat_normal_mapping: clearcoat_normal_texture
+                .and(m.clearcoat_normal_texture.as_ref())
+                .map(|n| n.describe_mapping()),
+            clearcoat_normal_texture,
         });
     }
     list.push(AssetMaterial::default_grey());
@@ -811,7 +841,8 @@ fn decode_once<'m>(
         None => Some(ColorMap::load(source, t, slot)?),
     };
     let map = decoding.as_ref().or(found.map(|i| &textures[i]));
-    if slot == TextureSlot::Normal && map.is_some_and(ColorMap::is_grey) {
+    let normal = matches!(slot, TextureSlot::Normal | TextureSlot::ClearcoatNormal);
+    if normal && map.is_some_and(ColorMap::is_grey) {
         eprintln!("warning: {}: {}", source.display(), grey_normal_map(t));
         return Ok(None);
     }
@@ -1286,6 +1317,7 @@ pub fn render_all(
             clearcoat_roughness_texture: m
                 .clearcoat_roughness_texture
                 .filter(|_| opts.clearcoat_roughness.is_none()),
+            clearcoat_normal_texture: m.clearcoat_normal_texture.filter(|_| opts.normal_maps),
             normal_texture: m.normal_texture.filter(|_| opts.normal_maps),
             emission: match opts.emission {
                 true => m.emission,
@@ -1295,7 +1327,9 @@ pub fn render_all(
         })
         .collect();
     // The tangent frames normal maps are read in, where some material has one.
-    let tangents = match materials.iter().any(|m| m.normal_texture.is_some()) {
+    let tangents = match (materials.iter())
+        .any(|m| m.normal_texture.is_some() || m.clearcoat_normal_texture.is_some())
+    {
         true => crate::tangent::corner_tangents(&s.scene.table),
         false => vec![],
     };
