@@ -157,14 +157,23 @@ fn corner_tangent(prism: u32, k: u32) -> vec4f {
         texture_texels[i + 3u]);
 }
 
-// BeautyScene::bent_normal: the hit's shading normal bent by the normal map `tex` (texel
-// times `scale` plus `bias`, in the tangent frame tangent::frame_at makes about the shading
-// normal); the zero vector where the frame or the mapped normal degenerates.
+// BeautyScene::bent_normal: the normal the normal map `tex` gives at the hit (texel times
+// `scale` plus `bias`, in the tangent frame of the base mesh: its interpolated normal, on the
+// shading normal's side, and tangent::frame_at's tangent about it, as Cycles reads the
+// undisplaced normal); the zero vector where the frame or the mapped normal degenerates.
 fn bent_normal(hit: Hit, tex: MaterialTexture, scale: vec3f, bias: vec3f) -> vec3f {
     let b = hit.bary;
     let t4 = corner_tangent(hit.prism, 0u) * b.x + corner_tangent(hit.prism, 1u) * b.y
         + corner_tangent(hit.prism, 2u) * b.z;
-    let n = hit.shading_normal;
+    let tri = prisms[hit.prism].tri;
+    var n = normalize_or_zero(vertices[tri[0]].normal * b.x + vertices[tri[1]].normal * b.y
+        + vertices[tri[2]].normal * b.z);
+    if (dot(n, hit.shading_normal) < 0.0) {
+        n = -n;
+    }
+    if (all(n == vec3f(0.0))) {
+        return vec3f(0.0);
+    }
     let t = normalize_or_zero(t4.xyz - n * dot(n, t4.xyz));
     if (all(t == vec3f(0.0))) {
         return vec3f(0.0);

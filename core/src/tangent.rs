@@ -93,6 +93,14 @@ fn face_tangent(pos: [Vec3; 3], uv: [Vec2; 3], n: Vec3) -> Vec4 {
         .extend(1.0)
 }
 
+/// Per prism of `table`, its corners' normals on the base mesh (in `tri`'s order): what
+/// `BeautyScene::bent_normal` interpolates, the undisplaced surface's normal.
+pub fn corner_normals(table: &PrismTable) -> Vec<[Vec3; 3]> {
+    (table.prisms.iter())
+        .map(|p| p.tri.map(|i| table.normals[i as usize]))
+        .collect()
+}
+
 /// The tangent frame at barycentrics `bary` of a prism whose corner tangents are `corners`,
 /// about the unit normal `n` there: the interpolated tangent made perpendicular to `n`, and the
 /// bitangent `sign · cross(n, t)`. `None` where the tangent is (nearly) along `n`.

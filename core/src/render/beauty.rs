@@ -156,6 +156,9 @@ pub struct BeautyScene<'a> {
     /// Per prism, its corners' tangents (`tangent::corner_tangents`), which a material's normal
     /// map is read in; empty where no material has one.
     pub tangents: &'a [[Vec4; 3]],
+    /// Per prism, its corners' normals on the base mesh (the undisplaced surface's,
+    /// `tangent::corner_normals`), which a normal map bends; empty where no material has one.
+    pub base_normals: &'a [[Vec3; 3]],
     /// The traced table's prisms (their material indices).
     pub prisms: &'a [Prism],
     pub ground: Option<Ground>,
@@ -327,15 +330,27 @@ impl BeautyScene<'_> {
             .unwrap_or(hit.shading_normal)
     }
 
-    /// A hit's shading normal bent by the normal map `nm`: the map's texel, times its scale
-    /// plus its bias, is the normal in the tangent frame at the hit (`tangent::frame_at`: the
-    /// prism's MikkTSpace tangent made perpendicular to the shading normal). `None` where the
-    /// frame or the mapped normal degenerates (a tangent along the normal, a texel that maps
-    /// to zero).
+    /// The normal the normal map `nm` gives at a hit: the map's texel, times its scale plus its
+    /// bias, is the normal in the tangent frame of the base mesh there (its interpolated
+    /// normal, `base_normals`, on the displaced shading normal's side, and the prism's
+    /// MikkTSpace tangent made perpendicular to it, `tangent::frame_at`). As in Cycles, whose
+    /// Normal Map node reads the undisplaced normal: a map baked against the low-poly mesh
+    /// holds all the detail's tilt, so it replaces the displaced surface's normal rather than
+    /// bending it again. `None` where the frame or the mapped normal degenerates (a tangent
+    /// along the normal, a texel that maps to zero).
     #[inline]
     fn bent_normal(&self, hit: &Hit, nm: NormalTex) -> Option<Vec3> {
         let corners = self.tangents.get(hit.prism as usize)?;
-        let n = hit.shading_normal;
+        let base = self.base_normals.get(hit.prism as usize)?;
+        let b = hit.bary;
+        let n = (base[0] * b.x + base[1] * b.y + base[2] * b.z).normalize_or_zero();
+        let n = match n.dot(hit.shading_normal) < 0.0 {
+            true => -n,
+            false => n,
+        };
+        if n == Vec3::ZERO {
+            return None;
+        }
         let (t, b) = crate::tangent::frame_at(corners, hit.bary, n)?;
         let c = self.textures[nm.texture as usize].sample(hit.uv) * nm.scale + nm.bias;
         let mapped = (t * c.x + b * c.y + n * c.z).normalize_or_zero();
@@ -889,4 +904,85 @@ pub fn scene_epsilon(lo: Vec3, hi: Vec3) -> f32 {
     let diag = (hi - lo).length();
     let far = lo.abs().max(hi.abs()).max_element();
     (1e-4 * diag).max(32.0 * f32::EPSILON * far).max(1e-6)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::texture::{Sampler, UvTransform};
+
+    /// A normal map is read about the base mesh's normal, not the displaced surface's: a map
+    /// of flat texels (0, 0, 1) gives the undisplaced normal wherever the displacement tilts
+    /// the surface (Cycles' Normal Map node; a map baked against the low-poly mesh holds the
+    /// detail's whole tilt). The same for the clearcoat's own map; without a map the coat lies
+    /// on the displaced normal.
+    #[test]
+    fn a_normal_map_is_read_about_the_undisplaced_normal() {
+        let flat = ColorMap {
+            width: 1,
+            height: 1,
+            texels: vec![Vec3::new(0.5, 0.5, 1.0)],
+            sampler: Sampler::default(),
+            transform: UvTransform::IDENTITY,
+            name: "flat".into(),
+        };
+        let map = NormalTex {
+            texture: 0,
+            scale: Vec3::splat(2.0),
+            bias: Vec3::splat(-1.0),
+        };
+        let env = EnvMap::constant(
+            Vec3::ONE,
+            EnvFrame {
+                z_up: false,
+                rotation: 0.0,
+            },
+        );
+        let base = Vec3::new(0.0, 0.3, 1.0).normalize();
+        let materials = [
+            SurfaceMaterial {
+                normal_texture: Some(map),
+                clearcoat_normal_texture: Some(map),
+                ..Default::default()
+            },
+            SurfaceMaterial {
+                normal_texture: Some(map),
+                ..Default::default()
+            },
+        ];
+        let tangents = [[Vec4::new(1.0, 0.0, 0.0, 1.0); 3]];
+        let base_normals = [[base; 3]];
+        let scene = |m: usize| BeautyScene {
+            env: &env,
+            env_frame: env.frame,
+            env_lights: true,
+            lights: LightSet::none(),
+            materials: &materials[m..m + 1],
+            emissive: false,
+            textures: std::slice::from_ref(&flat),
+            tangents: &tangents,
+            base_normals: &base_normals,
+            prisms: &[],
+            ground: None,
+            bounces: 1,
+            eps: 1e-4,
+            exposure: 1.0,
+        };
+        let displaced = Vec3::new(0.5, -0.2, 1.0).normalize();
+        let hit = Hit {
+            t: 1.0,
+            prism: 0,
+            bary: Vec3::new(0.2, 0.3, 0.5),
+            uv: Vec2::new(0.5, 0.5),
+            position: Vec3::ZERO,
+            geometric_normal: displaced,
+            shading_normal: displaced,
+            steps: 0,
+        };
+        let s = scene(0);
+        let shaded = s.shade_hit(hit).shading_normal;
+        assert!((shaded - base).length() < 1e-5, "{shaded} vs {base}");
+        assert!((s.clearcoat_normal(&hit) - base).length() < 1e-5);
+        assert_eq!(scene(1).clearcoat_normal(&hit), displaced);
+    }
 }

@@ -1333,6 +1333,10 @@ pub fn render_all(
         true => crate::tangent::corner_tangents(&s.scene.table),
         false => vec![],
     };
+    let base_normals = match tangents.is_empty() {
+        true => vec![],
+        false => crate::tangent::corner_normals(&s.scene.table),
+    };
     let env_fallback;
     let env = match &s.env {
         Some(e) => e,
@@ -1368,6 +1372,7 @@ pub fn render_all(
         emissive: materials.iter().any(|m| m.emission != Vec3::ZERO),
         textures: &s.materials.textures,
         tangents: &tangents,
+        base_normals: &base_normals,
         prisms: &s.scene.table.prisms,
         ground: opts.ground.then(|| Ground {
             up,
