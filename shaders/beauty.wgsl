@@ -556,6 +556,14 @@ fn facing_normals(geometric: vec3f, shading: vec3f, dir: vec3f) -> Facing {
     return Facing(ng, ns);
 }
 
+// A normal in the local shading frame `basis` about `ns` (exactly z where it is `ns`).
+fn local_normal(n: vec3f, ns: vec3f, basis: Basis) -> vec3f {
+    if (all(n == ns)) {
+        return vec3f(0.0, 0.0, 1.0);
+    }
+    return to_local(n, basis.t, basis.b, ns);
+}
+
 fn has(s: PathState, flag: u32) -> bool {
     return (s.flags & flag) != 0u;
 }
@@ -666,11 +674,18 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let ns = facing.ns;
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
-        // The clearcoat lies on the surface before its normal map bends it, bent by its own.
+        // beauty::surface_radiance: the diffuse on the shading normal, the specular lobe on it
+        // turned back where its mirror direction would point into the surface, the clearcoat
+        // on its own normal turned back alike.
+        let spec_n = valid_reflection_normal(ng, wo, ns);
+        let coated = m.clearcoat > 0.0 && any(hit.shading_normal != hit.coat_normal);
         var l: Lobes;
-        if (m.clearcoat > 0.0 && any(hit.shading_normal != hit.coat_normal)) {
-            let nc = facing_normals(hit.geometric_normal, hit.coat_normal, (*s).dir).ns;
-            l = lobes_coated(m, wo_l, to_local(nc, basis.t, basis.b, ns));
+        if (any(spec_n != ns) || coated) {
+            var nc = spec_n;
+            if (coated) {
+                nc = valid_reflection_normal(ng, wo, facing_normals(hit.geometric_normal, hit.coat_normal, (*s).dir).ns);
+            }
+            l = lobes_framed(m, wo_l, local_normal(spec_n, ns, basis), local_normal(nc, ns, basis));
         } else {
             l = lobes(m, wo_l.z);
         }

@@ -276,6 +276,9 @@ struct Lobes {
     alpha: f32,
     mirror: bool,
     p_specular: f32,
+    specular_t: vec3f,
+    specular_b: vec3f,
+    specular_n: vec3f,
     clearcoat: f32,
     clearcoat_alpha: f32,
     clearcoat_mirror: bool,
@@ -283,6 +286,11 @@ struct Lobes {
     clearcoat_b: vec3f,
     clearcoat_n: vec3f,
     p_clearcoat: f32,
+}
+
+// Lobes::to_specular: a local direction in the specular lobe's frame.
+fn to_specular(l: Lobes, v: vec3f) -> vec3f {
+    return to_local(v, l.specular_t, l.specular_b, l.specular_n);
 }
 
 // Lobes::to_clearcoat: a local direction in the clearcoat's frame.
@@ -329,18 +337,20 @@ fn share(a: f32, b: f32) -> f32 {
     return clamp(a / (a + b), 0.1, 0.9);
 }
 
-// shading::lobes: the lobes of m seen at cos θo = mu, its clearcoat about the shading normal.
+// shading::lobes: the lobes of m seen at cos θo = mu, all about the shading normal.
 fn lobes(m: Material, mu: f32) -> Lobes {
-    return lobes_about(m, mu, vec3f(0.0, 0.0, 1.0), mu);
+    let z = vec3f(0.0, 0.0, 1.0);
+    return lobes_about(m, z, mu, z, mu);
 }
 
-// shading::lobes_coated: the lobes of m seen from wo, its clearcoat about clearcoat_n.
-fn lobes_coated(m: Material, wo: vec3f, clearcoat_n: vec3f) -> Lobes {
-    return lobes_about(m, wo.z, clearcoat_n, dot(wo, clearcoat_n));
+// shading::lobes_framed: the lobes of m seen from wo, the specular lobe about specular_n, the
+// clearcoat about clearcoat_n, the diffuse about the shading normal.
+fn lobes_framed(m: Material, wo: vec3f, specular_n: vec3f, clearcoat_n: vec3f) -> Lobes {
+    return lobes_about(m, specular_n, dot(wo, specular_n), clearcoat_n, dot(wo, clearcoat_n));
 }
 
 // shading::lobes_about.
-fn lobes_about(m: Material, mu_in: f32, clearcoat_n: vec3f, mu_c: f32) -> Lobes {
+fn lobes_about(m: Material, specular_n: vec3f, mu_in: f32, clearcoat_n: vec3f, mu_c: f32) -> Lobes {
     let rough = clamp(m.roughness, 0.0, 1.0);
     let mu = clamp(mu_in, 0.0, 1.0);
     let e = ggx_e(rough, mu);
@@ -372,9 +382,10 @@ fn lobes_about(m: Material, mu_in: f32, clearcoat_n: vec3f, mu_c: f32) -> Lobes 
     let under = clearcoat_through(m, mu_c);
     let p_clearcoat = share(1.0 - under, under * (s + d));
     let basis = onb(clearcoat_n);
+    let sb = onb(specular_n);
     return Lobes(diffuse * under, metal_f0, metal_b, metal * under, eta, f0, dielectric_f0,
         dielectric * under, dielectric_albedo, ggx_alpha(m.roughness), is_mirror(m), p_specular,
-        clearcoat, ggx_alpha(m.clearcoat_roughness), m.clearcoat_roughness < MIRROR_ROUGHNESS,
+        sb.t, sb.b, specular_n, clearcoat, ggx_alpha(m.clearcoat_roughness), m.clearcoat_roughness < MIRROR_ROUGHNESS,
         basis.t, basis.b, clearcoat_n, p_clearcoat);
 }
 
@@ -392,17 +403,23 @@ fn guide_albedo(m: Material) -> vec3f {
     return min(l.diffuse + specular_fresnel(l, 1.0) + vec3f(clearcoat), vec3f(1.0));
 }
 
-// shading::base_eval: BSDF × cos θi of the layers under the clearcoat (non-delta lobes).
+// shading::base_eval: BSDF × cos θi of the layers under the clearcoat (non-delta lobes), the
+// diffuse about the shading normal, the specular about its own.
 fn base_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
-    if (wo.z <= 0.0 || wi.z <= 0.0) {
-        return vec3f(0.0);
+    var diffuse = vec3f(0.0);
+    if (wo.z > 0.0 && wi.z > 0.0) {
+        diffuse = l.diffuse * (INV_PI * wi.z);
     }
-    let diffuse = l.diffuse * (INV_PI * wi.z);
     if (l.mirror) {
         return diffuse;
     }
-    let c = dot(wo, normalize_glam(wo + wi));
-    return diffuse + specular_fresnel(l, c) * ggx_eval(wo, wi, l.alpha);
+    let wo_s = to_specular(l, wo);
+    let wi_s = to_specular(l, wi);
+    if (wo_s.z <= 0.0 || wi_s.z <= 0.0) {
+        return diffuse;
+    }
+    let c = dot(wo_s, normalize_glam(wo_s + wi_s));
+    return diffuse + specular_fresnel(l, c) * ggx_eval(wo_s, wi_s, l.alpha);
 }
 
 // shading::clearcoat_eval: the clearcoat's lobe × cos θi, directions in its frame.
@@ -425,15 +442,20 @@ fn bsdf_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
 
 // shading::base_pdf.
 fn base_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
-    if (wo.z <= 0.0 || wi.z <= 0.0) {
-        return 0.0;
-    }
     let ps = l.p_specular;
-    let diffuse = (1.0 - ps) * wi.z * INV_PI;
+    var diffuse = 0.0;
+    if (wo.z > 0.0 && wi.z > 0.0) {
+        diffuse = (1.0 - ps) * wi.z * INV_PI;
+    }
     if (l.mirror) {
         return diffuse;
     }
-    return diffuse + ps * ggx_pdf(wo, wi, l.alpha);
+    let wo_s = to_specular(l, wo);
+    let wi_s = to_specular(l, wi);
+    if (wo_s.z <= 0.0 || wi_s.z <= 0.0) {
+        return diffuse;
+    }
+    return diffuse + ps * ggx_pdf(wo_s, wi_s, l.alpha);
 }
 
 // shading::bsdf_pdf.
@@ -483,18 +505,27 @@ fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
             return BsdfSample(true, wi, vec3f(f / pc), 0.0, true);
         }
     } else {
-        if (wo.z <= 0.0) {
-            return none;
-        }
         let ps = l.p_specular;
         let specular = (u_lobe - pc) < ps * (1.0 - pc);
-        if (specular && l.mirror) {
-            let wm = vec3f(-wo.x, -wo.y, wo.z);
-            return BsdfSample(true, wm, specular_fresnel(l, wo.z) / (ps * (1.0 - pc)), 0.0, true);
-        }
         if (specular) {
-            wi = ggx_sample(wo, l.alpha, u);
+            let wo_s = to_specular(l, wo);
+            if (wo_s.z <= 0.0) {
+                return none;
+            }
+            var wi_s: vec3f;
+            if (l.mirror) {
+                wi_s = vec3f(-wo_s.x, -wo_s.y, wo_s.z);
+            } else {
+                wi_s = ggx_sample(wo_s, l.alpha, u);
+            }
+            wi = from_local(wi_s, l.specular_t, l.specular_b, l.specular_n);
+            if (l.mirror) {
+                return BsdfSample(true, wi, specular_fresnel(l, wo_s.z) / (ps * (1.0 - pc)), 0.0, true);
+            }
         } else {
+            if (wo.z <= 0.0) {
+                return none;
+            }
             wi = cosine_sample(u);
         }
     }
@@ -513,6 +544,26 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
         return a2 / (a2 + b2);
     }
     return 0.0;
+}
+
+// shading::valid_reflection_normal: n turned towards ng, in their plane, just far enough that
+// its mirror reflection of wo rises min(0.9 wo·ng, 0.01) above the surface; n where it does.
+fn valid_reflection_normal(ng: vec3f, wo: vec3f, n: vec3f) -> vec3f {
+    let iz = dot(wo, ng);
+    let t = min(0.9 * iz, 0.01);
+    if (iz <= 0.0 || dot(reflect_about(wo, n), ng) >= t) {
+        return n;
+    }
+    let x = normalize_or_zero(n - ng * dot(n, ng));
+    if (all(x == vec3f(0.0))) {
+        return n;
+    }
+    let ix = dot(wo, x);
+    let a = sqrt(ix * ix + iz * iz);
+    let two_theta = atan2(ix, iz) + acos(clamp(t / a, -1.0, 1.0));
+    let theta0 = atan2(dot(n, x), dot(n, ng));
+    let theta = clamp(0.5 * two_theta, 0.0, max(theta0, 0.0));
+    return normalize_glam(x * sin(theta) + ng * cos(theta));
 }
 
 // shading::offset_origin: eps along the geometric normal, to the side dir leaves from.

@@ -619,23 +619,31 @@ fn surface_radiance(
         }
         let m = &s.material_at(&hit);
         let wo = -dir;
-        // The clearcoat lies on the surface before its normal map bends it, bent by its own.
+        // The diffuse lies on the shading normal; the specular lobe on that normal turned back
+        // where its mirror direction would point into the surface (`valid_reflection_normal`:
+        // a normal-mapped or smoothed normal); the clearcoat on the surface before its normal
+        // map bends it (or bent by its own), turned back alike.
         let shaded = s.shade_hit(hit);
         let (ng, ns) = facing_normals(&shaded, dir);
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
+        let spec_n = shading::valid_reflection_normal(ng, wo, ns);
         let coat_n = match m.clearcoat > 0.0 {
             true => s.clearcoat_normal(&hit),
             false => shaded.shading_normal,
         };
-        let l = &match coat_n != shaded.shading_normal {
+        let l = &match spec_n != ns || coat_n != shaded.shading_normal {
             true => {
                 let coat = Hit {
                     shading_normal: coat_n,
                     ..hit
                 };
-                let nc = facing_normals(&coat, dir).1;
-                shading::lobes_coated(m, wo_l, shading::to_local(nc, t, b, ns))
+                let nc = shading::valid_reflection_normal(ng, wo, facing_normals(&coat, dir).1);
+                let local = |n: Vec3| match n == ns {
+                    true => Vec3::Z,
+                    false => shading::to_local(n, t, b, ns),
+                };
+                shading::lobes_framed(m, wo_l, local(spec_n), local(nc))
             }
             false => shading::lobes(m, wo_l.z),
         };

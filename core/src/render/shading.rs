@@ -287,6 +287,12 @@ pub struct Lobes {
     /// Probability of sampling the specular lobe rather than the diffuse, when the layers
     /// under the clearcoat are sampled.
     pub p_specular: f32,
+    /// The specular lobe's frame in the local shading frame (`specular_n` its normal, the
+    /// diffuse's turned by `valid_reflection_normal`; `Vec3::Z` where it is the shading
+    /// normal, which makes the frame the identity).
+    pub specular_t: Vec3,
+    pub specular_b: Vec3,
+    pub specular_n: Vec3,
     /// The clearcoat's weight (0: none), α, whether it is a perfect mirror, and its frame in
     /// the local shading frame (`clearcoat_n` its normal; `Vec3::Z` where it is the shading
     /// normal, which makes the frame the identity).
@@ -301,6 +307,12 @@ pub struct Lobes {
 }
 
 impl Lobes {
+    /// A local direction in the specular lobe's frame.
+    #[inline]
+    pub fn to_specular(&self, v: Vec3) -> Vec3 {
+        to_local(v, self.specular_t, self.specular_b, self.specular_n)
+    }
+
     /// A local direction in the clearcoat's frame.
     #[inline]
     pub fn to_clearcoat(&self, v: Vec3) -> Vec3 {
@@ -343,23 +355,31 @@ fn dielectric_blend(dielectric_f0: Vec3, s: f32) -> Vec3 {
     dielectric_f0 + (Vec3::ONE - dielectric_f0) * s
 }
 
-/// The lobes of `m` seen at cos θo = `mu`, its clearcoat (if any) about the shading normal.
+/// The lobes of `m` seen at cos θo = `mu`, all about the shading normal.
 #[inline]
 pub fn lobes(m: &Material, mu: f32) -> Lobes {
-    lobes_about(m, mu, Vec3::Z, mu)
+    lobes_about(m, Vec3::Z, mu, Vec3::Z, mu)
 }
 
-/// The lobes of `m` seen from the local direction `wo`, its clearcoat about the local normal
-/// `clearcoat_n` (the shading normal before a normal map bent it).
+/// The lobes of `m` seen from the local direction `wo`: the specular lobe about the local
+/// normal `specular_n` (the shading normal turned by `valid_reflection_normal`), the
+/// clearcoat about `clearcoat_n` (the shading normal before a normal map bent it, or its own
+/// map's), the diffuse about the shading normal.
 #[inline]
-pub fn lobes_coated(m: &Material, wo: Vec3, clearcoat_n: Vec3) -> Lobes {
-    lobes_about(m, wo.z, clearcoat_n, wo.dot(clearcoat_n))
+pub fn lobes_framed(m: &Material, wo: Vec3, specular_n: Vec3, clearcoat_n: Vec3) -> Lobes {
+    lobes_about(
+        m,
+        specular_n,
+        wo.dot(specular_n),
+        clearcoat_n,
+        wo.dot(clearcoat_n),
+    )
 }
 
-/// The lobes of `m` seen at cos θo = `mu` from the shading normal and `mu_c` from the
-/// clearcoat's normal `clearcoat_n`.
+/// The lobes of `m` seen at cos θo = `mu` from the specular lobe's normal `specular_n` and
+/// `mu_c` from the clearcoat's normal `clearcoat_n`.
 #[inline]
-fn lobes_about(m: &Material, mu: f32, clearcoat_n: Vec3, mu_c: f32) -> Lobes {
+fn lobes_about(m: &Material, specular_n: Vec3, mu: f32, clearcoat_n: Vec3, mu_c: f32) -> Lobes {
     let rough = m.roughness.clamp(0.0, 1.0);
     let mu = mu.clamp(0.0, 1.0);
     let (e, e_avg) = (ggx_tables::ggx_e(rough, mu), ggx_tables::ggx_e_avg(rough));
@@ -394,6 +414,7 @@ fn lobes_about(m: &Material, mu: f32, clearcoat_n: Vec3, mu_c: f32) -> Lobes {
     let under = clearcoat_through(m, mu_c);
     let p_clearcoat = share(1.0 - under, under * (s + d));
     let (clearcoat_t, clearcoat_b) = onb(clearcoat_n);
+    let (specular_t, specular_b) = onb(specular_n);
     Lobes {
         diffuse: diffuse * under,
         metal_f0,
@@ -407,6 +428,9 @@ fn lobes_about(m: &Material, mu: f32, clearcoat_n: Vec3, mu_c: f32) -> Lobes {
         alpha: ggx_alpha(m.roughness),
         mirror: is_mirror(m),
         p_specular,
+        specular_t,
+        specular_b,
+        specular_n,
         clearcoat,
         clearcoat_alpha: ggx_alpha(m.clearcoat_roughness),
         clearcoat_mirror: m.clearcoat_roughness < MIRROR_ROUGHNESS,
@@ -448,19 +472,23 @@ pub fn guide_albedo(m: &Material) -> Vec3 {
     (l.diffuse + specular_fresnel(&l, 1.0) + Vec3::splat(clearcoat)).min(Vec3::ONE)
 }
 
-/// The layers under the clearcoat: BSDF times cos θi of their non-delta lobes.
+/// The layers under the clearcoat: BSDF times cos θi of their non-delta lobes, the diffuse
+/// about the shading normal, the specular about its own.
 #[inline]
 fn base_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return Vec3::ZERO;
-    }
-    let diffuse = l.diffuse * (INV_PI * wi.z);
+    let diffuse = match wo.z > 0.0 && wi.z > 0.0 {
+        true => l.diffuse * (INV_PI * wi.z),
+        false => Vec3::ZERO,
+    };
     if l.mirror {
-        diffuse
-    } else {
-        let c = wo.dot((wo + wi).normalize());
-        diffuse + specular_fresnel(l, c) * ggx_eval(wo, wi, l.alpha)
+        return diffuse;
     }
+    let (wo_s, wi_s) = (l.to_specular(wo), l.to_specular(wi));
+    if wo_s.z <= 0.0 || wi_s.z <= 0.0 {
+        return diffuse;
+    }
+    let c = wo_s.dot((wo_s + wi_s).normalize());
+    diffuse + specular_fresnel(l, c) * ggx_eval(wo_s, wi_s, l.alpha)
 }
 
 /// The clearcoat's lobe times cos θi, for directions in its frame (zero where it is a mirror).
@@ -486,16 +514,19 @@ pub fn bsdf_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
 /// Density of the layers under the clearcoat producing `wi` through a non-delta lobe.
 #[inline]
 fn base_pdf(l: &Lobes, wo: Vec3, wi: Vec3) -> f32 {
-    if wo.z <= 0.0 || wi.z <= 0.0 {
-        return 0.0;
-    }
     let ps = l.p_specular;
-    let diffuse = (1.0 - ps) * wi.z * INV_PI;
+    let diffuse = match wo.z > 0.0 && wi.z > 0.0 {
+        true => (1.0 - ps) * wi.z * INV_PI,
+        false => 0.0,
+    };
     if l.mirror {
-        diffuse
-    } else {
-        diffuse + ps * ggx_pdf(wo, wi, l.alpha)
+        return diffuse;
     }
+    let (wo_s, wi_s) = (l.to_specular(wo), l.to_specular(wi));
+    if wo_s.z <= 0.0 || wi_s.z <= 0.0 {
+        return diffuse;
+    }
+    diffuse + ps * ggx_pdf(wo_s, wi_s, l.alpha)
 }
 
 /// Density of `bsdf_sample` producing `wi` through a non-delta lobe.
@@ -550,24 +581,32 @@ pub fn bsdf_sample(l: &Lobes, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSamp
         }
         wi
     } else {
-        if wo.z <= 0.0 {
-            return None;
-        }
         let ps = l.p_specular;
         let specular = (u_lobe - pc) < ps * (1.0 - pc);
-        if specular && l.mirror {
-            let wi = Vec3::new(-wo.x, -wo.y, wo.z);
-            let weight = specular_fresnel(l, wo.z) / (ps * (1.0 - pc));
-            return Some(BsdfSample {
-                wi,
-                weight,
-                pdf: 0.0,
-                delta: true,
-            });
-        }
         if specular {
-            ggx_sample(wo, l.alpha, u)
+            let wo_s = l.to_specular(wo);
+            if wo_s.z <= 0.0 {
+                return None;
+            }
+            let wi_s = match l.mirror {
+                true => Vec3::new(-wo_s.x, -wo_s.y, wo_s.z),
+                false => ggx_sample(wo_s, l.alpha, u),
+            };
+            let wi = from_local(wi_s, l.specular_t, l.specular_b, l.specular_n);
+            if l.mirror {
+                let weight = specular_fresnel(l, wo_s.z) / (ps * (1.0 - pc));
+                return Some(BsdfSample {
+                    wi,
+                    weight,
+                    pdf: 0.0,
+                    delta: true,
+                });
+            }
+            wi
         } else {
+            if wo.z <= 0.0 {
+                return None;
+            }
             cosine_sample(u)
         }
     };
@@ -592,6 +631,37 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
     } else {
         0.0
     }
+}
+
+/// A shading normal `n` whose mirror reflection of `wo` stays above the surface of geometric
+/// normal `ng` (both facing `wo`): `n` itself where the reflection rises at least
+/// min(0.9 wo·ng, 0.01) above that surface, else `n` turned towards `ng`, in the plane of the
+/// two, just far enough that it does (as Cycles bends a normal-mapped or smoothed normal
+/// before its glossy lobes use it). Without it a normal map that tilts the normal past the
+/// view's mirror angle sends every glossy reflection into the surface, and the pixel black.
+///
+/// With θ the angle of the turned normal from `ng` in that plane, the reflection's height
+/// over the surface is (wo·X) sin 2θ + (wo·ng) cos 2θ = A cos(2θ − δ), X the plane's
+/// direction across `ng`, A = |(wo·X, wo·ng)| and δ its angle from `ng`; it falls through
+/// the threshold t where 2θ = δ + acos(t/A).
+#[inline]
+pub fn valid_reflection_normal(ng: Vec3, wo: Vec3, n: Vec3) -> Vec3 {
+    let iz = wo.dot(ng);
+    let t = (0.9 * iz).min(0.01);
+    if iz <= 0.0 || reflect(wo, n).dot(ng) >= t {
+        return n;
+    }
+    let x = (n - ng * n.dot(ng)).normalize_or_zero();
+    if x == Vec3::ZERO {
+        return n;
+    }
+    let ix = wo.dot(x);
+    let a = (ix * ix + iz * iz).sqrt();
+    let two_theta = ix.atan2(iz) + (t / a).clamp(-1.0, 1.0).acos();
+    // Never past `n` itself (which fails) nor behind `ng`.
+    let theta0 = n.dot(x).atan2(n.dot(ng));
+    let theta = (0.5 * two_theta).clamp(0.0, theta0.max(0.0));
+    (x * theta.sin() + ng * theta.cos()).normalize()
 }
 
 /// Start a ray off a surface point without hitting that surface again: move it by `eps`
@@ -716,7 +786,7 @@ mod tests {
                     1.5 * random(i, k as u32, 2, Purpose::Bench, 3),
                     6.0 * random(i, 0, 3, Purpose::Bench, 3),
                 );
-                let l = lobes_coated(&m, wo, n);
+                let l = lobes_framed(&m, wo, Vec3::Z, n);
                 let Some(s) = bsdf_sample(
                     &l,
                     wo,
@@ -971,7 +1041,7 @@ mod tests {
         };
         let wo = dir_from_angle(0.5, 0.2);
         let nc = dir_from_angle(0.2, 1.9);
-        let l = lobes_coated(&black, wo, nc);
+        let l = lobes_framed(&black, wo, Vec3::Z, nc);
         assert_eq!(l.p_clearcoat, 1.0);
         let s = bsdf_sample(&l, wo, 0.3, Vec2::new(0.4, 0.6)).unwrap();
         let want = 0.8 * fresnel_dielectric(wo.dot(nc), CLEARCOAT_IOR);
@@ -994,6 +1064,37 @@ mod tests {
         assert!(under < 1.0 - 0.5 * fresnel_dielectric(0.4, 1.5) + 1e-3 && under > 0.9);
         assert!((l1.diffuse - l0.diffuse * under).abs().max_element() < 1e-6);
         assert!((l1.dielectric - l0.dielectric * under).abs().max_element() < 1e-6);
+    }
+
+    /// A normal tilted past the view's mirror angle is turned back towards the geometric one
+    /// just far enough that its reflection clears the surface (by min(0.9 wo·ng, 0.01)); one
+    /// whose reflection clears it already is kept.
+    #[test]
+    fn a_normal_past_the_mirror_angle_is_turned_back_just_enough() {
+        let ng = Vec3::Z;
+        for i in 0..2000u32 {
+            let r = |k| random(i, k, 0, Purpose::Bench, 9);
+            let wo = dir_from_angle(1.55 * r(0), 6.3 * r(1));
+            let n = dir_from_angle(1.5 * r(2), 6.3 * r(3));
+            let v = valid_reflection_normal(ng, wo, n);
+            let t = (0.9 * wo.z).min(0.01);
+            if reflect(wo, n).z >= t {
+                assert_eq!(v, n);
+                continue;
+            }
+            assert!((v.length() - 1.0).abs() < 1e-5 && v.z > 0.0, "{v}");
+            let height = reflect(wo, v).z;
+            assert!(
+                (height - t).abs() < 2e-3,
+                "wo {wo} n {n}: turned to {v}, reflection height {height}, wanted {t}"
+            );
+            // In the plane of n and ng, between them.
+            assert!(
+                v.dot(n.cross(ng)).abs() < 1e-4,
+                "{v} off the plane of {n} and ng"
+            );
+            assert!(v.z >= n.z - 1e-5, "{v} not towards ng from {n}");
+        }
     }
 
     /// The dielectric Fresnel: F0 at normal incidence, 1 at grazing, and its cosine-weighted
