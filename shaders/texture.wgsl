@@ -104,33 +104,33 @@ fn material_at(prism: u32, uv: vec2f) -> Material {
     if (s.color_tex.width != 0u) {
         m.base_color *= texture_sample(s.color_tex, uv);
     }
-    var rough = vec3f(1.0);
-    let has_rough = s.roughness_tex.width != 0u;
-    if (has_rough) {
-        rough = texture_sample(s.roughness_tex, uv);
-        m.roughness *= rough[min(s.roughness_tex.channel, 2u)];
-    }
-    if (s.metallic_tex.width != 0u) {
-        var v = rough;
-        if (!has_rough || s.metallic_tex.offset != s.roughness_tex.offset) {
-            v = texture_sample(s.metallic_tex, uv);
-        }
-        m.metallic *= v[min(s.metallic_tex.channel, 2u)];
-    }
-    var coat = vec3f(1.0);
-    let has_coat = s.clearcoat_tex.width != 0u;
-    if (has_coat) {
-        coat = texture_sample(s.clearcoat_tex, uv);
-        m.clearcoat *= coat[min(s.clearcoat_tex.channel, 2u)];
-    }
-    if (s.clearcoat_roughness_tex.width != 0u) {
-        var v = coat;
-        if (!has_coat || s.clearcoat_roughness_tex.offset != s.clearcoat_tex.offset) {
-            v = texture_sample(s.clearcoat_roughness_tex, uv);
-        }
-        m.clearcoat_roughness *= v[min(s.clearcoat_roughness_tex.channel, 2u)];
-    }
+    let rm = channel_pair(s.roughness_tex, s.metallic_tex, uv);
+    m.roughness *= rm.x;
+    m.metallic *= rm.y;
+    let coat = channel_pair(s.clearcoat_tex, s.clearcoat_roughness_tex, uv);
+    m.clearcoat *= coat.x;
+    m.clearcoat_roughness *= coat.y;
     return m;
+}
+
+// BeautyScene::channel_pair: two texture channels at `uv` (1 where absent), one lookup where
+// both read the same texture.
+fn channel_pair(a: MaterialTexture, b: MaterialTexture, uv: vec2f) -> vec2f {
+    var out = vec2f(1.0);
+    var first = vec3f(1.0);
+    let has_a = a.width != 0u;
+    if (has_a) {
+        first = texture_sample(a, uv);
+        out.x = first[min(a.channel, 2u)];
+    }
+    if (b.width != 0u) {
+        var v = first;
+        if (!has_a || b.offset != a.offset) {
+            v = texture_sample(b, uv);
+        }
+        out.y = v[min(b.channel, 2u)];
+    }
+    return out;
 }
 
 // BeautyScene::emission_at: the radiance the surface of prism `prism` emits at `uv` towards

@@ -256,29 +256,28 @@ impl BeautyScene<'_> {
         if let Some(t) = s.texture {
             m.base_color *= sample(t);
         }
-        let rough = s.roughness_texture.map(|c| (c, sample(c.texture)));
-        if let Some((c, v)) = rough {
-            m.roughness *= v[c.channel as usize];
-        }
-        if let Some(c) = s.metallic_texture {
-            let v = match rough {
-                Some((r, v)) if r.texture == c.texture => v,
-                _ => sample(c.texture),
-            };
-            m.metallic *= v[c.channel as usize];
-        }
-        let coat = s.clearcoat_texture.map(|c| (c, sample(c.texture)));
-        if let Some((c, v)) = coat {
-            m.clearcoat *= v[c.channel as usize];
-        }
-        if let Some(c) = s.clearcoat_roughness_texture {
-            let v = match coat {
-                Some((w, v)) if w.texture == c.texture => v,
-                _ => sample(c.texture),
-            };
-            m.clearcoat_roughness *= v[c.channel as usize];
-        }
+        let (r, k) = self.channel_pair(s.roughness_texture, s.metallic_texture, hit.uv);
+        (m.roughness, m.metallic) = (m.roughness * r, m.metallic * k);
+        let (w, r) = self.channel_pair(s.clearcoat_texture, s.clearcoat_roughness_texture, hit.uv);
+        (m.clearcoat, m.clearcoat_roughness) = (m.clearcoat * w, m.clearcoat_roughness * r);
         m
+    }
+
+    /// The values of two texture channels at `uv` (1 for a channel that is absent), with one
+    /// lookup where both read the same texture (glTF's metallic-roughness texture, or its
+    /// clearcoat's two).
+    #[inline]
+    fn channel_pair(&self, a: Option<TexChannel>, b: Option<TexChannel>, uv: Vec2) -> (f32, f32) {
+        let sample = |t: u32| self.textures[t as usize].sample(uv);
+        let first = a.map(|c| (c, sample(c.texture)));
+        let second = b.map(|c| match first {
+            Some((f, v)) if f.texture == c.texture => v[c.channel as usize],
+            _ => sample(c.texture)[c.channel as usize],
+        });
+        (
+            first.map_or(1.0, |(c, v)| v[c.channel as usize]),
+            second.unwrap_or(1.0),
+        )
     }
 
     /// The radiance a hit's surface emits (either side) towards `-dir`: its material's
