@@ -598,6 +598,15 @@ fn escape_radiance(s: &BeautyScene, lights: &LightsAt, wi: Vec3, bs: &shading::B
     l + lights.escape(wi, (!bs.delta).then_some(bs.pdf))
 }
 
+/// What a camera sample's path returns: the radiance towards the camera and the first hit's
+/// denoising guides (its facing shading normal and `shading::guide_albedo`), read where the
+/// first event shades the hit rather than looked up again.
+struct PathResult {
+    radiance: Vec3,
+    normal: Vec3,
+    albedo: Vec3,
+}
+
 /// Radiance leaving a camera hit (as the intersector found it: `shade_hit` applies its normal
 /// map here) towards the camera: the path tracer proper.
 fn surface_radiance(
@@ -607,11 +616,12 @@ fn surface_radiance(
     first_dir: Vec3,
     ctx: &RayContext,
     n: &mut BeautyCounters,
-) -> Vec3 {
+) -> PathResult {
     let mut hit = first;
     let mut dir = first_dir;
     let mut throughput = Vec3::ONE;
     let mut radiance = Vec3::ZERO;
+    let (mut guide_normal, mut guide_albedo) = (Vec3::ZERO, Vec3::ZERO);
     for bounce in 0..s.bounces {
         if s.emissive {
             radiance += throughput * s.emission_at(&hit, dir);
@@ -624,6 +634,9 @@ fn surface_radiance(
         // map bends it (or bent by its own), turned back alike.
         let shaded = s.shade_hit(hit);
         let (ng, ns) = facing_normals(&shaded, dir);
+        if bounce == 0 {
+            (guide_normal, guide_albedo) = (ns, shading::guide_albedo(m));
+        }
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);
         let spec_n = shading::valid_reflection_normal(ng, wo, ns);
@@ -761,7 +774,11 @@ fn surface_radiance(
             }
         }
     }
-    radiance
+    PathResult {
+        radiance,
+        normal: guide_normal,
+        albedo: guide_albedo,
+    }
 }
 
 fn trace_sample(
@@ -775,13 +792,16 @@ fn trace_sample(
     let hit = isect.intersect(ray, ctx);
     let ground_t = s.ground.as_ref().and_then(|g| ground_hit(g, ray));
     match (hit, ground_t) {
-        (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => SampleResult {
-            radiance: surface_radiance(isect, s, h, ray.dir, ctx, n),
-            surface: true,
-            normal: facing_normals(&s.shade_hit(h), ray.dir).1,
-            albedo: shading::guide_albedo(&s.material_at(&h)),
-            ..Default::default()
-        },
+        (Some(h), gt) if gt.is_none_or(|g| h.t <= g) => {
+            let path = surface_radiance(isect, s, h, ray.dir, ctx, n);
+            SampleResult {
+                radiance: path.radiance,
+                surface: true,
+                normal: path.normal,
+                albedo: path.albedo,
+                ..Default::default()
+            }
+        }
         (_, Some(gt)) => SampleResult {
             background: env_radiance_smooth(s.env, s.env_frame, ray.dir),
             ground: Some(ground_light(isect, s, ray.at(gt), ctx, n)),
