@@ -81,6 +81,8 @@ struct Answer {
     uv: vec2f,     // the hit's texture coordinates (BeautyScene::material_at)
     // The normal the clearcoat lies on (BeautyScene::clearcoat_normal).
     coat_normal: vec3f,
+    // The shading normal before the normal map bent it (the diffuse is shadowed about it).
+    unbent_normal: vec3f,
 }
 
 // A path between dispatches: beauty::trace_sample's locals, the SampleResult so far, the
@@ -679,13 +681,16 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         // on its own normal turned back alike.
         let spec_n = valid_reflection_normal(ng, wo, ns);
         let coated = m.clearcoat > 0.0 && any(hit.shading_normal != hit.coat_normal);
+        // The normal before the normal map bent it: the diffuse is shadowed about it.
+        let unbent = facing_normals(hit.geometric_normal, hit.unbent_normal, (*s).dir).ns;
         var l: Lobes;
-        if (any(spec_n != ns) || coated) {
+        if (any(spec_n != ns) || coated || any(unbent != ns)) {
             var nc = spec_n;
             if (coated) {
                 nc = valid_reflection_normal(ng, wo, facing_normals(hit.geometric_normal, hit.coat_normal, (*s).dir).ns);
             }
             l = lobes_framed(m, wo_l, local_normal(spec_n, ns, basis), local_normal(nc, ns, basis));
+            l.unbent_n = local_normal(unbent, ns, basis);
         } else {
             l = lobes(m, wo_l.z);
         }
@@ -894,7 +899,8 @@ fn accumulate(i: u32, s: PathState) {
 }
 
 fn no_answer() -> Answer {
-    return Answer(vec3f(0.0), T_FAR, vec3f(0.0), NO_PRISM, vec3f(0.0), 0u, vec2f(0.0), vec3f(0.0));
+    return Answer(vec3f(0.0), T_FAR, vec3f(0.0), NO_PRISM, vec3f(0.0), 0u, vec2f(0.0), vec3f(0.0),
+        vec3f(0.0));
 }
 
 // A new path: the camera step of the pixel's sample.
@@ -918,13 +924,15 @@ fn trace_query(q: QueryRec, px: PixelRef) -> Answer {
 fn query_answer(q: QueryRec, found: Hit) -> Answer {
     var hit = found;
     var coat = vec3f(0.0);
+    var unbent = vec3f(0.0);
     if (q.any == 0u && hit.prism != NO_PRISM) {
         fill_surface(&hit);
         coat = clearcoat_normal(hit);
+        unbent = hit.shading_normal;
         hit = shade_hit(hit);
     }
     return Answer(hit.position, hit.t, hit.geometric_normal, hit.prism, hit.shading_normal, 0u, hit.uv,
-        coat);
+        coat, unbent);
 }
 
 // Workgroup edge = gpu::layout::WORKGROUP (the host dispatches div_ceil(tile, 8) groups).

@@ -167,9 +167,9 @@ struct MaterialTexture {
 }
 
 // GpuMaterial, 528 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
-// normal textures, its normal map's scale and bias (beauty::NormalTex), its emission and
-// emission texture, its specular tint, and its clearcoat's weight and roughness, their
-// textures, and its normal map with that map's scale and bias.
+// normal textures, its normal map's scale, bias and strength (beauty::NormalTex), its
+// emission and emission texture, its specular tint, and its clearcoat's weight and roughness,
+// their textures, and its normal map with that map's scale, bias and strength.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -181,7 +181,7 @@ struct SurfaceMaterial {
     normal_tex: MaterialTexture,
     _pad: vec2<u32>,
     normal_scale: vec3f,
-    _pad1: u32,
+    normal_strength: f32,
     normal_bias: vec3f,
     _pad2: u32,
     emission: vec3f,
@@ -197,7 +197,7 @@ struct SurfaceMaterial {
     clearcoat_roughness_tex: MaterialTexture,
     clearcoat_normal_tex: MaterialTexture,
     clearcoat_normal_scale: vec3f,
-    _pad7: u32,
+    clearcoat_normal_strength: f32,
     clearcoat_normal_bias: vec3f,
     _pad8: u32,
 }

@@ -286,6 +286,8 @@ struct Lobes {
     clearcoat_b: vec3f,
     clearcoat_n: vec3f,
     p_clearcoat: f32,
+    // The normal before a normal map bent the shading normal, local; +z: none.
+    unbent_n: vec3f,
 }
 
 // Lobes::to_specular: a local direction in the specular lobe's frame.
@@ -386,7 +388,7 @@ fn lobes_about(m: Material, specular_n: vec3f, mu_in: f32, clearcoat_n: vec3f, m
     return Lobes(diffuse * under, metal_f0, metal_b, metal * under, eta, f0, dielectric_f0,
         dielectric * under, dielectric_albedo, ggx_alpha(m.roughness), is_mirror(m), p_specular,
         sb.t, sb.b, specular_n, clearcoat, ggx_alpha(m.clearcoat_roughness), m.clearcoat_roughness < MIRROR_ROUGHNESS,
-        basis.t, basis.b, clearcoat_n, p_clearcoat);
+        basis.t, basis.b, clearcoat_n, p_clearcoat, vec3f(0.0, 0.0, 1.0));
 }
 
 // shading::specular_fresnel: the metal's and the dielectric's Fresnel at cos θh = c, each
@@ -403,12 +405,36 @@ fn guide_albedo(m: Material) -> vec3f {
     return min(l.diffuse + specular_fresnel(l, 1.0) + vec3f(clearcoat), vec3f(1.0));
 }
 
+// shading::bump_shadowing: the diffuse's shadowing about the unbent normal unbent_n, for a
+// local direction wi (the bent normal is +z).
+fn bump_shadowing(unbent_n: vec3f, wi: vec3f) -> f32 {
+    let cos_si = dot(unbent_n, wi);
+    if (cos_si * unbent_n.z * wi.z < 0.0) {
+        return 0.0;
+    }
+    let cos_i = abs(cos_si);
+    let cos_d = abs(unbent_n.z);
+    if (cos_d >= 1.0 || cos_i >= 1.0) {
+        return 1.0;
+    }
+    if (cos_i < 1e-6) {
+        return 0.0;
+    }
+    let alpha2 = clamp(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0, 1.0);
+    let tan2_i = 1.0 / (cos_i * cos_i) - 1.0;
+    return 2.0 / (1.0 + sqrt(1.0 + alpha2 * tan2_i));
+}
+
 // shading::base_eval: BSDF × cos θi of the layers under the clearcoat (non-delta lobes), the
-// diffuse about the shading normal, the specular about its own.
+// diffuse about the shading normal (shadowed about the unbent one), the specular about its
+// own.
 fn base_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
     var diffuse = vec3f(0.0);
     if (wo.z > 0.0 && wi.z > 0.0) {
         diffuse = l.diffuse * (INV_PI * wi.z);
+        if (any(l.unbent_n != vec3f(0.0, 0.0, 1.0))) {
+            diffuse *= bump_shadowing(l.unbent_n, wi);
+        }
     }
     if (l.mirror) {
         return diffuse;

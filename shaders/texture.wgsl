@@ -160,8 +160,10 @@ fn corner_tangent(prism: u32, k: u32) -> vec4f {
 // BeautyScene::bent_normal: the normal the normal map `tex` gives at the hit (texel times
 // `scale` plus `bias`, in the tangent frame of the base mesh: its interpolated normal, on the
 // shading normal's side, and tangent::frame_at's tangent about it, as Cycles reads the
-// undisplaced normal); the zero vector where the frame or the mapped normal degenerates.
-fn bent_normal(hit: Hit, tex: MaterialTexture, scale: vec3f, bias: vec3f) -> vec3f {
+// undisplaced normal), blended with the hit's shading normal by `strength` where it is not
+// 1; the zero vector where the frame or the mapped normal degenerates.
+fn bent_normal(hit: Hit, tex: MaterialTexture, scale: vec3f, bias: vec3f, strength: f32)
+    -> vec3f {
     let b = hit.bary;
     let t4 = corner_tangent(hit.prism, 0u) * b.x + corner_tangent(hit.prism, 1u) * b.y
         + corner_tangent(hit.prism, 2u) * b.z;
@@ -180,7 +182,12 @@ fn bent_normal(hit: Hit, tex: MaterialTexture, scale: vec3f, bias: vec3f) -> vec
     }
     let bt = cross(n, t) * select(1.0, -1.0, t4.w < 0.0);
     let c = texture_sample(tex, hit.uv) * scale + bias;
-    return normalize_or_zero(t * c.x + bt * c.y + n * c.z);
+    let mapped = normalize_or_zero(t * c.x + bt * c.y + n * c.z);
+    if (strength == 1.0 || all(mapped == vec3f(0.0))) {
+        return mapped;
+    }
+    let s = hit.shading_normal;
+    return normalize_or_zero(s + (mapped - s) * strength);
 }
 
 // BeautyScene::shade_hit: the hit's shading normal bent by its material's normal map, left as
@@ -193,7 +200,8 @@ fn shade_hit(found: Hit) -> Hit {
         return hit;
     }
     let s = materials[mi];
-    let mapped = bent_normal(hit, s.normal_tex, s.normal_scale, s.normal_bias);
+    let mapped = bent_normal(hit, s.normal_tex, s.normal_scale, s.normal_bias,
+        s.normal_strength);
     if (any(mapped != vec3f(0.0))) {
         hit.shading_normal = mapped;
     }
@@ -209,7 +217,7 @@ fn clearcoat_normal(hit: Hit) -> vec3f {
     }
     let s = materials[mi];
     let mapped = bent_normal(hit, s.clearcoat_normal_tex, s.clearcoat_normal_scale,
-        s.clearcoat_normal_bias);
+        s.clearcoat_normal_bias, s.clearcoat_normal_strength);
     if (any(mapped != vec3f(0.0))) {
         return mapped;
     }

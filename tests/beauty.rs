@@ -1236,11 +1236,15 @@ fn normal_map_square(dir: &Path, deg: f32, scale: f32) -> (PathBuf, [[f32; 3]; 2
     image::RgbImage::from_fn(4, 4, |x, _| image::Rgb(if x < 2 { left } else { right }))
         .save(dir.join("tilt.png"))
         .unwrap();
+    // The decoded normal M, blended with the square's (+z) by the strength as Cycles' Normal
+    // Map node does: normalize(N + (M − N) · scale).
     let normal = |c: [u8; 3]| {
-        let v = c.map(|c| c as f32 / 255.0 * 2.0 - 1.0);
-        let v = [v[0] * scale, v[1] * scale, v[2]];
-        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        v.map(|x| x / len)
+        let unit = |v: [f32; 3]| {
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            v.map(|x| x / len)
+        };
+        let m = unit(c.map(|c| c as f32 / 255.0 * 2.0 - 1.0));
+        unit([m[0] * scale, m[1] * scale, 1.0 + (m[2] - 1.0) * scale])
     };
     let path = square_gltf(
         dir,
@@ -1258,9 +1262,12 @@ fn normal_map_square(dir: &Path, deg: f32, scale: f32) -> (PathBuf, [[f32; 3]; 2
 
 /// A normal map bends the shading normal in the tangent frame: a matte square whose map tilts
 /// its left half 20° away from a key light 60° off its normal and its right half 20° towards
-/// it shows Lambert's cosine of the bent normals, 0.9/π · 3 · cos(80° and 40°), on the CPU and
-/// the GPU, within 1%; `--no-normal-maps` and a grey map (a bump map: not read, a warning)
-/// give the flat cos 60° on both halves; glTF's `scale` scales the map's x and y.
+/// it shows Lambert's cosine of the bent normals, 0.9/π · 3 · cos(80° and 40°), times the
+/// diffuse's shadowing about the square's own normal (GGX's G1 at 60° for α² = tan²(20°)/8),
+/// on the CPU and the GPU, within 1%; `--no-normal-maps` and a grey map (a bump map: not read,
+/// a warning) give the flat cos 60° on both halves; glTF's `scale` is the Normal Map Strength,
+/// which blends the map's normal with the square's (0.5: half the tilt; 2: 37.9°, where
+/// scaling x and y would give 36.1°, and a shadowing of 0.949).
 #[test]
 fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
     let dir = temp_dir("normal-map");
@@ -1284,8 +1291,15 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
     };
     // The key light: azimuth 60° from the square's normal (+z) towards +x, on the horizon.
     let l = [60f32.to_radians().sin(), 0.0, 60f32.to_radians().cos()];
-    let lambert =
-        |n: [f32; 3]| 0.9 / std::f32::consts::PI * 3.0 * (n[0] * l[0] + n[2] * l[2]).max(0.0);
+    // Lambert's cosine of the bent normal n, times the shadowing about the unbent +z:
+    // 2 / (1 + √(1 + α² tan²θi)), θi the light's angle from +z, α² = tan²(bend) / 8.
+    let lambert = |n: [f32; 3]| {
+        let cos_d = n[2];
+        let alpha2 = (0.125 * (1.0 / (cos_d * cos_d) - 1.0)).min(1.0);
+        let tan2_i = 1.0 / (l[2] * l[2]) - 1.0;
+        let shadowing = 2.0 / (1.0 + (1.0 + alpha2 * tan2_i).sqrt());
+        0.9 / std::f32::consts::PI * 3.0 * (n[0] * l[0] + n[2] * l[2]).max(0.0) * shadowing
+    };
     let close = |got: f32, want: f32, what: &str| {
         assert!(
             (got - want).abs() <= 0.01 * want + 1e-4,
@@ -1308,12 +1322,25 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
     assert!(o.json()["materials"][0].get("normal_texture").is_none());
     close(left, flat, "--no-normal-maps left");
     close(right, flat, "--no-normal-maps right");
-    // glTF's scale: x and y times 0.5 before the normal is normalised.
+    // glTF's scale, the strength: the map's normal blended with the square's.
     let (square, [nl, nr]) = normal_map_square(&dir, 20.0, 0.5);
     let (_, left, right) = render(&square, "half", &[]);
     close(left, lambert(nl), "scale 0.5 left");
     close(right, lambert(nr), "scale 0.5 right");
-    assert!(nr[0] < 0.2, "the scale halves the tilt: {nr:?}");
+    assert!(
+        (nr[0].asin().to_degrees() - 10.0).abs() < 0.3,
+        "half the tilt: {nr:?}"
+    );
+    let (square, [nl, nr]) = normal_map_square(&dir, 20.0, 2.0);
+    assert!(
+        (nr[0].atan2(nr[2]).to_degrees() - 37.9).abs() < 0.3,
+        "{nr:?}"
+    );
+    for device in ["cpu", "gpu"] {
+        let (_, left, right) = render(&square, &format!("double-{device}"), &["--device", device]);
+        close(left, lambert(nl), &format!("{device} scale 2 left"));
+        close(right, lambert(nr), &format!("{device} scale 2 right"));
+    }
     // A grey image is a bump map, not a normal map: not read, and said so.
     image::GrayImage::from_pixel(4, 4, image::Luma([200]))
         .save(dir.join("tilt.png"))

@@ -236,35 +236,46 @@ pub struct TextureRef {
 
 /// A tangent-space normal map: the normal in the tangent frame (`tangent::frame_at`: x along
 /// the tangent, y along the bitangent, z along the surface normal) is the texel times `scale`
-/// plus `bias`, normalised. glTF's `normalTexture` is `NormalMapRef::gltf`; a USD
-/// `UsdUVTexture` on `normal` gives its own `scale` and `bias`.
+/// plus `bias`, normalised, then blended with the surface's own normal by `strength` as
+/// Blender's Normal Map node does. glTF's `normalTexture` and an `.mtl`'s `map_Bump` are
+/// `NormalMapRef::unit`; a USD `UsdUVTexture` on `normal` gives its own `scale` and `bias`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct NormalMapRef {
     pub texture: TextureRef,
     pub scale: [f32; 3],
     pub bias: [f32; 3],
+    /// Blender's Normal Map Strength: 1 is the map as it is; otherwise the shading normal is
+    /// normalize(N + (M − N) · max(strength, 0)), N the surface's normal without the map and
+    /// M the map's (Cycles' `svm_node_normal_map`).
+    pub strength: f32,
 }
 
 impl NormalMapRef {
-    /// A map of 0..1 codes for -1..1 with its x and y scaled by `strength` (glTF's
-    /// `normalTexture.scale`, an `.mtl`'s `-bm`): `(2c − 1) · (s, s, 1)`.
+    /// A map of 0..1 codes for -1..1, `2c − 1`, of Normal Map Strength `strength` (glTF's
+    /// `normalTexture.scale` and an `.mtl`'s `-bm`, which Blender's importers make the
+    /// node's Strength).
     pub fn unit(texture: TextureRef, strength: f32) -> Self {
         NormalMapRef {
             texture,
-            scale: [2.0 * strength, 2.0 * strength, 2.0],
-            bias: [-strength, -strength, -1.0],
+            scale: [2.0; 3],
+            bias: [-1.0; 3],
+            strength,
         }
     }
 
-    /// For messages: "strength S" for a map `unit` makes, else its scale and bias.
+    /// For messages: "strength S" for a map `unit` makes, else its scale and bias (and its
+    /// strength, where not 1).
     pub fn describe_mapping(&self) -> String {
-        let s = -self.bias[0];
-        if *self == NormalMapRef::unit(self.texture.clone(), s) {
-            return format!("strength {s}");
+        if *self == NormalMapRef::unit(self.texture.clone(), self.strength) {
+            return format!("strength {}", self.strength);
         }
         let [a, b, c] = self.scale;
         let [d, e, f] = self.bias;
-        format!("scale ({a}, {b}, {c}), bias ({d}, {e}, {f})")
+        let strength = match self.strength == 1.0 {
+            true => String::new(),
+            false => format!(", strength {}", self.strength),
+        };
+        format!("scale ({a}, {b}, {c}), bias ({d}, {e}, {f}){strength}")
     }
 }
 

@@ -296,6 +296,7 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
                 .map_or(Default::default(), |n| tex(n.texture, 0)),
             normal_scale: m.normal_texture.map_or([0.0; 3], |n| n.scale.to_array()),
             normal_bias: m.normal_texture.map_or([0.0; 3], |n| n.bias.to_array()),
+            normal_strength: m.normal_texture.map_or(1.0, |n| n.strength),
             emission: m.emission.to_array(),
             emission_tex: m.emission_texture.map_or(Default::default(), |i| tex(i, 0)),
             specular_tint: m.material.specular_tint.to_array(),
@@ -311,6 +312,7 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
                 .map_or([0.0; 3], |n| n.scale.to_array()),
             clearcoat_normal_bias: (m.clearcoat_normal_texture)
                 .map_or([0.0; 3], |n| n.bias.to_array()),
+            clearcoat_normal_strength: (m.clearcoat_normal_texture).map_or(1.0, |n| n.strength),
             ..Default::default()
         })
         .collect()

@@ -23,7 +23,7 @@ pub const WORKGROUP: u32 = 8;
 /// `shaders/beauty.wgsl`: the path's state between dispatches, its three ray slots and their
 /// answers). Only the GPU reads it; the host sizes the buffer (tile² records) and the layout
 /// test checks this against the WGSL.
-pub const PATH_RECORD_BYTES: u64 = 448;
+pub const PATH_RECORD_BYTES: u64 = 464;
 
 /// One prism record, 40 bytes: `prismbake::bake::Prism` as the shader reads it, plus the
 /// index of its stitch record (`StitchField::record_index`).
@@ -358,9 +358,9 @@ pub struct GpuMaterialTexture {
 
 /// One material of a beauty scene, 528 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
-/// buffer, its normal map's scale and bias (`beauty::NormalTex`), its emission and emission
-/// texture, its specular tint, and its clearcoat's weight and roughness, their textures, and
-/// its normal map with that map's scale and bias.
+/// buffer, its normal map's scale, bias and strength (`beauty::NormalTex`), its emission and
+/// emission texture, its specular tint, and its clearcoat's weight and roughness, their
+/// textures, and its normal map with that map's scale, bias and strength.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -374,7 +374,8 @@ pub struct GpuMaterial {
     pub normal_tex: GpuMaterialTexture,
     pub _pad: [u32; 2],
     pub normal_scale: [f32; 3],
-    pub _pad1: u32,
+    /// `beauty::NormalTex::strength`.
+    pub normal_strength: f32,
     pub normal_bias: [f32; 3],
     pub _pad2: u32,
     pub emission: [f32; 3],
@@ -390,7 +391,7 @@ pub struct GpuMaterial {
     pub clearcoat_roughness_tex: GpuMaterialTexture,
     pub clearcoat_normal_tex: GpuMaterialTexture,
     pub clearcoat_normal_scale: [f32; 3],
-    pub _pad7: u32,
+    pub clearcoat_normal_strength: f32,
     pub clearcoat_normal_bias: [f32; 3],
     pub _pad8: u32,
 }
@@ -639,7 +640,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 normal_tex,
                 _pad,
                 normal_scale,
-                _pad1,
+                normal_strength,
                 normal_bias,
                 _pad2,
                 emission,
@@ -655,7 +656,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 clearcoat_roughness_tex,
                 clearcoat_normal_tex,
                 clearcoat_normal_scale,
-                _pad7,
+                clearcoat_normal_strength,
                 clearcoat_normal_bias,
                 _pad8
             }

@@ -473,8 +473,8 @@ fn materials_and_textures_per_prism_match_the_cpu() {
     // metal whose roughness and metallic are the green and blue of one 8-bit data texture
     // (glTF's metallic-roughness), assigned to the prisms in turn (the fifth index is past the
     // end: the last material), read at every hit on the first and the second bounce. The red
-    // metal has a normal map (8-bit data, strength 0.8) read in the rock's MikkTSpace tangents;
-    // the first material glows.
+    // metal has a normal map (8-bit data, its x and y scaled by 0.8, Normal Map Strength 1.3)
+    // read in the rock's MikkTSpace tangents; the first material glows.
     use prismbake::bake::PRISM_MATERIAL_SHIFT;
     use prismbake::render::beauty::{NormalTex, TexChannel};
     use prismbake::texture::{raw8_table, ColorMap, Sampler, TexWrap, TextureSlot, UvTransform};
@@ -570,6 +570,16 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 texture: 3,
                 scale: Vec3::new(1.0, 1.0, 2.0),
                 bias: Vec3::new(-0.5, -0.5, -1.0),
+                // Blended with the surface's normal (Blender's Normal Map Strength).
+                strength: 0.6,
+            }),
+            // The diffuse under it bent by the bumps, steeply: shadowed about the unbent
+            // normal (`shading::bump_shadowing`).
+            normal_texture: Some(NormalTex {
+                texture: 3,
+                scale: Vec3::splat(2.0),
+                bias: Vec3::splat(-1.0),
+                strength: 2.0,
             }),
             // Glowing through the second texture (counted at every hit and, the scene being
             // emissive, by the last bounce's closest-hit ray).
@@ -592,6 +602,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 texture: 3,
                 scale: Vec3::new(1.6, 1.6, 2.0),
                 bias: Vec3::new(-0.8, -0.8, -1.0),
+                strength: 1.3,
             }),
             // The coat's roughness alone from a texture (another one than the weight's), its
             // own normal map the base's mirrored.
@@ -600,6 +611,7 @@ fn materials_and_textures_per_prism_match_the_cpu() {
                 texture: 3,
                 scale: Vec3::new(-1.6, 1.6, 2.0),
                 bias: Vec3::new(0.8, -0.8, -1.0),
+                strength: 1.0,
             }),
             ..Default::default()
         },

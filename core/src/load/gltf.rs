@@ -246,8 +246,8 @@ fn info_ref(
     )
 }
 
-/// A material's `normalTexture`: a raw texture of 0..1 codes for -1..1, its x and y times
-/// its `scale`. gltf 1.4 reads no `KHR_texture_transform` on it: the extension's JSON is read
+/// A material's `normalTexture`: a raw texture of 0..1 codes for -1..1, its `scale` the
+/// Normal Map Strength (`NormalMapRef::unit`, as Blender's importer reads it). gltf 1.4 reads no `KHR_texture_transform` on it: the extension's JSON is read
 /// here.
 fn normal_ref(
     path: &Path,

@@ -427,12 +427,12 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
     assert_eq!(r.texture.name, "orm.png");
     assert_eq!(r.texture.data, TextureData::File(dir.join("orm.png")));
     assert_eq!(r.texture.color_space, crate::texture::ColorSpace::Raw);
-    // The normal map: data, its x and y times its scale, its own KHR_texture_transform (which
-    // gltf 1.4 leaves in the JSON).
+    // The normal map: data, its scale the Normal Map Strength (as Blender's importer reads
+    // it), its own KHR_texture_transform (which gltf 1.4 leaves in the JSON).
     let n = other.normal_texture.clone().unwrap();
     assert_eq!(n.texture.data, TextureData::File(dir.join("normal.png")));
     assert_eq!(n.texture.color_space, crate::texture::ColorSpace::Raw);
-    assert_eq!((n.scale, n.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
+    assert_eq!((n.scale, n.bias, n.strength), ([2.0; 3], [-1.0; 3], 0.5));
     assert_eq!(
         n.texture.transform,
         UvTransform::gltf([0.5, 0.0], 0.0, [1.0, 1.0])
@@ -473,10 +473,10 @@ fn gltf_materials_per_primitive_and_their_textures_are_recorded() {
         UvTransform::gltf([0.0, 0.0], 0.0, [2.0, 2.0])
     );
     assert_eq!(paint.clearcoat_texture, None);
-    // Its normal map: data, x and y times its scale (a normalTextureInfo's).
+    // Its normal map: data, its scale (a normalTextureInfo's) the strength.
     let cn = other.clearcoat_normal_texture.clone().unwrap();
     assert_eq!(cn.texture.data, TextureData::File(dir.join("normal.png")));
-    assert_eq!((cn.scale, cn.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
+    assert_eq!((cn.scale, cn.bias, cn.strength), ([2.0; 3], [-1.0; 3], 0.5));
     assert_eq!(paint.clearcoat_normal_texture, None);
     assert_eq!(
         other.texture_uses().len(),
@@ -1080,7 +1080,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     let n = rust.normal_texture.as_ref().unwrap();
     assert_eq!(n.texture.data, TextureData::File(dir.join("normal.png")));
     assert_eq!(n.texture.color_space, crate::texture::ColorSpace::Raw);
-    assert_eq!((n.scale, n.bias), ([1.0, 1.0, 2.0], [-0.5, -0.5, -1.0]));
+    assert_eq!((n.scale, n.bias, n.strength), ([2.0; 3], [-1.0; 3], 0.5));
     assert_eq!(n.describe_mapping(), "strength 0.5");
     assert_eq!(paint.normal_texture, None);
     // Ni is the index of refraction: F0 1/9 for 2.

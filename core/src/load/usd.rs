@@ -2138,6 +2138,7 @@ fn normal_map(
         texture,
         scale,
         bias,
+        strength: 1.0,
     }))
 }
 

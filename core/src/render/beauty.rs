@@ -194,12 +194,14 @@ pub struct SurfaceMaterial {
 }
 
 /// A tangent-space normal map (`texture::NormalMapRef`): one of `BeautyScene::textures`, whose
-/// texel times `scale` plus `bias` is the normal in the tangent frame.
+/// texel times `scale` plus `bias` is the normal in the tangent frame, blended with the
+/// surface's normal by `strength` (≥ 0; 1: the map's normal as it is).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NormalTex {
     pub texture: u32,
     pub scale: Vec3,
     pub bias: Vec3,
+    pub strength: f32,
 }
 
 /// One channel (0 red, 1 green, 2 blue) of one of `BeautyScene::textures`.
@@ -335,8 +337,10 @@ impl BeautyScene<'_> {
     /// MikkTSpace tangent made perpendicular to it, `tangent::frame_at`). As in Cycles, whose
     /// Normal Map node reads the undisplaced normal: a map baked against the low-poly mesh
     /// holds all the detail's tilt, so it replaces the displaced surface's normal rather than
-    /// bending it again. `None` where the frame or the mapped normal degenerates (a tangent
-    /// along the normal, a texel that maps to zero).
+    /// bending it again. A strength other than 1 blends it with the hit's shading normal N,
+    /// normalize(N + (M − N) · strength), as Cycles' Normal Map node blends it with the
+    /// (displaced) surface's normal: 0 leaves the surface's normal. `None` where the frame or
+    /// the mapped normal degenerates (a tangent along the normal, a texel that maps to zero).
     #[inline]
     fn bent_normal(&self, hit: &Hit, nm: NormalTex) -> Option<Vec3> {
         let corners = self.tangents.get(hit.prism as usize)?;
@@ -352,7 +356,11 @@ impl BeautyScene<'_> {
         }
         let (t, b) = crate::tangent::frame_at(corners, hit.bary, n)?;
         let c = self.textures[nm.texture as usize].sample(hit.uv) * nm.scale + nm.bias;
-        let mapped = (t * c.x + b * c.y + n * c.z).normalize_or_zero();
+        let mut mapped = (t * c.x + b * c.y + n * c.z).normalize_or_zero();
+        if nm.strength != 1.0 && mapped != Vec3::ZERO {
+            let s = hit.shading_normal;
+            mapped = (s + (mapped - s) * nm.strength).normalize_or_zero();
+        }
         (mapped != Vec3::ZERO).then_some(mapped)
     }
 }
@@ -644,7 +652,9 @@ fn surface_radiance(
             true => s.clearcoat_normal(&hit),
             false => shaded.shading_normal,
         };
-        let l = &match spec_n != ns || coat_n != shaded.shading_normal {
+        // The normal before the normal map bent it: the diffuse is shadowed about it.
+        let unbent = facing_normals(&hit, dir).1;
+        let l = &match spec_n != ns || coat_n != shaded.shading_normal || unbent != ns {
             true => {
                 let coat = Hit {
                     shading_normal: coat_n,
@@ -655,7 +665,10 @@ fn surface_radiance(
                     true => Vec3::Z,
                     false => shading::to_local(n, t, b, ns),
                 };
-                shading::lobes_framed(m, wo_l, local(spec_n), local(nc))
+                shading::Lobes {
+                    unbent_n: local(unbent),
+                    ..shading::lobes_framed(m, wo_l, local(spec_n), local(nc))
+                }
             }
             false => shading::lobes(m, wo_l.z),
         };
@@ -957,6 +970,7 @@ mod tests {
             texture: 0,
             scale: Vec3::splat(2.0),
             bias: Vec3::splat(-1.0),
+            strength: 1.0,
         };
         let env = EnvMap::constant(
             Vec3::ONE,
@@ -1011,5 +1025,31 @@ mod tests {
         assert!((shaded - base).length() < 1e-5, "{shaded} vs {base}");
         assert!((s.clearcoat_normal(&hit) - base).length() < 1e-5);
         assert_eq!(scene(1).clearcoat_normal(&hit), displaced);
+
+        // A Normal Map Strength other than 1 blends the map's normal with the displaced
+        // surface's, normalize(N + (M − N) s), as Cycles does: 0 leaves the surface's, 2 goes
+        // past the map's; the clearcoat's map the same.
+        for strength in [0.0, 0.5, 2.0] {
+            let blended = [SurfaceMaterial {
+                normal_texture: Some(NormalTex { strength, ..map }),
+                clearcoat_normal_texture: Some(NormalTex { strength, ..map }),
+                ..Default::default()
+            }];
+            let s = BeautyScene {
+                materials: &blended,
+                ..scene(0)
+            };
+            let want = (displaced + (base - displaced) * strength).normalize();
+            let shaded = s.shade_hit(hit).shading_normal;
+            assert!(
+                (shaded - want).length() < 1e-5,
+                "{strength}: {shaded} vs {want}"
+            );
+            let coat = s.clearcoat_normal(&hit);
+            assert!(
+                (coat - want).length() < 1e-5,
+                "{strength}: {coat} vs {want}"
+            );
+        }
     }
 }

@@ -778,6 +778,7 @@ fn asset_materials(
                 texture,
                 scale: Vec3::from_array(n.scale),
                 bias: Vec3::from_array(n.bias),
+                strength: n.strength.max(0.0),
             }),
             None => None,
         };
@@ -786,6 +787,7 @@ fn asset_materials(
                 texture,
                 scale: Vec3::from_array(n.scale),
                 bias: Vec3::from_array(n.bias),
+                strength: n.strength.max(0.0),
             }),
             None => None,
         };
