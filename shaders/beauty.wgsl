@@ -673,7 +673,12 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let wo = -(*s).dir;
         let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
         let ng = facing.ng;
-        let ns = facing.ns;
+        var ns = facing.ns;
+        if (any(hit.shading_normal != hit.unbent_normal)) {
+            // beauty::surface_radiance: a normal map's normal is kept where it faces away
+            // from the view, as Cycles keeps it.
+            ns = hit.shading_normal * select(1.0, -1.0, dot(ng, hit.geometric_normal) < 0.0);
+        }
         let basis = onb(ns);
         let wo_l = to_local(wo, basis.t, basis.b, ns);
         // beauty::surface_radiance: the diffuse on the shading normal, the specular lobe on it

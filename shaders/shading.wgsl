@@ -430,7 +430,7 @@ fn bump_shadowing(unbent_n: vec3f, wi: vec3f) -> f32 {
 // own.
 fn base_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
     var diffuse = vec3f(0.0);
-    if (wo.z > 0.0 && wi.z > 0.0) {
+    if (wi.z > 0.0) {
         diffuse = l.diffuse * (INV_PI * wi.z);
         if (any(l.unbent_n != vec3f(0.0, 0.0, 1.0))) {
             diffuse *= bump_shadowing(l.unbent_n, wi);
@@ -470,7 +470,7 @@ fn bsdf_eval(l: Lobes, wo: vec3f, wi: vec3f) -> vec3f {
 fn base_pdf(l: Lobes, wo: vec3f, wi: vec3f) -> f32 {
     let ps = l.p_specular;
     var diffuse = 0.0;
-    if (wo.z > 0.0 && wi.z > 0.0) {
+    if (wi.z > 0.0) {
         diffuse = (1.0 - ps) * wi.z * INV_PI;
     }
     if (l.mirror) {
@@ -549,9 +549,6 @@ fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
                 return BsdfSample(true, wi, specular_fresnel(l, wo_s.z) / (ps * (1.0 - pc)), 0.0, true);
             }
         } else {
-            if (wo.z <= 0.0) {
-                return none;
-            }
             wi = cosine_sample(u);
         }
     }

@@ -641,9 +641,22 @@ fn surface_radiance(
         // a normal-mapped or smoothed normal); the clearcoat on the surface before its normal
         // map bends it (or bent by its own), turned back alike.
         let shaded = s.shade_hit(hit);
-        let (ng, ns) = facing_normals(&shaded, dir);
+        let (ng, mut ns) = facing_normals(&shaded, dir);
         if bounce == 0 {
+            // The denoiser's normal guide faces the camera.
             (guide_normal, guide_albedo) = (ns, shading::guide_albedo(m));
+        }
+        if shaded.shading_normal != hit.shading_normal {
+            // A normal map's normal is kept where it faces away from the view, as Cycles
+            // keeps it: the diffuse is lit about it (the specular and the clearcoat are
+            // turned back below); the surface's own normal gives way to the geometric one
+            // there as before.
+            let n = shaded.shading_normal;
+            ns = if ng.dot(shaded.geometric_normal) < 0.0 {
+                -n
+            } else {
+                n
+            };
         }
         let (t, b) = onb(ns);
         let wo_l = shading::to_local(wo, t, b, ns);

@@ -504,11 +504,12 @@ pub fn bump_shadowing(unbent_n: Vec3, wi: Vec3) -> f32 {
 }
 
 /// The layers under the clearcoat: BSDF times cos θi of their non-delta lobes, the diffuse
-/// about the shading normal (shadowed about the unbent one, `bump_shadowing`), the specular
-/// about its own.
+/// about the shading normal (shadowed about the unbent one, `bump_shadowing`; lit from above
+/// it whichever side the view is on, as Cycles' diffuse is: a normal map may face it away
+/// from the view), the specular about its own.
 #[inline]
 fn base_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
-    let diffuse = match wo.z > 0.0 && wi.z > 0.0 {
+    let diffuse = match wi.z > 0.0 {
         true if l.unbent_n == Vec3::Z => l.diffuse * (INV_PI * wi.z),
         true => l.diffuse * (INV_PI * wi.z * bump_shadowing(l.unbent_n, wi)),
         false => Vec3::ZERO,
@@ -548,7 +549,7 @@ pub fn bsdf_eval(l: &Lobes, wo: Vec3, wi: Vec3) -> Vec3 {
 #[inline]
 fn base_pdf(l: &Lobes, wo: Vec3, wi: Vec3) -> f32 {
     let ps = l.p_specular;
-    let diffuse = match wo.z > 0.0 && wi.z > 0.0 {
+    let diffuse = match wi.z > 0.0 {
         true => (1.0 - ps) * wi.z * INV_PI,
         false => 0.0,
     };
@@ -637,9 +638,6 @@ pub fn bsdf_sample(l: &Lobes, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSamp
             }
             wi
         } else {
-            if wo.z <= 0.0 {
-                return None;
-            }
             cosine_sample(u)
         }
     };
@@ -1148,13 +1146,33 @@ mod tests {
         let drop = bsdf_eval(&plain, wo, wi) - bsdf_eval(&bent, wo, wi);
         let want = diffuse * (1.0 - bump_shadowing(unbent, wi));
         assert!(want.x > 0.01 && (drop - want).abs().max_element() < 1e-5);
-        for i in 0..200u32 {
-            let r = |k| random(i, k, 0, Purpose::Bench, 6);
-            let Some(bs) = bsdf_sample(&bent, wo, r(0), Vec2::new(r(1), r(2))) else {
-                continue;
-            };
-            let f = bsdf_eval(&bent, wo, bs.wi) / bs.pdf;
-            assert!((bs.weight - f).abs().max_element() < 1e-4 * f.max_element().max(1.0));
+        // A view below the bent normal (a normal map may face it away) still sees the diffuse
+        // lit from above it, as Cycles does; the samples' weights stay eval / pdf.
+        let below = Vec3::new(0.2, 0.9, -0.1).normalize();
+        let matte = Material { specular: 0.0, ..m };
+        let away = Lobes {
+            unbent_n: unbent,
+            ..lobes_framed(
+                &matte,
+                below,
+                valid_reflection_normal(unbent, below, Vec3::Z),
+                Vec3::Z,
+            )
+        };
+        let lit = away.diffuse * (wi.z / std::f32::consts::PI) * bump_shadowing(unbent, wi);
+        assert!(lit.x > 0.01 && (bsdf_eval(&away, below, wi) - lit).abs().max_element() < 1e-3);
+        for (l, wo) in [(bent, wo), (away, below)] {
+            let mut sampled = 0;
+            for i in 0..200u32 {
+                let r = |k| random(i, k, 0, Purpose::Bench, 6);
+                let Some(bs) = bsdf_sample(&l, wo, r(0), Vec2::new(r(1), r(2))) else {
+                    continue;
+                };
+                sampled += 1;
+                let f = bsdf_eval(&l, wo, bs.wi) / bs.pdf;
+                assert!((bs.weight - f).abs().max_element() < 1e-4 * f.max_element().max(1.0));
+            }
+            assert!(sampled > 100, "{sampled} of 200 sampled");
         }
     }
 
