@@ -1341,6 +1341,19 @@ fn a_normal_map_bends_the_shading_normal_in_its_tangent_frame() {
         close(left, lambert(nl), &format!("{device} scale 2 left"));
         close(right, lambert(nr), &format!("{device} scale 2 right"));
     }
+    // A negative strength is clamped to 0, as Blender clamps it: the flat square, and a
+    // warning that says so.
+    let (square, _) = normal_map_square(&dir, 20.0, -1.0);
+    let (o, left, right) = render(&square, "negative", &[]);
+    close(left, flat, "scale -1 left");
+    close(right, flat, "scale -1 right");
+    assert!(
+        o.stderr
+            .contains("normal texture (tilt.png) has strength -1")
+            && o.stderr.contains("clamps to 0"),
+        "{}",
+        o.stderr
+    );
     // A grey image is a bump map, not a normal map: not read, and said so.
     image::GrayImage::from_pixel(4, 4, image::Luma([200]))
         .save(dir.join("tilt.png"))

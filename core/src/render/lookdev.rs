@@ -562,6 +562,25 @@ pub fn texture_notes(
             ));
         }
     }
+    // A strength of 0 or less: Blender's Normal Map node clamps it to 0, which leaves the
+    // surface's own normal (glTF viewers flip the map's x and y for a negative scale).
+    let maps = [
+        (&m.normal_texture, TextureSlot::Normal),
+        (&m.clearcoat_normal_texture, TextureSlot::ClearcoatNormal),
+    ];
+    for (n, slot) in maps {
+        if let Some(n) = n.as_ref().filter(|n| n.strength <= 0.0 && reads(slot)) {
+            notes.push(format!(
+                "material '{}': its {} texture ({}) has strength {} (glTF's scale, Blender's \
+                 Normal Map Strength), which Blender clamps to 0: it changes nothing (flip the \
+                 image's channels for a mirrored map, or pass --no-normal-maps to silence this)",
+                m.name,
+                slot.name(),
+                n.texture.name,
+                n.strength
+            ));
+        }
+    }
     notes
 }
 
