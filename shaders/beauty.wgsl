@@ -674,7 +674,10 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         let facing = facing_normals(hit.geometric_normal, hit.shading_normal, (*s).dir);
         let ng = facing.ng;
         var ns = facing.ns;
+        // The normal before the normal map bent it: the diffuse is shadowed about it.
+        var unbent = ns;
         if (any(hit.shading_normal != hit.unbent_normal)) {
+            unbent = facing_normals(hit.geometric_normal, hit.unbent_normal, (*s).dir).ns;
             // beauty::surface_radiance: a normal map's normal is kept where it faces away
             // from the view, as Cycles keeps it.
             ns = hit.shading_normal * select(1.0, -1.0, dot(ng, hit.geometric_normal) < 0.0);
@@ -686,8 +689,6 @@ fn ask(s: ptr<function, PathState>, px: PixelRef, hit: Answer) -> Queries {
         // on its own normal turned back alike.
         let spec_n = valid_reflection_normal(ng, wo, ns);
         let coated = m.clearcoat > 0.0 && any(hit.shading_normal != hit.coat_normal);
-        // The normal before the normal map bent it: the diffuse is shadowed about it.
-        let unbent = facing_normals(hit.geometric_normal, hit.unbent_normal, (*s).dir).ns;
         var l: Lobes;
         if (any(spec_n != ns) || coated || any(unbent != ns)) {
             var nc = spec_n;

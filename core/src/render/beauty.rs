@@ -204,6 +204,19 @@ pub struct NormalTex {
     pub strength: f32,
 }
 
+impl NormalTex {
+    /// The map `n` describes, decoded as `BeautyScene::textures[texture]`; a strength below 0
+    /// is 0, as Blender clamps it.
+    pub fn of(texture: u32, n: &crate::texture::NormalMapRef) -> Self {
+        NormalTex {
+            texture,
+            scale: Vec3::from_array(n.scale),
+            bias: Vec3::from_array(n.bias),
+            strength: n.strength.max(0.0),
+        }
+    }
+}
+
 /// One channel (0 red, 1 green, 2 blue) of one of `BeautyScene::textures`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TexChannel {
@@ -646,7 +659,10 @@ fn surface_radiance(
             // The denoiser's normal guide faces the camera.
             (guide_normal, guide_albedo) = (ns, shading::guide_albedo(m));
         }
+        // The normal before the normal map bent it: the diffuse is shadowed about it.
+        let mut unbent = ns;
         if shaded.shading_normal != hit.shading_normal {
+            unbent = facing_normals(&hit, dir).1;
             // A normal map's normal is kept where it faces away from the view, as Cycles
             // keeps it: the diffuse is lit about it (the specular and the clearcoat are
             // turned back below); the surface's own normal gives way to the geometric one
@@ -665,8 +681,6 @@ fn surface_radiance(
             true => s.clearcoat_normal(&hit),
             false => shaded.shading_normal,
         };
-        // The normal before the normal map bent it: the diffuse is shadowed about it.
-        let unbent = facing_normals(&hit, dir).1;
         let l = &match spec_n != ns || coat_n != shaded.shading_normal || unbent != ns {
             true => {
                 let coat = Hit {

@@ -793,21 +793,13 @@ fn asset_materials(
         let [roughness_texture, metallic_texture, clearcoat_texture, clearcoat_roughness_texture] =
             channels;
         let normal_texture = match &m.normal_texture {
-            Some(n) => decode(&n.texture, TextureSlot::Normal)?.map(|texture| NormalTex {
-                texture,
-                scale: Vec3::from_array(n.scale),
-                bias: Vec3::from_array(n.bias),
-                strength: n.strength.max(0.0),
-            }),
+            Some(n) => decode(&n.texture, TextureSlot::Normal)?.map(|t| NormalTex::of(t, n)),
             None => None,
         };
         let clearcoat_normal_texture = match &m.clearcoat_normal_texture {
-            Some(n) => decode(&n.texture, TextureSlot::ClearcoatNormal)?.map(|texture| NormalTex {
-                texture,
-                scale: Vec3::from_array(n.scale),
-                bias: Vec3::from_array(n.bias),
-                strength: n.strength.max(0.0),
-            }),
+            Some(n) => {
+                decode(&n.texture, TextureSlot::ClearcoatNormal)?.map(|t| NormalTex::of(t, n))
+            }
             None => None,
         };
         let emission_texture = match &m.emission_texture {
