@@ -101,6 +101,14 @@ def test_the_specular_tint_is_blenders(prismbake, tmp_path, edited_sphere):
         assert abs(ratio - 1) < 0.06, same
 
 
+def dark_base(doc, roughness):
+    """The edited sphere's material made a dark (0.05) dielectric of `roughness`; returned."""
+    m = doc["materials"][0]
+    m["pbrMetallicRoughness"].update({"roughnessFactor": roughness, "metallicFactor": 0.0,
+                                      "baseColorFactor": [0.05, 0.05, 0.05, 1]})
+    return m
+
+
 def test_a_gltf_clearcoat_is_blenders_coat(prismbake, tmp_path, edited_sphere):
     # KHR_materials_clearcoat, which Blender imports as the Principled BSDF's Coat Weight and
     # Coat Roughness: a dark rough base under a glossy coat, the asset's own material in both
@@ -109,9 +117,7 @@ def test_a_gltf_clearcoat_is_blenders_coat(prismbake, tmp_path, edited_sphere):
     # reflections less as the image grows; docs/materials.md "A glossy layer on bumps"); with
     # prismbake's coat turned off (`--clearcoat 0`) the asset is a third darker.
     def coated(doc):
-        m = doc["materials"][0]
-        m["pbrMetallicRoughness"].update({"roughnessFactor": 0.8, "metallicFactor": 0.0,
-                                          "baseColorFactor": [0.05, 0.05, 0.05, 1]})
+        m = dark_base(doc, 0.8)
         m["extensions"] = {"KHR_materials_clearcoat": {"clearcoatFactor": 0.8,
                                                        "clearcoatRoughnessFactor": 0.1}}
         doc.setdefault("extensionsUsed", []).append("KHR_materials_clearcoat")
@@ -127,12 +133,19 @@ def test_a_gltf_clearcoat_is_blenders_coat(prismbake, tmp_path, edited_sphere):
 def stripes_png(path, cycles=6, size=64):
     """An RGB PNG of vertical stripes, `cycles` across: red and green 1 in one half of each
     period, 0 in the other (a clearcoat weight and roughness mask)."""
-    row = b"\x00" + b"".join(bytes([255, 255, 0] if (x * cycles * 2 // size) % 2 == 0 else [0, 0, 0])
-                             for x in range(size))
+    row = b"".join(bytes([255, 255, 0] if (x * cycles * 2 // size) % 2 == 0 else [0, 0, 0])
+                   for x in range(size))
+    write_rgb_png(path, size, [row] * size)
+
+
+def write_rgb_png(path, size, rows):
+    """An 8-bit RGB PNG of `size` x `size` texels from its rows of packed RGB bytes, top
+    first."""
     def chunk(kind, data):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    raw = b"".join(b"\x00" + bytes(r) for r in rows)
     path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 2, 0, 0, 0))
-                     + chunk(b"IDAT", zlib.compress(row * size)) + chunk(b"IEND", b""))
+                     + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
 
 
 def test_a_gltf_clearcoat_texture_masks_the_coat_as_in_blender(prismbake, tmp_path, edited_sphere):
@@ -144,9 +157,7 @@ def test_a_gltf_clearcoat_texture_masks_the_coat_as_in_blender(prismbake, tmp_pa
     # mask's weight ignored (`--clearcoat 1`: a coat on every stripe) 1.13-1.25.
     stripes_png(tmp_path / "mask.png")
     def masked(doc):
-        m = doc["materials"][0]
-        m["pbrMetallicRoughness"].update({"roughnessFactor": 0.8, "metallicFactor": 0.0,
-                                          "baseColorFactor": [0.05, 0.05, 0.05, 1]})
+        m = dark_base(doc, 0.8)
         doc["images"] = [{"uri": "mask.png"}]
         doc["textures"] = [{"source": 0}]
         m["extensions"] = {"KHR_materials_clearcoat": {
@@ -171,18 +182,15 @@ def ridges_normal_png(path, ridges=4, size=64, slope=1.2):
     rows = []
     for y in range(size):
         v = 1 - (y + 0.5) / size
-        row = bytearray(b"\x00")
+        row = bytearray()
         for x in range(size):
             u = (x + 0.5) / size
             nx = -slope * math.cos(2 * math.pi * ridges * u)
             ny = -slope * math.cos(2 * math.pi * ridges * v)
             n = math.sqrt(nx * nx + ny * ny + 1)
             row += bytes([code(nx / n), code(ny / n), code(1 / n)])
-        rows.append(bytes(row))
-    def chunk(kind, data):
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
-    path.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 2, 0, 0, 0))
-                     + chunk(b"IDAT", zlib.compress(b"".join(rows))) + chunk(b"IEND", b""))
+        rows.append(row)
+    write_rgb_png(path, size, rows)
 
 
 def test_a_normal_maps_strength_is_blenders(prismbake, tmp_path, edited_sphere):
@@ -196,9 +204,7 @@ def test_a_normal_maps_strength_is_blenders(prismbake, tmp_path, edited_sphere):
     # asset is 1.7-2.1 times as bright.
     ridges_normal_png(tmp_path / "ridges.png")
     def ridged(doc):
-        m = doc["materials"][0]
-        m["pbrMetallicRoughness"].update({"roughnessFactor": 0.6, "metallicFactor": 0.0,
-                                          "baseColorFactor": [0.05, 0.05, 0.05, 1]})
+        m = dark_base(doc, 0.6)
         doc["images"] = [{"uri": "ridges.png"}]
         doc["textures"] = [{"source": 0}]
         m["normalTexture"] = {"index": 0, "scale": 2.0}

@@ -530,16 +530,14 @@ fn a_gltf_clearcoat_texture_past_the_files_textures_is_an_error() {
     ] {
         let mut doc = GltfDoc::default();
         let (a_pos, a_n, a_idx) = flat_triangle(&mut doc);
-        let rest = json!({
-            "scene": 0,
-            "scenes": [{"nodes": [0]}],
-            "nodes": [{"mesh": 0}],
-            "meshes": [{"primitives": [
-                {"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx, "material": 0}]}],
-            "materials": [{"name": "lacquer",
-                "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
-                                                            "clearcoatRoughnessTexture": info}}}],
-        });
+        let mut rest = single_node_scene(
+            json!({}),
+            json!({"attributes": {"POSITION": a_pos, "NORMAL": a_n}, "indices": a_idx,
+                   "material": 0}),
+        );
+        rest["materials"] = json!([{"name": "lacquer",
+            "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 1.0,
+                                                        "clearcoatRoughnessTexture": info}}}]);
         let e = load_gltf_doc(
             &dir,
             &format!("{name}.gltf"),
