@@ -508,6 +508,15 @@ struct BsdfSample {
     delta: bool,
 }
 
+// shading::glossy_direction: a glossy lobe's direction in its own frame: wo's mirror image
+// for a mirror, else a GGX sample of roughness alpha.
+fn glossy_direction(wo: vec3f, alpha: f32, mirror: bool, u: vec2f) -> vec3f {
+    if (mirror) {
+        return vec3f(-wo.x, -wo.y, wo.z);
+    }
+    return ggx_sample(wo, alpha, u);
+}
+
 // shading::bsdf_sample: u_lobe picks the lobe (the clearcoat below p_clearcoat, then the
 // specular or the diffuse under it), u the direction in it.
 fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
@@ -519,12 +528,7 @@ fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
         if (wo_c.z <= 0.0) {
             return none;
         }
-        var wi_c: vec3f;
-        if (l.clearcoat_mirror) {
-            wi_c = vec3f(-wo_c.x, -wo_c.y, wo_c.z);
-        } else {
-            wi_c = ggx_sample(wo_c, l.clearcoat_alpha, u);
-        }
+        let wi_c = glossy_direction(wo_c, l.clearcoat_alpha, l.clearcoat_mirror, u);
         wi = from_local(wi_c, l.clearcoat_t, l.clearcoat_b, l.clearcoat_n);
         if (l.clearcoat_mirror) {
             let f = l.clearcoat * fresnel_dielectric(wo_c.z, CLEARCOAT_IOR);
@@ -538,12 +542,7 @@ fn bsdf_sample(l: Lobes, wo: vec3f, u_lobe: f32, u: vec2f) -> BsdfSample {
             if (wo_s.z <= 0.0) {
                 return none;
             }
-            var wi_s: vec3f;
-            if (l.mirror) {
-                wi_s = vec3f(-wo_s.x, -wo_s.y, wo_s.z);
-            } else {
-                wi_s = ggx_sample(wo_s, l.alpha, u);
-            }
+            let wi_s = glossy_direction(wo_s, l.alpha, l.mirror, u);
             wi = from_local(wi_s, l.specular_t, l.specular_b, l.specular_n);
             if (l.mirror) {
                 return BsdfSample(true, wi, specular_fresnel(l, wo_s.z) / (ps * (1.0 - pc)), 0.0, true);

@@ -588,6 +588,16 @@ pub struct BsdfSample {
     pub delta: bool,
 }
 
+/// A glossy lobe's direction in its own frame: `wo`'s mirror image for a mirror, else a GGX
+/// sample of roughness `alpha`.
+#[inline]
+fn glossy_direction(wo: Vec3, alpha: f32, mirror: bool, u: Vec2) -> Vec3 {
+    match mirror {
+        true => Vec3::new(-wo.x, -wo.y, wo.z),
+        false => ggx_sample(wo, alpha, u),
+    }
+}
+
 /// Sample the lobes: `u_lobe` picks the lobe (the clearcoat below `p_clearcoat`, then the
 /// specular or the diffuse under it), `u` the direction within it.
 #[inline]
@@ -598,11 +608,7 @@ pub fn bsdf_sample(l: &Lobes, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSamp
         if wo_c.z <= 0.0 {
             return None;
         }
-        let wi_c = if l.clearcoat_mirror {
-            Vec3::new(-wo_c.x, -wo_c.y, wo_c.z)
-        } else {
-            ggx_sample(wo_c, l.clearcoat_alpha, u)
-        };
+        let wi_c = glossy_direction(wo_c, l.clearcoat_alpha, l.clearcoat_mirror, u);
         let wi = from_local(wi_c, l.clearcoat_t, l.clearcoat_b, l.clearcoat_n);
         if l.clearcoat_mirror {
             let f = l.clearcoat * fresnel_dielectric(wo_c.z, CLEARCOAT_IOR);
@@ -622,10 +628,7 @@ pub fn bsdf_sample(l: &Lobes, wo: Vec3, u_lobe: f32, u: Vec2) -> Option<BsdfSamp
             if wo_s.z <= 0.0 {
                 return None;
             }
-            let wi_s = match l.mirror {
-                true => Vec3::new(-wo_s.x, -wo_s.y, wo_s.z),
-                false => ggx_sample(wo_s, l.alpha, u),
-            };
+            let wi_s = glossy_direction(wo_s, l.alpha, l.mirror, u);
             let wi = from_local(wi_s, l.specular_t, l.specular_b, l.specular_n);
             if l.mirror {
                 let weight = specular_fresnel(l, wo_s.z) / (ps * (1.0 - pc));
