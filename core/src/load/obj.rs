@@ -2,12 +2,13 @@
 //! `v/vt/vn` corner a vertex, `g`/`o` names kept as groups (one per name and `usemtl`
 //! material). OBJ's v already points up.
 //!
-//! Materials: the `mtllib` files' `newmtl` entries, in order, with `Kd` (the base colour),
-//! `map_Kd` (the base-colour texture, a file next to the .mtl; it replaces `Kd`, as Blender's
-//! importer does; `-clamp on` clamps it, `-s`/`-o` scale and offset its UVs) and the
-//! PBR extension's `Pr`/`Pm` (roughness, metallic) and their maps `map_Pr`/`map_Pm` (data
-//! textures, one channel: `-imfchan`, else red), `Pc`/`Pcr` (the clearcoat's weight and
-//! roughness), `Ke`/`map_Ke` (emission), and a
+//! Materials: the `mtllib` files' `newmtl` entries, in order, read as Blender's OBJ importer
+//! reads them: `Kd` (the base colour), `map_Kd` (the base-colour texture, a file next to the
+//! .mtl; it replaces `Kd`; `-clamp on` clamps it, `-s`/`-o` scale and offset its UVs), the
+//! classic `illum`, `Ka`, `Ks`, `Ns` and `Ni` and the PBR extension's `Pr`/`Pm` over them
+//! (roughness, metallic, reflectance: `MtlReflectance::resolve`), the maps `map_Pr`/`map_Ns`
+//! and `map_Pm`/`refl` (data textures, one channel: `-imfchan`, else red), `Pc`/`Pcr` (the
+//! clearcoat: four times its weight, its roughness), `Ke`/`map_Ke` (emission), and a
 //! tangent-space normal map: `norm`, or
 //! `map_Bump`/`bump` as Blender's exporter and importer use them (`-bm` its strength; a grey
 //! bump map is not read, `render::lookdev::grey_normal_map`). A missing .mtl or an undefined
@@ -121,9 +122,7 @@ struct MtlMap {
     strength: f32,
 }
 
-/// One .mtl file's `newmtl` entries (`Kd`, `Ke`, `Pr`, `Pm` and their maps, `Pc`, `Pcr`,
-/// `norm`; the
-/// rest is ignored). A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the
+/// A `map_*` statement's texture (its last word, a file next to the `.mtl`) and the
 /// channel its `-imfchan` option picks (red unless `g` or `b`: `l`, `m` and `z` read a grey
 /// image's one channel); `-clamp on` clamps its UVs, `-s` scales and `-o` offsets them, `-bm`
 /// is a normal map's strength.
@@ -183,6 +182,72 @@ fn mtl_map<'a>(
     })
 }
 
+/// What an `.mtl` entry says of its specular layer and metalness in the classic model
+/// (`illum`, `Ka`, `Ks`, `Ns`, `Ni`) and the PBR extension (`Pr`, `Pm`), which may come in
+/// any order: `resolve` turns them into the material's values when the entry ends.
+#[derive(Default)]
+struct MtlReflectance {
+    illum: Option<i32>,
+    ka: Option<[f32; 3]>,
+    ks: Option<[f32; 3]>,
+    ns: Option<f32>,
+    ni: Option<f32>,
+    pr: Option<f32>,
+    pm: Option<f32>,
+}
+
+impl MtlReflectance {
+    /// `m`'s roughness, metallic and F0, as Blender's OBJ importer sets the Principled BSDF
+    /// (checked with bpy 5.0.1, `wm.obj_import`, against every case below):
+    /// * roughness: `Pr`, else `1 − √(Ns / 1000)` (Ns clamped to [0, 1000]), else 0 under
+    ///   `illum 2` (highlight on) and 1 otherwise;
+    /// * metallic: `Pm`, else under `illum` 3 to 8 (reflection on) the mean of `Ka`, or 1
+    ///   without one, else 0;
+    /// * Specular IOR Level: the mean of `Ks`, else 1 under `illum 2` and 0 otherwise; Cycles
+    ///   scales the index's F0 by twice it, so a plain `Kd` material has no specular at all;
+    /// * the index: `Ni` (above 0), else 1.5, or 1 under `illum` 6 or 7 (refraction, no glass).
+    ///
+    /// A texture in the roughness's or metallic's place makes its factor 1.
+    fn resolve(&self, m: &mut MeshMaterial) {
+        let mean = |c: [f32; 3]| (c[0] + c[1] + c[2]) / 3.0;
+        let illum = self.illum.unwrap_or(-1);
+        let highlight = illum == 2;
+        let reflection = (3..=8).contains(&illum);
+        let roughness = match (self.pr, self.ns) {
+            (Some(pr), _) => pr,
+            (None, Some(ns)) if ns >= 0.0 => 1.0 - (ns.min(1000.0) / 1000.0).sqrt(),
+            _ if highlight => 0.0,
+            _ => 1.0,
+        };
+        let metallic = match (self.pm, self.ka) {
+            (Some(pm), _) => pm,
+            _ if !reflection => 0.0,
+            (None, Some(ka)) => mean(ka),
+            (None, None) => 1.0,
+        };
+        let level = self
+            .ks
+            .map(mean)
+            .unwrap_or(if highlight { 1.0 } else { 0.0 });
+        let ior = match self.ni {
+            Some(ni) if ni > 0.0 => ni,
+            _ if matches!(illum, 6 | 7) => 1.0,
+            _ => 1.5,
+        };
+        if m.roughness_texture.is_none() {
+            m.roughness = roughness.clamp(0.0, 1.0);
+        }
+        if m.metallic_texture.is_none() {
+            m.metallic = metallic.clamp(0.0, 1.0);
+        }
+        // ((n − 1) / (n + 1))² is the same for n and 1 / n, as Cycles reads an index below 1.
+        let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+        m.specular = Some((f0 * 2.0 * level).clamp(0.0, 1.0));
+    }
+}
+
+/// One .mtl file's `newmtl` entries, appended to `materials` (the statements the module's doc
+/// names; the rest is ignored).
 fn parse_mtl(
     file: &Path,
     text: &str,
@@ -190,6 +255,10 @@ fn parse_mtl(
     names: &mut Vec<String>,
 ) -> Result<()> {
     let dir = file.parent().unwrap_or(Path::new("."));
+    // This file's entries start at `first`: statements before its first `newmtl` belong to
+    // none (not to another file's last entry).
+    let first = materials.len();
+    let mut reflectance = MtlReflectance::default();
     for (i, raw) in text.lines().enumerate() {
         let line = raw.split('#').next().unwrap_or("");
         let mut words = line.split_whitespace();
@@ -198,6 +267,9 @@ fn parse_mtl(
         };
         let at = |what: String| Error::invalid(file, format!("line {}: {what}", i + 1));
         if keyword == "newmtl" {
+            if let Some(m) = materials[first..].last_mut() {
+                std::mem::take(&mut reflectance).resolve(m);
+            }
             let name = words.collect::<Vec<_>>().join(" ");
             names.push(name.clone());
             materials.push(MeshMaterial::plain(
@@ -208,30 +280,35 @@ fn parse_mtl(
             ));
             continue;
         }
-        let Some(m) = materials.last_mut() else {
+        let Some(m) = materials[first..].last_mut() else {
             continue;
         };
+        let r = &mut reflectance;
+        let one = |words: &mut std::str::SplitWhitespace| floats::<1>(words).map(|[x]| x);
         match keyword {
             "Kd" => {
-                let [r, g, b] = floats::<3>(&mut words).map_err(at)?;
+                let [r, g, b] = color(&mut words).map_err(at)?;
                 m.base_color = [r, g, b, 1.0];
             }
-            "Ke" => m.emission = floats::<3>(&mut words).map_err(at)?,
+            "Ke" => m.emission = color(&mut words).map_err(at)?,
+            "Ka" => r.ka = Some(color(&mut words).map_err(at)?),
+            "Ks" => r.ks = Some(color(&mut words).map_err(at)?),
+            "Ns" => r.ns = Some(one(&mut words).map_err(at)?),
             // The index of refraction (Blender's importer reads it as the IOR).
-            "Ni" => m.specular = crate::mesh::ior_f0(floats::<1>(&mut words).map_err(at)?[0]),
+            "Ni" => r.ni = Some(one(&mut words).map_err(at)?),
+            "illum" => r.illum = Some(one(&mut words).map_err(at)? as i32),
+            "Pr" => r.pr = Some(one(&mut words).map_err(at)?),
+            "Pm" => r.pm = Some(one(&mut words).map_err(at)?),
             // Blender's importer: the map replaces Ke's colour (its strength stays 1).
             "map_Ke" => {
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
                 m.emission = [1.0; 3];
                 m.emission_texture = Some(t.texture);
             }
-            "Pr" => m.roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
-            "Pm" => m.metallic = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
-            // The clearcoat's weight and roughness, as Blender's importer reads them.
-            "Pc" => m.clearcoat = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0),
-            "Pcr" => {
-                m.clearcoat_roughness = floats::<1>(&mut words).map_err(at)?[0].clamp(0.0, 1.0)
-            }
+            // The clearcoat's weight and roughness, as Blender's importer reads them: Pc is
+            // four times the Coat Weight (Blender's exporter writes the weight 0.2 as Pc 0.8).
+            "Pc" => m.clearcoat = (one(&mut words).map_err(at)? / 4.0).clamp(0.0, 1.0),
+            "Pcr" => m.clearcoat_roughness = one(&mut words).map_err(at)?.clamp(0.0, 1.0),
             // A map replaces its value (the factor becomes 1), as Kd's does.
             "map_Kd" => {
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
@@ -242,12 +319,14 @@ fn parse_mtl(
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;
                 m.normal_texture = Some(NormalMapRef::unit(t.texture, t.strength));
             }
-            "map_Pr" | "map_Pm" => {
+            // Blender's importer links `map_Ns` to the roughness and `refl` to the metallic,
+            // as it does `map_Pr` and `map_Pm`.
+            "map_Pr" | "map_Ns" | "map_Pm" | "refl" => {
                 let MtlMap {
                     texture, channel, ..
                 } = mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;
                 let c = Some(ChannelRef { texture, channel });
-                if keyword == "map_Pr" {
+                if matches!(keyword, "map_Pr" | "map_Ns") {
                     (m.roughness, m.roughness_texture) = (1.0, c);
                 } else {
                     (m.metallic, m.metallic_texture) = (1.0, c);
@@ -256,7 +335,27 @@ fn parse_mtl(
             _ => {}
         }
     }
+    if let Some(m) = materials[first..].last_mut() {
+        reflectance.resolve(m);
+    }
     Ok(())
+}
+
+/// An `.mtl` colour: `r g b`, or `r` alone for grey (the format leaves g and b optional).
+fn color(words: &mut std::str::SplitWhitespace) -> Result<[f32; 3], String> {
+    let words: Vec<&str> = words.collect();
+    let number = |w: &str| {
+        w.parse::<f32>()
+            .map_err(|_| format!("'{w}' is not a number (fix the line)"))
+    };
+    match words.as_slice() {
+        [r] => Ok([number(r)?; 3]),
+        [r, g, b, ..] => Ok([number(r)?, number(g)?, number(b)?]),
+        _ => Err(format!(
+            "expected 1 or 3 numbers, found {} (fix the line)",
+            words.len()
+        )),
+    }
 }
 
 fn parse(path: &Path, text: &str) -> Result<Parsed> {

@@ -1024,7 +1024,7 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         usemtl nowhere\nf 1 2 4\n\
         usemtl paint\nf 2 3 4\n";
     let mtl = "# two materials\n\
-        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNi 2\nNs 250\nPr 0.3\nPc 0.6\nPcr 0.2\n\
+        newmtl paint\nKd 0.5 0.25 0.125\nKe 0.1 0.2 0.3\nNi 2\nNs 250\nPr 0.3\nPc 0.6\nPcr 0.2\nKs 0.25\n\
         newmtl rust metal\nKd 0.2 0.2 0.2\nPm 0.5\nmap_Kd -clamp on -s 2 2 1 tex/rust.png\n\
         map_Pr -o 0.5 rough.png\nmap_Pm -imfchan b orm.png\nmap_Bump -bm 0.5 normal.png\nmap_Ke glow.png\n";
     std::fs::write(&path, obj).unwrap();
@@ -1041,7 +1041,8 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!(paint.name, "paint");
     assert_eq!(paint.base_color, [0.5, 0.25, 0.125, 1.0]);
     assert_eq!((paint.roughness, paint.metallic), (0.3, 0.0));
-    assert_eq!((paint.clearcoat, paint.clearcoat_roughness), (0.6, 0.2));
+    // Pc is four times Blender's Coat Weight.
+    assert_eq!((paint.clearcoat, paint.clearcoat_roughness), (0.15, 0.2));
     assert_eq!(paint.base_color_texture, None);
     assert_eq!(rust.name, "rust metal");
     // map_Kd replaces Kd (as Blender's importer does); -clamp on clamps; -s is a transform.
@@ -1081,9 +1082,10 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
     assert_eq!((n.scale, n.bias, n.strength), ([2.0; 3], [-1.0; 3], 0.5));
     assert_eq!(n.describe_mapping(), "strength 0.5");
     assert_eq!(paint.normal_texture, None);
-    // Ni is the index of refraction: F0 1/9 for 2.
-    assert!((paint.specular.unwrap() - 1.0 / 9.0).abs() < 1e-7);
-    assert_eq!(rust.specular, None);
+    // Ni is the index of refraction: F0 1/9 for 2, times twice Ks's mean 0.25.
+    assert!((paint.specular.unwrap() - 0.5 / 9.0).abs() < 1e-7);
+    // Neither Ks nor illum 2: Blender's Specular IOR Level 0, no specular at all.
+    assert_eq!(rust.specular, Some(0.0));
     // Ke is the emission; map_Ke replaces it (an sRGB colour texture).
     assert_eq!(
         (paint.emission, paint.emission_texture.clone()),
@@ -1117,6 +1119,111 @@ fn obj_materials_come_from_the_mtllib_per_usemtl() {
         .to_string();
     assert!(
         e.contains("m.mtl") && e.contains("line 3") && e.contains("map_Pr -s takes a number"),
+        "{e}"
+    );
+}
+
+/// The classic `.mtl` model (`illum`, `Ka`, `Ks`, `Ns`, `Ni`) and the PBR extension over it
+/// resolve as Blender's OBJ importer resolves them; each row's values are what bpy 5.0.1's
+/// `wm.obj_import` gave the Principled BSDF (roughness, metallic, IOR, Specular IOR Level),
+/// F0 being Cycles' `((n − 1) / (n + 1))² · 2 · level`.
+#[test]
+fn an_mtls_classic_model_resolves_as_blenders_importer_does() {
+    let dir = temp_dir("obj-mtl-classic");
+    let f0 = |n: f32, level: f32| ((n - 1.0) / (n + 1.0)).powi(2) * 2.0 * level;
+    // (statements, roughness, metallic, F0)
+    let rows: &[(&str, f32, f32, f32)] = &[
+        ("Kd 0.8 0.2 0.1", 1.0, 0.0, 0.0),
+        (
+            "Ns 250\nKa 1 1 1\nKs 0.5 0.5 0.5\nNi 1.45\nillum 2",
+            0.5,
+            0.0,
+            f0(1.45, 0.5),
+        ),
+        (
+            "Ns 900\nKs 1 1 1\nillum 2",
+            1.0 - 0.9f32.sqrt(),
+            0.0,
+            f0(1.5, 1.0),
+        ),
+        ("Ns 10\nKs 0 0 0\nillum 1", 0.9, 0.0, 0.0),
+        (
+            "Ns 500\nKs 0.2 0.2 0.2\nillum 3",
+            1.0 - 0.5f32.sqrt(),
+            1.0,
+            f0(1.5, 0.2),
+        ),
+        ("Ka 0.3 0.3 0.3\nillum 3", 1.0, 0.3, 0.0),
+        ("Ka 0.3 0.3 0.3\nillum 2", 0.0, 0.0, f0(1.5, 1.0)),
+        ("Ns 1500\nKs 2 0.5 0.5", 0.0, 0.0, f0(1.5, 1.0)),
+        ("Ns -5\nillum 1", 1.0, 0.0, 0.0),
+        ("illum 7\nNi 1.33", 1.0, 1.0, 0.0),
+        ("illum 6\nKs 1 1 1", 1.0, 1.0, 0.0),
+        ("illum 4\nKs 1 1 1", 1.0, 1.0, f0(1.5, 1.0)),
+        ("Ka 0.4 0.5 0.6\nillum 5\nPm 0.1", 1.0, 0.1, 0.0),
+        (
+            "Ns 1000\nKs 0.5 0.5 0.5\nPr 0.3\nPm 0.7",
+            0.3,
+            0.7,
+            f0(1.5, 0.5),
+        ),
+        (
+            "Ns 100\nillum 0\nKs 1 1 1",
+            1.0 - 0.1f32.sqrt(),
+            0.0,
+            f0(1.5, 1.0),
+        ),
+        ("Ni 0.5\nKs 0.5 0.5 0.5", 1.0, 0.0, f0(2.0, 0.5)),
+        ("Ni 0\nKs 1 1 1", 1.0, 0.0, f0(1.5, 1.0)),
+        // In any order; one number is grey (the format's reading: Blender's reads `Ks 0.3`
+        // as (0.3, 0.5, 0.5)).
+        ("illum 3\nKs 0.3\nNs 360\nKa 0.25", 0.4, 0.25, f0(1.5, 0.3)),
+    ];
+    let obj: String = (0..rows.len())
+        .map(|i| format!("usemtl m{i}\nf 1 2 3\n"))
+        .collect();
+    let path = dir.join("classic.obj");
+    std::fs::write(
+        &path,
+        format!("mtllib a.mtl b.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n{obj}"),
+    )
+    .unwrap();
+    // The rows over two files; the second's statements before its first newmtl belong to no
+    // entry (not to the first file's last).
+    let entries: Vec<String> = rows
+        .iter()
+        .enumerate()
+        .map(|(i, (statements, ..))| format!("newmtl m{i}\n{statements}\n"))
+        .collect();
+    let half = rows.len() / 2;
+    std::fs::write(dir.join("a.mtl"), entries[..half].concat()).unwrap();
+    std::fs::write(
+        dir.join("b.mtl"),
+        format!("Ks 1 1 1\nillum 2\n{}", entries[half..].concat()),
+    )
+    .unwrap();
+    let m = load_mesh(&path, &MeshOptions::default()).unwrap();
+    assert_eq!(m.materials.len(), rows.len());
+    for (material, &(statements, roughness, metallic, specular)) in m.materials.iter().zip(rows) {
+        let got = (
+            material.roughness,
+            material.metallic,
+            material.specular.unwrap(),
+        );
+        assert!(
+            (got.0 - roughness).abs() < 1e-6
+                && (got.1 - metallic).abs() < 1e-6
+                && (got.2 - specular).abs() < 1e-6,
+            "{statements:?}: {got:?}, Blender's ({roughness}, {metallic}, {specular})"
+        );
+    }
+    // Two numbers are neither grey nor a colour.
+    std::fs::write(dir.join("a.mtl"), "newmtl m0\nKs 0.5 0.5\n").unwrap();
+    let e = load_mesh(&path, &MeshOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("a.mtl") && e.contains("line 2") && e.contains("1 or 3 numbers"),
         "{e}"
     );
 }
