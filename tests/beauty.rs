@@ -2124,3 +2124,134 @@ fn a_usd_dome_light_is_the_environment_unless_env_is_given() {
     o.assert_error(&["missing.usda", "dome light /Sky", "nowhere/sky.exr"]);
     assert!(!exr.exists());
 }
+
+/// The square (`square_gltf`) whose base-colour texture's alpha is 0 on its left half and 1 on
+/// its right, under `alpha_mode` ("MASK" or "BLEND") with the factor's alpha `factor`.
+fn cut_out_square(dir: &Path, alpha_mode: &str, factor: f32) -> PathBuf {
+    image::RgbaImage::from_fn(4, 4, |x, _| match x < 2 {
+        true => image::Rgba([255, 255, 255, 0]),
+        false => image::Rgba([255, 255, 255, 255]),
+    })
+    .save(dir.join("leaf.png"))
+    .unwrap();
+    square_gltf(
+        dir,
+        [0, 0],
+        &format!(
+            r#""materials":[{{"name":"leaf","alphaMode":"{alpha_mode}","pbrMetallicRoughness":{{
+        "baseColorFactor":[0.9,0.9,0.9,{factor}],"baseColorTexture":{{"index":0}}}}}}],
+      "textures":[{{"source":0,"sampler":0}}],
+      "samplers":[{{"wrapS":33071,"wrapT":33071,"magFilter":9728}}],
+      "images":[{{"uri":"leaf.png"}}]"#
+        ),
+    )
+}
+
+/// A material's alpha cuts its surface away, in the beauty, its shadows' rays and the AOVs
+/// alike (`render::cutout`): a MASK square whose texture's alpha is 0 on its left half shows
+/// only its right half in the `mask` AOV and the beauty's alpha; a BLEND factor of 0.25 covers
+/// a quarter of the samples; `--no-alpha` renders it whole. The GPU renderer does not cut:
+/// `--device auto` renders on the CPU (the same image, saying why), `--device gpu` refuses.
+#[test]
+fn a_materials_alpha_cuts_its_surface_away() {
+    let dir = temp_dir("alpha");
+    let render = |square: &Path, name: &str, spp: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec![
+            "render",
+            s(square),
+            "--disp",
+            "",
+            "--scale",
+            "0",
+            "--res",
+            "32x32",
+            "--spp",
+            spp,
+            "--aov",
+            "beauty,mask",
+            "--camera-from",
+            "0,0,5",
+            "--camera-to",
+            "0,0,0",
+            "--fov",
+            "30",
+            "--json",
+            "-o",
+            s(&out),
+        ];
+        let map = write_flat_map(&dir);
+        args[3] = s(&map);
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        let [mask] = read_channels(&out.join("mask.exr"), ["Y"]);
+        let alpha: Vec<f32> = read_rgba(&out.join("beauty.exr"))
+            .iter()
+            .map(|p| p[3])
+            .collect();
+        (o, mask, alpha)
+    };
+    // Mean over the square's left and right thirds (away from the texture's seam).
+    let halves = |v: &[f32]| {
+        let mean = |xs: std::ops::Range<usize>| {
+            let n = (xs.len() * 12) as f32;
+            (10..22)
+                .flat_map(|y| xs.clone().map(move |x| y * 32 + x))
+                .map(|i| v[i])
+                .sum::<f32>()
+                / n
+        };
+        (mean(7..12), mean(20..25))
+    };
+    let mask_square = cut_out_square(&temp_dir("alpha-mask"), "MASK", 1.0);
+    let (o, mask, alpha) = render(&mask_square, "mask", "4", &[]);
+    o.assert_success();
+    let m = &o.json()["materials"][0];
+    assert_eq!(
+        m["alpha"].as_str(),
+        Some("mask at 0.5, alpha 1 x texture leaf.png, 4x4, clamp/clamp, nearest, alpha channel"),
+        "{m}"
+    );
+    assert_eq!(halves(&mask), (0.0, 1.0));
+    assert_eq!(halves(&alpha), (0.0, 1.0));
+    let (o, whole, _) = render(&mask_square, "whole", "4", &["--no-alpha"]);
+    o.assert_success();
+    assert_eq!(halves(&whole), (1.0, 1.0));
+    assert!(o.json()["materials"][0].get("alpha").is_none());
+    // Blended: the right half is there with the factor's probability.
+    let blend_square = cut_out_square(&temp_dir("alpha-blend"), "BLEND", 0.25);
+    let (o, mask, alpha) = render(&blend_square, "blend", "64", &[]);
+    o.assert_success();
+    let (left, right) = halves(&mask);
+    assert_eq!(left, 0.0);
+    assert!((right - 0.25).abs() < 0.04, "{right}");
+    assert_eq!(halves(&alpha), (left, right));
+    // The GPU renderer hands the job to the CPU (auto) or refuses it (gpu).
+    let (o, auto_mask, _) = render(&mask_square, "auto", "4", &["--device", "auto"]);
+    o.assert_success();
+    assert!(
+        o.stderr
+            .contains("device: cpu (the GPU renderer does not cut surfaces away"),
+        "{}",
+        o.stderr
+    );
+    assert!(o.json()["gpu_fallback"].is_string(), "{}", o.stdout);
+    assert_eq!(halves(&auto_mask), (0.0, 1.0));
+    let out = dir.join("gpu");
+    let refused = run(&[
+        "render",
+        s(&mask_square),
+        "--disp",
+        s(&write_flat_map(&dir)),
+        "--aov",
+        "mask",
+        "--res",
+        "8x8",
+        "--device",
+        "gpu",
+        "-o",
+        s(&out),
+    ]);
+    refused.assert_error(&["does not cut surfaces away", "--device cpu", "--no-alpha"]);
+    assert!(!out.exists() || files_in(&out).is_empty());
+}

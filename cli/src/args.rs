@@ -212,6 +212,10 @@ pub struct LookArgs {
     /// emissiveColor, .mtl Ke / map_Ke).
     #[arg(long)]
     pub no_emission: bool,
+    /// Render every surface opaque: do not let the materials' alpha cut it away (glTF
+    /// alphaMode MASK / BLEND with the base colour's alpha, USD opacity, .mtl d).
+    #[arg(long)]
+    pub no_alpha: bool,
     /// Light with the flags and defaults only, not the scene file's dome and directional
     /// lights (a standard lookdev rig for every asset).
     #[arg(long)]

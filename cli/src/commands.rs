@@ -357,6 +357,7 @@ fn lookdev_options(a: &RenderArgs) -> Result<LookdevOptions> {
         metallic: l.metallic,
         normal_maps: !l.no_normal_maps,
         emission: !l.no_emission,
+        alpha: !l.no_alpha,
         scene_lights: !l.no_scene_lights,
         specular: l.specular,
         specular_tint: l.specular_tint.map(Vec3::from),

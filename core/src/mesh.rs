@@ -296,6 +296,27 @@ pub struct MeshMaterial {
     /// bends its normal (the surface's before `normal_texture` bends it); `None`: it lies on
     /// that unbent surface.
     pub clearcoat_normal_texture: Option<crate::texture::NormalMapRef>,
+    /// How the alpha (`base_color[3]` times `alpha_texture`) cuts the surface away.
+    pub alpha_mode: AlphaMode,
+    /// A texture channel multiplied into the alpha (glTF's base-colour texture's alpha, a USD
+    /// `opacity` texture's).
+    pub alpha_texture: Option<crate::texture::ChannelRef>,
+}
+
+/// How a material's alpha cuts its surface away, as Blender's importers wire the Principled
+/// BSDF's Alpha and Cycles renders it (a ray passes through where the surface is not there).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AlphaMode {
+    /// The alpha is not read (glTF's `OPAQUE`, the default).
+    #[default]
+    Opaque,
+    /// There where the alpha is at least the cutoff, else not (glTF's `MASK` and
+    /// `alphaCutoff`, USD's `opacityThreshold` above 0).
+    Mask(f32),
+    /// There with the alpha's probability: a ray passes through with 1 − alpha (glTF's
+    /// `BLEND`, an `.mtl`'s `d`, USD's `opacity`).
+    Blend,
 }
 
 /// The reflectance at normal incidence of a dielectric of index of refraction `ior` in air,
@@ -325,12 +346,25 @@ impl MeshMaterial {
             clearcoat_texture: None,
             clearcoat_roughness_texture: None,
             clearcoat_normal_texture: None,
+            alpha_mode: AlphaMode::Opaque,
+            alpha_texture: None,
+        }
+    }
+
+    /// Whether the alpha may cut its surface away anywhere: a mode other than opaque with an
+    /// alpha texture or a factor that the mode does not make 1.
+    pub fn cuts_out(&self) -> bool {
+        let a = self.base_color[3];
+        match self.alpha_mode {
+            AlphaMode::Opaque => false,
+            AlphaMode::Mask(cutoff) => self.alpha_texture.is_some() || a < cutoff || a.is_nan(),
+            AlphaMode::Blend => self.alpha_texture.is_some() || a < 1.0 || a.is_nan(),
         }
     }
 
     /// Its textures, each with the input it feeds, in the order base colour, roughness,
-    /// metallic, normal, emission, clearcoat, clearcoat roughness, clearcoat normal (one image
-    /// may feed two).
+    /// metallic, normal, emission, clearcoat, clearcoat roughness, clearcoat normal, alpha
+    /// (one image may feed two).
     pub fn textures(&self) -> Vec<(crate::texture::TextureSlot, &crate::texture::TextureRef)> {
         use crate::texture::TextureSlot;
         let mut out = vec![];
@@ -358,6 +392,9 @@ impl MeshMaterial {
         if let Some(n) = &self.clearcoat_normal_texture {
             out.push((TextureSlot::ClearcoatNormal, &n.texture));
         }
+        if let Some(c) = &self.alpha_texture.as_ref().filter(|_| self.cuts_out()) {
+            out.push((TextureSlot::Alpha, &c.texture));
+        }
         out
     }
 
@@ -377,6 +414,7 @@ impl MeshMaterial {
             self.clearcoat_normal_texture
                 .as_mut()
                 .map(|n| &mut n.texture),
+            self.alpha_texture.as_mut().map(|c| &mut c.texture),
         ];
         for t in refs.into_iter().flatten() {
             t.tex_coord = set;
@@ -593,6 +631,8 @@ mod tests {
             clearcoat_texture: channel("coat"),
             clearcoat_roughness_texture: channel("coat roughness"),
             clearcoat_normal_texture: Some(NormalMapRef::unit(t("coat normal"), 1.0)),
+            alpha_mode: AlphaMode::Mask(0.5),
+            alpha_texture: channel("alpha"),
             ..MeshMaterial::plain("m".into(), [1.0; 4], 0.5, 0.0)
         };
         m.set_tex_coord(2);
@@ -601,7 +641,7 @@ mod tests {
             .iter()
             .map(|(slot, t)| (*slot, t.tex_coord))
             .collect();
-        assert_eq!(sets.len(), 8, "{sets:?}");
+        assert_eq!(sets.len(), 9, "{sets:?}");
         assert!(sets.iter().all(|&(_, set)| set == 2), "{sets:?}");
     }
 }

@@ -13,6 +13,8 @@ pub enum Purpose {
     Bsdf = 3,
     Light = 4,
     Bench = 5,
+    /// Whether a ray passes through a material's alpha (`render::cutout`).
+    Alpha = 6,
 }
 
 #[inline]
@@ -41,6 +43,21 @@ pub fn to_unit_float(h: u32) -> f32 {
 #[inline]
 pub fn random(pixel: u32, sample: u32, bounce: u32, purpose: Purpose, seed: u32) -> f32 {
     to_unit_float(hash_counters(pixel, sample, bounce, purpose, seed))
+}
+
+/// `random` further keyed by `key` (a prism: one number per surface a ray meets).
+#[inline]
+pub fn random_keyed(
+    pixel: u32,
+    sample: u32,
+    bounce: u32,
+    purpose: Purpose,
+    seed: u32,
+    key: u32,
+) -> f32 {
+    to_unit_float(pcg_hash(
+        hash_counters(pixel, sample, bounce, purpose, seed) ^ key,
+    ))
 }
 
 #[cfg(test)]

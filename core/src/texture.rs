@@ -86,6 +86,10 @@ pub enum ColorSpace {
     /// USD's `auto`: sRGB for an 8-bit image of 3 or 4 channels, else raw (UsdUVTexture's
     /// rule where the file carries no colour-space metadata).
     Auto,
+    /// The image's alpha channel, as stored (1 where it has none, as Blender's Image Texture
+    /// node gives), in all three channels: a material's alpha (glTF's base-colour texture's
+    /// alpha, a USD `UsdUVTexture`'s `a` output).
+    Alpha,
 }
 
 /// Which material input a texture feeds: names it in messages and the flag that overrides it.
@@ -103,11 +107,13 @@ pub enum TextureSlot {
     ClearcoatRoughness,
     /// A tangent-space normal map of the clearcoat's own (`NormalMapRef`).
     ClearcoatNormal,
+    /// The alpha that cuts the surface away (`mesh::AlphaMode`).
+    Alpha,
 }
 
 impl TextureSlot {
     /// "base-colour", "roughness", "metallic", "normal", "emission", "clearcoat",
-    /// "clearcoat-roughness", "clearcoat-normal".
+    /// "clearcoat-roughness", "clearcoat-normal", "alpha".
     pub fn name(self) -> &'static str {
         match self {
             TextureSlot::BaseColor => "base-colour",
@@ -118,6 +124,7 @@ impl TextureSlot {
             TextureSlot::Clearcoat => "clearcoat",
             TextureSlot::ClearcoatRoughness => "clearcoat-roughness",
             TextureSlot::ClearcoatNormal => "clearcoat-normal",
+            TextureSlot::Alpha => "alpha",
         }
     }
 
@@ -132,6 +139,7 @@ impl TextureSlot {
             TextureSlot::Clearcoat => "--clearcoat W",
             TextureSlot::ClearcoatRoughness => "--clearcoat-roughness R",
             TextureSlot::ClearcoatNormal => "--no-normal-maps",
+            TextureSlot::Alpha => "--no-alpha",
         }
     }
 }
@@ -459,10 +467,19 @@ impl ColorMap {
         let eight_bit = kind.bits_per_pixel() == 8 * u16::from(kind.channel_count());
         let srgb = match texture.color_space {
             ColorSpace::Srgb => true,
-            ColorSpace::Raw => false,
+            ColorSpace::Raw | ColorSpace::Alpha => false,
             ColorSpace::Auto => eight_bit && kind.channel_count() >= 3,
         };
-        let texels: Vec<Vec3> = if eight_bit {
+        let texels: Vec<Vec3> = if texture.color_space == ColorSpace::Alpha {
+            match eight_bit {
+                true => (image.to_rgba8().pixels())
+                    .map(|p| Vec3::splat(raw8_table()[p.0[3] as usize]))
+                    .collect(),
+                false => (image.to_rgba32f().pixels())
+                    .map(|p| Vec3::splat(p.0[3]))
+                    .collect(),
+            }
+        } else if eight_bit {
             let lut = if srgb { srgb8_table() } else { raw8_table() };
             let converted;
             let rgb8 = match &image {
@@ -517,16 +534,30 @@ impl ColorMap {
             ));
         }
         check_exr_size(path, &header)?;
-        let names = exr_rgb_channels(path, &header, "the texture")?;
-        let (w, h, planes) = crate::load::image::read_exr_channels(path, &names, "the texture")?;
-        let channel = |k: usize| &planes[k.min(planes.len() - 1)];
-        let decode: fn(f32) -> f32 = match texture.color_space {
-            ColorSpace::Srgb => srgb_to_linear,
-            ColorSpace::Raw | ColorSpace::Auto => |x| x,
+        let alpha = texture.color_space == ColorSpace::Alpha;
+        // The alpha: the layer's A (or *.A) channel, else 1 everywhere.
+        let alpha_name = (header.channels.list.iter())
+            .map(|c| c.name.to_string())
+            .find(|n| n == "A" || n.ends_with(".A"));
+        let names = match (alpha, alpha_name) {
+            (true, Some(a)) => vec![a],
+            (true, None) => vec![],
+            (false, _) => exr_rgb_channels(path, &header, "the texture")?,
         };
-        let texels: Vec<Vec3> = (0..w * h)
-            .map(|i| Vec3::new(channel(0)[i], channel(1)[i], channel(2)[i]).map(decode))
-            .collect();
+        let texels: Vec<Vec3> = if names.is_empty() {
+            vec![Vec3::ONE; w * h]
+        } else {
+            let (w, h, planes) =
+                crate::load::image::read_exr_channels(path, &names, "the texture")?;
+            let channel = |k: usize| &planes[k.min(planes.len() - 1)];
+            let decode: fn(f32) -> f32 = match texture.color_space {
+                ColorSpace::Srgb => srgb_to_linear,
+                ColorSpace::Raw | ColorSpace::Auto | ColorSpace::Alpha => |x| x,
+            };
+            (0..w * h)
+                .map(|i| Vec3::new(channel(0)[i], channel(1)[i], channel(2)[i]).map(decode))
+                .collect()
+        };
         let texels = scaled(texels, texture.scale_bias);
         if let Some(why) = out_of_range_texel(&texels, w as u32) {
             return Err(Error::invalid(path, why));

@@ -548,6 +548,10 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                     .as_ref()
                     .filter(|_| m.emission != [0.0; 3])
                     .map(|t| t.name.clone()),
+                alpha: lookdev::describe_alpha(
+                    m,
+                    m.alpha_texture.as_ref().map(|c| c.texture.name.clone()),
+                ),
             },
         })
         .collect();
@@ -572,6 +576,7 @@ fn material_infos(mesh: &BaseMesh) -> Vec<MaterialInfo> {
                 normal_texture: None,
                 emission: None,
                 emission_texture: None,
+                alpha: None,
             },
         });
     }

@@ -234,6 +234,21 @@ fn render_session(
     cpu_fallback: bool,
 ) -> Result<LookdevSummary> {
     let t = Instant::now();
+    if session.cuts_out() {
+        // The kernels trace every surface opaque: a material's alpha (`render::cutout`) is
+        // the CPU renderer's alone.
+        let why = "the GPU renderer does not cut surfaces away by their materials' alpha";
+        if !cpu_fallback {
+            return Err(Error::Param(format!(
+                "gpu: {why} (alphaMode MASK / BLEND, USD opacity, .mtl d): use --device cpu or \
+                 --device auto, or --no-alpha to render every surface opaque"
+            )));
+        }
+        ctx.warn(&format!(
+            "device: cpu ({why}); --device gpu makes this an error"
+        ));
+        return render_on_cpu(job, look, session, progress, why.to_string());
+    }
     let want_beauty = job.aovs.contains(&Aov::Beauty);
     let scene = &mut kept.scene;
     // A failure names the environment's file where the lighting is what does not fit.

@@ -1,7 +1,7 @@
 """An `.mtl` reads as Blender's OBJ importer reads it: the real bpy imports the same files, and
 `prismbake inspect --json` must give each material the roughness, metallic, reflectance (F0, from
 the Principled BSDF's IOR and Specular IOR Level as Cycles combines them), clearcoat and emission
-that Blender's Principled BSDF gets."""
+that Blender's Principled BSDF gets, and the alpha that cuts the surface away."""
 import json
 import struct
 import textwrap
@@ -31,6 +31,8 @@ ENTRIES = {
     "pbr": "Kd 0.8 0.8 0.8\nNs 1000\nKs 0.5 0.5 0.5\nPr 0.3\nPm 0.7\nillum 3\nKa 0.1 0.1 0.1",
     "coat": "Kd 0.8 0.8 0.8\nPc 0.8\nPcr 0.1\nKs 0.5 0.5 0.5",
     "glow": "Kd 0.8 0.8 0.8\nKe 2 1 0",
+    "dissolved": "Kd 0.8 0.8 0.8\nd 0.4\nTr 0.1",
+    "alpha_map": "Kd 0.8 0.8 0.8\nd 0.4\nmap_d grey.png",
     "specular_after_index": "illum 2\nKs 0.25 0.25 0.25\nNi 2\nKd 0.8 0.8 0.8",
     "roughness_map": "Kd 0.8 0.8 0.8\nNs 500\nmap_Ns grey.png",
     "metallic_map": "Kd 0.8 0.8 0.8\nillum 3\nrefl grey.png",
@@ -53,7 +55,7 @@ BLENDER = textwrap.dedent(
         out[m.name] = {k: value(k) for k in ("Base Color", "Roughness", "Metallic", "IOR",
                                              "Specular IOR Level", "Coat Weight",
                                              "Coat Roughness", "Emission Color",
-                                             "Emission Strength")}
+                                             "Emission Strength", "Alpha")}
     print("RESULT " + json.dumps(out))
     """
 )
@@ -100,6 +102,13 @@ def test_an_mtl_reads_as_blenders_importer_reads_it(run, blender, tmp_path):
         assert close(coat[0], t["Coat Weight"]), why
         if t["Coat Weight"] > 0:
             assert close(coat[1], t["Coat Roughness"]), why
+        # The alpha (Blender: `d`, not `Tr`; `map_d`'s alpha channel in its place) lets rays
+        # through.
+        if t["Alpha"] is None:
+            alpha = "blend, alpha 1 x texture grey.png, alpha channel"
+        else:
+            alpha = None if t["Alpha"] >= 1 else f"blend, alpha {t['Alpha']:.1f}"
+        assert o.get("alpha") == alpha, why
         glow = [c * t["Emission Strength"] for c in t["Emission Color"]]
         assert all(close(a, b) for a, b in zip(o.get("emission", [0.0] * 3), glow)), why
     # The cases do differ: a plain Kd is a rough Lambert without specular, a Blender export

@@ -9,9 +9,11 @@ in one process.
 """
 import json
 import pathlib
+import struct
 import subprocess
 import sys
 import textwrap
+import zlib
 
 import numpy as np
 import OpenEXR
@@ -818,3 +820,116 @@ def test_rect_and_disk_lights_light_as_blender_imports_them(run, blender, tmp_pa
     assert round_ == 5.0 and abs(theirs["Round"]["energy"] - np.pi * 5.0) < 1e-3, (lights[1], theirs["Round"])
     assert theirs["Box"]["shape"] == "RECTANGLE" and (theirs["Box"]["size"], theirs["Box"]["size_y"]) == (2.0, 0.5)
     assert theirs["Round"]["shape"] == "DISK" and abs(theirs["Round"]["size"] - 0.8) < 1e-6
+
+
+OPACITY_USDA = """#usda 1.0
+(
+    upAxis = "Y"
+)
+def Xform "root"
+{
+    def Mesh "half"
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-1, -1, -1), (1, -1, -1), (1, 1, -1), (-1, 1, -1)]
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "vertex")
+        rel material:binding = </root/mats/half>
+    }
+    def Mesh "leaf"
+    {
+        int[] faceVertexCounts = [4]
+        int[] faceVertexIndices = [0, 1, 2, 3]
+        point3f[] points = [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)]
+        texCoord2f[] primvars:st = [(0, 0), (1, 0), (1, 1), (0, 1)] (interpolation = "vertex")
+        rel material:binding = </root/mats/leaf>
+    }
+    def Scope "mats"
+    {
+        def Material "half"
+        {
+            token outputs:surface.connect = </root/mats/half/pbr.outputs:surface>
+            def Shader "pbr"
+            {
+                uniform token info:id = "UsdPreviewSurface"
+                float inputs:opacity = 0.5
+                token outputs:surface
+            }
+        }
+        def Material "leaf"
+        {
+            token outputs:surface.connect = </root/mats/leaf/pbr.outputs:surface>
+            def Shader "pbr"
+            {
+                uniform token info:id = "UsdPreviewSurface"
+                float inputs:opacity.connect = </root/mats/leaf/tex.outputs:a>
+                float inputs:opacityThreshold = 0.3
+                token outputs:surface
+            }
+            def Shader "tex"
+            {
+                uniform token info:id = "UsdUVTexture"
+                asset inputs:file = @leaf.png@
+                token inputs:wrapS = "clamp"
+                token inputs:wrapT = "clamp"
+                float2 inputs:st.connect = </root/mats/leaf/st.outputs:result>
+                float outputs:a
+            }
+            def Shader "st"
+            {
+                uniform token info:id = "UsdPrimvarReader_float2"
+                string inputs:varname = "st"
+                float2 outputs:result
+            }
+        }
+    }
+}
+"""
+
+BLENDER_ALPHA = textwrap.dedent(
+    """
+    import json, sys, bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.wm.usd_import(filepath=sys.argv[1])
+    out = {}
+    for m in bpy.data.materials:
+        n = next(x for x in m.node_tree.nodes if x.type == "BSDF_PRINCIPLED")
+        cut = [x.inputs[1].default_value for x in m.node_tree.nodes
+               if x.type == "MATH" and x.operation == "LESS_THAN"]
+        out[m.name] = {"alpha": n.inputs["Alpha"].default_value,
+                       "linked": n.inputs["Alpha"].is_linked, "cutoff": cut}
+    print("RESULT " + json.dumps(out))
+    """
+)
+
+
+def test_usd_opacity_cuts_the_surface_as_blender_imports_it(run, blender, tmp_path):
+    """UsdPreviewSurface's opacity is the Principled BSDF's Alpha (a value: blended), and a
+    UsdUVTexture's `a` on it under an opacityThreshold is cut at the threshold, as Blender's
+    importer wires them: the textured quad's transparent half is out of the mask AOV, and the
+    half-opaque quad behind it shows through it with half its samples."""
+    size = 4
+    raw = b"".join(b"\x00" + b"".join(bytes([255, 255, 255, 0 if x < size // 2 else 255])
+                                      for x in range(size)) for _ in range(size))
+    chunk = lambda t, d: (struct.pack(">I", len(d)) + t + d
+                          + struct.pack(">I", zlib.crc32(t + d) & 0xFFFFFFFF))
+    (tmp_path / "leaf.png").write_bytes(
+        b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", size, size, 8, 6, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b""))
+    usda = tmp_path / "alpha.usda"
+    usda.write_text(OPACITY_USDA)
+    theirs = blender(BLENDER_ALPHA, usda)
+    ours = {m["name"]: m for m in json.loads(run("inspect", usda, "--json", check=0).stdout)["materials"]}
+    assert theirs["half"] == {"alpha": 0.5, "linked": False, "cutoff": []}, theirs
+    assert theirs["leaf"]["linked"] and theirs["leaf"]["cutoff"] == [pytest.approx(0.3)], theirs
+    assert ours["/root/mats/half"]["alpha"] == "blend, alpha 0.5", ours
+    assert ours["/root/mats/leaf"]["alpha"] == "mask at 0.3, alpha 1 x texture leaf.png, alpha channel", ours
+    out = tmp_path / "out"
+    run("render", usda, "--disp", MAP, "--scale", "0", "--aov", "mask", "--res", "32x32", "--spp",
+        "64", "--camera-from", "0,0,6", "--camera-to", "0,0,0", "--fov", "30", "-o", out, check=0)
+    with OpenEXR.File(str(out / "mask.exr")) as f:
+        mask = np.asarray(list(f.channels().values())[0].pixels, dtype=np.float64)
+    left, right = mask[11:21, 8:13].mean(), mask[11:21, 19:24].mean()
+    # The leaf's left half is cut away: the half-opaque quad behind shows with half its
+    # samples; its right half covers every one.
+    assert abs(left - 0.5) < 0.08 and right == 1.0, (left, right)

@@ -8,7 +8,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneSun, UpAxis};
+use crate::mesh::{AlphaMode, BaseMesh, MeshMaterial, Projection, SceneSun, UpAxis};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -56,6 +56,10 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                 .metallic_roughness_texture()
                 .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Raw))
                 .transpose()?;
+            let base_color_texture = pbr
+                .base_color_texture()
+                .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
+                .transpose()?;
             let channel = |channel| {
                 metallic_roughness
                     .clone()
@@ -69,10 +73,23 @@ pub fn load(path: &Path, opts: &MeshOptions) -> Result<BaseMesh> {
                 base_color: pbr.base_color_factor(),
                 roughness: pbr.roughness_factor(),
                 metallic: pbr.metallic_factor(),
-                base_color_texture: pbr
-                    .base_color_texture()
-                    .map(|t| info_ref(path, &loader_buffers, &t, ColorSpace::Srgb))
-                    .transpose()?,
+                base_color_texture: base_color_texture.clone(),
+                // Blender's importer: the base-colour texture's alpha times the factor's, cut
+                // at alphaCutoff (0.5 where absent) under MASK, as it is under BLEND.
+                alpha_mode: match m.alpha_mode() {
+                    ::gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+                    ::gltf::material::AlphaMode::Mask => {
+                        AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5))
+                    }
+                    ::gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+                },
+                alpha_texture: base_color_texture.map(|texture| ChannelRef {
+                    texture: TextureRef {
+                        color_space: ColorSpace::Alpha,
+                        ..texture
+                    },
+                    channel: 0,
+                }),
                 roughness_texture: channel(1),
                 metallic_texture: channel(2),
                 normal_texture: m

@@ -8,7 +8,8 @@
 //! classic `illum`, `Ka`, `Ks`, `Ns` and `Ni` and the PBR extension's `Pr`/`Pm` over them
 //! (roughness, metallic, reflectance: `MtlReflectance::resolve`), the maps `map_Pr`/`map_Ns`
 //! and `map_Pm`/`refl` (data textures, one channel: `-imfchan`, else red), `Pc`/`Pcr` (the
-//! clearcoat: four times its weight, its roughness), `Ke`/`map_Ke` (emission), and a
+//! clearcoat: four times its weight, its roughness), `Ke`/`map_Ke` (emission), `d`/`map_d`
+//! (the alpha), and a
 //! tangent-space normal map: `norm`, or
 //! `map_Bump`/`bump` as Blender's exporter and importer use them (`-bm` its strength; a grey
 //! bump map is not read, `render::lookdev::grey_normal_map`). A missing .mtl or an undefined
@@ -23,7 +24,7 @@
 
 use super::MeshOptions;
 use crate::error::{Error, Result};
-use crate::mesh::{BaseMesh, MeshMaterial, UpAxis};
+use crate::mesh::{AlphaMode, BaseMesh, MeshMaterial, UpAxis};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
 };
@@ -194,6 +195,8 @@ struct MtlReflectance {
     ni: Option<f32>,
     pr: Option<f32>,
     pm: Option<f32>,
+    /// `d`, the dissolve: Blender's importer makes it the Alpha (`Tr` it does not read).
+    d: Option<f32>,
 }
 
 impl MtlReflectance {
@@ -205,7 +208,9 @@ impl MtlReflectance {
     ///   without one, else 0;
     /// * Specular IOR Level: the mean of `Ks`, else 1 under `illum 2` and 0 otherwise; Cycles
     ///   scales the index's F0 by twice it, so a plain `Kd` material has no specular at all;
-    /// * the index: `Ni` (above 0), else 1.5, or 1 under `illum` 6 or 7 (refraction, no glass).
+    /// * the index: `Ni` (above 0), else 1.5, or 1 under `illum` 6 or 7 (refraction, no glass);
+    /// * the alpha: `map_d`'s alpha channel, else `d`, which lets rays through
+    ///   (`AlphaMode::Blend`).
     ///
     /// A texture in the roughness's or metallic's place makes its factor 1.
     fn resolve(&self, m: &mut MeshMaterial) {
@@ -239,6 +244,11 @@ impl MtlReflectance {
         }
         if m.metallic_texture.is_none() {
             m.metallic = metallic.clamp(0.0, 1.0);
+        }
+        if m.alpha_texture.is_some() {
+            (m.base_color[3], m.alpha_mode) = (1.0, AlphaMode::Blend);
+        } else if let Some(d) = self.d {
+            (m.base_color[3], m.alpha_mode) = (d.clamp(0.0, 1.0), AlphaMode::Blend);
         }
         // ((n − 1) / (n + 1))² is the same for n and 1 / n, as Cycles reads an index below 1.
         let f0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
@@ -299,6 +309,14 @@ fn parse_mtl(
             "illum" => r.illum = Some(one(&mut words).map_err(at)? as i32),
             "Pr" => r.pr = Some(one(&mut words).map_err(at)?),
             "Pm" => r.pm = Some(one(&mut words).map_err(at)?),
+            // `d [-halo] factor` (the halo form's factor read as the plain one).
+            "d" => {
+                let w = words.find(|w| *w != "-halo").unwrap_or("");
+                let d = w
+                    .parse()
+                    .map_err(|_| at(format!("d takes a number, not '{w}' (fix the line)")))?;
+                r.d = Some(d);
+            }
             // Blender's importer: the map replaces Ke's colour (its strength stays 1).
             "map_Ke" => {
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
@@ -314,6 +332,15 @@ fn parse_mtl(
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Srgb).map_err(at)?;
                 m.base_color = [1.0; 4];
                 m.base_color_texture = Some(t.texture);
+            }
+            // Blender's importer links the image's alpha channel to the Alpha, in d's place
+            // (a grey image without one: alpha 1).
+            "map_d" => {
+                let t = mtl_map(keyword, &mut words, dir, ColorSpace::Alpha).map_err(at)?;
+                m.alpha_texture = Some(ChannelRef {
+                    texture: t.texture,
+                    channel: 0,
+                });
             }
             "norm" | "map_Bump" | "bump" => {
                 let t = mtl_map(keyword, &mut words, dir, ColorSpace::Raw).map_err(at)?;

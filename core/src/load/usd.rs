@@ -21,7 +21,9 @@
 use super::MeshOptions;
 use crate::error::{Error, Result};
 use crate::heightmap::Wrap;
-use crate::mesh::{BaseMesh, MeshMaterial, Projection, SceneDome, SceneSun, UpAxis, MAX_MATERIALS};
+use crate::mesh::{
+    AlphaMode, BaseMesh, MeshMaterial, Projection, SceneDome, SceneSun, UpAxis, MAX_MATERIALS,
+};
 use crate::render::lights::{Light, LightShape, Spot};
 use crate::texture::{
     ChannelRef, ColorSpace, NormalMapRef, Sampler, TexWrap, TextureData, TextureRef, UvTransform,
@@ -2052,8 +2054,18 @@ fn mesh_material(
             }
         }
     }
-    // A texture replaces the input's value (the factor becomes 1), one channel of it.
-    for name in ["roughness", "metallic"] {
+    // opacity: a value (UsdPreviewSurface's default 1) lets rays through where below 1, as
+    // Blender's importer makes it the Alpha (it also leaves opacityThreshold to a texture).
+    let opacity = match input_value(path, stage, &surface, "opacity")? {
+        Some(v) => scalar(&v).map_or(1.0, |x| x as f32),
+        None => 1.0,
+    };
+    if opacity < 1.0 {
+        (m.base_color[3], m.alpha_mode) = (opacity.max(0.0), AlphaMode::Blend);
+    }
+    // A texture replaces the input's value (the factor becomes 1), one channel of it (the
+    // opacity's may be the alpha, `a`).
+    for name in ["roughness", "metallic", "opacity"] {
         let input = property_path(path, &surface, &format!("inputs:{name}"))?;
         let Some((tex, output)) = connected_output(path, stage, &input)? else {
             continue;
@@ -2069,6 +2081,7 @@ fn mesh_material(
             "r" => 0,
             "g" => 1,
             "b" => 2,
+            "a" if name == "opacity" => 3,
             other => {
                 warn(
                     path,
@@ -2083,11 +2096,31 @@ fn mesh_material(
         let Some(texture) = uv_texture(path, stage, &tex, uv_name, name)? else {
             continue;
         };
-        let c = Some(ChannelRef { texture, channel });
-        if name == "roughness" {
-            (m.roughness, m.roughness_texture) = (1.0, c);
-        } else {
-            (m.metallic, m.metallic_texture) = (1.0, c);
+        let c = match channel {
+            // The image's alpha channel, in all three of a texture of its own.
+            3 => ChannelRef {
+                texture: TextureRef {
+                    color_space: ColorSpace::Alpha,
+                    ..texture
+                },
+                channel: 0,
+            },
+            _ => ChannelRef { texture, channel },
+        };
+        match name {
+            "roughness" => (m.roughness, m.roughness_texture) = (1.0, Some(c)),
+            "metallic" => (m.metallic, m.metallic_texture) = (1.0, Some(c)),
+            _ => {
+                // Blender's importer: a textured opacity under an opacityThreshold above 0 is
+                // cut at it (1 − (alpha < threshold)), else blended.
+                let threshold = float("opacityThreshold", 0.0)?;
+                m.base_color[3] = 1.0;
+                m.alpha_mode = match threshold > 0.0 {
+                    true => AlphaMode::Mask(threshold),
+                    false => AlphaMode::Blend,
+                };
+                m.alpha_texture = Some(c);
+            }
         }
     }
     m.normal_texture = normal_map(path, stage, &surface, &material, uv_name)?;

@@ -16,6 +16,7 @@ use super::beauty::{
     TexChannel,
 };
 use super::camera::Camera;
+use super::cutout::{AlphaCut, Cutout};
 use super::denoise::{Denoiser, Quality};
 use super::env::{EnvFrame, EnvMap};
 use super::job::{
@@ -31,7 +32,7 @@ use crate::bake::{self, BakeOptions, RebakeStats};
 use crate::error::{Error, Result};
 use crate::heightmap::HeightMap;
 use crate::load::{self, MapOptions};
-use crate::mesh::{MeshMaterial, SceneLight, SceneSun, UpAxis};
+use crate::mesh::{AlphaMode, MeshMaterial, SceneLight, SceneSun, UpAxis};
 use crate::repair;
 use crate::table_cache;
 use crate::texture::{ColorMap, TextureRef, TextureSlot};
@@ -73,6 +74,9 @@ pub struct LookdevOptions {
     pub normal_maps: bool,
     /// Let the materials glow (`--no-emission`: false).
     pub emission: bool,
+    /// Let the materials' alpha cut their surfaces away (`mesh::AlphaMode`; `--no-alpha`:
+    /// false, every surface opaque).
+    pub alpha: bool,
     /// Light with the scene file's dome and directional lights where the flags leave the
     /// environment and the key light to it (`--no-scene-lights`: false).
     pub scene_lights: bool,
@@ -113,6 +117,7 @@ impl Default for LookdevOptions {
             metallic: None,
             normal_maps: true,
             emission: true,
+            alpha: true,
             scene_lights: true,
             specular: None,
             specular_tint: None,
@@ -312,6 +317,29 @@ pub struct MaterialDescription {
     /// The texture multiplied into `emission`; absent without one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub emission_texture: Option<String>,
+    /// "mask at 0.5, alpha 1 x texture leaf.png, alpha channel": how the alpha cuts the
+    /// surface away (`describe_alpha`); absent where it cuts nothing.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<String>,
+}
+
+/// `m`'s alpha for people, where it cuts its surface away: "mask at C" or "blend", then the
+/// factor and, if any, `texture` (the alpha texture as the caller names it) with the channel
+/// it reads.
+pub fn describe_alpha(m: &MeshMaterial, texture: Option<String>) -> Option<String> {
+    let mode = match m.alpha_mode {
+        _ if !m.cuts_out() => return None,
+        AlphaMode::Opaque => return None,
+        AlphaMode::Mask(cutoff) => format!("mask at {cutoff}"),
+        AlphaMode::Blend => "blend".to_string(),
+    };
+    let channel =
+        (m.alpha_texture.as_ref()).map_or(String::new(), |c| match c.texture.color_space {
+            crate::texture::ColorSpace::Alpha => ", alpha channel".to_string(),
+            _ => format!(", channel {}", c.channel_name()),
+        });
+    let times = texture.map_or(String::new(), |t| format!(" x texture {t}{channel}"));
+    Some(format!("{mode}, alpha {}{times}", m.base_color[3]))
 }
 
 impl MaterialDescription {
@@ -344,8 +372,9 @@ impl MaterialDescription {
                 times(&self.emission_texture)
             )
         });
+        let alpha = (self.alpha.as_ref()).map_or(String::new(), |a| format!(", alpha {a}"));
         format!(
-            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{tint}{coat}{normal}{glow}",
+            "base colour ({r}, {g}, {b}){}, roughness {}{}, metallic {}{}, specular {}{tint}{coat}{normal}{glow}{alpha}",
             times(&self.texture),
             self.roughness,
             times(&self.roughness_texture),
@@ -412,6 +441,7 @@ fn material_summaries(scene: &BeautyScene, asset: &AssetMaterials) -> Vec<Materi
                 normal_texture: m.normal_texture.zip(a.normal_mapping.as_deref()).map(
                     |(n, how)| format!("{}, {how}", scene.textures[n.texture as usize].describe()),
                 ),
+                alpha: a.alpha_summary.clone(),
             },
         })
         .collect()
@@ -546,6 +576,7 @@ pub fn texture_notes(
                         format!("clearcoat roughness factor {}", m.clearcoat_roughness)
                     }
                     TextureSlot::ClearcoatNormal => "clearcoat on its unbent normal".to_string(),
+                    TextureSlot::Alpha => format!("alpha factor {}", m.base_color[3]),
                 })
                 .collect::<Vec<_>>()
                 .join(" and ");
@@ -632,6 +663,10 @@ struct AssetMaterial {
     clearcoat_texture: Option<TexChannel>,
     clearcoat_roughness_texture: Option<TexChannel>,
     clearcoat_normal_texture: Option<NormalTex>,
+    /// Its alpha (`AlphaCut::OPAQUE` where it cuts nothing away, or with `--no-alpha`), and
+    /// what the summary says of it (`describe_alpha`).
+    cut: AlphaCut,
+    alpha_summary: Option<String>,
 }
 
 /// The asset's materials in file order, then the default one (for triangles without a
@@ -664,6 +699,8 @@ impl AssetMaterial {
             clearcoat_texture: None,
             clearcoat_roughness_texture: None,
             clearcoat_normal_texture: None,
+            cut: AlphaCut::OPAQUE,
+            alpha_summary: None,
         }
     }
 }
@@ -737,22 +774,29 @@ fn asset_materials(
     job: &RenderJob,
     opts: &LookdevOptions,
 ) -> Result<AssetMaterials> {
-    if !job.aovs.contains(&Aov::Beauty) {
+    // Without a beauty only the alpha is read, where some material cuts its surface away.
+    let beauty = job.aovs.contains(&Aov::Beauty);
+    let cuts = opts.alpha && mesh.materials.iter().any(MeshMaterial::cuts_out);
+    if !beauty && !cuts {
         return Ok(AssetMaterials::plain());
     }
     let mut out = AssetMaterials {
         list: vec![],
         textures: vec![],
     };
-    let reads = |slot: TextureSlot| match slot {
-        TextureSlot::BaseColor => opts.base_color.is_none(),
-        TextureSlot::Roughness => opts.roughness.is_none(),
-        TextureSlot::Metallic => opts.metallic.is_none(),
-        TextureSlot::Normal => opts.normal_maps,
-        TextureSlot::Emission => opts.emission,
-        TextureSlot::Clearcoat => opts.clearcoat.is_none(),
-        TextureSlot::ClearcoatRoughness => opts.clearcoat_roughness.is_none(),
-        TextureSlot::ClearcoatNormal => opts.normal_maps,
+    let reads = |slot: TextureSlot| {
+        (beauty || slot == TextureSlot::Alpha)
+            && match slot {
+                TextureSlot::BaseColor => opts.base_color.is_none(),
+                TextureSlot::Roughness => opts.roughness.is_none(),
+                TextureSlot::Metallic => opts.metallic.is_none(),
+                TextureSlot::Normal => opts.normal_maps,
+                TextureSlot::Emission => opts.emission,
+                TextureSlot::Clearcoat => opts.clearcoat.is_none(),
+                TextureSlot::ClearcoatRoughness => opts.clearcoat_roughness.is_none(),
+                TextureSlot::ClearcoatNormal => opts.normal_maps,
+                TextureSlot::Alpha => opts.alpha,
+            }
     };
     if let Some(w) = material_warning(mesh, uv_set, &reads) {
         eprintln!("warning: {}: {w}", mesh.source.display());
@@ -767,7 +811,9 @@ fn asset_materials(
     };
     let mut list = vec![];
     for m in &mesh.materials {
-        check_material_values(mesh, m, opts)?;
+        if beauty {
+            check_material_values(mesh, m, opts)?;
+        }
         let texture = match &m.base_color_texture {
             Some(t) => decode(t, TextureSlot::BaseColor)?,
             None => None,
@@ -806,8 +852,25 @@ fn asset_materials(
             Some(t) => decode(t, TextureSlot::Emission)?,
             None => None,
         };
+        let cut = match opts.alpha && m.cuts_out() {
+            false => AlphaCut::OPAQUE,
+            true => AlphaCut {
+                alpha: m.base_color[3],
+                mode: m.alpha_mode,
+                texture: match &m.alpha_texture {
+                    Some(c) => decode(&c.texture, TextureSlot::Alpha)?.map(|texture| TexChannel {
+                        texture,
+                        channel: c.channel,
+                    }),
+                    None => None,
+                },
+            },
+        };
         let c = m.base_color;
         list.push(AssetMaterial {
+            cut,
+            // Below, with the textures decoded.
+            alpha_summary: None,
             name: m.name.clone(),
             base_color: Vec3::new(c[0], c[1], c[2]),
             roughness: m.roughness,
@@ -832,6 +895,12 @@ fn asset_materials(
                 .map(|n| n.describe_mapping()),
             clearcoat_normal_texture,
         });
+    }
+    for (a, m) in list.iter_mut().zip(&mesh.materials) {
+        if a.cut != AlphaCut::OPAQUE {
+            let texture = (a.cut.texture).map(|c| out.textures[c.texture as usize].describe());
+            a.alpha_summary = describe_alpha(m, texture);
+        }
     }
     list.push(AssetMaterial::default_grey());
     out.list = list;
@@ -968,6 +1037,14 @@ fn load_cached(
 }
 
 impl Session {
+    /// Whether some material's alpha cuts its surface away (`render::cutout`).
+    pub fn cuts_out(&self) -> bool {
+        self.materials
+            .list
+            .iter()
+            .any(|m| m.cut != AlphaCut::OPAQUE)
+    }
+
     /// The scene to trace (what a GPU renderer uploads).
     pub fn scene(&self) -> &Scene {
         &self.scene
@@ -1144,7 +1221,7 @@ fn key_light(
 
 /// Bounds of the displaced surface: the base positions grown by the largest |D|. Tighter than
 /// the prism boxes, whose λ ranges grow as 1/m_lo on prisms with nearly opposed normals.
-fn surface_bounds(t: &crate::bake::PrismTable) -> (Vec3, Vec3) {
+pub(crate) fn surface_bounds(t: &crate::bake::PrismTable) -> (Vec3, Vec3) {
     let d = t
         .prisms
         .iter()
@@ -1509,9 +1586,22 @@ pub fn render_all_cpu(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
     let t0 = std::time::Instant::now();
+    let cuts: Vec<AlphaCut> = s.materials.list.iter().map(|m| m.cut).collect();
     with_intersector(&job.method, &s.scene, &job.input, |isect| {
         // The intersector's own set-up (PDM's cells, RMIP's pyramid) is set-up time too.
         let build = t0.elapsed().as_secs_f64();
+        let (lo, hi) = surface_bounds(&s.scene.table);
+        let cutout = Cutout {
+            inner: isect,
+            cuts: &cuts,
+            textures: &s.materials.textures,
+            prisms: &s.scene.table.prisms,
+            eps: beauty::scene_epsilon(lo, hi),
+        };
+        let isect: &dyn Intersector = match s.cuts_out() {
+            true => &cutout,
+            false => isect,
+        };
         let mut summary = render_all(job, opts, s, &CpuFrames(isect), progress)?;
         summary.render.setup_seconds += build;
         Ok(summary)

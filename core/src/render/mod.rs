@@ -9,6 +9,7 @@
 pub mod beauty;
 pub mod camera;
 pub mod contact_sheet;
+pub mod cutout;
 pub mod denoise;
 pub mod env;
 pub mod ggx_tables;
