@@ -154,7 +154,7 @@ fn walk_step(w: ptr<function, Walk>) -> bool {
             let prism = prim_indices[leaf.first_index + i];
             let clipped = Ray(o, (*w).ray.dir, t_min, (*w).t_best);
             var steps = (*w).steps;
-            let h = intersect_prism(clipped, (*w).ctx, prism, &steps);
+            let h = intersect_prism_kept(clipped, (*w).ctx, prism, &steps);
             (*w).steps = steps;
             if (h.prism != NO_PRISM && (stop_at_first || h.t < (*w).t_best)) {
                 (*w).best = h;

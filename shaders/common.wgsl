@@ -166,10 +166,11 @@ struct MaterialTexture {
     uv_offset: vec2f,
 }
 
-// GpuMaterial, 528 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
+// GpuMaterial, 576 bytes: beauty::SurfaceMaterial, its base-colour, roughness, metallic and
 // normal textures, its normal map's scale, bias and strength (beauty::NormalTex), its
 // emission and emission texture, its specular tint, and its clearcoat's weight and roughness,
-// their textures, and its normal map with that map's scale, bias and strength.
+// their textures, and its normal map with that map's scale, bias and strength; and its alpha
+// (render::cutout::AlphaCut) with its texture.
 struct SurfaceMaterial {
     base_color: vec3f,
     roughness: f32,
@@ -179,7 +180,9 @@ struct SurfaceMaterial {
     roughness_tex: MaterialTexture,
     metallic_tex: MaterialTexture,
     normal_tex: MaterialTexture,
-    _pad: vec2<u32>,
+    // How far past a cut-away hit a ray goes on (the scene's epsilon, beauty::scene_epsilon).
+    alpha_eps: f32,
+    _pad: u32,
     normal_scale: vec3f,
     normal_strength: f32,
     normal_bias: vec3f,
@@ -190,9 +193,10 @@ struct SurfaceMaterial {
     specular_tint: vec3f,
     clearcoat: f32,
     clearcoat_roughness: f32,
-    _pad4: u32,
-    _pad5: u32,
-    _pad6: u32,
+    // The alpha (render::cutout::AlphaCut): its factor, mode (ALPHA_*) and mask cutoff.
+    alpha: f32,
+    alpha_mode: u32,
+    alpha_cutoff: f32,
     clearcoat_tex: MaterialTexture,
     clearcoat_roughness_tex: MaterialTexture,
     clearcoat_normal_tex: MaterialTexture,
@@ -200,6 +204,7 @@ struct SurfaceMaterial {
     clearcoat_normal_strength: f32,
     clearcoat_normal_bias: vec3f,
     _pad8: u32,
+    alpha_tex: MaterialTexture,
 }
 
 // GpuBeautySums, 96 bytes: beauty::PixelSums of one pixel plus its ray counts.

@@ -110,11 +110,6 @@ fn env_radiance(d: vec3f) -> vec3f {
     return env_texel(xy.x, xy.y);
 }
 
-// glam's Vec3::lerp.
-fn lerp3(a: vec3f, b: vec3f, s: f32) -> vec3f {
-    return a * (1.0 - s) + b * s;
-}
-
 fn env_texel_wrapped(x: i32, y: i32) -> vec3f {
     let w = i32(lighting.env_width);
     let xx = wrap_repeat(x, w);

@@ -40,7 +40,7 @@ fn closest_hit_packet(ray: Ray, ctx: RayContext, live: bool) -> Hit {
                     let prism = prim_indices[node.first_index + i];
                     if (enters) {
                         let clipped = Ray(o, ray.dir, t_min, t_best);
-                        let h = intersect_prism(clipped, ctx, prism, &steps);
+                        let h = intersect_prism_kept(clipped, ctx, prism, &steps);
                         if (h.prism != NO_PRISM && h.t < t_best) {
                             best = h;
                             t_best = h.t;

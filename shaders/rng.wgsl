@@ -7,6 +7,7 @@ const PURPOSE_MARCH_JITTER: u32 = 1u;
 const PURPOSE_PIXEL_JITTER: u32 = 2u;
 const PURPOSE_BSDF: u32 = 3u;
 const PURPOSE_LIGHT: u32 = 4u;
+const PURPOSE_ALPHA: u32 = 6u;
 
 fn pcg_hash(x: u32) -> u32 {
     let state = x * 747796405u + 2891336453u;
@@ -29,4 +30,9 @@ fn to_unit_float(h: u32) -> f32 {
 
 fn random(pixel: u32, sample: u32, bounce: u32, purpose: u32, seed: u32) -> f32 {
     return to_unit_float(hash_counters(pixel, sample, bounce, purpose, seed));
+}
+
+// rng::random_keyed: `random` further keyed by `key` (a prism).
+fn random_keyed(pixel: u32, sample: u32, bounce: u32, purpose: u32, seed: u32, key: u32) -> f32 {
+    return to_unit_float(pcg_hash(hash_counters(pixel, sample, bounce, purpose, seed) ^ key));
 }

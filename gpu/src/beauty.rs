@@ -19,15 +19,18 @@
 use crate::context::{BeautyKernel, BeautySchedule, GpuContext, Output};
 use crate::layout::{
     texture_sampler_code, GpuBeautySums, GpuLight, GpuLighting, GpuMaterial, GpuMaterialTexture,
+    ALPHA_BLEND, ALPHA_MASK, ALPHA_OPAQUE,
 };
 use crate::render::{frame_uniform, FrameJob, Kernel, Stage, TileRect};
 use crate::scene::GpuScene;
 use crate::GpuError;
 use glam::Vec3;
+use prismbake::mesh::AlphaMode;
 use prismbake::render::beauty::{
     BeautyCounters, BeautyImage, BeautyScene, Guides, PixelSums, TexChannel,
 };
 use prismbake::render::camera::Camera;
+use prismbake::render::cutout::AlphaCut;
 use prismbake::render::env::{EnvFrame, EnvMap};
 use prismbake::render::lights::{Light, LightShape, MAX_LIGHTS};
 use prismbake::render::RenderSettings;
@@ -313,9 +316,51 @@ pub fn material_records(s: &BeautyScene, layout: &TextureLayout) -> Vec<GpuMater
             clearcoat_normal_bias: (m.clearcoat_normal_texture)
                 .map_or([0.0; 3], |n| n.bias.to_array()),
             clearcoat_normal_strength: (m.clearcoat_normal_texture).map_or(1.0, |n| n.strength),
-            ..Default::default()
+            ..alpha_record(&m.cut, s.eps, &tex)
         })
         .collect()
+}
+
+/// The alpha fields of a material record (`material.wgsl`'s `alpha_coverage`), its texture
+/// located by `tex` (texture index, channel), the rest default.
+fn alpha_record(
+    cut: &AlphaCut,
+    eps: f32,
+    tex: &dyn Fn(u32, u8) -> GpuMaterialTexture,
+) -> GpuMaterial {
+    let (alpha_mode, alpha_cutoff) = match cut.mode {
+        AlphaMode::Opaque => (ALPHA_OPAQUE, 0.0),
+        AlphaMode::Mask(cutoff) => (ALPHA_MASK, cutoff),
+        AlphaMode::Blend => (ALPHA_BLEND, 0.0),
+    };
+    GpuMaterial {
+        alpha: cut.alpha,
+        alpha_mode,
+        alpha_cutoff,
+        alpha_eps: eps,
+        alpha_tex: cut
+            .texture
+            .map_or(Default::default(), |c| tex(c.texture, c.channel)),
+        ..Default::default()
+    }
+}
+
+/// The AOV kernels' materials (`GpuScene::cut_out`): each material's alpha (`cuts`, their
+/// textures indices into `textures`) and the texels of the textures, `eps` the step past a
+/// cut-away hit.
+pub fn alpha_records(
+    cuts: &[AlphaCut],
+    textures: &[ColorMap],
+    eps: f32,
+) -> (Vec<GpuMaterial>, Vec<f32>) {
+    let layout = texture_layout(textures);
+    let tex = |i, channel| material_texture(textures, &layout, i, channel);
+    let records = cuts.iter().map(|c| alpha_record(c, eps, &tex)).collect();
+    let mut texels = texel_buffer(textures, &layout);
+    if texels.is_empty() {
+        texels.push(0.0); // a binding is never empty
+    }
+    (records, texels)
 }
 
 /// Floats of the prisms' corner tangents at the end of `texture_texels` (12 a prism).

@@ -36,7 +36,7 @@ pub const HARDWARE_TILE: u32 = 2048;
 /// the environment are textures. The fused schedule's 8 are WebGPU's default, so it runs on
 /// every adapter that has WebGPU's limits; the wavefront's 9 are requested from the adapter (native Vulkan, Metal and
 /// DX12 adapters allow far more), and where it has only 8 the beauty takes the fused schedule.
-/// The AOV kernel binds 6.
+/// The AOV kernel binds 8 (its 6 and the materials' alpha, `cut_layout`).
 pub const BEAUTY_STORAGE_BUFFERS: u32 = 9;
 
 /// How a beauty sample is dispatched (`shaders/beauty.wgsl`); both render the same image.
@@ -163,6 +163,9 @@ pub struct GpuContext {
     limits: DeviceLimits,
     pub(crate) frame_buffer: wgpu::Buffer,
     aov_layout: wgpu::BindGroupLayout,
+    /// Group 2 of the AOV kernels: the materials and their texels, which the traversal reads
+    /// for their alpha (`GpuScene`'s cut-out group; the beauty binds them in its lighting).
+    pub(crate) cut_layout: wgpu::BindGroupLayout,
     /// Group 2 of the beauty kernel (lighting uniform, environment texels and tables, materials).
     pub(crate) lighting_layout: wgpu::BindGroupLayout,
     /// The GGX tables every beauty binds (`GpuBsdfTables`), uploaded on the first beauty
@@ -588,6 +591,13 @@ impl GpuContext {
             ],
         });
 
+        let cut_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("materials' alpha"),
+            entries: &[
+                storage_entry(1, true), // texture_texels: array<f32>
+                storage_entry(3, true), // materials: array<SurfaceMaterial>
+            ],
+        });
         let beauty_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("beauty dispatch"),
             entries: &[
@@ -653,6 +663,7 @@ impl GpuContext {
             limits,
             frame_buffer,
             aov_layout,
+            cut_layout,
             lighting_layout,
             bsdf_tables: OnceLock::new(),
             beauty_layout,
@@ -893,7 +904,7 @@ impl GpuContext {
                 &self.device,
                 &source,
                 [entry],
-                &[&self.scene_layout, &self.aov_layout],
+                &[&self.scene_layout, &self.aov_layout, &self.cut_layout],
             ))?;
             Ok(kernel)
         };

@@ -2,7 +2,7 @@
 //! prism-table cache, camera, environment) and `lookdev::render_all` (frames, turntables,
 //! files, contact sheets), with `GpuFrames` rendering each frame.
 
-use crate::beauty::{check_lighting_fits, render_beauty, GpuBeautyScene};
+use crate::beauty::{alpha_records, check_lighting_fits, render_beauty, GpuBeautyScene};
 use crate::context::GpuContext;
 use crate::render::render_aovs;
 use crate::scene::GpuScene;
@@ -234,21 +234,6 @@ fn render_session(
     cpu_fallback: bool,
 ) -> Result<LookdevSummary> {
     let t = Instant::now();
-    if session.cuts_out() {
-        // The kernels trace every surface opaque: a material's alpha (`render::cutout`) is
-        // the CPU renderer's alone.
-        let why = "the GPU renderer does not cut surfaces away by their materials' alpha";
-        if !cpu_fallback {
-            return Err(Error::Param(format!(
-                "gpu: {why} (alphaMode MASK / BLEND, USD opacity, .mtl d): use --device cpu or \
-                 --device auto, or --no-alpha to render every surface opaque"
-            )));
-        }
-        ctx.warn(&format!(
-            "device: cpu ({why}); --device gpu makes this an error"
-        ));
-        return render_on_cpu(job, look, session, progress, why.to_string());
-    }
     let want_beauty = job.aovs.contains(&Aov::Beauty);
     let scene = &mut kept.scene;
     // A failure names the environment's file where the lighting is what does not fit.
@@ -271,7 +256,17 @@ fn render_session(
         Ok(scene)
     });
     let uploaded = match uploaded {
-        Ok(uploaded) => scene.insert(uploaded),
+        Ok(uploaded) => {
+            let uploaded = scene.insert(uploaded);
+            // The materials' alpha for the AOV kernels' traversal (the beauty's lighting
+            // carries its own), or one opaque material where none cuts.
+            let (records, texels) = match session.cuts_out() {
+                true => alpha_records(&session.alpha_cuts(), session.textures(), session.epsilon()),
+                false => (vec![Default::default()], vec![0.0]),
+            };
+            uploaded.cut_out(ctx, &records, &texels).map_err(gpu_err)?;
+            uploaded
+        }
         // Before the first frame only the beauty's storage-buffer check says `Unsupported`,
         // and only its kernel's compilation `Shader` (a driver that rejects it).
         Err((e, _))

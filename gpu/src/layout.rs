@@ -356,11 +356,12 @@ pub struct GpuMaterialTexture {
     pub uv_offset: [f32; 2],
 }
 
-/// One material of a beauty scene, 528 bytes: `prismbake::render::beauty::SurfaceMaterial`,
+/// One material of a beauty scene, 576 bytes: `prismbake::render::beauty::SurfaceMaterial`,
 /// its base-colour, roughness, metallic and normal textures (if any) located in the texel
 /// buffer, its normal map's scale, bias and strength (`beauty::NormalTex`), its emission and
 /// emission texture, its specular tint, and its clearcoat's weight and roughness, their
-/// textures, and its normal map with that map's scale, bias and strength.
+/// textures, and its normal map with that map's scale, bias and strength; and its alpha
+/// (`render::cutout::AlphaCut`) with its texture, which every kernel's traversal reads.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
@@ -372,7 +373,9 @@ pub struct GpuMaterial {
     pub roughness_tex: GpuMaterialTexture,
     pub metallic_tex: GpuMaterialTexture,
     pub normal_tex: GpuMaterialTexture,
-    pub _pad: [u32; 2],
+    /// How far past a cut-away hit a ray goes on (`BeautyScene::eps`).
+    pub alpha_eps: f32,
+    pub _pad: u32,
     pub normal_scale: [f32; 3],
     /// `beauty::NormalTex::strength`.
     pub normal_strength: f32,
@@ -384,9 +387,11 @@ pub struct GpuMaterial {
     pub specular_tint: [f32; 3],
     pub clearcoat: f32,
     pub clearcoat_roughness: f32,
-    pub _pad4: u32,
-    pub _pad5: u32,
-    pub _pad6: u32,
+    /// `render::cutout::AlphaCut`: the factor, the mode (`ALPHA_OPAQUE`, `ALPHA_MASK`,
+    /// `ALPHA_BLEND`) and a mask's cutoff.
+    pub alpha: f32,
+    pub alpha_mode: u32,
+    pub alpha_cutoff: f32,
     pub clearcoat_tex: GpuMaterialTexture,
     pub clearcoat_roughness_tex: GpuMaterialTexture,
     pub clearcoat_normal_tex: GpuMaterialTexture,
@@ -394,7 +399,13 @@ pub struct GpuMaterial {
     pub clearcoat_normal_strength: f32,
     pub clearcoat_normal_bias: [f32; 3],
     pub _pad8: u32,
+    pub alpha_tex: GpuMaterialTexture,
 }
+
+/// `GpuMaterial::alpha_mode` codes (`shaders/material.wgsl`).
+pub const ALPHA_OPAQUE: u32 = 0;
+pub const ALPHA_MASK: u32 = 1;
+pub const ALPHA_BLEND: u32 = 2;
 
 /// A texture sampler as `GpuMaterialTexture::sampler` holds it: `wrapS`'s code in bits
 /// 0–1, `wrapT`'s in bits 2–3 (`TexWrap::code`), nearest filtering in bit 4
@@ -459,7 +470,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuLighting>() == 1136);
     assert!(std::mem::size_of::<GpuLight>() == 64);
     assert!(std::mem::size_of::<GpuMaterialTexture>() == 48);
-    assert!(std::mem::size_of::<GpuMaterial>() == 528);
+    assert!(std::mem::size_of::<GpuMaterial>() == 576);
     assert!(std::mem::size_of::<GpuBeautySums>() == 96);
     assert!(std::mem::size_of::<GpuBsdfTables>() == 20_608);
 };
@@ -638,6 +649,7 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 roughness_tex,
                 metallic_tex,
                 normal_tex,
+                alpha_eps,
                 _pad,
                 normal_scale,
                 normal_strength,
@@ -649,16 +661,17 @@ pub fn shared_layouts() -> Vec<StructLayout> {
                 specular_tint,
                 clearcoat,
                 clearcoat_roughness,
-                _pad4,
-                _pad5,
-                _pad6,
+                alpha,
+                alpha_mode,
+                alpha_cutoff,
                 clearcoat_tex,
                 clearcoat_roughness_tex,
                 clearcoat_normal_tex,
                 clearcoat_normal_scale,
                 clearcoat_normal_strength,
                 clearcoat_normal_bias,
-                _pad8
+                _pad8,
+                alpha_tex
             }
         ),
         layout!("BsdfTables", GpuBsdfTables { e, e_avg, s }),

@@ -218,7 +218,7 @@ pub fn render_aovs_walked(
         }],
         finish: &[],
         output: Output::Aov,
-        groups: &[],
+        groups: &[&scene.cut_group],
         paths: false,
         label: "render_aovs",
     };

@@ -18,8 +18,8 @@
 
 use crate::context::GpuContext;
 use crate::layout::{
-    encode_height_map, wrap_code, EncodedMap, GpuBvhNode, GpuPrism, GpuPrismStitch, GpuSceneParams,
-    GpuVertex, MapEncoding, NO_STITCH,
+    encode_height_map, wrap_code, EncodedMap, GpuBvhNode, GpuMaterial, GpuPrism, GpuPrismStitch,
+    GpuSceneParams, GpuVertex, MapEncoding, NO_STITCH,
 };
 use crate::GpuError;
 use obvhs::bvh2::builder::build_bvh2;
@@ -73,6 +73,9 @@ pub fn flatten_bvh(scene: &Scene) -> FlatBvh {
 
 pub struct GpuScene {
     pub(crate) group: wgpu::BindGroup,
+    /// Group 2 of the AOV kernels: the materials' records and texels their traversal reads for
+    /// the alpha (`cut_out`); one opaque material until then.
+    pub(crate) cut_group: wgpu::BindGroup,
     pub(crate) params: GpuSceneParams,
     stitched_prisms: u32,
     bytes: u64,
@@ -157,6 +160,31 @@ impl GpuScene {
     /// storage-binding limit (128 MiB on WebGPU defaults: ~3.3 M prisms), and with
     /// `GpuError::TextureTooLarge` if the map's texture has a side over the device's largest
     /// (8192 on WebGPU's defaults: an 8192² f32 map, or 16384 × 8192 packed two a word).
+    /// Let the AOV kernels cut surfaces away by the materials' alpha: `records` (the alpha of
+    /// each, `beauty::alpha_records`) and the texels their textures read become the cut-out
+    /// group. Fails with `GpuError::TooLarge` where the texels exceed one storage binding.
+    pub fn cut_out(
+        &mut self,
+        ctx: &GpuContext,
+        records: &[GpuMaterial],
+        texels: &[f32],
+    ) -> Result<(), GpuError> {
+        let (bytes, limit) = (
+            std::mem::size_of_val(texels) as u64,
+            ctx.max_binding_bytes(),
+        );
+        if bytes > limit {
+            return Err(GpuError::TooLarge {
+                what: "alpha texture texels",
+                bytes,
+                limit,
+                fix: "downsample the alpha textures, or pass --no-alpha",
+            });
+        }
+        self.cut_group = cut_group(ctx, records, texels);
+        ctx.check()
+    }
+
     pub fn upload(ctx: &GpuContext, scene: &Scene) -> Result<GpuScene, GpuError> {
         let table = &scene.table;
         let MapArrays {
@@ -261,6 +289,7 @@ impl GpuScene {
         ctx.check()?;
         Ok(GpuScene {
             group,
+            cut_group: cut_group(ctx, &[GpuMaterial::default()], &[0.0]),
             params,
             stitched_prisms,
             bytes,
@@ -389,4 +418,33 @@ fn write_map(ctx: &GpuContext, texture: &wgpu::Texture, e: &EncodedMap) {
         0,
         4 * size.width,
     );
+}
+
+/// The AOV kernels' group 2 (`GpuContext::cut_layout`): `records` as `materials`, `texels` as
+/// `texture_texels` (neither empty: a binding holds one element at least).
+fn cut_group(ctx: &GpuContext, records: &[GpuMaterial], texels: &[f32]) -> wgpu::BindGroup {
+    let buffer = |label, contents: &[u8]| {
+        ctx.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    };
+    let texels = buffer("alpha texels", bytemuck::cast_slice(texels));
+    let materials = buffer("alpha materials", bytemuck::cast_slice(records));
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("materials' alpha"),
+        layout: &ctx.cut_layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: texels.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: materials.as_entire_binding(),
+            },
+        ],
+    })
 }

@@ -20,13 +20,16 @@ pub const PRISM_HIT: &str = include_str!("../../shaders/prism_hit.wgsl");
 pub const CANONICAL: &str = include_str!("../../shaders/canonical.wgsl");
 /// The PDM march and refinement (mirror of `prismbake::trace::pdm`).
 pub const PDM: &str = include_str!("../../shaders/pdm.wgsl");
+/// The materials' records, their textures' sampling and their alpha (mirror of
+/// `prismbake::texture` and `prismbake::render::cutout`).
+pub const MATERIAL: &str = include_str!("../../shaders/material.wgsl");
 /// The AOV kernel (mirror of `prismbake::render::render_aovs`).
 pub const AOV: &str = include_str!("../../shaders/aov.wgsl");
 /// The environment light (mirror of `prismbake::render::env`).
 pub const ENV: &str = include_str!("../../shaders/env.wgsl");
 /// Material, BSDF sampling, MIS weights (mirror of `prismbake::render::shading`).
 pub const SHADING: &str = include_str!("../../shaders/shading.wgsl");
-/// The base-colour texture (mirror of `prismbake::texture`).
+/// The materials as the beauty shades them (mirror of `BeautyScene::material_at`).
 pub const TEXTURE: &str = include_str!("../../shaders/texture.wgsl");
 /// The beauty kernel (mirror of `prismbake::render::beauty`).
 pub const BEAUTY: &str = include_str!("../../shaders/beauty.wgsl");
@@ -34,8 +37,8 @@ pub const BEAUTY: &str = include_str!("../../shaders/beauty.wgsl");
 pub const TONEMAP: &str = include_str!("../../shaders/tonemap.wgsl");
 
 /// Every stage but the entry points and the lighting: what every kernel builds on.
-pub const LIBRARY: [&str; 9] = [
-    COMMON, RNG, CAMERA, HEIGHTMAP, SEAM, BVH, PRISM_HIT, CANONICAL, PDM,
+pub const LIBRARY: [&str; 10] = [
+    COMMON, RNG, CAMERA, HEIGHTMAP, SEAM, BVH, PRISM_HIT, CANONICAL, PDM, MATERIAL,
 ];
 
 /// The AOV module: the library plus `aov.wgsl` (entry point `render_aovs`).

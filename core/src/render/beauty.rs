@@ -191,6 +191,9 @@ pub struct SurfaceMaterial {
     /// into `BeautyScene::textures`).
     pub emission: Vec3,
     pub emission_texture: Option<u32>,
+    /// Its alpha (its texture an index into `BeautyScene::textures`), which the GPU's
+    /// traversal reads (`render::cutout`; the CPU's `Cutout` holds its own list).
+    pub cut: super::cutout::AlphaCut,
 }
 
 /// A tangent-space normal map (`texture::NormalMapRef`): one of `BeautyScene::textures`, whose

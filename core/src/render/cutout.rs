@@ -33,6 +33,12 @@ pub struct AlphaCut {
     pub texture: Option<TexChannel>,
 }
 
+impl Default for AlphaCut {
+    fn default() -> Self {
+        AlphaCut::OPAQUE
+    }
+}
+
 impl AlphaCut {
     /// An opaque material's.
     pub const OPAQUE: AlphaCut = AlphaCut {

@@ -1060,6 +1060,19 @@ impl Session {
     pub fn textures(&self) -> &[ColorMap] {
         &self.materials.textures
     }
+
+    /// Each material's alpha (`AlphaCut::OPAQUE` where it cuts nothing), the default last:
+    /// what `render::cutout::Cutout` reads, its textures `textures`'.
+    pub fn alpha_cuts(&self) -> Vec<AlphaCut> {
+        self.materials.list.iter().map(|m| m.cut).collect()
+    }
+
+    /// How far past a cut-away hit a ray goes on (`beauty::scene_epsilon` of the surface's
+    /// bounds, as the beauty's ray offsets).
+    pub fn epsilon(&self) -> f32 {
+        let (lo, hi) = surface_bounds(&self.scene.table);
+        beauty::scene_epsilon(lo, hi)
+    }
 }
 
 /// Validate the job, prepare the output folder, load the input through the table cache and
@@ -1414,6 +1427,7 @@ pub fn render_all(
                 false => Vec3::ZERO,
             },
             emission_texture: m.emission_texture.filter(|_| opts.emission),
+            cut: m.cut,
         })
         .collect();
     // The tangent frames normal maps are read in, where some material has one.
@@ -1586,17 +1600,16 @@ pub fn render_all_cpu(
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<LookdevSummary> {
     let t0 = std::time::Instant::now();
-    let cuts: Vec<AlphaCut> = s.materials.list.iter().map(|m| m.cut).collect();
+    let cuts = s.alpha_cuts();
     with_intersector(&job.method, &s.scene, &job.input, |isect| {
         // The intersector's own set-up (PDM's cells, RMIP's pyramid) is set-up time too.
         let build = t0.elapsed().as_secs_f64();
-        let (lo, hi) = surface_bounds(&s.scene.table);
         let cutout = Cutout {
             inner: isect,
             cuts: &cuts,
             textures: &s.materials.textures,
             prisms: &s.scene.table.prisms,
-            eps: beauty::scene_epsilon(lo, hi),
+            eps: s.epsilon(),
         };
         let isect: &dyn Intersector = match s.cuts_out() {
             true => &cutout,
