@@ -106,47 +106,50 @@ const ALPHA_MASK: u32 = 1u;
 // Cutout's limit on the surfaces one prism may let a ray through (render::cutout::MAX_CUTS).
 const MAX_CUTS: u32 = 64u;
 
-// AlphaCut::coverage of material `s` at `uv`: the probability that its surface is there.
-fn alpha_coverage(s: SurfaceMaterial, uv: vec2f) -> f32 {
-    var a = s.alpha;
-    if (s.alpha_tex.width != 0u) {
-        a *= texture_sample(s.alpha_tex, uv)[min(s.alpha_tex.channel, 2u)];
+// AlphaCut::coverage of material `mi` at `uv`: the probability that its surface is there
+// (its fields read one by one: a traversal asks this for every prism hit).
+fn alpha_coverage(mi: u32, uv: vec2f) -> f32 {
+    var a = materials[mi].alpha;
+    if (materials[mi].alpha_tex.width != 0u) {
+        let t = materials[mi].alpha_tex;
+        a *= texture_sample(t, uv)[min(t.channel, 2u)];
     }
-    if (s.alpha_mode == ALPHA_MASK) {
-        return select(0.0, 1.0, a >= s.alpha_cutoff);
+    if (materials[mi].alpha_mode == ALPHA_MASK) {
+        return select(0.0, 1.0, a >= materials[mi].alpha_cutoff);
     }
     // A NaN alpha: not there.
     return select(clamp(a, 0.0, 1.0), 0.0, a != a);
 }
 
-// Cutout::keeps: whether the surface of material `s` is there at hit `h` of the ray of `ctx`
+// Cutout::keeps: whether the surface of material `mi` is there at hit `h` of the ray of `ctx`
 // (a record of intersect_prism's, whose uv is not filled yet: the canonical surface's is
 // found from its barycentrics where a texture reads it, as fill_surface finds it).
-fn alpha_keeps(s: SurfaceMaterial, h: Hit, ctx: RayContext) -> bool {
+fn alpha_keeps(mi: u32, h: Hit, ctx: RayContext) -> bool {
     var uv = vec2f(0.0);
-    if (s.alpha_tex.width != 0u) {
+    if (materials[mi].alpha_tex.width != 0u) {
         uv = geom_uv(prism_geom(prisms[h.prism]), h.bary);
     }
-    let c = alpha_coverage(s, uv);
+    let c = alpha_coverage(mi, uv);
     let u = random_keyed(ctx.pixel, ctx.sample, ctx.bounce, PURPOSE_ALPHA, ctx.seed, h.prism);
     return c >= 1.0 || (c > 0.0 && u < c);
 }
 
 // intersect_prism less what the prism's material's alpha cuts away (Cutout::intersect, one
 // prism at a time): its first hit the alpha keeps, the march going on from just past each
-// one it does not (one call site: Mesa inlines each).
+// one it does not (one call site: Mesa inlines each). An opaque material's costs one read.
 fn intersect_prism_kept(ray: Ray, ctx: RayContext, prism: u32, steps: ptr<function, u32>)
     -> Hit {
-    let s = materials[material_index(prism)];
+    let mi = material_index(prism);
+    let opaque = materials[mi].alpha_mode == ALPHA_OPAQUE;
     var r = ray;
     var found = no_hit();
     for (var k = 0u; k < MAX_CUTS; k++) {
         let h = intersect_prism(r, ctx, prism, steps);
-        if (h.prism == NO_PRISM || s.alpha_mode == ALPHA_OPAQUE || alpha_keeps(s, h, ctx)) {
+        if (h.prism == NO_PRISM || opaque || alpha_keeps(mi, h, ctx)) {
             found = h;
             break;
         }
-        r.t_min = max(h.t, r.t_min) + s.alpha_eps;
+        r.t_min = max(h.t, r.t_min) + materials[mi].alpha_eps;
         if (!(r.t_min < r.t_max)) {
             break;
         }

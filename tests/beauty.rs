@@ -2218,6 +2218,21 @@ fn a_materials_alpha_cuts_its_surface_away() {
     o.assert_success();
     assert_eq!(halves(&whole), (1.0, 1.0));
     assert!(o.json()["materials"][0].get("alpha").is_none());
+    // An alpha texture that keeps every texel (an opaque image under BLEND) cuts nothing: the
+    // summary names no alpha.
+    let opaque_dir = temp_dir("alpha-opaque");
+    let opaque = cut_out_square(&opaque_dir, "BLEND", 1.0);
+    image::RgbaImage::from_pixel(4, 4, image::Rgba([255, 255, 255, 255]))
+        .save(opaque_dir.join("leaf.png"))
+        .unwrap();
+    let (o, whole, _) = render(&opaque, "opaque", "4", &[]);
+    o.assert_success();
+    assert!(
+        o.json()["materials"][0].get("alpha").is_none(),
+        "{}",
+        o.stdout
+    );
+    assert_eq!(halves(&whole), (1.0, 1.0));
     // Blended: the right half is there with the factor's probability.
     let blend_square = cut_out_square(&temp_dir("alpha-blend"), "BLEND", 0.25);
     let (o, mask, alpha) = render(&blend_square, "blend", "64", &[]);

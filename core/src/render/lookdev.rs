@@ -897,6 +897,22 @@ fn asset_materials(
         });
     }
     for (a, m) in list.iter_mut().zip(&mesh.materials) {
+        // An alpha texture whose every texel keeps the surface (an opaque image under BLEND,
+        // as exporters often write it) cuts nothing: no ray asks it.
+        if let Some(c) = a.cut.texture {
+            let texels = &out.textures[c.texture as usize].texels;
+            let least = texels
+                .iter()
+                .map(|t| t[c.channel as usize])
+                .fold(f32::INFINITY, f32::min);
+            let full = match a.cut.mode {
+                AlphaMode::Mask(cutoff) => a.cut.alpha * least >= cutoff,
+                _ => a.cut.alpha * least >= 1.0,
+            };
+            if full {
+                a.cut = AlphaCut::OPAQUE;
+            }
+        }
         if a.cut != AlphaCut::OPAQUE {
             let texture = (a.cut.texture).map(|c| out.textures[c.texture as usize].describe());
             a.alpha_summary = describe_alpha(m, texture);
