@@ -100,6 +100,33 @@ fn obj_corpus_loads_or_fails_cleanly() {
     });
 }
 
+/// The `mtl` target's corpus: each input the .mtl a fixed .obj names, its materials then
+/// read as the render reads them.
+#[test]
+fn mtl_corpus_loads_or_fails_cleanly() {
+    let mut loaded = 0;
+    replay_files("mtl", "mtl", |mtl| {
+        let name = mtl.file_name().unwrap().to_str().unwrap();
+        let obj = format!(
+            "mtllib {name}\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n\
+             usemtl a\nf 1/1 2/2 3/3\nusemtl b\nf 1/1 2/2 3/3\n"
+        );
+        let obj = scratch(&format!("{name}.obj"), obj.as_bytes());
+        if let Ok(mesh) = load::load_mesh(&obj, &MeshOptions::default()) {
+            loaded += (mesh.materials.len() >= 2) as usize;
+            for m in &mesh.materials {
+                let _ = prismbake::render::lookdev::describe_alpha(m, None);
+                let _ = prismbake::render::lookdev::check_material_values(
+                    &mesh,
+                    m,
+                    &Default::default(),
+                );
+            }
+        }
+    });
+    assert!(loaded > 0, "no input of the mtl corpus loads its materials");
+}
+
 /// The `pipeline` target's check (load, repair, bake, PDM and reference traces of a fuzzed
 /// OBJ), over its corpus.
 #[path = "../../fuzz/fuzz_targets/pipeline_check.rs"]
